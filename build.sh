@@ -1,0 +1,207 @@
+#!/usr/bin/env bash
+# build.sh - the one entry point: build, test, bench, fuzz, demo, package.
+#
+#   ./build.sh            build the core, the Python module and both packages (dist/)
+#   ./build.sh test       C tests (ASan+UBSan), module tests, headless-Blender tests
+#   ./build.sh bench      benchmarks (core, then Blender)
+#   ./build.sh fuzz [s]   libFuzzer over bind and the per-frame call for s seconds (default 60)
+#   ./build.sh demo       renders the demo scenes into demo/out/
+#   ./build.sh package    only the packages
+#
+# Each command installs what it needs when it is missing (Debian packages, with sudo when not
+# root). BLENDER=/path/to/blender adds a Blender to test against; LVP_SKIP_BLENDER43=1 skips
+# the Blender 4.3 chroot.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+BUILD="$ROOT/build"
+DIST="$ROOT/dist"
+ADDON_ID="local_volume_preservation"
+VERSION="$(sed -n 's/^version = "\(.*\)"/\1/p' "$ROOT/blender_manifest.toml" 2>/dev/null || true)"
+VERSION="${VERSION:-0.1.0}"
+CACHE="${LVP_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lvp}"
+PYTHON_INCLUDE="/usr/include/python3.11"
+
+CC="${CC:-gcc}"
+CFLAGS_COMMON=(-std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-function)
+CFLAGS_RELEASE=(-O2 -fPIC -fno-math-errno -fvisibility=hidden)
+CFLAGS_SANITIZE=(-O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
+
+log() { printf '\033[1m[build]\033[0m %s\n' "$*" >&2; }
+die() { printf '\033[31m[build] error:\033[0m %s\n' "$*" >&2; exit 1; }
+
+as_root() {
+	if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi
+}
+
+APT_UPDATED=0
+# ensure_packages pkg...: installs the Debian packages that are not installed yet.
+ensure_packages() {
+	local missing=()
+	for pkg in "$@"; do
+		dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+	done
+	[ ${#missing[@]} -eq 0 ] && return 0
+	log "installing ${missing[*]}"
+	if [ "$APT_UPDATED" = 0 ]; then
+		as_root env DEBIAN_FRONTEND=noninteractive apt-get update -q >&2
+		APT_UPDATED=1
+	fi
+	as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+}
+
+core_sources() {
+	find "$ROOT/csrc" -maxdepth 1 -name '*.c' ! -name 'lvp_python.c' | sort
+}
+
+support_sources() {
+	find "$ROOT/tests/c/support" -maxdepth 1 -name '*.c' 2>/dev/null | sort
+}
+
+# ---- build --------------------------------------------------------------------------------
+
+build_module() {
+	ensure_packages gcc python3-dev
+	mkdir -p "$BUILD"
+	local out="$BUILD/_lvp.abi3.so"
+	log "compiling the core and the Python module ($out)"
+	# shellcheck disable=SC2046
+	"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_RELEASE[@]}" -Werror -shared -pthread \
+		-DPy_LIMITED_API=0x030B0000 -I"$PYTHON_INCLUDE" -I"$ROOT/csrc" \
+		$(core_sources) "$ROOT/csrc/lvp_python.c" -o "$out" -lm
+}
+
+build_core_library() {
+	ensure_packages gcc
+	mkdir -p "$BUILD/obj"
+	local objects=()
+	for src in $(core_sources); do
+		local obj="$BUILD/obj/$(basename "${src%.c}").o"
+		"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_RELEASE[@]}" -O3 -Werror -pthread -c "$src" -o "$obj"
+		objects+=("$obj")
+	done
+	rm -f "$BUILD/liblvp.a"
+	ar rcs "$BUILD/liblvp.a" "${objects[@]}"
+}
+
+build_packages() {
+	[ -d "$ROOT/addon" ] || { log "no addon/ yet: skipping packages"; return 0; }
+	local folder="$DIST/$ADDON_ID"
+	rm -rf "$folder"
+	mkdir -p "$folder"
+	cp -r "$ROOT/addon/." "$folder/"
+	find "$folder" -name '__pycache__' -prune -exec rm -rf {} +
+	cp "$BUILD/_lvp.abi3.so" "$folder/"
+	cp "$ROOT/blender_manifest.toml" "$folder/"
+	[ -f "$ROOT/LICENSE" ] && cp "$ROOT/LICENSE" "$folder/"
+	ensure_packages zip
+	local zip="$DIST/$ADDON_ID-$VERSION.zip"
+	rm -f "$zip"
+	(cd "$folder" && zip -q -r "$zip" .)
+	log "packages: $folder and $zip"
+}
+
+cmd_build() {
+	build_module
+	build_core_library
+	build_packages
+}
+
+# ---- tests --------------------------------------------------------------------------------
+
+run_c_tests() {
+	ensure_packages gcc libgmp-dev
+	mkdir -p "$BUILD/tests"
+	local failed=0
+	for test_src in "$ROOT"/tests/c/test_*.c; do
+		local name
+		name="$(basename "${test_src%.c}")"
+		log "C test $name"
+		# shellcheck disable=SC2046
+		"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+			$(core_sources) $(support_sources) "$test_src" -o "$BUILD/tests/$name" -lm -lgmp
+		if ! (cd "$ROOT/tests" && "$BUILD/tests/$name"); then
+			printf '\033[31mFAILED\033[0m %s; rerun alone: ./build.sh test-c %s\n' "$name" "$name" >&2
+			failed=1
+		fi
+	done
+	return $failed
+}
+
+run_c_test_alone() {
+	local name="$1"
+	ensure_packages gcc libgmp-dev
+	mkdir -p "$BUILD/tests"
+	# shellcheck disable=SC2046
+	"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+		$(core_sources) $(support_sources) "$ROOT/tests/c/$name.c" -o "$BUILD/tests/$name" -lm -lgmp
+	(cd "$ROOT/tests" && "$BUILD/tests/$name")
+}
+
+run_module_tests() {
+	[ -f "$ROOT/csrc/lvp_python.c" ] || return 0
+	build_module
+	ensure_packages python3
+	log "Python module tests (/usr/bin/python3)"
+	PYTHONPATH="$BUILD" /usr/bin/python3 -m unittest discover -s "$ROOT/tests/python" -t "$ROOT/tests/python" -v
+}
+
+cmd_test() {
+	local failed=0
+	run_c_tests || failed=1
+	run_module_tests || failed=1
+	if [ -x "$ROOT/tests/blender/run.sh" ]; then
+		"$ROOT/tests/blender/run.sh" || failed=1
+	fi
+	if [ "$failed" != 0 ]; then die "some tests failed (see above)"; fi
+	log "all tests passed"
+}
+
+# ---- fuzz, bench --------------------------------------------------------------------------
+
+cmd_fuzz() {
+	local seconds="${1:-60}"
+	ensure_packages clang libclang-rt-14-dev
+	mkdir -p "$BUILD/fuzz" "$BUILD/fuzz/corpus"
+	log "building the fuzzer (clang, libFuzzer, ASan, UBSan)"
+	# shellcheck disable=SC2046
+	clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
+		-pthread -I"$ROOT/csrc" $(core_sources) "$ROOT/tests/fuzz/fuzz_lvp.c" -o "$BUILD/fuzz/fuzz_lvp" -lm
+	log "fuzzing for $seconds s (seed corpus tests/fuzz/corpus)"
+	"$BUILD/fuzz/fuzz_lvp" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=4096 \
+		-artifact_prefix="$BUILD/fuzz/" "$BUILD/fuzz/corpus" "$ROOT/tests/fuzz/corpus"
+}
+
+cmd_bench() {
+	build_core_library
+	ensure_packages gcc
+	mkdir -p "$BUILD/bench"
+	"$CC" "${CFLAGS_COMMON[@]}" -O3 -march=x86-64-v2 -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+		"$ROOT/tests/bench/bench_core.c" $(support_sources) "$BUILD/liblvp.a" -o "$BUILD/bench/bench_core" -lm -lgmp
+	(cd "$ROOT/tests" && "$BUILD/bench/bench_core")
+	if [ -x "$ROOT/tests/blender/bench.sh" ]; then
+		cmd_build
+		"$ROOT/tests/blender/bench.sh"
+	fi
+}
+
+main() {
+	local command="${1:-build}"
+	shift || true
+	case "$command" in
+	build) cmd_build ;;
+	package) build_module && build_packages ;;
+	test) cmd_test ;;
+	test-c) run_c_test_alone "$@" ;;
+	fuzz) cmd_fuzz "$@" ;;
+	bench) cmd_bench ;;
+	demo)
+		[ -x "$ROOT/demo/run.sh" ] || die "the demo is not written yet"
+		cmd_build
+		"$ROOT/demo/run.sh"
+		;;
+	*) die "unknown command '$command' (build, test, test-c NAME, bench, fuzz [seconds], demo, package)" ;;
+	esac
+}
+
+main "$@"

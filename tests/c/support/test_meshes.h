@@ -1,0 +1,74 @@
+/*
+ * test_meshes.h - real test geometry for the C tests and the benchmark: the paper's cylinder,
+ * a three-phalanx finger, long bone chains, the giraffe loaded from tests/data/giraffe, forward
+ * kinematics to pose them, and an exact triangle-triangle intersection count.
+ * Loaders and builders live here, in the tests, never in csrc/.
+ */
+#ifndef LVP_TEST_MESHES_H
+#define LVP_TEST_MESHES_H
+
+#include "lvp.h"
+
+#include <stdint.h>
+
+/* A skinned mesh with its skeleton, all arrays malloc'ed (free with test_rig_free).
+ * Bone frames follow Blender's convention: origin at the head, local +Y along the bone. */
+typedef struct test_rig {
+	int32_t vertex_count, triangle_count, bone_count;
+	float *positions;        /* vertex_count*3, rest */
+	int32_t *triangles;      /* triangle_count*3, counter-clockwise seen from outside */
+	int32_t *weight_offsets; /* vertex_count+1 (CSR) */
+	int32_t *weight_bones;
+	float *weight_values;
+	float *rest_matrices; /* bone_count*16, row-major (see lvp.h) */
+	float *heads, *tails; /* bone_count*3 */
+	int32_t *parents;     /* bone_count, -1 for a root */
+	char (*names)[48];    /* bone_count names, or NULL */
+} test_rig;
+
+void test_rig_free(test_rig *rig);
+lvp_weights test_rig_weights(const test_rig *rig);
+lvp_skeleton test_rig_skeleton(const test_rig *rig);
+int32_t test_find_bone(const test_rig *rig, const char *name); /* -1 when absent */
+
+/* The paper's cylinder along +Z from z = 0 to z = length: `around` x `along` side vertices
+ * (rings equally spaced, the first at z = 0, the last at z = length), closed by one centre
+ * vertex per cap (appended last). Two bones: 0 from z = 0 to length/2, 1 from length/2 to
+ * length (parent 0). Weights blend linearly over a band of width `band` centred on the joint:
+ * w1 = clamp((z - (length - band)/2) / band, 0, 1), w0 = 1 - w1; zero weights are not stored.
+ * test_make_cylinder(16, 16, 0.5f, 4.0f, 2.6f) is the paper's. */
+test_rig test_make_cylinder(int around, int along, float radius, float length, float band);
+
+/* A chain of `bone_count` equal bones along +Z, each `bone_length` long, skinned as a tube of
+ * `around` x `rings_per_bone*bone_count + 1` vertices with caps; weights blend linearly over
+ * `band` (a fraction of a bone length, in (0, 1]) around every joint. For benchmarks. */
+test_rig test_make_chain(int bone_count, float bone_length, float radius, int around, int rings_per_bone,
+                         float band);
+
+/* A finger: a closed tube with a rounded tip along +Y, three phalanges (bones 0, 1, 2, lengths
+ * 1.0, 0.7, 0.5, radius about 0.22), weights blending over short bands at the two knuckles so
+ * that bending them far makes plain skinning cross itself on the inside of the bend. */
+test_rig test_make_finger(void);
+
+/* The giraffe of tests/data/giraffe (the paper's model): 1673 vertices, triangulated by fans,
+ * winding flipped to face outward. Bone j runs from joint j to its child (see the .c file for
+ * the rule with several children or none). Returns 0 on success. */
+int test_load_giraffe(test_rig *r_rig, const char *directory);
+
+/* Forward kinematics. local_rotations: bone_count*4 (axis x, y, z in the bone's rest frame,
+ * angle in radians; a zero axis or angle = no rotation); each bone turns about its head and
+ * carries its children. r_posed: bone_count*16 posed bone frames T_i (row-major). */
+void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations);
+
+/* r_skin[i] = posed_i * rest_i^-1 (bone_count*16), what lvp_skin_linear() takes. */
+void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
+
+/* Number of pairs of triangles that intersect, decided exactly (rational arithmetic on the
+ * float coordinates). Pairs that share a vertex or an edge count only when they meet
+ * somewhere other than their shared vertex or edge. Zero-area triangles are ignored. */
+int64_t test_count_intersecting_pairs(const float *positions, const int32_t *triangles, int32_t triangle_count);
+
+/* Reads a whole file into a malloc'ed, NUL-terminated buffer; NULL on failure. */
+char *test_read_file(const char *path, size_t *r_size);
+
+#endif

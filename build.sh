@@ -204,4 +204,5 @@ main() {
 	esac
 }
 
-main "$@"
+# Run only when executed: tests/blender/*.sh source this file for log, as_root, ensure_packages, CACHE.
+if [ "${BASH_SOURCE[0]}" = "$0" ]; then main "$@"; fi

@@ -1,0 +1,282 @@
+/*
+ * bind.c - lvp_bind(): validation of everything at the boundary, copies of the rest data,
+ * and the allocation of all per-frame memory, so that lvp_correct() never allocates.
+ * The stages of the method are in segmentation.c (5.2 regions, maps of 4.2-5.3),
+ * local_volume.c (5.2 prisms), correction.c (3.2-3.3, 5.3) and foldover.c (5.4).
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+lvp_bind_options lvp_bind_default_options(void)
+{
+	lvp_bind_options options;
+	memset(&options, 0, sizeof(options));
+	options.mode = LVP_MODE_LOCAL;
+	options.map.map = LVP_MAP_ORGANIC;
+	options.map.alpha = 1.0f;
+	options.map.beta = 1.0f;
+	options.thread_count = 1;
+	return options;
+}
+
+lvp_frame_options lvp_frame_default_options(void)
+{
+	lvp_frame_options options;
+	memset(&options, 0, sizeof(options));
+	options.max_iterations = 8;
+	options.tolerance = 1e-4f;
+	options.fold_over = 0;
+	return options;
+}
+
+void lvp_free(lvp_binding *binding)
+{
+	if (!binding)
+		return;
+	void *arrays[] = {
+	    binding->rest_positions, binding->triangles, binding->triangle_original, binding->triangle_region,
+	    binding->region_triangle_offsets, binding->weight_offsets, binding->weight_bones, binding->weight_values,
+	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
+	    binding->heads, binding->tails, binding->bone_length, binding->rest_change_base, binding->reference_volume,
+	    binding->slot_offsets, binding->slot_region, binding->corner_slot, binding->border_offsets,
+	    binding->border_edges, binding->cap_edges, binding->gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
+	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
+	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
+	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->rho, binding->frozen,
+	    binding->sums, binding->origin, binding->change, binding->frame_base, binding->kappa, binding->posed, binding->posed_inverse,
+	    binding->skin, binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
+	    binding->active_index, binding->system, binding->rhs, binding->pivots, binding->mu,
+	};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
+	free(binding);
+}
+
+/* calloc with an overflow-checked count; the binding is freed by the caller on failure. */
+static void *lvp__alloc(size_t count, size_t size, bool *ok)
+{
+	if (!*ok)
+		return NULL;
+	void *p = calloc(count ? count : 1, size);
+	if (!p)
+		*ok = false;
+	return p;
+}
+
+static lvp_result lvp__check_bind_options(const lvp_bind_options *options, lvp_diagnostic *r_diag)
+{
+	if (options->mode != LVP_MODE_LOCAL && options->mode != LVP_MODE_GLOBAL)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.mode", -1,
+		                 "options.mode is %d; use LVP_MODE_LOCAL or LVP_MODE_GLOBAL.", (int)options->mode);
+	if (options->thread_count < 1 || options->thread_count > LVP_MAX_THREADS)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.thread_count", -1,
+		                 "options.thread_count is %d; it must be between 1 and %d.", (int)options->thread_count,
+		                 LVP_MAX_THREADS);
+	return lvp_success;
+}
+
+static bool lvp__map_needs_skeleton(lvp_map map)
+{
+	return map == LVP_MAP_ORGANIC || map == LVP_MAP_RUBBER || map == LVP_MAP_BOUNDARY_FADE;
+}
+
+/* Copies the weights, normalized by their sum (as Blender's Armature modifier normalizes). */
+static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
+{
+	int32_t n = binding->vertex_count;
+	memcpy(binding->weight_offsets, weights->offsets, sizeof(int32_t) * (size_t)(n + 1));
+	for (int32_t k = 0; k < n; ++k) {
+		int32_t begin = weights->offsets[k], end = weights->offsets[k + 1];
+		double sum = 0.0;
+		for (int32_t e = begin; e < end; ++e)
+			sum += weights->values[e];
+		for (int32_t e = begin; e < end; ++e) {
+			binding->weight_bones[e] = weights->bones[e];
+			binding->weight_values[e] = sum > 0.0 ? (float)(weights->values[e] / sum) : 0.0f;
+		}
+	}
+}
+
+static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
+{
+	for (int32_t i = 0; i < binding->bone_count; ++i) {
+		binding->rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * i);
+		lvp__mat4_invert_affine(&binding->rest_inverse[i], &binding->rest_matrices[i]); /* checked before */
+		binding->rest_det[i] = lvp__mat4_det3(&binding->rest_matrices[i]);
+		binding->heads[i] = lvp__load(skeleton->heads + 3 * i);
+		binding->tails[i] = lvp__load(skeleton->tails + 3 * i);
+		binding->bone_length[i] = lvp__length(lvp__sub(binding->tails[i], binding->heads[i]));
+	}
+}
+
+lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_t vertex_count,
+                    const int32_t *triangles, int32_t triangle_count, const lvp_weights *weights,
+                    const lvp_skeleton *skeleton, const lvp_bind_options *options, lvp_diagnostic *r_diag)
+{
+	if (!r_binding)
+		return lvp__fail(r_diag, lvp_error_null_argument, "r_binding", -1,
+		                 "r_binding is NULL; pass the address of an lvp_binding pointer.");
+	*r_binding = NULL;
+	lvp_bind_options defaults = lvp_bind_default_options();
+	if (!options)
+		options = &defaults;
+	lvp_result result = lvp__check_bind_options(options, r_diag);
+	if (result)
+		return result;
+	if ((result = lvp__check_mesh(rest_positions, vertex_count, triangles, triangle_count, "rest_positions", r_diag)))
+		return result;
+
+	bool has_skeleton = options->mode == LVP_MODE_LOCAL || lvp__map_needs_skeleton(options->map.map) ||
+	                    (skeleton && skeleton->bone_count > 0);
+	if (options->mode == LVP_MODE_LOCAL && (!skeleton || !weights))
+		return lvp__fail(r_diag, lvp_error_null_argument, skeleton ? "weights" : "skeleton", -1,
+		                 "local volume preservation needs the skinning weights and the skeleton; pass both, or "
+		                 "use LVP_MODE_GLOBAL with a UNIFORM or PAINTED map for a prop without bones.");
+	if (has_skeleton) {
+		if (!skeleton || !weights)
+			return lvp__fail(r_diag, lvp_error_null_argument, skeleton ? "weights" : "skeleton", -1,
+			                 "this correction map is built from the skinning weights and bones; pass both, or use "
+			                 "a UNIFORM or PAINTED map.");
+		if ((result = lvp__check_skeleton(skeleton, r_diag)))
+			return result;
+		if ((result = lvp__check_weights(weights, vertex_count, skeleton->bone_count, r_diag)))
+			return result;
+	}
+
+	bool ok = true;
+	lvp_binding *binding = lvp__alloc(1, sizeof(lvp_binding), &ok);
+	if (!binding)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
+	binding->mode = options->mode;
+	binding->vertex_count = vertex_count;
+	binding->triangle_count = triangle_count;
+	binding->bone_count = has_skeleton ? skeleton->bone_count : 0;
+	binding->region_count = options->mode == LVP_MODE_LOCAL ? binding->bone_count : 1;
+
+	size_t n = (size_t)vertex_count, f = (size_t)triangle_count, b = (size_t)binding->bone_count;
+	size_t s = (size_t)binding->region_count;
+	size_t e = has_skeleton ? (size_t)weights->offsets[vertex_count] : 0;
+
+	binding->rest_positions = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->triangles = lvp__alloc(f * 3, sizeof(int32_t), &ok);
+	binding->triangle_original = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->triangle_region = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->region_triangle_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->max_weight = lvp__alloc(n, sizeof(float), &ok);
+	binding->vertex_region = lvp__alloc(n, sizeof(int32_t), &ok);
+	if (has_skeleton) {
+		binding->weight_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
+		binding->weight_bones = lvp__alloc(e, sizeof(int32_t), &ok);
+		binding->weight_values = lvp__alloc(e, sizeof(float), &ok);
+		binding->rest_matrices = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rest_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rest_det = lvp__alloc(b, sizeof(double), &ok);
+		binding->heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->bone_length = lvp__alloc(b, sizeof(double), &ok);
+		binding->posed = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->posed_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->skin = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->posed_heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->posed_tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+	}
+	binding->rest_change_base = lvp__alloc(s, sizeof(double), &ok);
+	binding->reference_volume = lvp__alloc(s, sizeof(double), &ok);
+	binding->slot_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
+	binding->corner_slot = lvp__alloc(f * 3, sizeof(int32_t), &ok);
+	binding->gamma = lvp__alloc(n, sizeof(float), &ok);
+	binding->distance = lvp__alloc(n, sizeof(float), &ok);
+	binding->support_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->work_positions = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->normals = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->vertex_g = lvp__alloc(n, sizeof(float), &ok);
+	binding->rho = lvp__alloc(n, sizeof(float), &ok);
+	binding->frozen = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
+	binding->origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);
+	binding->change = lvp__alloc(s, sizeof(double), &ok);
+	binding->kappa = lvp__alloc(s, sizeof(double), &ok);
+	binding->frame_base = lvp__alloc(s, sizeof(double), &ok);
+	binding->region_skipped = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->active = lvp__alloc(s, sizeof(int32_t), &ok);
+	binding->active_index = lvp__alloc(s, sizeof(int32_t), &ok);
+	size_t dense = s < LVP__DENSE_MAX ? s : LVP__DENSE_MAX;
+	binding->system = lvp__alloc(dense * dense, sizeof(double), &ok);
+	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
+	binding->pivots = lvp__alloc(dense, sizeof(int32_t), &ok);
+	binding->mu = lvp__alloc(s, sizeof(double), &ok);
+	if (!ok) {
+		lvp_free(binding);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+		                 "out of memory while binding %d vertices and %d triangles.", (int)vertex_count,
+		                 (int)triangle_count);
+	}
+	memcpy(binding->rest_positions, rest_positions, sizeof(float) * n * 3);
+	memcpy(binding->triangles, triangles, sizeof(int32_t) * f * 3);
+	if (has_skeleton) {
+		lvp__copy_weights(binding, weights);
+		lvp__copy_skeleton(binding, skeleton);
+	}
+
+	if ((result = lvp__segment(binding, r_diag)) || (result = lvp__build_borders(binding, r_diag)) ||
+	    (result = lvp__build_map(binding, &options->map, r_diag))) {
+		lvp_free(binding);
+		return result;
+	}
+	lvp__reference_volumes(binding);
+	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);
+	lvp__rest_constants(binding, NULL, binding->rest_change_base);
+	*r_binding = binding;
+	return lvp_success;
+}
+
+lvp_result lvp_set_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag)
+{
+	if (!binding)
+		return lvp__fail(r_diag, lvp_error_null_argument, "binding", -1, "binding is NULL.");
+	if (!map)
+		return lvp__fail(r_diag, lvp_error_null_argument, "map", -1, "map is NULL.");
+	if (binding->bone_count == 0 && lvp__map_needs_skeleton(map->map))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "map.map", -1,
+		                 "this binding has no skeleton; only UNIFORM and PAINTED maps are possible.");
+	return lvp__build_map(binding, map, r_diag);
+}
+
+int32_t lvp_vertex_count(const lvp_binding *binding)
+{
+	return binding ? binding->vertex_count : 0;
+}
+int32_t lvp_triangle_count(const lvp_binding *binding)
+{
+	return binding ? binding->triangle_count : 0;
+}
+int32_t lvp_bone_count(const lvp_binding *binding)
+{
+	return binding ? binding->bone_count : 0;
+}
+int32_t lvp_region_count(const lvp_binding *binding)
+{
+	return binding ? binding->region_count : 0;
+}
+
+void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions, int32_t *r_triangle_regions)
+{
+	if (!binding)
+		return;
+	if (r_vertex_regions)
+		memcpy(r_vertex_regions, binding->vertex_region, sizeof(int32_t) * (size_t)binding->vertex_count);
+	if (r_triangle_regions)
+		for (int32_t t = 0; t < binding->triangle_count; ++t)
+			r_triangle_regions[binding->triangle_original[t]] = binding->triangle_region[t];
+}
+
+void lvp_get_correction_map(const lvp_binding *binding, float *r_map)
+{
+	if (!binding || !r_map)
+		return;
+	memcpy(r_map, binding->gamma, sizeof(float) * (size_t)binding->vertex_count);
+}

@@ -1,0 +1,142 @@
+/*
+ * binding.h - the inside of an lvp_binding: everything computed once at rest (segmentation,
+ * correction map, region borders, rest constants) and the per-frame work memory, so that
+ * lvp_correct() never allocates. Shared by bind.c, segmentation.c, local_volume.c,
+ * correction.c and foldover.c; not part of the public API.
+ */
+#ifndef LVP_BINDING_H
+#define LVP_BINDING_H
+
+#include "lvp_internal.h"
+
+/* Above this many changed regions in one frame, the coupled region system is no longer
+ * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
+ * next iteration re-measures. Real rigs bend far fewer regions at once. */
+#define LVP__DENSE_MAX 256
+
+typedef struct lvp__region_sums {
+	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
+	double area6[3];   /* sum of cr = (p_j - p_i) x (p_k - p_i): twice the area vector */
+} lvp__region_sums;
+
+struct lvp_binding {
+	lvp_mode mode;
+	int32_t vertex_count, triangle_count, bone_count, region_count;
+
+	/* ---- rest mesh (copied) ---- */
+	float *rest_positions;  /* vertex_count*3 */
+	int32_t *triangles;     /* triangle_count*3, SORTED BY REGION (region -1 last) */
+	int32_t *triangle_original; /* sorted position -> caller's triangle index */
+	int32_t *triangle_region;   /* per sorted triangle */
+	int32_t *region_triangle_offsets; /* region_count+1 into the sorted triangles; the
+	                                     triangles after offsets[region_count] have no region */
+
+	/* ---- weights, normalized by their sum (copied) ---- */
+	int32_t *weight_offsets; /* vertex_count+1, or NULL without weights */
+	int32_t *weight_bones;
+	float *weight_values;
+	float *max_weight;       /* vertex_count: w_k = max_i omega_ki (0 without weight) */
+	int32_t *vertex_region;  /* vertex_count, -1 = none */
+
+	/* ---- skeleton (copied; bone_count may be 0 in global mode) ---- */
+	lvp__mat4 *rest_matrices;
+	lvp__mat4 *rest_inverse;
+	double *rest_det;        /* det of the rest matrices' 3x3 part */
+	lvp__vec3 *heads, *tails;
+	double *bone_length;
+
+	/* ---- region origin and reference volume ---- */
+	double rest_volume;          /* signed volume of the bind rest mesh */
+	lvp__vec3 global_origin;     /* global mode: rest centroid, to keep the sums well conditioned */
+	double *rest_change_base;    /* region_count: rest prism part (sum over rest triangles) */
+	double *reference_volume;    /* region_count: V_ref,s for the tolerance (0 = empty region) */
+
+	/* ---- slots: the distinct regions of the triangles around each vertex ---- */
+	int32_t *slot_offsets;   /* vertex_count+1 */
+	int32_t *slot_region;    /* slot -> region (-1 for triangles without region) */
+	int32_t *corner_slot;    /* sorted triangle corner -> slot */
+	int32_t slot_count;
+
+	/* ---- region borders: half-edges whose side quad does not cancel ---- */
+	int32_t *border_offsets; /* region_count+1 */
+	int32_t *border_edges;   /* 2 per border half-edge: a, b in the triangle's orientation */
+
+	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
+	int32_t *cap_edges;      /* 2 per half-edge */
+	int32_t cap_edge_count;
+
+	/* ---- correction map and how region multipliers reach vertices ---- */
+	lvp_map_options map;     /* map kind, alpha, beta (pointers cleared after copy) */
+	float *gamma;            /* vertex_count, normalized to max 1 */
+	float *distance;         /* vertex_count: rest distance to the nearest (allowed) bone */
+	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
+	int32_t *region_bones;
+	int32_t *support_offsets; /* region_count+1: vertices that region s can move */
+	int32_t *support_vertex;
+	float *support_phi;       /* phi_ks */
+	int32_t support_capacity;
+
+	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
+	int32_t *neighbour_offsets; /* region_count+1 */
+	int32_t *neighbour_bones;
+	int32_t *region_vertex_offsets; /* region_count+1 */
+	int32_t *region_vertices;
+
+	/* ---- per-frame work memory ---- */
+	float *work_positions;   /* vertex_count*3 */
+	float *normals;          /* vertex_count*3 */
+	float *vertex_g;         /* vertex_count: g_k = <n_k, grad_k V> */
+	float *slot_gradient;    /* slot_count*3 */
+	float *slot_g;           /* slot_count: <n_k, part of grad_k V from the slot's region> */
+	float *rho;              /* vertex_count, kept zero between uses */
+	uint8_t *frozen;         /* vertex_count, kept zero between uses */
+	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
+	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */
+	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
+	double *frame_base;      /* region_count: rest side when the frame brings its own rest */
+	double *kappa;           /* region_count: det(rest)/det(posed) */
+	lvp__mat4 *posed;        /* bone_count */
+	lvp__mat4 *posed_inverse;
+	lvp__mat4 *skin;         /* bone_count: posed * rest^-1 */
+	lvp__vec3 *posed_heads, *posed_tails;
+	uint8_t *region_skipped; /* region_count */
+	uint8_t *region_touched; /* region_count: corrected at least once this frame */
+	int32_t *active;         /* region_count: active region list */
+	int32_t *active_index;   /* region_count: region -> index in the active list, or -1 */
+	double *system;          /* LVP__DENSE_MAX^2 */
+	double *rhs;             /* LVP__DENSE_MAX */
+	int32_t *pivots;         /* LVP__DENSE_MAX */
+	double *mu;              /* region_count */
+};
+
+/* segmentation.c */
+lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag);
+lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
+lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
+
+/* local_volume.c */
+lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* One pass over the triangles at `positions`: region sums, slot gradients, normals, g. */
+void lvp__mesh_pass(lvp_binding *binding, const float *positions);
+/* Rest side: rest_change_base[] and reference volumes from rest positions (NULL = bind rest). */
+void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, double *r_base);
+/* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
+void lvp__reference_volumes(lvp_binding *binding);
+/* Region changes (rest-world units) from the last mesh pass; needs posed/posed_inverse. */
+void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
+                         const double *rest_base, double *r_change);
+/* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */
+double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
+/* Signed volume of the mesh at positions, holes capped (double precision). */
+double lvp__volume_of(const lvp_binding *binding, const float *positions);
+/* Signed mesh volume, holes capped, from the last mesh pass over `positions`. */
+double lvp__pass_volume(const lvp_binding *binding, const float *positions);
+
+/* correction.c */
+lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
+                              const float *rest_positions, lvp_diagnostic *r_diag);
+
+/* foldover.c */
+int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
+
+#endif /* LVP_BINDING_H */

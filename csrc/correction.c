@@ -1,0 +1,439 @@
+/*
+ * correction.c - paper 3.2-3.3 (eq. 4, 5) and 5.3: the closed-form volume correction along
+ * the normals, per region, repeated on re-measured volumes until every region is within the
+ * tolerance (the paper's single pass leaves its linearization error; we do not stop there).
+ *
+ * With displacements rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t (minimum of
+ * sum rho_k^2 / gamma_k along the directions the map allows), the linearized change of region
+ * s is kappa_s sum_k g_sk rho_k, so the multipliers solve the small system
+ *     sum_t M_st mu_t = -change_s,   M_st = kappa_s sum_k g_sk gamma_k g_k phi_kt,
+ * over the regions whose volume changed. With one region this is eq. 5 exactly:
+ * mu = -change / sum gamma g^2. Coupling matters where two regions' corrections overlap (the
+ * weight band of a joint): solving the regions one by one would correct that band twice.
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp_diagnostic *r_diag)
+{
+	if (options->max_iterations < 1 || options->max_iterations > 1000)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.max_iterations", -1,
+		                 "options.max_iterations is %d; it must be between 1 and 1000.", (int)options->max_iterations);
+	if (!(options->tolerance > 0.0f && options->tolerance < 1.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.tolerance", -1,
+		                 "options.tolerance is %g; it must be above 0 and below 1 (a relative volume).",
+		                 (double)options->tolerance);
+	return lvp_success;
+}
+
+lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
+                              const float *rest_positions, lvp_diagnostic *r_diag)
+{
+	int32_t n = binding->vertex_count, b = binding->bone_count;
+	lvp_result result = lvp__check_float_array(positions, (int64_t)n * 3, "positions", r_diag);
+	if (result)
+		return result;
+	if (rest_positions && (result = lvp__check_float_array(rest_positions, (int64_t)n * 3, "rest_positions", r_diag)))
+		return result;
+	bool need_bones = binding->mode == LVP_MODE_LOCAL;
+	if (need_bones && !bone_matrices)
+		return lvp__fail(r_diag, lvp_error_null_argument, "bone_matrices", -1,
+		                 "bone_matrices is NULL; pass the %d posed bone matrices (16 floats each).", (int)b);
+	if (bone_matrices && b > 0 &&
+	    (result = lvp__check_float_array(bone_matrices, (int64_t)b * 16, "bone_matrices", r_diag)))
+		return result;
+
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		binding->region_skipped[r] = 0;
+		binding->kappa[r] = 1.0;
+	}
+	if (bone_matrices && b > 0) {
+		for (int32_t i = 0; i < b; ++i) {
+			binding->posed[i] = lvp__mat4_load(bone_matrices + 16 * i);
+			binding->skin[i] = lvp__mat4_mul(&binding->posed[i], &binding->rest_inverse[i]);
+			binding->posed_heads[i] = lvp__transform_point(&binding->skin[i], binding->heads[i]);
+			binding->posed_tails[i] = lvp__transform_point(&binding->skin[i], binding->tails[i]);
+			bool invertible = lvp__mat4_invert_affine(&binding->posed_inverse[i], &binding->posed[i]);
+			if (binding->mode != LVP_MODE_LOCAL)
+				continue;
+			const double *m = binding->posed[i].m;
+			binding->origin[i] = lvp__v(m[3], m[7], m[11]);
+			if (invertible)
+				binding->kappa[i] = binding->rest_det[i] / lvp__mat4_det3(&binding->posed[i]);
+			else
+				binding->region_skipped[i] = 1; /* a bone scaled to zero: documented fallback */
+		}
+	}
+	return lvp_success;
+}
+
+/* ---- the dense solve of the active regions' system ------------------------------------------- */
+
+/* LU with partial pivoting, in place on the m x m row-major matrix; solves for rhs (overwritten
+ * with the solution). Returns false when a pivot is negligible. */
+static bool lvp__lu_solve(double *a, double *rhs, int32_t *pivots, int32_t m)
+{
+	double largest = 0.0;
+	for (int32_t i = 0; i < m * m; ++i)
+		largest = fmax(largest, fabs(a[i]));
+	if (!(largest > 0.0))
+		return false;
+	for (int32_t col = 0; col < m; ++col) {
+		int32_t pivot = col;
+		for (int32_t row = col + 1; row < m; ++row)
+			if (fabs(a[row * m + col]) > fabs(a[pivot * m + col]))
+				pivot = row;
+		if (!(fabs(a[pivot * m + col]) > 1e-13 * largest))
+			return false;
+		pivots[col] = pivot;
+		if (pivot != col) {
+			for (int32_t j = 0; j < m; ++j) {
+				double t = a[col * m + j];
+				a[col * m + j] = a[pivot * m + j];
+				a[pivot * m + j] = t;
+			}
+			double t = rhs[col];
+			rhs[col] = rhs[pivot];
+			rhs[pivot] = t;
+		}
+		double inverse = 1.0 / a[col * m + col];
+		for (int32_t row = col + 1; row < m; ++row) {
+			double factor = a[row * m + col] * inverse;
+			if (factor == 0.0)
+				continue;
+			for (int32_t j = col + 1; j < m; ++j)
+				a[row * m + j] -= factor * a[col * m + j];
+			rhs[row] -= factor * rhs[col];
+		}
+	}
+	for (int32_t row = m - 1; row >= 0; --row) {
+		double sum = rhs[row];
+		for (int32_t j = row + 1; j < m; ++j)
+			sum -= a[row * m + j] * rhs[j];
+		rhs[row] = sum / a[row * m + row];
+	}
+	return true;
+}
+
+/* One correction step over the active regions (active[0..m)); moves work_positions. */
+static void lvp__correct_step(lvp_binding *binding, int32_t m)
+{
+	const int32_t *active = binding->active;
+	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
+	double *system = binding->system, *rhs = binding->rhs;
+	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
+	for (int32_t i = 0; i < m; ++i) {
+		binding->mu[active[i]] = 0.0;
+		binding->region_touched[active[i]] = 1;
+	}
+
+	/* Assemble: column t gathers what region t's multiplier does to each active region s. The
+	 * regions past the dense block keep only their diagonal (stored in mu temporarily). */
+	for (int32_t j = 0; j < m; ++j) {
+		int32_t t = active[j];
+		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
+			int32_t k = binding->support_vertex[i];
+			if (binding->frozen[k])
+				continue;
+			double c = (double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i];
+			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
+				int32_t s = binding->slot_region[slot];
+				int32_t row = s >= 0 ? binding->active_index[s] : -1;
+				if (row < 0)
+					continue;
+				double value = binding->kappa[s] * binding->slot_g[slot] * c;
+				if (row < dense && j < dense)
+					system[row * dense + j] += value;
+				else if (row == j)
+					binding->mu[t] += value;
+			}
+		}
+	}
+	/* Regions that cannot move (zero map around them) are taken out of the system. The diagonal
+	 * is kept in mu[] for the per-region fallback. */
+	double largest_diagonal = 0.0;
+	for (int32_t i = 0; i < dense; ++i)
+		largest_diagonal = fmax(largest_diagonal, fabs(system[i * dense + i]));
+	for (int32_t i = 0; i < dense; ++i) {
+		binding->mu[active[i]] = system[i * dense + i];
+		rhs[i] = -binding->change[active[i]];
+		if (!(fabs(system[i * dense + i]) > 1e-12 * largest_diagonal)) {
+			for (int32_t j = 0; j < dense; ++j)
+				system[i * dense + j] = system[j * dense + i] = 0.0;
+			system[i * dense + i] = 1.0;
+			rhs[i] = 0.0;
+		}
+	}
+	bool solved = dense > 0 && lvp__lu_solve(system, rhs, binding->pivots, dense);
+	for (int32_t i = 0; i < m; ++i) {
+		int32_t t = active[i];
+		double diagonal = binding->mu[t], mu;
+		if (i < dense && solved)
+			mu = rhs[i];
+		else /* past the dense block, or a singular system: the region's own eq. 5 step */
+			mu = diagonal > 1e-12 * largest_diagonal ? -binding->change[t] / diagonal : 0.0;
+		binding->mu[t] = isfinite(mu) ? mu : 0.0;
+	}
+
+	/* Apply: rho_k = gamma_k g_k sum_t phi_kt mu_t, then p_k += rho_k n_k. */
+	float *rho = binding->rho;
+	for (int32_t j = 0; j < m; ++j) {
+		int32_t t = active[j];
+		double mu = binding->mu[t];
+		if (mu == 0.0)
+			continue;
+		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
+			int32_t k = binding->support_vertex[i];
+			if (!binding->frozen[k])
+				rho[k] += (float)((double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+		}
+	}
+	float *p = binding->work_positions;
+	for (int32_t j = 0; j < m; ++j) {
+		int32_t t = active[j];
+		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
+			int32_t k = binding->support_vertex[i];
+			float r = rho[k];
+			if (r == 0.0f)
+				continue;
+			p[3 * k] += r * binding->normals[3 * k];
+			p[3 * k + 1] += r * binding->normals[3 * k + 1];
+			p[3 * k + 2] += r * binding->normals[3 * k + 2];
+			rho[k] = 0.0f;
+		}
+	}
+}
+
+/* Regions whose volume is off by more than the tolerance and that the map lets move. */
+static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
+{
+	int32_t m = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		binding->active_index[r] = -1;
+		double reference = binding->reference_volume[r];
+		if (binding->region_skipped[r] || !(reference > 0.0) ||
+		    binding->support_offsets[r + 1] == binding->support_offsets[r])
+			continue;
+		if (fabs(binding->change[r]) > tolerance * reference) {
+			binding->active_index[r] = m;
+			binding->active[m++] = r;
+		}
+	}
+	return m;
+}
+
+/* Measures work_positions (mesh pass and region changes). */
+static void lvp__measure(lvp_binding *binding, const float *rest_positions, const double *base)
+{
+	lvp__mesh_pass(binding, binding->work_positions);
+	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
+}
+
+/* Correct, re-measure, correct... from a measured state; leaves the last measurement (sums,
+ * normals, change[]) of work_positions. Returns the number of correction steps taken;
+ * *r_first_active receives the number of regions corrected by the first one. */
+static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_options *options,
+                                      const float *rest_positions, const double *base, int32_t *r_first_active)
+{
+	int32_t steps = 0;
+	*r_first_active = 0;
+	while (steps < options->max_iterations) {
+		int32_t m = lvp__collect_active(binding, options->tolerance);
+		if (m == 0)
+			break;
+		if (steps == 0)
+			*r_first_active = m;
+		lvp__correct_step(binding, m);
+		++steps;
+		lvp__measure(binding, rest_positions, base);
+	}
+	for (int32_t r = 0; r < binding->region_count; ++r)
+		binding->active_index[r] = -1;
+	return steps;
+}
+
+/* The local volumes are estimates (5.2): summed over a closed surface they differ from the true
+ * change by what each region border sees from two different bone frames (second order in the
+ * bend, 0.4 % of the cylinder at 90 degrees). Once every region is within tolerance, one global
+ * multiplier spread over the regions corrected this frame (eq. 5 with the sum of their maps)
+ * removes what is left of the whole mesh's change, holes capped: the total is then exact and
+ * the fix stays where the regions put it. */
+static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
+                                 double target, const float *rest_positions, const double *base)
+{
+	int32_t steps = 0;
+	float *p = binding->work_positions;
+	while (steps < budget) {
+		double change = lvp__pass_volume(binding, p) - target;
+		if (!(fabs(change) > options->tolerance * fabs(target)))
+			break;
+		double system = 0.0;
+		for (int32_t r = 0; r < binding->region_count; ++r) {
+			if (!binding->region_touched[r])
+				continue;
+			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
+				int32_t k = binding->support_vertex[i];
+				if (!binding->frozen[k])
+					system += (double)binding->gamma[k] * binding->vertex_g[k] * binding->vertex_g[k] *
+					          binding->support_phi[i];
+			}
+		}
+		if (!(system > 0.0))
+			break;
+		double mu = -change / system;
+		for (int32_t r = 0; r < binding->region_count; ++r) {
+			if (!binding->region_touched[r])
+				continue;
+			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
+				int32_t k = binding->support_vertex[i];
+				if (binding->frozen[k])
+					continue;
+				float rho = (float)((double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+				p[3 * k] += rho * binding->normals[3 * k];
+				p[3 * k + 1] += rho * binding->normals[3 * k + 1];
+				p[3 * k + 2] += rho * binding->normals[3 * k + 2];
+			}
+		}
+		++steps;
+		lvp__measure(binding, rest_positions, base);
+	}
+	return steps;
+}
+
+static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
+{
+	int32_t worst = -1;
+	double largest = -1.0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		double reference = binding->reference_volume[r];
+		if (binding->region_skipped[r] || !(reference > 0.0))
+			continue;
+		double relative = binding->change[r] / reference;
+		if (fabs(relative) > largest) {
+			largest = fabs(relative);
+			worst = r;
+			*r_relative = relative;
+		}
+	}
+	return worst;
+}
+
+static int32_t lvp__count_skipped(const lvp_binding *binding)
+{
+	int32_t skipped = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r)
+		skipped += binding->region_skipped[r] != 0;
+	return skipped;
+}
+
+lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *binding, const float *positions,
+                       const float *bone_matrices, const float *rest_positions, const lvp_frame_options *options,
+                       lvp_frame_stats *r_stats, lvp_diagnostic *r_diag)
+{
+	if (!binding)
+		return lvp__fail(r_diag, lvp_error_null_argument, "binding", -1, "binding is NULL; call lvp_bind() first.");
+	if (!r_positions && !r_offsets)
+		return lvp__fail(r_diag, lvp_error_null_argument, "r_positions", -1,
+		                 "r_positions and r_offsets are both NULL; pass at least one output buffer.");
+	lvp_frame_options defaults = lvp_frame_default_options();
+	if (!options)
+		options = &defaults;
+	lvp_result result = lvp__check_frame_options(options, r_diag);
+	if (result)
+		return result;
+	if ((result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag)))
+		return result;
+
+	int32_t n = binding->vertex_count;
+	const double *base = binding->rest_change_base;
+	if (rest_positions) {
+		lvp__rest_constants(binding, rest_positions, binding->frame_base);
+		base = binding->frame_base;
+	}
+	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
+
+	lvp_frame_stats stats;
+	memset(&stats, 0, sizeof(stats));
+	stats.worst_region = -1;
+	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
+
+	int32_t first_active = 0;
+	lvp__measure(binding, rest_positions, base);
+	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
+	memset(binding->region_touched, 0, (size_t)binding->region_count);
+	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
+
+	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
+	stats.iterations = lvp__volume_iterations(binding, options, rest_positions, base, &first_active);
+	if (binding->mode == LVP_MODE_LOCAL)
+		stats.iterations += lvp__global_steps(binding, options, options->max_iterations - stats.iterations,
+		                                      stats.volume_rest, rest_positions, base);
+	stats.active_regions = first_active;
+	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
+		stats.folded_vertices = lvp__fold_over(binding, rest_positions);
+		if (stats.folded_vertices > 0) {
+			/* The extra volume step of 5.4 with the moved vertices held on the contact surface,
+			 * then the contact test again, since the bulge may push others across. */
+			int32_t ignored;
+			lvp__measure(binding, rest_positions, base);
+			int32_t steps = lvp__volume_iterations(binding, options, rest_positions, base, &ignored);
+			steps += lvp__global_steps(binding, options, options->max_iterations - steps, stats.volume_rest,
+			                           rest_positions, base);
+			stats.iterations += steps;
+			memset(binding->frozen, 0, (size_t)n);
+			lvp__fold_over(binding, rest_positions);
+			memset(binding->frozen, 0, (size_t)n);
+			lvp__measure(binding, rest_positions, base);
+		}
+	}
+	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
+	if (stats.worst_region >= 0)
+		stats.worst_region_change_after =
+		    binding->change[stats.worst_region] / binding->reference_volume[stats.worst_region];
+	stats.skipped_regions = lvp__count_skipped(binding);
+
+	double largest = 0.0;
+	for (int32_t i = 0; i < 3 * n; i += 3) {
+		float in[3] = {positions[i], positions[i + 1], positions[i + 2]};
+		const float *out = binding->work_positions + i;
+		double d2 = 0.0;
+		for (int c = 0; c < 3; ++c) {
+			float offset = out[c] - in[c];
+			d2 += (double)offset * offset;
+			if (r_offsets)
+				r_offsets[i + c] = offset;
+			if (r_positions)
+				r_positions[i + c] = out[c];
+		}
+		largest = d2 > largest ? d2 : largest;
+	}
+	stats.max_displacement = sqrt(largest);
+	if (r_stats)
+		*r_stats = stats;
+	return lvp_success;
+}
+
+lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lvp_binding *binding,
+                                     const float *positions, const float *bone_matrices,
+                                     const float *rest_positions, lvp_diagnostic *r_diag)
+{
+	if (!binding)
+		return lvp__fail(r_diag, lvp_error_null_argument, "binding", -1, "binding is NULL; call lvp_bind() first.");
+	if (!r_changes)
+		return lvp__fail(r_diag, lvp_error_null_argument, "r_changes", -1,
+		                 "r_changes is NULL; pass region_count doubles.");
+	lvp_result result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag);
+	if (result)
+		return result;
+	const double *base = binding->rest_change_base;
+	if (rest_positions) {
+		lvp__rest_constants(binding, rest_positions, binding->frame_base);
+		base = binding->frame_base;
+	}
+	lvp__mesh_pass(binding, positions);
+	lvp__region_changes(binding, positions, rest_positions, base, r_changes);
+	if (r_references)
+		memcpy(r_references, binding->reference_volume, sizeof(double) * (size_t)binding->region_count);
+	return lvp_success;
+}

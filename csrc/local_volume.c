@@ -1,0 +1,336 @@
+/*
+ * local_volume.c - paper 5.2: the volume change of each region, as the sum of the prisms
+ * spanned by its rest and deformed triangles in the local frame of the region's bone, the
+ * side quads split in four at their centroid (Botsch and Kobbelt 2003). Also the mesh pass
+ * (3.1) that every correction iteration starts with: normals, gradients, region sums.
+ *
+ * Why it is cheap: a prism's volume is that of its closed surface (divergence formula): top
+ * (deformed) triangle, bottom (rest) triangle reversed, and three side quads. Summed over a
+ * region, the side quads of an edge shared by two triangles of the region are the same four
+ * points in opposite orders and cancel exactly, so only the region's border edges are
+ * visited. The tops are summed in world space and moved into the bone frame in closed form:
+ * with T the posed bone frame (translation t), sum q_i . (q_j x q_k) over the local corners
+ * q = T^-1 p equals sum (p_i - t) . ((p_j - p_i) x (p_k - p_i)) / det(T). The bottoms are a
+ * rest constant.
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+static inline double lvp__vol6(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
+{
+	return lvp__dot(a, lvp__cross(b, c));
+}
+
+/* ---- region borders --------------------------------------------------------------------- */
+
+static int lvp__compare_u64(const void *a, const void *b)
+{
+	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+	return (x > y) - (x < y);
+}
+
+/* Half-edge key: (lo, hi, direction), direction 1 when the half-edge runs hi -> lo. */
+static inline uint64_t lvp__edge_key(int32_t a, int32_t b)
+{
+	uint64_t lo = (uint64_t)(a < b ? a : b), hi = (uint64_t)(a < b ? b : a);
+	return (lo << 27 | hi) << 1 | (uint64_t)(a > b);
+}
+
+/* The half-edges of triangles [begin, end) whose side quads do not cancel: equal numbers of
+ * opposite half-edges between two vertices cancel pairwise, the surplus keeps its quads. Writes
+ * them (a, b per half-edge) to r_edges and returns their number; *r_unpaired receives one edge
+ * that is not exactly one half-edge each way (a hole or a non-manifold edge), or -1s. */
+static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], const int32_t *triangles,
+                                       int32_t begin, int32_t end, uint64_t *keys)
+{
+	int32_t count = 0, written = 0;
+	r_unpaired[0] = r_unpaired[1] = -1;
+	for (int32_t t = begin; t < end; ++t)
+		for (int c = 0; c < 3; ++c) {
+			int32_t a = triangles[3 * t + c], b = triangles[3 * t + (c + 1) % 3];
+			if (a != b) /* a collapsed edge has a flat side quad */
+				keys[count++] = lvp__edge_key(a, b);
+		}
+	qsort(keys, (size_t)count, sizeof(uint64_t), lvp__compare_u64);
+	for (int32_t i = 0; i < count;) {
+		uint64_t edge = keys[i] >> 1;
+		int32_t forward = 0, backward = 0, j = i;
+		for (; j < count && keys[j] >> 1 == edge; ++j)
+			(keys[j] & 1) ? ++backward : ++forward;
+		int32_t lo = (int32_t)(edge >> 27), hi = (int32_t)(edge & ((1u << 27) - 1));
+		if (forward != 1 || backward != 1) {
+			r_unpaired[0] = lo;
+			r_unpaired[1] = hi;
+		}
+		int32_t surplus = forward > backward ? forward - backward : backward - forward;
+		for (int32_t m = 0; m < surplus; ++m) {
+			r_edges[2 * written] = forward > backward ? lo : hi;
+			r_edges[2 * written + 1] = forward > backward ? hi : lo;
+			++written;
+		}
+		i = j;
+	}
+	return written;
+}
+
+lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	int32_t s = binding->region_count, f = binding->triangle_count;
+	size_t capacity = (size_t)f * 3;
+	uint64_t *keys = malloc(sizeof(uint64_t) * capacity);
+	binding->border_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	/* At most every half-edge is a border; shrunk below once counted. */
+	binding->border_edges = malloc(sizeof(int32_t) * 2 * capacity);
+	binding->cap_edges = malloc(sizeof(int32_t) * 2 * capacity);
+	if (!keys || !binding->border_offsets || !binding->border_edges || !binding->cap_edges) {
+		free(keys);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	}
+	/* The mesh's own holes, capped for the volume statistics and the final global step. */
+	int32_t unpaired[2];
+	binding->cap_edge_count = lvp__surplus_half_edges(binding->cap_edges, unpaired, binding->triangles, 0, f, keys);
+	if (binding->mode == LVP_MODE_GLOBAL && unpaired[0] >= 0) {
+		free(keys);
+		return lvp__fail(r_diag, lvp_error_mesh_not_closed, "triangles", -1,
+		                 "the edge between vertices %d and %d is not shared by exactly two triangles of opposite "
+		                 "orientation; the global mode needs a closed, consistently oriented mesh (fill the holes "
+		                 "and recalculate normals, or use the local mode).",
+		                 (int)unpaired[0], (int)unpaired[1]);
+	}
+	int32_t written = 0;
+	for (int32_t r = 0; r < s; ++r) {
+		binding->border_offsets[r] = written;
+		written += lvp__surplus_half_edges(binding->border_edges + 2 * written, unpaired, binding->triangles,
+		                                   binding->region_triangle_offsets[r], binding->region_triangle_offsets[r + 1],
+		                                   keys);
+	}
+	binding->border_offsets[s] = written;
+	free(keys);
+	int32_t *shrunk = realloc(binding->border_edges, sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
+	if (shrunk)
+		binding->border_edges = shrunk;
+	shrunk = realloc(binding->cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->cap_edge_count > 0 ? binding->cap_edge_count : 1));
+	if (shrunk)
+		binding->cap_edges = shrunk;
+	return lvp_success;
+}
+
+/* 6 times the volume of the cones from the mesh's holes to one apex (the mean of the hole
+ * vertices): added to the divergence sum, it closes the surface, so the volume of an open
+ * mesh no longer depends on the origin. Zero for closed meshes. */
+double lvp__cap_volume6(const lvp_binding *binding, const float *positions)
+{
+	int32_t count = binding->cap_edge_count;
+	if (count == 0)
+		return 0.0;
+	lvp__vec3 apex = lvp__v(0.0, 0.0, 0.0);
+	for (int32_t i = 0; i < count; ++i)
+		apex = lvp__add(apex, lvp__load(positions + 3 * binding->cap_edges[2 * i]));
+	apex = lvp__scale(apex, 1.0 / count);
+	double volume6 = 0.0;
+	for (int32_t i = 0; i < count; ++i) {
+		lvp__vec3 a = lvp__load(positions + 3 * binding->cap_edges[2 * i]);
+		lvp__vec3 b = lvp__load(positions + 3 * binding->cap_edges[2 * i + 1]);
+		volume6 += lvp__vol6(b, a, apex);
+	}
+	return volume6;
+}
+
+/* ---- the mesh pass ------------------------------------------------------------------------ */
+
+static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
+{
+	if (region < 0)
+		return lvp__v(0.0, 0.0, 0.0);
+	return binding->origin[region];
+}
+
+void lvp__mesh_pass(lvp_binding *binding, const float *positions)
+{
+	int32_t s = binding->region_count, n = binding->vertex_count;
+	memset(binding->slot_gradient, 0, sizeof(float) * 3 * (size_t)binding->slot_count);
+	const int32_t *tri = binding->triangles;
+	float *slot_gradient = binding->slot_gradient;
+	for (int32_t r = 0; r <= s; ++r) {
+		int32_t begin = binding->region_triangle_offsets[r];
+		int32_t end = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
+		lvp__vec3 o = lvp__region_origin(binding, r < s ? r : -1);
+		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
+		for (int32_t t = begin; t < end; ++t) {
+			const float *p0 = positions + 3 * tri[3 * t];
+			const float *p1 = positions + 3 * tri[3 * t + 1];
+			const float *p2 = positions + 3 * tri[3 * t + 2];
+			/* Edges in float (exact enough for directions), everything summed in double. */
+			float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
+			float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
+			double cx = (double)e1y * e2z - (double)e1z * e2y;
+			double cy = (double)e1z * e2x - (double)e1x * e2z;
+			double cz = (double)e1x * e2y - (double)e1y * e2x;
+			volume6 += (p0[0] - o.x) * cx + (p0[1] - o.y) * cy + (p0[2] - o.z) * cz;
+			ax += cx;
+			ay += cy;
+			az += cz;
+			float gx = (float)(cx * (1.0 / 6.0)), gy = (float)(cy * (1.0 / 6.0)), gz = (float)(cz * (1.0 / 6.0));
+			for (int c = 0; c < 3; ++c) {
+				float *g = slot_gradient + 3 * binding->corner_slot[3 * t + c];
+				g[0] += gx;
+				g[1] += gy;
+				g[2] += gz;
+			}
+		}
+		binding->sums[r].volume6 = volume6;
+		binding->sums[r].area6[0] = ax;
+		binding->sums[r].area6[1] = ay;
+		binding->sums[r].area6[2] = az;
+	}
+	for (int32_t k = 0; k < n; ++k) {
+		int32_t first = binding->slot_offsets[k], last = binding->slot_offsets[k + 1];
+		float gx = 0.0f, gy = 0.0f, gz = 0.0f;
+		for (int32_t i = first; i < last; ++i) {
+			gx += slot_gradient[3 * i];
+			gy += slot_gradient[3 * i + 1];
+			gz += slot_gradient[3 * i + 2];
+		}
+		float length = sqrtf(gx * gx + gy * gy + gz * gz);
+		float inverse = length > 0.0f ? 1.0f / length : 0.0f;
+		float nx = gx * inverse, ny = gy * inverse, nz = gz * inverse;
+		binding->normals[3 * k] = nx;
+		binding->normals[3 * k + 1] = ny;
+		binding->normals[3 * k + 2] = nz;
+		binding->vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
+		for (int32_t i = first; i < last; ++i)
+			binding->slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+	}
+}
+
+double lvp__pass_volume(const lvp_binding *binding, const float *positions)
+{
+	double volume6 = 0.0;
+	for (int32_t r = 0; r <= binding->region_count; ++r) {
+		lvp__vec3 o = lvp__region_origin(binding, r < binding->region_count ? r : -1);
+		const lvp__region_sums *sums = &binding->sums[r];
+		volume6 += sums->volume6 + o.x * sums->area6[0] + o.y * sums->area6[1] + o.z * sums->area6[2];
+	}
+	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
+}
+
+double lvp__volume_of(const lvp_binding *binding, const float *positions)
+{
+	/* About the origin, like lvp_mesh_volume() and the per-frame statistics (open meshes). */
+	lvp__vec3 o = lvp__v(0.0, 0.0, 0.0);
+	double volume6 = 0.0;
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		lvp__vec3 p0 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t]), o);
+		lvp__vec3 p1 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t + 1]), o);
+		lvp__vec3 p2 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t + 2]), o);
+		volume6 += lvp__vol6(p0, p1, p2);
+	}
+	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
+}
+
+/* ---- rest side and region changes ----------------------------------------------------------- */
+
+static lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
+{
+	if (binding->mode == LVP_MODE_GLOBAL)
+		return binding->global_origin;
+	const double *m = binding->rest_matrices[region].m;
+	return lvp__v(m[3], m[7], m[11]);
+}
+
+void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, double *r_base)
+{
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		lvp__vec3 o = lvp__rest_origin(binding, r);
+		double volume6 = 0.0;
+		for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
+			lvp__vec3 p0 = lvp__load(rest + 3 * binding->triangles[3 * t]);
+			lvp__vec3 p1 = lvp__load(rest + 3 * binding->triangles[3 * t + 1]);
+			lvp__vec3 p2 = lvp__load(rest + 3 * binding->triangles[3 * t + 2]);
+			volume6 += lvp__dot(lvp__sub(p0, o), lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0)));
+		}
+		r_base[r] = volume6 / 6.0;
+	}
+}
+
+void lvp__reference_volumes(lvp_binding *binding)
+{
+	const float *rest = binding->rest_positions;
+	if (binding->mode == LVP_MODE_GLOBAL) {
+		/* The whole (closed) mesh: its volume, or for a flat one the cube of its size. */
+		lvp__vec3 lo = lvp__load(rest), hi = lo, centroid = lvp__v(0, 0, 0);
+		double volume6 = 0.0;
+		for (int32_t k = 0; k < binding->vertex_count; ++k) {
+			lvp__vec3 p = lvp__load(rest + 3 * k);
+			centroid = lvp__add(centroid, p);
+			lo = lvp__v(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+			hi = lvp__v(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+		}
+		binding->global_origin = lvp__scale(centroid, 1.0 / binding->vertex_count);
+		binding->origin[0] = binding->global_origin;
+		for (int32_t t = 0; t < binding->triangle_count; ++t) {
+			lvp__vec3 p0 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t]), binding->global_origin);
+			lvp__vec3 p1 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t + 1]), binding->global_origin);
+			lvp__vec3 p2 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t + 2]), binding->global_origin);
+			volume6 += lvp__vol6(p0, p1, p2);
+		}
+		double size = lvp__length(lvp__sub(hi, lo));
+		double volume = fabs(volume6 / 6.0);
+		binding->reference_volume[0] = volume > 1e-6 * size * size * size ? volume : size * size * size;
+		return;
+	}
+	/* A region is open, so it has no volume of its own: its reference is the volume of the
+	 * cones from its triangles to its bone, sum area * distance(centroid, bone) / 3. */
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		double volume = 0.0;
+		for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
+			lvp__vec3 p0 = lvp__load(rest + 3 * binding->triangles[3 * t]);
+			lvp__vec3 p1 = lvp__load(rest + 3 * binding->triangles[3 * t + 1]);
+			lvp__vec3 p2 = lvp__load(rest + 3 * binding->triangles[3 * t + 2]);
+			double area = 0.5 * lvp__length(lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0)));
+			lvp__vec3 centroid = lvp__scale(lvp__add(lvp__add(p0, p1), p2), 1.0 / 3.0);
+			volume += area * lvp__segment_distance(centroid, binding->heads[r], binding->tails[r]) / 3.0;
+		}
+		binding->reference_volume[r] = volume;
+	}
+}
+
+/* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
+ * centroid; points in the bone's local frame. Returns 6 times its signed volume. */
+static double lvp__side_quad6(lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest, lvp__vec3 b)
+{
+	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
+	return lvp__vol6(a, a_rest, m) + lvp__vol6(a_rest, b_rest, m) + lvp__vol6(b_rest, b, m) + lvp__vol6(b, a, m);
+}
+
+void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
+                         const double *rest_base, double *r_change)
+{
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (binding->region_skipped[r]) {
+			r_change[r] = 0.0;
+			continue;
+		}
+		/* Top part in rest-world units: kappa * sum (p_i - t) . cr / 6, kappa = det(rest)/det(posed). */
+		double top = binding->kappa[r] * binding->sums[r].volume6 / 6.0;
+		double sides6 = 0.0;
+		if (binding->border_offsets[r + 1] > binding->border_offsets[r]) {
+			const lvp__mat4 *to_local = &binding->posed_inverse[r];
+			const lvp__mat4 *rest_to_local = &binding->rest_inverse[r];
+			for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
+				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
+				lvp__vec3 qa = lvp__transform_point(to_local, lvp__load(positions + 3 * a));
+				lvp__vec3 qb = lvp__transform_point(to_local, lvp__load(positions + 3 * b));
+				lvp__vec3 ra = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * a));
+				lvp__vec3 rb = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * b));
+				sides6 += lvp__side_quad6(qa, ra, rb, qb);
+			}
+			/* local units -> rest-world units */
+			sides6 *= binding->rest_det[r];
+		}
+		r_change[r] = top + sides6 / 6.0 - rest_base[r];
+	}
+}

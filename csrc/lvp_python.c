@@ -1,0 +1,1298 @@
+/*
+ * lvp_python.c - the CPython extension module _lvp over the C core; its contract is docs/python_module.md.
+ *
+ * Built against the stable ABI (Py_LIMITED_API 0x030B0000) so that one _lvp.abi3.so loads in every Blender
+ * on Python 3.11 and later. Arrays come in through the buffer protocol, so array.array, memoryview and numpy
+ * arrays all work and numpy is never imported. Every size is checked here, before the core reads a byte,
+ * because the core trusts its counts; everything else (indices, NaN, signs, options) is checked by the core
+ * and its diagnostic becomes the ValueError, with the core's parameter names turned into this module's.
+ * Computing calls release the GIL while holding the buffer views, which keeps the exporters from resizing
+ * or freeing the memory underneath.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "lvp.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#define LVP_PY__STRINGIFY(x) #x
+#define LVP_PY__VERSION_STRING(major, minor, patch)                                                                 \
+	LVP_PY__STRINGIFY(major) "." LVP_PY__STRINGIFY(minor) "." LVP_PY__STRINGIFY(patch)
+
+/* The most buffers one call takes (Binding: mesh, weights, skeleton and map arrays). */
+#define LVP_PY__MAX_BUFFERS 12
+
+/* ---- buffers ------------------------------------------------------------------------------------------- */
+
+typedef enum lvp_py__kind { LVP_PY__FLOAT32, LVP_PY__INT32, LVP_PY__FLOAT64 } lvp_py__kind;
+
+static const char *const lvp_py__kind_names[] = {"float32", "int32", "float64"};
+static const char *const lvp_py__kind_examples[] = {"array('f')", "array('i')", "array('d')"};
+
+/* One argument's view of the caller's memory. data is NULL when an optional argument is None. */
+typedef struct lvp_py__array {
+	void *data;
+	Py_ssize_t count; /* items */
+	Py_ssize_t bytes;
+	const char *name;
+	lvp_py__kind kind;
+} lvp_py__array;
+
+/* The views one call holds; all are released together when the call ends. */
+typedef struct lvp_py__buffers {
+	Py_buffer views[LVP_PY__MAX_BUFFERS];
+	int count;
+} lvp_py__buffers;
+
+static void lvp_py__release_buffers(lvp_py__buffers *buffers)
+{
+	while (buffers->count > 0)
+		PyBuffer_Release(&buffers->views[--buffers->count]);
+}
+
+static char lvp_py__native_order(void)
+{
+	const uint16_t probe = 1;
+	return *(const unsigned char *)&probe == 1 ? '<' : '>';
+}
+
+/* True when a struct-module format string describes exactly the item kind the core reads. The item size is
+ * checked beside the letter because 'l' is 4 bytes in standard sizes ('=l') but 8 in native ones on 64-bit
+ * Linux, and numpy reports int32 as 'i' or 'l' depending on the platform. */
+static bool lvp_py__format_matches(const char *format, Py_ssize_t itemsize, lvp_py__kind kind)
+{
+	if (!format)
+		format = "B";
+	if (format[0] == '@' || format[0] == '=' || format[0] == lvp_py__native_order())
+		format++;
+	else if (format[0] == '<' || format[0] == '>' || format[0] == '!')
+		return false; /* the other byte order: the core would read garbage */
+	if (format[0] == '\0' || format[1] != '\0')
+		return false;
+	switch (kind) {
+	case LVP_PY__FLOAT32:
+		return format[0] == 'f' && itemsize == 4;
+	case LVP_PY__INT32:
+		return (format[0] == 'i' || format[0] == 'l') && itemsize == 4;
+	case LVP_PY__FLOAT64:
+		return format[0] == 'd' && itemsize == 8;
+	}
+	return false;
+}
+
+/* Raises ValueError "<name> must be a C-contiguous <kind> buffer ...; got <what>". */
+static int lvp_py__wrong_buffer(PyObject *object, const char *name, lvp_py__kind kind, bool writable,
+                                const char *problem)
+{
+	PyObject *type_name = PyType_GetName(Py_TYPE(object));
+	if (!type_name)
+		return -1;
+	PyErr_Format(PyExc_ValueError, "%s must be a C-contiguous%s %s buffer such as %s; got %U (%s).", name,
+	             writable ? " writable" : "", lvp_py__kind_names[kind], lvp_py__kind_examples[kind], type_name,
+	             problem);
+	Py_DECREF(type_name);
+	return -1;
+}
+
+/* Takes a view of `object` for the argument `name` into `buffers`, checking that it is a C-contiguous,
+ * aligned buffer of exactly `kind` items (and writable for outputs). `optional` lets None (or a missing
+ * keyword, NULL) through as data = NULL. Sizes are checked by the caller, which knows them. */
+static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObject *object, const char *name,
+                        lvp_py__kind kind, bool writable, bool optional)
+{
+	memset(r_array, 0, sizeof(*r_array));
+	r_array->name = name;
+	r_array->kind = kind;
+	if (optional && (!object || object == Py_None))
+		return 0;
+	if (!object || object == Py_None)
+		return lvp_py__wrong_buffer(Py_None, name, kind, writable, "required");
+	if (!PyObject_CheckBuffer(object))
+		return lvp_py__wrong_buffer(object, name, kind, writable, "no buffer protocol");
+	if (buffers->count >= LVP_PY__MAX_BUFFERS) {
+		PyErr_SetString(PyExc_SystemError, "_lvp: too many buffers in one call");
+		return -1;
+	}
+	Py_buffer *view = &buffers->views[buffers->count];
+	/* Strides and format, read-only: then contiguity and writability are checked below with a message that
+	 * says what is wrong, instead of the exporter's generic BufferError. */
+	if (PyObject_GetBuffer(object, view, PyBUF_RECORDS_RO) != 0) {
+		PyObject *type, *value, *traceback;
+		PyErr_Fetch(&type, &value, &traceback);
+		PyErr_Format(PyExc_ValueError, "%s could not be read as a buffer (%S).", name, value ? value : Py_None);
+		Py_XDECREF(type);
+		Py_XDECREF(value);
+		Py_XDECREF(traceback);
+		return -1;
+	}
+	buffers->count++;
+	char problem[96];
+	if (!lvp_py__format_matches(view->format, view->itemsize, kind)) {
+		snprintf(problem, sizeof(problem), "item format '%.16s', %zd bytes per item", view->format ? view->format : "B",
+		         view->itemsize);
+		return lvp_py__wrong_buffer(object, name, kind, writable, problem);
+	}
+	if (!PyBuffer_IsContiguous(view, 'C'))
+		return lvp_py__wrong_buffer(object, name, kind, writable, "not C-contiguous; pass a contiguous copy");
+	if (writable && view->readonly)
+		return lvp_py__wrong_buffer(object, name, kind, writable, "read-only");
+	/* A memoryview cast from an odd byte offset can be misaligned; the core reads whole floats. */
+	if (view->len > 0 && (uintptr_t)view->buf % (uintptr_t)view->itemsize != 0)
+		return lvp_py__wrong_buffer(object, name, kind, writable, "not aligned to its item size");
+	r_array->data = view->buf;
+	r_array->count = view->len / view->itemsize;
+	r_array->bytes = view->len;
+	return 0;
+}
+
+/* Checks that an array holds exactly `expected` items; `why` says where the number comes from. */
+static int lvp_py__expect_count(const lvp_py__array *array, Py_ssize_t expected, const char *why)
+{
+	if (!array->data || array->count == expected)
+		return 0;
+	PyErr_Format(PyExc_ValueError, "%s has %zd %s values; expected %zd (%s).", array->name, array->count,
+	             lvp_py__kind_names[array->kind], expected, why);
+	return -1;
+}
+
+/* Checks that an array holds a positive multiple of `group` items, at most `limit` groups, and returns the
+ * number of groups (vertices, triangles, bones). The limit keeps the counts inside the core's int32. */
+static int lvp_py__expect_groups(const lvp_py__array *array, Py_ssize_t group, Py_ssize_t limit, const char *what,
+                                 int32_t *r_groups)
+{
+	if (array->count == 0 || array->count % group != 0) {
+		PyErr_Format(PyExc_ValueError, "%s has %zd %s values; expected %zd per %s, a positive multiple of %zd.",
+		             array->name, array->count, lvp_py__kind_names[array->kind], group, what, group);
+		return -1;
+	}
+	if (array->count / group > limit) {
+		PyErr_Format(PyExc_ValueError, "%s has %zd %ss; at most %zd are supported.", array->name,
+		             array->count / group, what, limit);
+		return -1;
+	}
+	*r_groups = (int32_t)(array->count / group);
+	return 0;
+}
+
+static bool lvp_py__overlap(const lvp_py__array *a, const lvp_py__array *b)
+{
+	if (!a->data || !b->data || a->bytes == 0 || b->bytes == 0)
+		return false;
+	uintptr_t a_begin = (uintptr_t)a->data, b_begin = (uintptr_t)b->data;
+	return a_begin < b_begin + (uintptr_t)b->bytes && b_begin < a_begin + (uintptr_t)a->bytes;
+}
+
+/* The core reads its inputs while it writes its outputs: an output sharing memory with an input would
+ * corrupt the result without any error. */
+static int lvp_py__expect_apart(const lvp_py__array *output, const lvp_py__array *input)
+{
+	if (!lvp_py__overlap(output, input))
+		return 0;
+	PyErr_Format(PyExc_ValueError, "%s shares memory with %s; pass a separate buffer.", output->name, input->name);
+	return -1;
+}
+
+/* The CSR weights: offsets has vertex_count+1 entries and its last one is the length of bones and values,
+ * which the core would otherwise read past. */
+static int lvp_py__expect_weights(const lvp_py__array *offsets, const lvp_py__array *bones, const lvp_py__array *values,
+                                  int32_t vertex_count)
+{
+	if (lvp_py__expect_count(offsets, (Py_ssize_t)vertex_count + 1, "one per vertex, plus one") != 0)
+		return -1;
+	int32_t total = ((const int32_t *)offsets->data)[vertex_count];
+	const lvp_py__array *influences[2] = {bones, values};
+	for (int i = 0; i < 2; ++i)
+		if (influences[i]->count != total) {
+			PyErr_Format(PyExc_ValueError,
+			             "%s has %zd %s values; expected %d, the number of influences that %s[%d] (its last entry) "
+			             "announces.",
+			             influences[i]->name, influences[i]->count, lvp_py__kind_names[influences[i]->kind],
+			             (int)total, offsets->name, (int)vertex_count);
+			return -1;
+		}
+	return 0;
+}
+
+/* ---- scalar arguments ---------------------------------------------------------------------------------- */
+
+/* Scalars raise ValueError naming the argument too, so the add-on can report any bad input the same way. */
+static int lvp_py__wrong_scalar(PyObject *object, const char *name, const char *expected)
+{
+	PyObject *type_name = PyType_GetName(Py_TYPE(object));
+	if (!type_name)
+		return -1;
+	PyErr_Format(PyExc_ValueError, "%s must be %s; got %U.", name, expected, type_name);
+	Py_DECREF(type_name);
+	return -1;
+}
+
+/* NULL (keyword not given) keeps the default already in *r_value. */
+static int lvp_py__parse_float(PyObject *object, const char *name, float *r_value)
+{
+	if (!object)
+		return 0;
+	double value = PyFloat_AsDouble(object);
+	if (value == -1.0 && PyErr_Occurred()) {
+		PyErr_Clear();
+		return lvp_py__wrong_scalar(object, name, "a number");
+	}
+	if (isfinite(value) && fabs(value) > FLT_MAX) {
+		PyErr_Format(PyExc_ValueError, "%s is %R, outside the float32 range.", name, object);
+		return -1;
+	}
+	*r_value = (float)value;
+	return 0;
+}
+
+static int lvp_py__parse_int(PyObject *object, const char *name, int32_t *r_value)
+{
+	if (!object)
+		return 0;
+	PyObject *index = PyNumber_Index(object);
+	if (!index) {
+		PyErr_Clear();
+		return lvp_py__wrong_scalar(object, name, "an int");
+	}
+	int overflow = 0;
+	long value = PyLong_AsLongAndOverflow(index, &overflow);
+	Py_DECREF(index);
+	if (value == -1 && PyErr_Occurred())
+		return -1;
+	if (overflow || value < INT32_MIN || value > INT32_MAX) {
+		PyErr_Format(PyExc_ValueError, "%s is %R, outside the int32 range.", name, object);
+		return -1;
+	}
+	*r_value = (int32_t)value;
+	return 0;
+}
+
+static int lvp_py__parse_bool(PyObject *object, const char *name, int32_t *r_value)
+{
+	if (!object)
+		return 0;
+	int truth = PyObject_IsTrue(object);
+	if (truth < 0) {
+		PyErr_Clear();
+		return lvp_py__wrong_scalar(object, name, "a bool");
+	}
+	*r_value = truth;
+	return 0;
+}
+
+/* Enum arguments are Blender-style identifiers ('LOCAL', 'ORGANIC'); their index is the C enum value. */
+static int lvp_py__parse_choice(PyObject *object, const char *name, const char *const *choices, int choice_count,
+                                int *r_index)
+{
+	if (!object)
+		return 0;
+	if (PyUnicode_Check(object)) {
+		for (int i = 0; i < choice_count; ++i)
+			if (PyUnicode_CompareWithASCIIString(object, choices[i]) == 0) {
+				*r_index = i;
+				return 0;
+			}
+	}
+	char list[160] = "";
+	for (int i = 0; i < choice_count; ++i) {
+		size_t used = strlen(list);
+		snprintf(list + used, sizeof(list) - used, "%s'%s'", i ? ", " : "", choices[i]);
+	}
+	PyErr_Format(PyExc_ValueError, "%s must be one of %s; got %R.", name, list, object);
+	return -1;
+}
+
+static const char *const lvp_py__mode_names[] = {"LOCAL", "GLOBAL"};
+static const char *const lvp_py__map_names[] = {"ORGANIC", "RUBBER", "BOUNDARY_FADE", "PAINTED", "UNIFORM"};
+static const char *const lvp_py__visibility_names[] = {"NORMAL", "EXACT", "NONE"};
+
+/* ---- core diagnostics -> Python exceptions ----------------------------------------------------------- */
+
+/* A core parameter name and the Python argument it comes from. */
+typedef struct lvp_py__rename {
+	const char *core;
+	const char *python;
+} lvp_py__rename;
+
+/* Names that mean the same argument in every call. */
+static const lvp_py__rename lvp_py__common_renames[] = {
+    {"weights", "weight_offsets"},
+    {"weights.offsets", "weight_offsets"},
+    {"weights.bones", "weight_bones"},
+    {"weights.values", "weight_values"},
+    {"skeleton", "rest_matrices"},
+    {"skeleton.bone_count", "rest_matrices"},
+    {"skeleton.rest_matrices", "rest_matrices"},
+    {"skeleton.heads", "heads"},
+    {"skeleton.tails", "tails"},
+    {"triangle_count", "triangles"},
+    {"options.thread_count", "threads"},
+    {"thread_count", "threads"},
+    {"options.max_iterations", "iterations"},
+    {"max_iterations", "iterations"},
+    {"options.map", "map"},
+    {"options.map.map", "map"},
+    {"map.map", "map"},
+    {NULL, NULL},
+};
+
+/* Option fields are named like the keywords once their struct prefix is gone ("options.map.alpha" is
+ * alpha): this keeps the names right for fields the core adds later. */
+static const char *const lvp_py__core_prefixes[] = {"options.map.", "options.", "map.", "skeleton."};
+
+static const char *lvp_py__python_name(const char *core, const lvp_py__rename *call_renames)
+{
+	if (!core)
+		return NULL;
+	const lvp_py__rename *tables[2] = {call_renames, lvp_py__common_renames};
+	for (int t = 0; t < 2; ++t)
+		for (const lvp_py__rename *rename = tables[t]; rename && rename->core; ++rename)
+			if (strcmp(core, rename->core) == 0)
+				return rename->python;
+	for (size_t i = 0; i < sizeof(lvp_py__core_prefixes) / sizeof(lvp_py__core_prefixes[0]); ++i) {
+		size_t length = strlen(lvp_py__core_prefixes[i]);
+		if (strncmp(core, lvp_py__core_prefixes[i], length) == 0 && core[length] != '\0')
+			return core + length;
+	}
+	return core;
+}
+
+static bool lvp_py__identifier_char(char c)
+{
+	return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
+}
+
+/* Copies the core's sentence into r_message, writing the Python name wherever the core wrote a dotted
+ * struct field ("weights.values[3] is -1" -> "weight_values[3] is -1"). Plain names such as vertex_count
+ * are left alone: they stay true as they are and the argument is prefixed instead. */
+static void lvp_py__rewrite(char *r_message, size_t capacity, const char *message, const char *core,
+                            const char *python)
+{
+	size_t core_length = core ? strlen(core) : 0;
+	bool replace = core && python && strcmp(core, python) != 0 && strchr(core, '.') != NULL;
+	size_t used = 0;
+	for (const char *c = message; *c && used + 1 < capacity;) {
+		bool starts = c == message || (!lvp_py__identifier_char(c[-1]) && c[-1] != '.');
+		if (replace && starts && strncmp(c, core, core_length) == 0 && !lvp_py__identifier_char(c[core_length])) {
+			for (const char *p = python; *p && used + 1 < capacity; ++p)
+				r_message[used++] = *p;
+			c += core_length;
+		} else {
+			r_message[used++] = *c++;
+		}
+	}
+	r_message[used] = '\0';
+}
+
+/* Raises the exception for a failed core call: MemoryError when memory ran out, RuntimeError when worker
+ * threads could not start (nothing the caller passed is wrong), ValueError otherwise. The message starts
+ * with the Python argument's name. */
+static void lvp_py__raise(lvp_result result, const lvp_diagnostic *diag, const lvp_py__rename *call_renames)
+{
+	PyObject *type = result == lvp_error_out_of_memory ? PyExc_MemoryError
+	                 : result == lvp_error_thread      ? PyExc_RuntimeError
+	                                                   : PyExc_ValueError;
+	const char *name = lvp_py__python_name(diag->argument, call_renames);
+	char message[sizeof(diag->message) + 128];
+	lvp_py__rewrite(message, sizeof(message), diag->message[0] ? diag->message : lvp_result_name(result),
+	                diag->argument, name);
+	size_t name_length = name ? strlen(name) : 0;
+	if (name && !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length])))
+		PyErr_Format(type, "%s: %s", name, message);
+	else
+		PyErr_SetString(type, message);
+}
+
+/* ---- results as array.array -------------------------------------------------------------------------- */
+
+/* A new array.array of `typecode` holding a copy of `bytes` bytes at `data`. The array module is imported
+ * per call (a dictionary lookup once loaded) so the module keeps no state. */
+static PyObject *lvp_py__new_array(const char *typecode, const void *data, Py_ssize_t bytes)
+{
+	PyObject *array_module = PyImport_ImportModule("array");
+	if (!array_module)
+		return NULL;
+	PyObject *array = PyObject_CallMethod(array_module, "array", "s", typecode);
+	Py_DECREF(array_module);
+	if (!array || bytes == 0)
+		return array;
+	PyObject *memory = PyMemoryView_FromMemory((char *)data, bytes, PyBUF_READ);
+	PyObject *none = memory ? PyObject_CallMethod(array, "frombytes", "O", memory) : NULL;
+	Py_XDECREF(memory);
+	if (!none) {
+		Py_DECREF(array);
+		return NULL;
+	}
+	Py_DECREF(none);
+	return array;
+}
+
+/* ---- stand-alone functions --------------------------------------------------------------------------- */
+
+static const lvp_py__rename lvp_py__mesh_renames[] = {
+    {"vertex_count", "positions"}, {"r_gradient", "out"}, {"r_normals", "out"}, {NULL, NULL}};
+
+/* Takes positions and triangles, the two inputs of every mesh function. */
+static int lvp_py__take_mesh(lvp_py__buffers *buffers, lvp_py__array *r_positions, lvp_py__array *r_triangles,
+                             PyObject *positions, PyObject *triangles, const char *positions_name,
+                             int32_t *r_vertex_count, int32_t *r_triangle_count)
+{
+	if (lvp_py__take(buffers, r_positions, positions, positions_name, LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(buffers, r_triangles, triangles, "triangles", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__expect_groups(r_positions, 3, LVP_MAX_VERTICES, "vertex", r_vertex_count) != 0 ||
+	    lvp_py__expect_groups(r_triangles, 3, LVP_MAX_TRIANGLES, "triangle", r_triangle_count) != 0)
+		return -1;
+	return 0;
+}
+
+static PyObject *lvp_py__mesh_volume(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	static char *keywords[] = {"positions", "triangles", NULL};
+	PyObject *positions_object, *triangles_object;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO:mesh_volume", keywords, &positions_object, &triangles_object))
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array positions, triangles;
+	int32_t vertex_count, triangle_count;
+	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
+	                      &vertex_count, &triangle_count) != 0) {
+		lvp_py__release_buffers(&buffers);
+		return NULL;
+	}
+	double volume = 0.0;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_mesh_volume(&volume, positions.data, vertex_count, triangles.data, triangle_count, &diag);
+	Py_END_ALLOW_THREADS;
+	lvp_py__release_buffers(&buffers);
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__mesh_renames);
+		return NULL;
+	}
+	return PyFloat_FromDouble(volume);
+}
+
+typedef lvp_result (*lvp_py__mesh_field)(float *r_values, const float *positions, int32_t vertex_count,
+                                         const int32_t *triangles, int32_t triangle_count, lvp_diagnostic *r_diag);
+
+/* volume_gradient and vertex_normals: out (float32[3N]) from positions and triangles. */
+static PyObject *lvp_py__mesh_field_call(PyObject *args, PyObject *kwargs, const char *format, lvp_py__mesh_field field)
+{
+	static char *keywords[] = {"out", "positions", "triangles", NULL};
+	PyObject *out_object, *positions_object, *triangles_object;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, format, keywords, &out_object, &positions_object,
+	                                 &triangles_object))
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array out, positions, triangles;
+	int32_t vertex_count, triangle_count;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
+	                      &vertex_count, &triangle_count) != 0 ||
+	    lvp_py__take(&buffers, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_count(&out, (Py_ssize_t)vertex_count * 3, "3 per vertex of positions") != 0 ||
+	    lvp_py__expect_apart(&out, &positions) != 0 || lvp_py__expect_apart(&out, &triangles) != 0) {
+		lvp_py__release_buffers(&buffers);
+		return NULL;
+	}
+	Py_BEGIN_ALLOW_THREADS;
+	result = field(out.data, positions.data, vertex_count, triangles.data, triangle_count, &diag);
+	Py_END_ALLOW_THREADS;
+	lvp_py__release_buffers(&buffers);
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__mesh_renames);
+		return NULL;
+	}
+	Py_RETURN_NONE;
+}
+
+static PyObject *lvp_py__volume_gradient(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	return lvp_py__mesh_field_call(args, kwargs, "OOO:volume_gradient", lvp_volume_gradient);
+}
+
+static PyObject *lvp_py__vertex_normals(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	return lvp_py__mesh_field_call(args, kwargs, "OOO:vertex_normals", lvp_vertex_normals);
+}
+
+typedef lvp_result (*lvp_py__skinning)(float *r_positions, const float *rest_positions, int32_t vertex_count,
+                                       const lvp_weights *weights, const float *skin_matrices, int32_t bone_count,
+                                       lvp_diagnostic *r_diag);
+
+static const lvp_py__rename lvp_py__skin_renames[] = {
+    {"vertex_count", "rest_positions"}, {"bone_count", "skin_matrices"}, {"r_positions", "out"}, {NULL, NULL}};
+
+/* skin_linear and skin_dual_quaternion share their arguments. */
+static PyObject *lvp_py__skin_call(PyObject *args, PyObject *kwargs, const char *format, lvp_py__skinning skinning)
+{
+	static char *keywords[] = {"out", "rest_positions", "weight_offsets", "weight_bones", "weight_values",
+	                           "skin_matrices", NULL};
+	PyObject *objects[6];
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, format, keywords, &objects[0], &objects[1], &objects[2],
+	                                 &objects[3], &objects[4], &objects[5]))
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array out, rest, offsets, bones, values, matrices;
+	int32_t vertex_count, bone_count;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	if (lvp_py__take(&buffers, &rest, objects[1], "rest_positions", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&buffers, &offsets, objects[2], "weight_offsets", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__take(&buffers, &bones, objects[3], "weight_bones", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__take(&buffers, &values, objects[4], "weight_values", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&buffers, &matrices, objects[5], "skin_matrices", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&buffers, &out, objects[0], "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_groups(&rest, 3, LVP_MAX_VERTICES, "vertex", &vertex_count) != 0 ||
+	    lvp_py__expect_groups(&matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
+	    lvp_py__expect_weights(&offsets, &bones, &values, vertex_count) != 0 ||
+	    lvp_py__expect_count(&out, (Py_ssize_t)vertex_count * 3, "3 per vertex of rest_positions") != 0) {
+		lvp_py__release_buffers(&buffers);
+		return NULL;
+	}
+	const lvp_py__array *inputs[] = {&rest, &offsets, &bones, &values, &matrices};
+	for (size_t i = 0; i < sizeof(inputs) / sizeof(inputs[0]); ++i)
+		if (lvp_py__expect_apart(&out, inputs[i]) != 0) {
+			lvp_py__release_buffers(&buffers);
+			return NULL;
+		}
+	lvp_weights weights = {offsets.data, bones.data, values.data};
+	Py_BEGIN_ALLOW_THREADS;
+	result = skinning(out.data, rest.data, vertex_count, &weights, matrices.data, bone_count, &diag);
+	Py_END_ALLOW_THREADS;
+	lvp_py__release_buffers(&buffers);
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__skin_renames);
+		return NULL;
+	}
+	Py_RETURN_NONE;
+}
+
+static PyObject *lvp_py__skin_linear(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	return lvp_py__skin_call(args, kwargs, "OOOOOO:skin_linear", lvp_skin_linear);
+}
+
+static PyObject *lvp_py__skin_dual_quaternion(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	return lvp_py__skin_call(args, kwargs, "OOOOOO:skin_dual_quaternion", lvp_skin_dual_quaternion);
+}
+
+/* Takes the skeleton arrays: rest_matrices gives the bone count, heads and tails follow it. All three may
+ * be None together when `optional` (a prop without bones), and then r_skeleton is left NULL-filled. */
+static int lvp_py__take_skeleton(lvp_py__buffers *buffers, lvp_skeleton *r_skeleton, PyObject *matrices_object,
+                                 PyObject *heads_object, PyObject *tails_object, bool optional)
+{
+	lvp_py__array matrices, heads, tails;
+	memset(r_skeleton, 0, sizeof(*r_skeleton));
+	if (lvp_py__take(buffers, &matrices, matrices_object, "rest_matrices", LVP_PY__FLOAT32, false, optional) != 0 ||
+	    lvp_py__take(buffers, &heads, heads_object, "heads", LVP_PY__FLOAT32, false, optional) != 0 ||
+	    lvp_py__take(buffers, &tails, tails_object, "tails", LVP_PY__FLOAT32, false, optional) != 0)
+		return -1;
+	if (!matrices.data && !heads.data && !tails.data)
+		return 0;
+	const lvp_py__array *parts[3] = {&matrices, &heads, &tails};
+	for (int i = 0; i < 3; ++i)
+		if (!parts[i]->data) {
+			PyErr_Format(PyExc_ValueError,
+			             "%s is None but the other skeleton arrays are given; pass rest_matrices, heads and tails "
+			             "together, or all three as None.",
+			             parts[i]->name);
+			return -1;
+		}
+	int32_t bone_count;
+	if (lvp_py__expect_groups(&matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
+	    lvp_py__expect_count(&heads, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0 ||
+	    lvp_py__expect_count(&tails, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0)
+		return -1;
+	r_skeleton->bone_count = bone_count;
+	r_skeleton->rest_matrices = matrices.data;
+	r_skeleton->heads = heads.data;
+	r_skeleton->tails = tails.data;
+	return 0;
+}
+
+static const lvp_py__rename lvp_py__auto_weights_renames[] = {{"vertex_count", "positions"},
+                                                              {"bone_count", "rest_matrices"},
+                                                              {"r_offsets", "positions"},
+                                                              {"r_bones", "max_influences"},
+                                                              {"r_values", "max_influences"},
+                                                              {"capacity", "max_influences"},
+                                                              {NULL, NULL}};
+
+static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	(void)module;
+	static char *keywords[] = {"positions",      "triangles",      "rest_matrices", "heads",      "tails", "alpha",
+	                           "visibility",     "normal_cos_max", "max_influences", "min_weight", NULL};
+	PyObject *positions_object, *triangles_object, *matrices_object, *heads_object, *tails_object;
+	PyObject *alpha = NULL, *visibility = NULL, *normal_cos_max = NULL, *max_influences = NULL, *min_weight = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOO|$OOOOO:auto_weights", keywords, &positions_object,
+	                                 &triangles_object, &matrices_object, &heads_object, &tails_object, &alpha,
+	                                 &visibility, &normal_cos_max, &max_influences, &min_weight))
+		return NULL;
+	lvp_auto_weights_options options = lvp_auto_weights_default_options();
+	int visibility_index = (int)options.visibility;
+	if (lvp_py__parse_float(alpha, "alpha", &options.alpha) != 0 ||
+	    lvp_py__parse_choice(visibility, "visibility", lvp_py__visibility_names, 3, &visibility_index) != 0 ||
+	    lvp_py__parse_float(normal_cos_max, "normal_cos_max", &options.normal_cos_max) != 0 ||
+	    lvp_py__parse_int(max_influences, "max_influences", &options.max_influences) != 0 ||
+	    lvp_py__parse_float(min_weight, "min_weight", &options.min_weight) != 0)
+		return NULL;
+	options.visibility = (lvp_visibility)visibility_index;
+
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array positions, triangles;
+	lvp_skeleton skeleton;
+	int32_t vertex_count, triangle_count;
+	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
+	                      &vertex_count, &triangle_count) != 0 ||
+	    lvp_py__take_skeleton(&buffers, &skeleton, matrices_object, heads_object, tails_object, false) != 0) {
+		lvp_py__release_buffers(&buffers);
+		return NULL;
+	}
+	/* A negative bound means the options are invalid: the core says which one, given room for nothing. */
+	int64_t capacity = lvp_auto_weights_bound(vertex_count, skeleton.bone_count, &options);
+	if (capacity < 0)
+		capacity = 0;
+	if ((uint64_t)capacity > (uint64_t)PY_SSIZE_T_MAX / sizeof(int32_t)) {
+		lvp_py__release_buffers(&buffers);
+		return PyErr_NoMemory();
+	}
+	int32_t *offsets = PyMem_Malloc(sizeof(int32_t) * ((size_t)vertex_count + 1));
+	int32_t *bones = PyMem_Malloc(sizeof(int32_t) * (capacity ? (size_t)capacity : 1));
+	float *values = PyMem_Malloc(sizeof(float) * (capacity ? (size_t)capacity : 1));
+	PyObject *tuple = NULL;
+	if (!offsets || !bones || !values) {
+		PyErr_NoMemory();
+		goto done;
+	}
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_auto_weights(offsets, bones, values, capacity, positions.data, vertex_count, triangles.data,
+	                          triangle_count, &skeleton, &options, &diag);
+	Py_END_ALLOW_THREADS;
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__auto_weights_renames);
+		goto done;
+	}
+	int32_t total = offsets[vertex_count];
+	if (total < 0 || total > capacity) {
+		PyErr_Format(PyExc_SystemError, "_lvp: auto_weights wrote %d influences into room for %lld.", (int)total,
+		             (long long)capacity);
+		goto done;
+	}
+	PyObject *arrays[3] = {
+	    lvp_py__new_array("i", offsets, (Py_ssize_t)sizeof(int32_t) * ((Py_ssize_t)vertex_count + 1)),
+	    lvp_py__new_array("i", bones, (Py_ssize_t)sizeof(int32_t) * total),
+	    lvp_py__new_array("f", values, (Py_ssize_t)sizeof(float) * total),
+	};
+	if (arrays[0] && arrays[1] && arrays[2])
+		tuple = PyTuple_Pack(3, arrays[0], arrays[1], arrays[2]);
+	for (int i = 0; i < 3; ++i)
+		Py_XDECREF(arrays[i]);
+done:
+	PyMem_Free(offsets);
+	PyMem_Free(bones);
+	PyMem_Free(values);
+	lvp_py__release_buffers(&buffers);
+	return tuple;
+}
+
+/* ---- Binding ------------------------------------------------------------------------------------------ */
+
+typedef struct lvp_py__binding {
+	PyObject_HEAD
+	lvp_binding *binding; /* NULL once closed */
+	/* Nonzero while a call runs with the GIL released. It is only read and written with the GIL held, so it
+	 * needs no atomics: another thread can only look at it while the running call has released the GIL. */
+	int busy;
+	lvp_mode mode;
+} lvp_py__binding;
+
+static int lvp_py__check_open(lvp_py__binding *self)
+{
+	if (self->binding)
+		return 0;
+	PyErr_SetString(PyExc_ValueError, "this Binding is closed; create a new Binding.");
+	return -1;
+}
+
+/* Claims the binding for one call; lvp_py__leave() gives it back. The core's binding is used by one thread
+ * at a time (lvp.h, THREADS AND MEMORY): a second caller is refused rather than queued, because waiting on
+ * a busy binding from Blender's UI thread would freeze the interface. */
+static int lvp_py__enter(lvp_py__binding *self)
+{
+	if (self->busy) {
+		PyErr_SetString(PyExc_RuntimeError,
+		                "this Binding is in use by another thread; a Binding serves one call at a time (give each "
+		                "thread its own Binding).");
+		return -1;
+	}
+	if (lvp_py__check_open(self) != 0)
+		return -1;
+	self->busy = 1;
+	return 0;
+}
+
+static void lvp_py__leave(lvp_py__binding *self)
+{
+	self->busy = 0;
+}
+
+/* The six map arguments, shared by Binding() and set_map(). NULL = not given. */
+typedef struct lvp_py__map_arguments {
+	PyObject *map, *alpha, *beta, *painted, *region_bone_offsets, *region_bones;
+} lvp_py__map_arguments;
+
+static int lvp_py__take_map(lvp_py__buffers *buffers, lvp_map_options *r_map, const lvp_py__map_arguments *arguments,
+                            int32_t vertex_count, int32_t bone_count)
+{
+	lvp_map_options map = lvp_bind_default_options().map;
+	int map_index = (int)map.map;
+	lvp_py__array painted, region_offsets, region_bones;
+	if (lvp_py__parse_choice(arguments->map, "map", lvp_py__map_names, 5, &map_index) != 0 ||
+	    lvp_py__parse_float(arguments->alpha, "alpha", &map.alpha) != 0 ||
+	    lvp_py__parse_float(arguments->beta, "beta", &map.beta) != 0 ||
+	    lvp_py__take(buffers, &painted, arguments->painted, "painted", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take(buffers, &region_offsets, arguments->region_bone_offsets, "region_bone_offsets", LVP_PY__INT32,
+	                 false, true) != 0 ||
+	    lvp_py__take(buffers, &region_bones, arguments->region_bones, "region_bones", LVP_PY__INT32, false,
+	                 true) != 0 ||
+	    lvp_py__expect_count(&painted, vertex_count, "one per vertex") != 0)
+		return -1;
+	map.map = (lvp_map)map_index;
+	if (!region_offsets.data != !region_bones.data) {
+		PyErr_Format(PyExc_ValueError,
+		             "%s is None but %s is given; pass region_bone_offsets and region_bones together, or neither.",
+		             region_offsets.data ? "region_bones" : "region_bone_offsets",
+		             region_offsets.data ? "region_bone_offsets" : "region_bones");
+		return -1;
+	}
+	if (region_offsets.data) {
+		if (lvp_py__expect_count(&region_offsets, (Py_ssize_t)bone_count + 1, "one per bone, plus one") != 0)
+			return -1;
+		int32_t total = ((const int32_t *)region_offsets.data)[bone_count];
+		if (region_bones.count != total) {
+			PyErr_Format(PyExc_ValueError,
+			             "region_bones has %zd int32 values; expected %d, the number that region_bone_offsets[%d] "
+			             "(its last entry) announces.",
+			             region_bones.count, (int)total, (int)bone_count);
+			return -1;
+		}
+	}
+	map.painted = painted.data;
+	map.region_bone_offsets = region_offsets.data;
+	map.region_bones = region_bones.data;
+	*r_map = map;
+	return 0;
+}
+
+static const lvp_py__rename lvp_py__bind_renames[] = {
+    {"vertex_count", "rest_positions"}, {"bone_count", "rest_matrices"}, {"r_binding", "rest_positions"},
+    {"binding", "rest_positions"},      {NULL, NULL}};
+
+static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"rest_positions", "triangles", "weight_offsets",      "weight_bones",
+	                           "weight_values",  "rest_matrices", "heads",            "tails",
+	                           "mode",           "map",       "alpha",               "beta",
+	                           "painted",        "region_bone_offsets", "region_bones", "threads",
+	                           NULL};
+	PyObject *rest_object, *triangles_object, *offsets_object, *bones_object, *values_object;
+	PyObject *matrices_object, *heads_object, *tails_object, *mode = NULL, *threads = NULL;
+	lvp_py__map_arguments map_arguments = {NULL, NULL, NULL, NULL, NULL, NULL};
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOO:Binding", keywords, &rest_object,
+	                                 &triangles_object, &offsets_object, &bones_object, &values_object,
+	                                 &matrices_object, &heads_object, &tails_object, &mode, &map_arguments.map,
+	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
+	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads))
+		return NULL;
+	lvp_bind_options options = lvp_bind_default_options();
+	int mode_index = (int)options.mode;
+	if (lvp_py__parse_choice(mode, "mode", lvp_py__mode_names, 2, &mode_index) != 0 ||
+	    lvp_py__parse_int(threads, "threads", &options.thread_count) != 0)
+		return NULL;
+	options.mode = (lvp_mode)mode_index;
+
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array rest, triangles, offsets, bones, values;
+	lvp_skeleton skeleton;
+	int32_t vertex_count, triangle_count;
+	if (lvp_py__take_mesh(&buffers, &rest, &triangles, rest_object, triangles_object, "rest_positions",
+	                      &vertex_count, &triangle_count) != 0 ||
+	    lvp_py__take(&buffers, &offsets, offsets_object, "weight_offsets", LVP_PY__INT32, false, true) != 0 ||
+	    lvp_py__take(&buffers, &bones, bones_object, "weight_bones", LVP_PY__INT32, false, true) != 0 ||
+	    lvp_py__take(&buffers, &values, values_object, "weight_values", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take_skeleton(&buffers, &skeleton, matrices_object, heads_object, tails_object, true) != 0 ||
+	    lvp_py__take_map(&buffers, &options.map, &map_arguments, vertex_count, skeleton.bone_count) != 0)
+		goto failed;
+	/* The weights come as a unit, like the skeleton; None for all three is a prop without bones. */
+	const lvp_weights *weights_pointer = NULL;
+	lvp_weights weights = {offsets.data, bones.data, values.data};
+	if (offsets.data || bones.data || values.data) {
+		const lvp_py__array *parts[3] = {&offsets, &bones, &values};
+		for (int i = 0; i < 3; ++i)
+			if (!parts[i]->data) {
+				PyErr_Format(PyExc_ValueError,
+				             "%s is None but the other weight arrays are given; pass weight_offsets, weight_bones "
+				             "and weight_values together, or all three as None.",
+				             parts[i]->name);
+				goto failed;
+			}
+		if (lvp_py__expect_weights(&offsets, &bones, &values, vertex_count) != 0)
+			goto failed;
+		weights_pointer = &weights;
+	}
+
+	lvp_binding *binding = NULL;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_bind(&binding, rest.data, vertex_count, triangles.data, triangle_count, weights_pointer,
+	                  skeleton.rest_matrices ? &skeleton : NULL, &options, &diag);
+	Py_END_ALLOW_THREADS;
+	lvp_py__release_buffers(&buffers);
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__bind_renames);
+		return NULL;
+	}
+	/* The type is final and not garbage-collected, so its tp_alloc is PyType_GenericAlloc. */
+	lvp_py__binding *self = (lvp_py__binding *)PyType_GenericAlloc(type, 0);
+	if (!self) {
+		lvp_free(binding);
+		return NULL;
+	}
+	self->binding = binding;
+	self->busy = 0;
+	self->mode = options.mode;
+	return (PyObject *)self;
+
+failed:
+	lvp_py__release_buffers(&buffers);
+	return NULL;
+}
+
+static void lvp_py__binding_dealloc(PyObject *object)
+{
+	/* A call in progress holds a reference to the object, so it cannot be busy here. */
+	PyTypeObject *type = Py_TYPE(object);
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	lvp_free(self->binding);
+	self->binding = NULL;
+	PyObject_Free(object); /* the tp_free of a type without garbage collection */
+	Py_DECREF(type);
+}
+
+static PyObject *lvp_py__binding_close(PyObject *object, PyObject *unused)
+{
+	(void)unused;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (!self->binding)
+		Py_RETURN_NONE; /* like a file, closing twice is harmless */
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+	lvp_binding *binding = self->binding;
+	self->binding = NULL;
+	/* lvp_free() joins the binding's worker threads: let other Python threads run meanwhile. */
+	Py_BEGIN_ALLOW_THREADS;
+	lvp_free(binding);
+	Py_END_ALLOW_THREADS;
+	lvp_py__leave(self);
+	Py_RETURN_NONE;
+}
+
+static PyObject *lvp_py__binding_set_map(PyObject *object, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"map", "alpha", "beta", "painted", "region_bone_offsets", "region_bones", NULL};
+	lvp_py__map_arguments map_arguments = {NULL, NULL, NULL, NULL, NULL, NULL};
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|OOOOOO:set_map", keywords, &map_arguments.map,
+	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
+	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones))
+		return NULL;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_map_options map;
+	lvp_diagnostic diag = {0};
+	lvp_result result = lvp_success;
+	int failed = lvp_py__take_map(&buffers, &map, &map_arguments, lvp_vertex_count(self->binding),
+	                              lvp_bone_count(self->binding));
+	if (!failed) {
+		Py_BEGIN_ALLOW_THREADS;
+		result = lvp_set_map(self->binding, &map, &diag);
+		Py_END_ALLOW_THREADS;
+	}
+	lvp_py__release_buffers(&buffers);
+	lvp_py__leave(self);
+	if (failed)
+		return NULL;
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, NULL);
+		return NULL;
+	}
+	Py_RETURN_NONE;
+}
+
+/* Takes the per-frame inputs shared by correct() and region_volume_changes(). */
+static int lvp_py__take_frame(lvp_py__buffers *buffers, lvp_py__array *r_positions, lvp_py__array *r_matrices,
+                              lvp_py__array *r_rest, const lvp_binding *binding, PyObject *positions_object,
+                              PyObject *matrices_object, PyObject *rest_object)
+{
+	Py_ssize_t vertex_values = (Py_ssize_t)lvp_vertex_count(binding) * 3;
+	if (lvp_py__take(buffers, r_positions, positions_object, "positions", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(buffers, r_matrices, matrices_object, "bone_matrices", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take(buffers, r_rest, rest_object, "rest_positions", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__expect_count(r_positions, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(r_matrices, (Py_ssize_t)lvp_bone_count(binding) * 16, "16 per bone of the binding") != 0 ||
+	    lvp_py__expect_count(r_rest, vertex_values, "3 per vertex of the binding") != 0)
+		return -1;
+	/* An empty buffer for a binding without bones stands for "no matrices", like None. */
+	if (r_matrices->count == 0)
+		r_matrices->data = NULL;
+	return 0;
+}
+
+static const lvp_py__rename lvp_py__frame_renames[] = {{"vertex_count", "positions"},
+                                                       {"bone_count", "bone_matrices"},
+                                                       {"r_positions", "out_positions"},
+                                                       {"r_offsets", "out_offsets"},
+                                                       {"options.max_iterations", "iterations"},
+                                                       {"r_changes", "positions"},
+                                                       {NULL, NULL}};
+
+static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"positions",      "bone_matrices", "out_positions", "out_offsets", "rest_positions",
+	                           "iterations",     "tolerance",     "fold_over",     NULL};
+	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
+	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOO:correct", keywords, &positions_object,
+	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
+	                                 &iterations, &tolerance, &fold_over))
+		return NULL;
+	lvp_frame_options options = lvp_frame_default_options();
+	if (lvp_py__parse_int(iterations, "iterations", &options.max_iterations) != 0 ||
+	    lvp_py__parse_float(tolerance, "tolerance", &options.tolerance) != 0 ||
+	    lvp_py__parse_bool(fold_over, "fold_over", &options.fold_over) != 0)
+		return NULL;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array positions, matrices, rest, out_positions, out_offsets;
+	lvp_frame_stats stats;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	PyObject *dictionary = NULL;
+	Py_ssize_t vertex_values = (Py_ssize_t)lvp_vertex_count(self->binding) * 3;
+	if (lvp_py__take_frame(&buffers, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
+	                       rest_object) != 0 ||
+	    lvp_py__take(&buffers, &out_positions, out_positions_object, "out_positions", LVP_PY__FLOAT32, true,
+	                 true) != 0 ||
+	    lvp_py__take(&buffers, &out_offsets, out_offsets_object, "out_offsets", LVP_PY__FLOAT32, true, true) != 0 ||
+	    lvp_py__expect_count(&out_positions, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(&out_offsets, vertex_values, "3 per vertex of the binding") != 0)
+		goto done;
+	if (!out_positions.data && !out_offsets.data) {
+		PyErr_SetString(PyExc_ValueError,
+		                "out_positions and out_offsets are both None; pass at least one float32 buffer of 3 values "
+		                "per vertex.");
+		goto done;
+	}
+	/* The core corrects in place when out_positions is positions itself; any other sharing would mix reads
+	 * and writes. */
+	bool in_place = out_positions.data == positions.data && out_positions.bytes == positions.bytes;
+	if ((!in_place && lvp_py__expect_apart(&out_positions, &positions) != 0) ||
+	    lvp_py__expect_apart(&out_positions, &matrices) != 0 || lvp_py__expect_apart(&out_positions, &rest) != 0 ||
+	    lvp_py__expect_apart(&out_offsets, &positions) != 0 || lvp_py__expect_apart(&out_offsets, &matrices) != 0 ||
+	    lvp_py__expect_apart(&out_offsets, &rest) != 0 || lvp_py__expect_apart(&out_offsets, &out_positions) != 0)
+		goto done;
+
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_correct(out_positions.data, out_offsets.data, self->binding, positions.data, matrices.data, rest.data,
+	                     &options, &stats, &diag);
+	Py_END_ALLOW_THREADS;
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__frame_renames);
+		goto done;
+	}
+	dictionary = Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d}", "volume_rest", stats.volume_rest,
+	                           "volume_before", stats.volume_before, "volume_after", stats.volume_after,
+	                           "worst_region", (int)stats.worst_region, "worst_region_change_before",
+	                           stats.worst_region_change_before, "worst_region_change_after",
+	                           stats.worst_region_change_after, "iterations", (int)stats.iterations, "active_regions",
+	                           (int)stats.active_regions, "skipped_regions", (int)stats.skipped_regions,
+	                           "folded_vertices", (int)stats.folded_vertices, "max_displacement",
+	                           stats.max_displacement);
+done:
+	lvp_py__release_buffers(&buffers);
+	lvp_py__leave(self);
+	return dictionary;
+}
+
+static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"positions", "bone_matrices", "rest_positions", NULL};
+	PyObject *positions_object, *matrices_object, *rest_object = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|O:region_volume_changes", keywords, &positions_object,
+	                                 &matrices_object, &rest_object))
+		return NULL;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array positions, matrices, rest;
+	lvp_diagnostic diag = {0};
+	lvp_result result;
+	PyObject *tuple = NULL;
+	Py_ssize_t region_count = lvp_region_count(self->binding);
+	double *changes = PyMem_Malloc(sizeof(double) * 2 * (size_t)(region_count ? region_count : 1));
+	if (!changes) {
+		PyErr_NoMemory();
+		goto done;
+	}
+	double *references = changes + region_count;
+	if (lvp_py__take_frame(&buffers, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
+	                       rest_object) != 0)
+		goto done;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_region_volume_changes(changes, references, self->binding, positions.data, matrices.data, rest.data,
+	                                   &diag);
+	Py_END_ALLOW_THREADS;
+	if (result != lvp_success) {
+		lvp_py__raise(result, &diag, lvp_py__frame_renames);
+		goto done;
+	}
+	PyObject *arrays[2] = {lvp_py__new_array("d", changes, (Py_ssize_t)sizeof(double) * region_count),
+	                       lvp_py__new_array("d", references, (Py_ssize_t)sizeof(double) * region_count)};
+	if (arrays[0] && arrays[1])
+		tuple = PyTuple_Pack(2, arrays[0], arrays[1]);
+	Py_XDECREF(arrays[0]);
+	Py_XDECREF(arrays[1]);
+done:
+	PyMem_Free(changes);
+	lvp_py__release_buffers(&buffers);
+	lvp_py__leave(self);
+	return tuple;
+}
+
+static PyObject *lvp_py__binding_segmentation(PyObject *object, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"out_vertex_regions", "out_triangle_regions", NULL};
+	PyObject *vertex_object = NULL, *triangle_object = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|OO:segmentation", keywords, &vertex_object, &triangle_object))
+		return NULL;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array vertex_regions, triangle_regions;
+	int failed =
+	    lvp_py__take(&buffers, &vertex_regions, vertex_object, "out_vertex_regions", LVP_PY__INT32, true, true) != 0 ||
+	    lvp_py__take(&buffers, &triangle_regions, triangle_object, "out_triangle_regions", LVP_PY__INT32, true,
+	                 true) != 0 ||
+	    lvp_py__expect_count(&vertex_regions, lvp_vertex_count(self->binding), "one per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(&triangle_regions, lvp_triangle_count(self->binding),
+	                         "one per triangle of the binding") != 0 ||
+	    lvp_py__expect_apart(&vertex_regions, &triangle_regions) != 0;
+	if (!failed) {
+		Py_BEGIN_ALLOW_THREADS;
+		lvp_get_segmentation(self->binding, vertex_regions.data, triangle_regions.data);
+		Py_END_ALLOW_THREADS;
+	}
+	lvp_py__release_buffers(&buffers);
+	lvp_py__leave(self);
+	if (failed)
+		return NULL;
+	Py_RETURN_NONE;
+}
+
+static PyObject *lvp_py__binding_correction_map(PyObject *object, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"out", NULL};
+	PyObject *out_object;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "O:correction_map", keywords, &out_object))
+		return NULL;
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__enter(self) != 0)
+		return NULL;
+	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__array out;
+	int failed = lvp_py__take(&buffers, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	             lvp_py__expect_count(&out, lvp_vertex_count(self->binding), "one per vertex of the binding") != 0;
+	if (!failed) {
+		Py_BEGIN_ALLOW_THREADS;
+		lvp_get_correction_map(self->binding, out.data);
+		Py_END_ALLOW_THREADS;
+	}
+	lvp_py__release_buffers(&buffers);
+	lvp_py__leave(self);
+	if (failed)
+		return NULL;
+	Py_RETURN_NONE;
+}
+
+/* Which count a getter returns: the closure of lvp_py__binding_getset (ISO C has no function pointer in a
+ * void *). */
+enum { LVP_PY__VERTEX_COUNT, LVP_PY__TRIANGLE_COUNT, LVP_PY__BONE_COUNT, LVP_PY__REGION_COUNT };
+
+/* The counts never change after bind, so reading them needs no claim on a busy binding. */
+static PyObject *lvp_py__binding_count(PyObject *object, void *closure)
+{
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (lvp_py__check_open(self) != 0)
+		return NULL;
+	switch ((intptr_t)closure) {
+	case LVP_PY__VERTEX_COUNT:
+		return PyLong_FromLong(lvp_vertex_count(self->binding));
+	case LVP_PY__TRIANGLE_COUNT:
+		return PyLong_FromLong(lvp_triangle_count(self->binding));
+	case LVP_PY__BONE_COUNT:
+		return PyLong_FromLong(lvp_bone_count(self->binding));
+	default:
+		return PyLong_FromLong(lvp_region_count(self->binding));
+	}
+}
+
+static PyObject *lvp_py__binding_repr(PyObject *object)
+{
+	lvp_py__binding *self = (lvp_py__binding *)object;
+	if (!self->binding)
+		return PyUnicode_FromString("<_lvp.Binding (closed)>");
+	return PyUnicode_FromFormat("<_lvp.Binding %s, %d vertices, %d triangles, %d bones, %d regions>",
+	                            lvp_py__mode_names[self->mode], (int)lvp_vertex_count(self->binding),
+	                            (int)lvp_triangle_count(self->binding), (int)lvp_bone_count(self->binding),
+	                            (int)lvp_region_count(self->binding));
+}
+
+#define LVP_PY__KEYWORDS(function) ((PyCFunction)(void (*)(void))(function))
+
+static PyMethodDef lvp_py__binding_methods[] = {
+    {"set_map", LVP_PY__KEYWORDS(lvp_py__binding_set_map), METH_VARARGS | METH_KEYWORDS,
+     "set_map(map='ORGANIC', alpha=1.0, beta=1.0, painted=None, region_bone_offsets=None, region_bones=None)\n"
+     "Replaces the correction map without rebinding."},
+    {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
+     "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
+     "iterations=8, tolerance=1e-4, fold_over=False) -> dict\n"
+     "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
+    {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
+     "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"
+     "Writes the region of every vertex and/or triangle (int32, -1 = none)."},
+    {"correction_map", LVP_PY__KEYWORDS(lvp_py__binding_correction_map), METH_VARARGS | METH_KEYWORDS,
+     "correction_map(out)\nWrites the correction map per vertex (float32, maximum 1)."},
+    {"region_volume_changes", LVP_PY__KEYWORDS(lvp_py__binding_region_volume_changes), METH_VARARGS | METH_KEYWORDS,
+     "region_volume_changes(positions, bone_matrices, rest_positions=None) -> (changes, references)\n"
+     "Volume change of every region (array('d')) and the reference volumes of the tolerance."},
+    {"close", lvp_py__binding_close, METH_NOARGS, "close()\nFrees the binding now; further calls raise ValueError."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyGetSetDef lvp_py__binding_getset[] = {
+    {"vertex_count", lvp_py__binding_count, NULL, "Number of vertices.", (void *)LVP_PY__VERTEX_COUNT},
+    {"triangle_count", lvp_py__binding_count, NULL, "Number of triangles.", (void *)LVP_PY__TRIANGLE_COUNT},
+    {"bone_count", lvp_py__binding_count, NULL, "Number of bones (0 for a prop bound without a skeleton).",
+     (void *)LVP_PY__BONE_COUNT},
+    {"region_count", lvp_py__binding_count, NULL, "Number of regions: bone_count in LOCAL mode, 1 in GLOBAL.",
+     (void *)LVP_PY__REGION_COUNT},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+/* CPython's slot tables hold functions in void * fields, which ISO C does not define but POSIX (dlsym) and
+ * every compiler Python supports do: silence -Wpedantic for the two tables only. */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpedantic"
+static PyType_Slot lvp_py__binding_slots[] = {
+    {Py_tp_doc, "Binding(rest_positions, triangles, weight_offsets, weight_bones, weight_values, rest_matrices, "
+                "heads, tails, *, mode='LOCAL', map='ORGANIC', alpha=1.0, beta=1.0, painted=None, "
+                "region_bone_offsets=None, region_bones=None, threads=1)\n"
+                "A mesh bound to its skeleton and weights at rest; corrects frames. One call at a time per object."},
+    {Py_tp_new, lvp_py__binding_new},
+    {Py_tp_dealloc, lvp_py__binding_dealloc},
+    {Py_tp_repr, lvp_py__binding_repr},
+    {Py_tp_methods, lvp_py__binding_methods},
+    {Py_tp_getset, lvp_py__binding_getset},
+    {0, NULL},
+};
+#pragma GCC diagnostic pop
+
+static PyType_Spec lvp_py__binding_spec = {
+    .name = "_lvp.Binding",
+    .basicsize = sizeof(lvp_py__binding),
+    .itemsize = 0,
+    .flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_IMMUTABLETYPE,
+    .slots = lvp_py__binding_slots,
+};
+
+/* ---- module ------------------------------------------------------------------------------------------- */
+
+static PyMethodDef lvp_py__functions[] = {
+    {"mesh_volume", LVP_PY__KEYWORDS(lvp_py__mesh_volume), METH_VARARGS | METH_KEYWORDS,
+     "mesh_volume(positions, triangles) -> float\nSigned volume of a closed triangle mesh."},
+    {"volume_gradient", LVP_PY__KEYWORDS(lvp_py__volume_gradient), METH_VARARGS | METH_KEYWORDS,
+     "volume_gradient(out, positions, triangles)\nWrites the per-vertex volume gradient (float32[3N])."},
+    {"vertex_normals", LVP_PY__KEYWORDS(lvp_py__vertex_normals), METH_VARARGS | METH_KEYWORDS,
+     "vertex_normals(out, positions, triangles)\nWrites unit area-weighted vertex normals (float32[3N])."},
+    {"skin_linear", LVP_PY__KEYWORDS(lvp_py__skin_linear), METH_VARARGS | METH_KEYWORDS,
+     "skin_linear(out, rest_positions, weight_offsets, weight_bones, weight_values, skin_matrices)\n"
+     "Linear blend skinning."},
+    {"skin_dual_quaternion", LVP_PY__KEYWORDS(lvp_py__skin_dual_quaternion), METH_VARARGS | METH_KEYWORDS,
+     "skin_dual_quaternion(out, rest_positions, weight_offsets, weight_bones, weight_values, skin_matrices)\n"
+     "Dual quaternion skinning (Blender's Preserve Volume)."},
+    {"auto_weights", LVP_PY__KEYWORDS(lvp_py__auto_weights), METH_VARARGS | METH_KEYWORDS,
+     "auto_weights(positions, triangles, rest_matrices, heads, tails, *, alpha=2.0, visibility='NORMAL', "
+     "normal_cos_max=0.0, max_influences=4, min_weight=0.01) -> (offsets, bones, values)\n"
+     "Automatic skinning weights (paper 5.1) as compressed rows."},
+    {NULL, NULL, 0, NULL},
+};
+
+static int lvp_py__exec(PyObject *module)
+{
+	PyObject *type = PyType_FromModuleAndSpec(module, &lvp_py__binding_spec, NULL);
+	if (!type)
+		return -1;
+	int failed = PyModule_AddObjectRef(module, "Binding", type);
+	Py_DECREF(type);
+	if (failed)
+		return -1;
+	return PyModule_AddStringConstant(
+	    module, "version", LVP_PY__VERSION_STRING(LVP_VERSION_MAJOR, LVP_VERSION_MINOR, LVP_VERSION_PATCH));
+}
+
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpedantic" /* a function in a void * field, as above */
+static PyModuleDef_Slot lvp_py__module_slots[] = {
+    {Py_mod_exec, lvp_py__exec},
+    {0, NULL},
+};
+#pragma GCC diagnostic pop
+
+static struct PyModuleDef lvp_py__module = {
+    PyModuleDef_HEAD_INIT,
+    .m_name = "_lvp",
+    .m_doc = "Local volume preservation for skinned meshes (Rohmer, Hahmann, Cani 2008): the C core's Python "
+             "interface. Buffers go through the buffer protocol; see docs/python_module.md.",
+    .m_size = 0,
+    .m_methods = lvp_py__functions,
+    .m_slots = lvp_py__module_slots,
+};
+
+PyMODINIT_FUNC PyInit__lvp(void)
+{
+	return PyModuleDef_Init(&lvp_py__module);
+}

@@ -47,12 +47,22 @@ test_rig test_make_chain(int bone_count, float bone_length, float radius, int ar
 
 /* A finger: a closed tube with a rounded tip along +Y, three phalanges (bones 0, 1, 2, lengths
  * 1.0, 0.7, 0.5, radius about 0.22), weights blending over short bands at the two knuckles so
- * that bending them far makes plain skinning cross itself on the inside of the bend. */
+ * that bending them far makes plain skinning cross itself on the inside of the bend.
+ * Measured (test_support.c): 16 x 40 tube + 4 tip rings + 2 poles = 706 vertices, bands of 0.2
+ * centred on the knuckles (y = 1.0 and 1.7). Bone frames are the world axes moved to the head,
+ * so the bend is a rotation about local X (+X turns the tip towards +Z). At rest: no
+ * intersecting pair. Plain skinning crosses itself from about 50 degrees per knuckle on; the
+ * reference bend is 100 degrees at both knuckles (bones 1 and 2, axis (1, 0, 0)): 124
+ * intersecting pairs, all at the knuckles (the sum of each knuckle bent alone). Up to 110
+ * degrees that stays so; from 115 degrees the fingertip also reaches the first phalanx, a
+ * contact between non-neighbouring bones that fold-over prevention is not meant to fix. */
 test_rig test_make_finger(void);
 
 /* The giraffe of tests/data/giraffe (the paper's model): 1673 vertices, triangulated by fans,
- * winding flipped to face outward. Bone j runs from joint j to its child (see the .c file for
- * the rule with several children or none). Returns 0 on success. */
+ * winding flipped to face outward. Bone j runs from joint j to its child (see test_giraffe.c for
+ * the rule with several children or none). Returns 0 on success.
+ * Unlike the built rigs, rest_matrices are the joints' world frames from the file, whose local
+ * X (not Y) runs along the bone: test_pose() axes for the giraffe are in those frames. */
 int test_load_giraffe(test_rig *r_rig, const char *directory);
 
 /* Forward kinematics. local_rotations: bone_count*4 (axis x, y, z in the bone's rest frame,

@@ -1,6 +1,6 @@
 /*
  * test_meshes.c - built test geometry (the paper's cylinder, bone chains, a finger), forward
- * kinematics and small helpers over test_rig. The giraffe loader is in test_giraffe.c, the exact
+ * kinematics and small helpers over test_rig. The giraffe loader is in giraffe_loader.c, the exact
  * intersection count in test_intersect.c. Contract: test_meshes.h.
  */
 #include "support/test_meshes.h"

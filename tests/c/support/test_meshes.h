@@ -59,7 +59,7 @@ test_rig test_make_chain(int bone_count, float bone_length, float radius, int ar
 test_rig test_make_finger(void);
 
 /* The giraffe of tests/data/giraffe (the paper's model): 1673 vertices, triangulated by fans,
- * winding flipped to face outward. Bone j runs from joint j to its child (see test_giraffe.c for
+ * winding flipped to face outward. Bone j runs from joint j to its child (see support/giraffe_loader.c for
  * the rule with several children or none). Returns 0 on success.
  * Unlike the built rigs, rest_matrices are the joints' world frames from the file, whose local
  * X (not Y) runs along the bone: test_pose() axes for the giraffe are in those frames. */

@@ -1,5 +1,5 @@
 /*
- * test_giraffe.c - loads the giraffe of tests/data/giraffe (Damien Rohmer's rig of the paper's
+ * giraffe_loader.c - loads the giraffe of tests/data/giraffe (Damien Rohmer's rig of the paper's
  * model; file formats in its README.md) into a test_rig.
  *
  * Mesh: the OBJ's `v` lines in order (vertex k is the k-th `v`), its faces (quads and n-gons up

@@ -1,0 +1,210 @@
+#!/usr/bin/env bash
+# tests/blender/run.sh - the headless-Blender unittest suites (tests/blender/test_*.py) on every
+# Blender we support. `./build.sh test` calls it.
+#
+#   tests/blender/run.sh [OPTIONS] [TEST_NAME ...]
+#
+#   TEST_NAME               test_module, test_module.TestClass or test_module.TestClass.test_method
+#   --blender SEL           only this Blender (repeatable): 3.4 = Debian's /usr/bin/blender (installed
+#                           with apt when missing), 4.3 = trixie's Blender 4.3.2 in the chroot of
+#                           tests/blender/blender43.sh, or the path of any blender binary
+#   -k PATTERN              only tests whose name contains PATTERN (unittest -k)
+#   -f, --failfast          stop each Blender's run at its first failure
+#   -q, --quiet             one character per test
+#   --list                  list the tests (on each Blender) without running them
+#   --no-build              do not run `./build.sh package` first; test what is in dist/
+#
+# Default Blenders: 3.4, then 4.3 unless LVP_SKIP_BLENDER43=1, then $BLENDER when set.
+# Every failing test is printed with the command that reruns it alone, e.g.
+#   tests/blender/run.sh --blender 4.3 test_modifier.TestLive.test_frame_set
+#
+# Environment: BLENDER, LVP_SKIP_BLENDER43, LVP_ADDON_DIR / LVP_EXTENSION_ZIP (test another
+# build than dist/), LVP_BLENDER_TIMEOUT (seconds per Blender, default 1800), LVP_KEEP_TMP=1
+# (keep the per-run directory under /tmp), LVP_CACHE (where the 4.3 chroot lives).
+# Blender's user directories (config, scripts, extensions) point into a fresh directory under
+# /tmp, so the tests never touch the user's own Blender set-up.
+set -euo pipefail
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+REPO="$(cd "$HERE/../.." && pwd)"
+# build.sh gives ensure_packages (apt, with sudo when not root), ADDON_ID, DIST and VERSION.
+# shellcheck source=../../build.sh
+source "$REPO/build.sh"
+log() { printf '\033[1m[blender-tests]\033[0m %s\n' "$*" >&2; }
+die() { printf '\033[31m[blender-tests] error:\033[0m %s\n' "$*" >&2; exit 1; }
+
+usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
+
+selectors=()
+runner_args=()
+names=()
+build=1
+list=0
+while [ $# -gt 0 ]; do
+	case "$1" in
+	--blender) [ $# -ge 2 ] || die "--blender needs a value"; selectors+=("$2"); shift 2 ;;
+	--blender=*) selectors+=("${1#--blender=}"); shift ;;
+	-k) [ $# -ge 2 ] || die "-k needs a value"; runner_args+=(-k "$2"); shift 2 ;;
+	-f | --failfast) runner_args+=(--failfast); shift ;;
+	-q | --quiet) runner_args+=(--quiet); shift ;;
+	--list) list=1; runner_args+=(--list); shift ;;
+	--no-build) build=0; shift ;;
+	-h | --help) usage; exit 0 ;;
+	--) shift; names+=("$@"); break ;;
+	-*) die "unknown option $1 (see --help)" ;;
+	*) names+=("$1"); shift ;;
+	esac
+done
+# Names may be given as file paths too: tests/blender/test_x.py -> test_x.
+for i in "${!names[@]}"; do
+	n="$(basename "${names[$i]}")"
+	names[$i]="${n%.py}"
+done
+
+if [ ${#selectors[@]} -eq 0 ]; then
+	selectors=(3.4)
+	[ "${LVP_SKIP_BLENDER43:-0}" = 1 ] || selectors+=(4.3)
+	[ -z "${BLENDER:-}" ] || selectors+=("$BLENDER")
+fi
+
+# How to call this script in the printed rerun commands: relative when run from the repo.
+if [ "$(pwd -P)" = "$(cd "$REPO" && pwd -P)" ]; then SELF=tests/blender/run.sh; else SELF="$HERE/run.sh"; fi
+
+# ---- build and set-up (in the foreground, so apt never runs twice at once) -----------------
+
+if [ "$build" = 1 ] && [ "$list" = 0 ]; then
+	if [ -f "$REPO/csrc/lvp_python.c" ]; then
+		log "building the module and the packages (./build.sh package)"
+		"$REPO/build.sh" package || die "./build.sh package failed; fix the build, or rerun with --no-build to test what is in dist/"
+	else
+		log "csrc/lvp_python.c does not exist yet: nothing to build, testing without the module"
+	fi
+fi
+
+need_43=0
+for sel in "${selectors[@]}"; do
+	case "$sel" in
+	3.4) ensure_packages blender ;;
+	4.3) need_43=1 ;;
+	*) [ -x "$sel" ] || die "--blender $sel: not 3.4, 4.3 or an executable file" ;;
+	esac
+done
+
+BLENDER43="$HERE/blender43.sh"
+builder_pid=""
+RUN_TMP="$(mktemp -d /tmp/lvp-blender-tests.XXXXXX)"
+chmod 755 "$RUN_TMP"
+cleanup() {
+	if [ -n "$builder_pid" ]; then kill "$builder_pid" 2>/dev/null || true; fi
+	if [ "${LVP_KEEP_TMP:-0}" = 1 ]; then log "kept $RUN_TMP"; else rm -rf "$RUN_TMP"; fi
+}
+trap cleanup EXIT
+if [ "$need_43" = 1 ]; then
+	ensure_packages debootstrap
+	if ! "$BLENDER43" status >/dev/null 2>&1; then
+		# Build the chroot while the first Blender's tests run (it is mostly download and unpack).
+		log "building the Blender 4.3 chroot in the background (log: $RUN_TMP/blender43-build.log)"
+		"$BLENDER43" ensure >"$RUN_TMP/blender43-build.log" 2>&1 &
+		builder_pid=$!
+	fi
+fi
+
+# Blender's user directories: fresh for this run (an extension installed by a test stays here).
+export BLENDER_USER_RESOURCES="${BLENDER_USER_RESOURCES:-$RUN_TMP/user}"
+export BLENDER_USER_CONFIG="${BLENDER_USER_CONFIG:-$BLENDER_USER_RESOURCES/config}"
+export BLENDER_USER_SCRIPTS="${BLENDER_USER_SCRIPTS:-$BLENDER_USER_RESOURCES/scripts}"
+export BLENDER_USER_DATAFILES="${BLENDER_USER_DATAFILES:-$BLENDER_USER_RESOURCES/datafiles}"
+export BLENDER_USER_EXTENSIONS="${BLENDER_USER_EXTENSIONS:-$BLENDER_USER_RESOURCES/extensions}"
+export LVP_ADDON_DIR="${LVP_ADDON_DIR:-$DIST/$ADDON_ID}"
+export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$DIST/$ADDON_ID-$VERSION.zip}"
+[ -f "$LVP_EXTENSION_ZIP" ] || LVP_EXTENSION_ZIP=""
+
+# ---- running ------------------------------------------------------------------------------
+
+total_passed=0 total_failed=0 total_skipped=0
+failed_lines=()
+blender_failures=0
+
+run_one() {
+	local sel="$1" label expect="" cmd
+	case "$sel" in
+	3.4) label="3.4"; expect=3.4; cmd=(/usr/bin/blender) ;;
+	4.3) label="4.3"; expect=4.3; cmd=("$BLENDER43" run) ;;
+	*) label="$sel"; cmd=("$sel") ;;
+	esac
+	local rerun
+	rerun="$SELF --blender $(printf '%q' "$sel")"
+
+	if [ "$sel" = 4.3 ] && [ -n "$builder_pid" ]; then
+		log "waiting for the Blender 4.3 chroot"
+		if ! wait "$builder_pid"; then
+			builder_pid=""
+			cat "$RUN_TMP/blender43-build.log" >&2
+			log "Blender 4.3: the chroot could not be built (LVP_SKIP_BLENDER43=1 skips it)"
+			failed_lines+=("Blender 4.3: chroot build failed; retry: tests/blender/blender43.sh ensure")
+			blender_failures=$((blender_failures + 1))
+			return 1
+		fi
+		builder_pid=""
+		tail -n 1 "$RUN_TMP/blender43-build.log" >&2
+	fi
+
+	local results="$RUN_TMP/results-${label//[^A-Za-z0-9.]/_}"
+	rm -f "$results"
+	log "Blender $label: ${cmd[*]}"
+	local rc=0 start=$SECONDS
+	timeout --kill-after=30 "${LVP_BLENDER_TIMEOUT:-1800}" "${cmd[@]}" -b --factory-startup -noaudio \
+		--python-exit-code 1 --python "$HERE/runner.py" -- \
+		--expect-version "$expect" --rerun "$rerun" --results "$results" \
+		${runner_args[@]+"${runner_args[@]}"} ${names[@]+"${names[@]}"} || rc=$?
+	[ "$list" = 1 ] && return $rc
+
+	local summary="" passed=0 failed=0 skipped=0
+	if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
+	case "$summary" in
+	done*)
+		passed="$(sed -n 's/.*passed=\([0-9]*\).*/\1/p' <<<"$summary")"
+		failed="$(sed -n 's/.*failed=\([0-9]*\).*/\1/p' <<<"$summary")"
+		skipped="$(sed -n 's/.*skipped=\([0-9]*\).*/\1/p' <<<"$summary")"
+		while IFS= read -r name; do
+			failed_lines+=("Blender $label: $rerun $name")
+		done < <(sed -n 's/^failed //p' "$results")
+		if [ "$rc" != 0 ] && [ "$failed" = 0 ]; then
+			# All tests passed but Blender still failed (e.g. a crash on exit).
+			failed=1
+			failed_lines+=("Blender $label: exited with status $rc after the tests; rerun: $rerun")
+		fi
+		;;
+	running*)
+		local current="${summary#running }"
+		failed=1
+		if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
+			log "Blender $label timed out after ${LVP_BLENDER_TIMEOUT:-1800}s in $current"
+		else
+			log "Blender $label died (status $rc) in $current"
+		fi
+		failed_lines+=("Blender $label: died in $current (status $rc): $rerun $current")
+		;;
+	*)
+		failed=1
+		failed_lines+=("Blender $label: did not run the tests (status $rc): $rerun")
+		;;
+	esac
+	[ "$rc" = 0 ] || blender_failures=$((blender_failures + 1))
+	total_passed=$((total_passed + passed))
+	total_failed=$((total_failed + failed))
+	total_skipped=$((total_skipped + skipped))
+	log "Blender $label: $passed passed, $failed failed, $skipped skipped ($((SECONDS - start)) s)"
+}
+
+for sel in "${selectors[@]}"; do
+	run_one "$sel" || true
+done
+
+[ "$list" = 1 ] && exit 0
+if [ ${#failed_lines[@]} -gt 0 ]; then
+	printf '\n\033[31mFAILED\033[0m headless-Blender tests; rerun one alone with:\n' >&2
+	printf '    %s\n' "${failed_lines[@]}" >&2
+fi
+echo "blender: $total_passed passed, $total_failed failed, $total_skipped skipped"
+[ ${#failed_lines[@]} -eq 0 ] && [ "$blender_failures" = 0 ]

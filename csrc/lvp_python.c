@@ -134,7 +134,7 @@ static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObje
 	buffers->count++;
 	char problem[96];
 	if (!lvp_py__format_matches(view->format, view->itemsize, kind)) {
-		snprintf(problem, sizeof(problem), "item format '%.16s', %zd bytes per item", view->format ? view->format : "B",
+		snprintf(problem, sizeof(problem), "item format '%.16s', itemsize %zd", view->format ? view->format : "B",
 		         view->itemsize);
 		return lvp_py__wrong_buffer(object, name, kind, writable, problem);
 	}
@@ -367,21 +367,42 @@ static bool lvp_py__identifier_char(char c)
 	return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_';
 }
 
-/* Copies the core's sentence into r_message, writing the Python name wherever the core wrote a dotted
- * struct field ("weights.values[3] is -1" -> "weight_values[3] is -1"). Plain names such as vertex_count
- * are left alone: they stay true as they are and the argument is prefixed instead. */
+/* C words in the core's sentences and what a Python caller passes instead. */
+static const lvp_py__rename lvp_py__words[] = {
+    {"NULL", "None"},
+    {"LVP_MODE_GLOBAL", "mode='GLOBAL'"},
+    {"LVP_MODE_LOCAL", "mode='LOCAL'"},
+    {NULL, NULL},
+};
+
+/* The length of `word` when the message continues with it as a whole word at c, else 0. */
+static size_t lvp_py__word_at(const char *message, const char *c, const char *word)
+{
+	size_t length = strlen(word);
+	bool starts = c == message || (!lvp_py__identifier_char(c[-1]) && c[-1] != '.');
+	return starts && strncmp(c, word, length) == 0 && !lvp_py__identifier_char(c[length]) ? length : 0;
+}
+
+/* Copies the core's sentence into r_message in Python's words: the Python name wherever the core wrote a
+ * dotted struct field ("weights.values[3] is -1" -> "weight_values[3] is -1"), None for NULL. Plain names
+ * such as vertex_count are left alone: they stay true as they are and the argument is prefixed instead. */
 static void lvp_py__rewrite(char *r_message, size_t capacity, const char *message, const char *core,
                             const char *python)
 {
-	size_t core_length = core ? strlen(core) : 0;
-	bool replace = core && python && strcmp(core, python) != 0 && strchr(core, '.') != NULL;
+	bool rename = core && python && strcmp(core, python) != 0 && strchr(core, '.') != NULL;
 	size_t used = 0;
 	for (const char *c = message; *c && used + 1 < capacity;) {
-		bool starts = c == message || (!lvp_py__identifier_char(c[-1]) && c[-1] != '.');
-		if (replace && starts && strncmp(c, core, core_length) == 0 && !lvp_py__identifier_char(c[core_length])) {
-			for (const char *p = python; *p && used + 1 < capacity; ++p)
+		const char *replacement = NULL;
+		size_t length = 0;
+		if (rename && (length = lvp_py__word_at(message, c, core)) != 0)
+			replacement = python;
+		for (const lvp_py__rename *word = lvp_py__words; !replacement && word->core; ++word)
+			if ((length = lvp_py__word_at(message, c, word->core)) != 0)
+				replacement = word->python;
+		if (replacement) {
+			for (const char *p = replacement; *p && used + 1 < capacity; ++p)
 				r_message[used++] = *p;
-			c += core_length;
+			c += length;
 		} else {
 			r_message[used++] = *c++;
 		}
@@ -390,8 +411,8 @@ static void lvp_py__rewrite(char *r_message, size_t capacity, const char *messag
 }
 
 /* Raises the exception for a failed core call: MemoryError when memory ran out, RuntimeError when worker
- * threads could not start (nothing the caller passed is wrong), ValueError otherwise. The message starts
- * with the Python argument's name. */
+ * threads could not start (nothing the caller passed is wrong), ValueError otherwise. A ValueError's message
+ * starts with the Python argument's name; the other two are not about an argument. */
 static void lvp_py__raise(lvp_result result, const lvp_diagnostic *diag, const lvp_py__rename *call_renames)
 {
 	PyObject *type = result == lvp_error_out_of_memory ? PyExc_MemoryError
@@ -402,7 +423,8 @@ static void lvp_py__raise(lvp_result result, const lvp_diagnostic *diag, const l
 	lvp_py__rewrite(message, sizeof(message), diag->message[0] ? diag->message : lvp_result_name(result),
 	                diag->argument, name);
 	size_t name_length = name ? strlen(name) : 0;
-	if (name && !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length])))
+	if (type == PyExc_ValueError && name &&
+	    !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length])))
 		PyErr_Format(type, "%s: %s", name, message);
 	else
 		PyErr_SetString(type, message);
@@ -802,8 +824,7 @@ static int lvp_py__take_map(lvp_py__buffers *buffers, lvp_map_options *r_map, co
 }
 
 static const lvp_py__rename lvp_py__bind_renames[] = {
-    {"vertex_count", "rest_positions"}, {"bone_count", "rest_matrices"}, {"r_binding", "rest_positions"},
-    {"binding", "rest_positions"},      {NULL, NULL}};
+    {"vertex_count", "rest_positions"}, {"bone_count", "rest_matrices"}, {NULL, NULL}};
 
 static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
 {

@@ -16,6 +16,7 @@ lvp_bind_options lvp_bind_default_options(void)
 	options.map.map = LVP_MAP_ORGANIC;
 	options.map.alpha = 1.0f;
 	options.map.beta = 1.0f;
+	options.map.deformation_weighted = 1;
 	options.thread_count = 1;
 	return options;
 }
@@ -40,7 +41,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
 	    binding->heads, binding->tails, binding->bone_length, binding->rest_change_base, binding->reference_volume,
 	    binding->slot_offsets, binding->slot_region, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->cap_edges, binding->gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
+	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
 	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
 	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->rho, binding->frozen,
@@ -186,6 +187,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->slot_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
 	binding->corner_slot = lvp__alloc(f * 3, sizeof(int32_t), &ok);
 	binding->gamma = lvp__alloc(n, sizeof(float), &ok);
+	binding->frame_gamma = lvp__alloc(n, sizeof(float), &ok);
 	binding->distance = lvp__alloc(n, sizeof(float), &ok);
 	binding->support_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
 	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
@@ -229,6 +231,13 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 	lvp__reference_volumes(binding);
 	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);
+	lvp__vec3 lo = lvp__load(rest_positions), hi = lo;
+	for (int32_t k = 1; k < vertex_count; ++k) {
+		lvp__vec3 p = lvp__load(rest_positions + 3 * k);
+		lo = lvp__v(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
+		hi = lvp__v(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
+	}
+	binding->size = lvp__length(lvp__sub(hi, lo));
 	lvp__rest_constants(binding, NULL, binding->rest_change_base);
 	*r_binding = binding;
 	return lvp_success;

@@ -47,6 +47,7 @@ struct lvp_binding {
 
 	/* ---- region origin and reference volume ---- */
 	double rest_volume;          /* signed volume of the bind rest mesh */
+	double size;                 /* diagonal of the rest bounding box */
 	lvp__vec3 global_origin;     /* global mode: rest centroid, to keep the sums well conditioned */
 	double *rest_change_base;    /* region_count: rest prism part (sum over rest triangles) */
 	double *reference_volume;    /* region_count: V_ref,s for the tolerance (0 = empty region) */
@@ -68,6 +69,7 @@ struct lvp_binding {
 	/* ---- correction map and how region multipliers reach vertices ---- */
 	lvp_map_options map;     /* map kind, alpha, beta (pointers cleared after copy) */
 	float *gamma;            /* vertex_count, normalized to max 1 */
+	float *frame_gamma;      /* vertex_count: this frame's map, gamma times deformation weighting */
 	float *distance;         /* vertex_count: rest distance to the nearest (allowed) bone */
 	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
 	int32_t *region_bones;

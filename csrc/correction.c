@@ -136,7 +136,7 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 			int32_t k = binding->support_vertex[i];
 			if (binding->frozen[k])
 				continue;
-			double c = (double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i];
+			double c = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i];
 			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
 				int32_t s = binding->slot_region[slot];
 				int32_t row = s >= 0 ? binding->active_index[s] : -1;
@@ -186,7 +186,7 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
 			int32_t k = binding->support_vertex[i];
 			if (!binding->frozen[k])
-				rho[k] += (float)((double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
 		}
 	}
 	float *p = binding->work_positions;
@@ -205,22 +205,64 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 	}
 }
 
-/* Regions whose volume is off by more than the tolerance and that the map lets move. */
+/* When some region is off by more than the tolerance: that region, and every region already
+ * corrected this frame (so that a corrected region is held at its volume while its neighbours
+ * are fixed, instead of being let go and disturbed again). Regions the map cannot move are
+ * left out. Returns the number of active regions, 0 when all are within tolerance. */
 static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
+	bool any_off = false;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
 		if (binding->region_skipped[r] || !(reference > 0.0) ||
 		    binding->support_offsets[r + 1] == binding->support_offsets[r])
 			continue;
-		if (fabs(binding->change[r]) > tolerance * reference) {
+		bool off = fabs(binding->change[r]) > tolerance * reference;
+		any_off = any_off || off;
+		if (off || binding->region_touched[r]) {
 			binding->active_index[r] = m;
 			binding->active[m++] = r;
 		}
 	}
+	if (!any_off) {
+		for (int32_t i = 0; i < m; ++i)
+			binding->active_index[binding->active[i]] = -1;
+		return 0;
+	}
 	return m;
+}
+
+/* This frame's map: the bind map times the deformation weighting a_k of lvp.h. */
+static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
+{
+	int32_t n = binding->vertex_count;
+	bool weighted = binding->map.deformation_weighted && binding->mode == LVP_MODE_LOCAL;
+	if (!weighted) {
+		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
+		return;
+	}
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	for (int32_t k = 0; k < n; ++k) {
+		if (!(binding->gamma[k] > 0.0f)) {
+			binding->frame_gamma[k] = 0.0f;
+			continue;
+		}
+		lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
+		int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
+		for (int32_t e = begin; e < end; ++e)
+			blend = lvp__add(blend, lvp__scale(lvp__transform_point(&binding->skin[binding->weight_bones[e]], p),
+			                                   binding->weight_values[e]));
+		double spread = 0.0;
+		for (int32_t e = begin; e < end; ++e)
+			spread += binding->weight_values[e] *
+			          lvp__length(lvp__sub(lvp__transform_point(&binding->skin[binding->weight_bones[e]], p), blend));
+		/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
+		if (spread < 1e-6 * binding->size)
+			spread = 0.0;
+		binding->frame_gamma[k] = (float)(binding->gamma[k] * spread);
+	}
 }
 
 /* Measures work_positions (mesh pass and region changes). */
@@ -275,7 +317,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
 				int32_t k = binding->support_vertex[i];
 				if (!binding->frozen[k])
-					system += (double)binding->gamma[k] * binding->vertex_g[k] * binding->vertex_g[k] *
+					system += (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k] *
 					          binding->support_phi[i];
 			}
 		}
@@ -289,7 +331,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 				int32_t k = binding->support_vertex[i];
 				if (binding->frozen[k])
 					continue;
-				float rho = (float)((double)binding->gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+				float rho = (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
 				p[3 * k] += rho * binding->normals[3 * k];
 				p[3 * k + 1] += rho * binding->normals[3 * k + 1];
 				p[3 * k + 2] += rho * binding->normals[3 * k + 2];
@@ -352,6 +394,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		base = binding->frame_base;
 	}
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
+	lvp__frame_map(binding, rest_positions);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));

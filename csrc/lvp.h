@@ -76,6 +76,13 @@
  *     map itself fades to zero at region borders. It is continuous too, but it is largest in
  *     the middle of each region, far from the joint, so it inflates limbs rather than joints
  *     (paper Fig. 2b); it is kept for comparison and measured in the tests.
+ *   Where the skin moved rigidly, nothing moves (deformation weighting, on by default in local
+ *   mode): each frame the map is multiplied by a_k = sum_i omega_ki |S_i pbar_k - sum_j omega_kj
+ *   S_j pbar_k| (S_i = T_i Tbar_i^-1), how far the vertex's bones disagree about where it goes.
+ *   It is zero where all of a vertex's bones move together and largest at bending joints, so a
+ *   region's fix stays near the joint that bent even when artist weights scatter the region
+ *   over the body (the giraffe's root bone has weight from the tail to the shoulders); like
+ *   the weights, it is continuous over the surface.
  *   Smoothness: every map is a continuous function of the skinning weights and of distances
  *   to bone segments, evaluated per vertex, so it is as smooth as the weights are. alpha >= 1
  *   keeps the onset of the correction C1 where a weight band begins.
@@ -299,6 +306,7 @@ typedef struct lvp_map_options {
 	 * list for a region also means all bones. region_bone_offsets has bone_count+1 entries. */
 	const int32_t *region_bone_offsets;
 	const int32_t *region_bones;
+	int32_t deformation_weighted; /* nonzero (default): multiply by a_k each frame, local mode */
 } lvp_map_options;
 
 typedef struct lvp_bind_options {

@@ -35,8 +35,10 @@ typedef enum lvp_py__kind { LVP_PY__FLOAT32, LVP_PY__INT32, LVP_PY__FLOAT64 } lv
 static const char *const lvp_py__kind_names[] = {"float32", "int32", "float64"};
 static const char *const lvp_py__kind_examples[] = {"array('f')", "array('i')", "array('d')"};
 
-/* One argument's view of the caller's memory. data is NULL when an optional argument is None. */
+/* One argument's view of the caller's memory. `given` is false when an optional argument is None; data can
+ * be NULL for an empty buffer too, so it does not tell the two apart. */
 typedef struct lvp_py__array {
+	bool given;
 	void *data;
 	Py_ssize_t count; /* items */
 	Py_ssize_t bytes;
@@ -145,6 +147,7 @@ static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObje
 	/* A memoryview cast from an odd byte offset can be misaligned; the core reads whole floats. */
 	if (view->len > 0 && (uintptr_t)view->buf % (uintptr_t)view->itemsize != 0)
 		return lvp_py__wrong_buffer(object, name, kind, writable, "not aligned to its item size");
+	r_array->given = true;
 	r_array->data = view->buf;
 	r_array->count = view->len / view->itemsize;
 	r_array->bytes = view->len;
@@ -154,7 +157,7 @@ static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObje
 /* Checks that an array holds exactly `expected` items; `why` says where the number comes from. */
 static int lvp_py__expect_count(const lvp_py__array *array, Py_ssize_t expected, const char *why)
 {
-	if (!array->data || array->count == expected)
+	if (!array->given || array->count == expected)
 		return 0;
 	PyErr_Format(PyExc_ValueError, "%s has %zd %s values; expected %zd (%s).", array->name, array->count,
 	             lvp_py__kind_names[array->kind], expected, why);
@@ -623,11 +626,11 @@ static int lvp_py__take_skeleton(lvp_py__buffers *buffers, lvp_skeleton *r_skele
 	    lvp_py__take(buffers, &heads, heads_object, "heads", LVP_PY__FLOAT32, false, optional) != 0 ||
 	    lvp_py__take(buffers, &tails, tails_object, "tails", LVP_PY__FLOAT32, false, optional) != 0)
 		return -1;
-	if (!matrices.data && !heads.data && !tails.data)
+	if (!matrices.given && !heads.given && !tails.given)
 		return 0;
 	const lvp_py__array *parts[3] = {&matrices, &heads, &tails};
 	for (int i = 0; i < 3; ++i)
-		if (!parts[i]->data) {
+		if (!parts[i]->given) {
 			PyErr_Format(PyExc_ValueError,
 			             "%s is None but the other skeleton arrays are given; pass rest_matrices, heads and tails "
 			             "together, or all three as None.",
@@ -797,14 +800,14 @@ static int lvp_py__take_map(lvp_py__buffers *buffers, lvp_map_options *r_map, co
 	    lvp_py__expect_count(&painted, vertex_count, "one per vertex") != 0)
 		return -1;
 	map.map = (lvp_map)map_index;
-	if (!region_offsets.data != !region_bones.data) {
+	if (region_offsets.given != region_bones.given) {
 		PyErr_Format(PyExc_ValueError,
 		             "%s is None but %s is given; pass region_bone_offsets and region_bones together, or neither.",
-		             region_offsets.data ? "region_bones" : "region_bone_offsets",
-		             region_offsets.data ? "region_bone_offsets" : "region_bones");
+		             region_offsets.given ? "region_bones" : "region_bone_offsets",
+		             region_offsets.given ? "region_bone_offsets" : "region_bones");
 		return -1;
 	}
-	if (region_offsets.data) {
+	if (region_offsets.given) {
 		if (lvp_py__expect_count(&region_offsets, (Py_ssize_t)bone_count + 1, "one per bone, plus one") != 0)
 			return -1;
 		int32_t total = ((const int32_t *)region_offsets.data)[bone_count];
@@ -864,10 +867,10 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	/* The weights come as a unit, like the skeleton; None for all three is a prop without bones. */
 	const lvp_weights *weights_pointer = NULL;
 	lvp_weights weights = {offsets.data, bones.data, values.data};
-	if (offsets.data || bones.data || values.data) {
+	if (offsets.given || bones.given || values.given) {
 		const lvp_py__array *parts[3] = {&offsets, &bones, &values};
 		for (int i = 0; i < 3; ++i)
-			if (!parts[i]->data) {
+			if (!parts[i]->given) {
 				PyErr_Format(PyExc_ValueError,
 				             "%s is None but the other weight arrays are given; pass weight_offsets, weight_bones "
 				             "and weight_values together, or all three as None.",
@@ -1030,7 +1033,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	    lvp_py__expect_count(&out_positions, vertex_values, "3 per vertex of the binding") != 0 ||
 	    lvp_py__expect_count(&out_offsets, vertex_values, "3 per vertex of the binding") != 0)
 		goto done;
-	if (!out_positions.data && !out_offsets.data) {
+	if (!out_positions.given && !out_offsets.given) {
 		PyErr_SetString(PyExc_ValueError,
 		                "out_positions and out_offsets are both None; pass at least one float32 buffer of 3 values "
 		                "per vertex.");

@@ -730,6 +730,9 @@ class TestErrors(unittest.TestCase):
         no_skeleton = dict(arguments, rest_matrices=None, heads=None, tails=None, region_bone_offsets=None,
                            region_bones=None)
         self.assertValueErrorNames('rest_matrices', _lvp.Binding, **no_skeleton)
+        empty_weights = dict(arguments, weight_offsets=array.array('i', [0] * (tube.vertex_count + 1)),
+                             weight_bones=array.array('i'), weight_values=array.array('f'))
+        self.assertValueErrorNames('weight_offsets', _lvp.Binding, **empty_weights)  # no vertex has a weight
 
     def test_binding_methods(self):
         tube = Tube()
@@ -779,6 +782,14 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('map', binding.set_map, 'FANCY')
         self.assertValueErrorNames('alpha', binding.set_map, alpha=-2.0)
         self.assertValueErrorNames('painted', binding.set_map, 'PAINTED')
+        # An empty buffer is a buffer of the wrong size, not None.
+        self.assertValueErrorNames('out', binding.correction_map, array.array('f'))
+        self.assertValueErrorNames('out_vertex_regions', binding.segmentation, array.array('i'))
+        self.assertValueErrorNames('out_triangle_regions', binding.segmentation, None, array.array('i'))
+        self.assertValueErrorNames('out_offsets', binding.correct, positions, matrices, out_offsets=array.array('f'))
+        self.assertValueErrorNames('painted', binding.set_map, 'PAINTED', painted=array.array('f'))
+        self.assertValueErrorNames('region_bone_offsets', binding.set_map, region_bone_offsets=array.array('i'),
+                                   region_bones=array.array('i'))
         # The binding still works after all these refusals.
         stats = binding.correct(positions, matrices, out_positions=arguments['out_positions'])
         self.assertEqual(set(stats), STATS_KEYS)

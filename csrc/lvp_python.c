@@ -104,7 +104,7 @@ static int lvp_py__wrong_buffer(PyObject *object, const char *name, lvp_py__kind
 
 /* Takes a view of `object` for the argument `name` into `buffers`, checking that it is a C-contiguous,
  * aligned buffer of exactly `kind` items (and writable for outputs). `optional` lets None (or a missing
- * keyword, NULL) through as data = NULL. Sizes are checked by the caller, which knows them. */
+ * keyword, NULL) through as not given. Sizes are checked by the caller, which knows them. */
 static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObject *object, const char *name,
                         lvp_py__kind kind, bool writable, bool optional)
 {

@@ -141,7 +141,7 @@ run_one() {
 			builder_pid=""
 			cat "$RUN_TMP/blender43-build.log" >&2
 			log "Blender 4.3: the chroot could not be built (LVP_SKIP_BLENDER43=1 skips it)"
-			failed_lines+=("Blender 4.3: chroot build failed; retry: tests/blender/blender43.sh ensure")
+			failed_lines+=("${SELF%run.sh}blender43.sh ensure    # the Blender 4.3 chroot could not be built")
 			blender_failures=$((blender_failures + 1))
 			return 1
 		fi
@@ -167,12 +167,12 @@ run_one() {
 		failed="$(sed -n 's/.*failed=\([0-9]*\).*/\1/p' <<<"$summary")"
 		skipped="$(sed -n 's/.*skipped=\([0-9]*\).*/\1/p' <<<"$summary")"
 		while IFS= read -r name; do
-			failed_lines+=("Blender $label: $rerun $name")
+			failed_lines+=("$rerun $name")
 		done < <(sed -n 's/^failed //p' "$results")
 		if [ "$rc" != 0 ] && [ "$failed" = 0 ]; then
 			# All tests passed but Blender still failed (e.g. a crash on exit).
 			failed=1
-			failed_lines+=("Blender $label: exited with status $rc after the tests; rerun: $rerun")
+			failed_lines+=("$rerun    # Blender $label exited with status $rc after the tests passed")
 		fi
 		;;
 	running*)
@@ -183,11 +183,15 @@ run_one() {
 		else
 			log "Blender $label died (status $rc) in $current"
 		fi
-		failed_lines+=("Blender $label: died in $current (status $rc): $rerun $current")
+		if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
+			failed_lines+=("$rerun $current    # Blender $label timed out in it")
+		else
+			failed_lines+=("$rerun $current    # Blender $label died in it (status $rc)")
+		fi
 		;;
 	*)
 		failed=1
-		failed_lines+=("Blender $label: did not run the tests (status $rc): $rerun")
+		failed_lines+=("$rerun    # Blender $label did not run the tests (status $rc)")
 		;;
 	esac
 	[ "$rc" = 0 ] || blender_failures=$((blender_failures + 1))

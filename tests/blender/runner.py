@@ -91,6 +91,8 @@ def iter_tests(suite):
 def rerun_name(test):
     """The name that makes run.sh run this test alone (also for import and class-fixture errors)."""
     test_id = test.id()
+    if getattr(test, "lvp_name", None):
+        return test.lvp_name
     if type(test).__name__ == "_FailedTest":
         # A module that failed to import, or a name that does not exist: its name is the method.
         return getattr(test, "_testMethodName", test_id)
@@ -131,6 +133,10 @@ class Result(unittest.TextTestResult):
         super().startTest(test)
         self.stream.flush()
 
+    def addSuccess(self, test):
+        super().addSuccess(test)
+        self.passed = getattr(self, "passed", 0) + 1
+
     def stopTest(self, test):
         super().stopTest(test)
         self.stream.flush()
@@ -139,6 +145,7 @@ class Result(unittest.TextTestResult):
 
 def main():
     args = parse_args(blender_argv())
+    sys.dont_write_bytecode = True  # no __pycache__ in tests/blender
     faulthandler.enable()
 
     import bpy  # noqa: E402  (only inside Blender)
@@ -178,7 +185,11 @@ def main():
         suite = unittest.TestSuite()
         for name in args.names:
             try:
-                suite.addTests(loader.loadTestsFromName(name))
+                loaded = loader.loadTestsFromName(name)
+                for test in iter_tests(loaded):
+                    if type(test).__name__ == "_FailedTest":
+                        test.lvp_name = name  # a name that does not exist: rerun it as given
+                suite.addTests(loaded)
             except Exception as error:  # e.g. a SyntaxError in the module: report it as a test
                 suite.addTest(LoadError(name, error))
     else:
@@ -210,8 +221,7 @@ def main():
             failing.append(name)
     failed = len(failing)
     skipped = len(result.skipped)
-    passed = max(0, result.testsRun - len(result.failures) - len(result.errors) - skipped
-                 - len(result.unexpectedSuccesses))
+    passed = getattr(result, "passed", 0)
 
     if failing:
         print("\n[runner] FAILED on Blender %s; rerun one test alone with:" % bpy.app.version_string)

@@ -1,0 +1,96 @@
+/*
+ * test_fuzz_regressions.c - replays, under ASan and UBSan, every input in tests/fuzz/regressions/
+ * (inputs that once crashed the fuzzer or broke a contract it checks) and the seed corpus
+ * tests/fuzz/corpus/, through the fuzzer's own decoding (tests/fuzz/fuzz_decode.h). A crash
+ * found by `./build.sh fuzz` becomes a permanent test by copying the artifact into
+ * tests/fuzz/regressions/ under a name that says what it broke.
+ */
+#include "support/check.h"
+#include "support/test_meshes.h"
+
+#include "../fuzz/fuzz_decode.h"
+
+#include <dirent.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int compare_names(const void *a, const void *b)
+{
+	return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* Replays every regular file of `directory` in name order; returns how many it replayed. */
+static int replay_directory(const char *directory)
+{
+	DIR *dir = opendir(directory);
+	if (!dir) {
+		fprintf(stderr, "  cannot open %s (the tests run from tests/)\n", directory);
+		return -1;
+	}
+	char **names = NULL;
+	int count = 0, capacity = 0;
+	for (struct dirent *entry; (entry = readdir(dir));) {
+		if (entry->d_name[0] == '.')
+			continue; /* ., .. and .gitkeep */
+		if (count == capacity) {
+			capacity = capacity ? 2 * capacity : 64;
+			char **bigger = realloc(names, (size_t)capacity * sizeof(char *));
+			if (!bigger)
+				abort();
+			names = bigger;
+		}
+		names[count] = strdup(entry->d_name);
+		if (!names[count])
+			abort();
+		++count;
+	}
+	closedir(dir);
+	if (count > 0) /* qsort(NULL, 0, ...) is undefined */
+		qsort(names, (size_t)count, sizeof(char *), compare_names);
+	int replayed = 0;
+	for (int i = 0; i < count; ++i) {
+		char path[1024];
+		snprintf(path, sizeof(path), "%s/%s", directory, names[i]);
+		size_t size = 0;
+		char *data = test_read_file(path, &size);
+		CHECK(data != NULL);
+		if (data) {
+			printf("  %s (%zu bytes)\n", path, size);
+			fflush(stdout);
+			/* A crash here is the regression: ASan/UBSan or a contract check stops the program
+			 * with the file's name just printed above. */
+			fuzz_run((const uint8_t *)data, size);
+			++replayed;
+		}
+		free(data);
+		free(names[i]);
+	}
+	free(names);
+	return replayed;
+}
+
+static void test_regressions_replay(void)
+{
+	CHECK(replay_directory("fuzz/regressions") >= 0);
+}
+
+static void test_seed_corpus_replays(void)
+{
+	CHECK(replay_directory("fuzz/corpus") >= 10);
+}
+
+static void test_empty_and_tiny_inputs(void)
+{
+	static const uint8_t bytes[4] = {1, 0, 0, 0};
+	fuzz_run(NULL, 0);
+	for (size_t n = 0; n <= sizeof(bytes); ++n)
+		fuzz_run(bytes, n);
+}
+
+int main(void)
+{
+	RUN(test_regressions_replay);
+	RUN(test_seed_corpus_replays);
+	RUN(test_empty_and_tiny_inputs);
+	return check_failures() != 0;
+}

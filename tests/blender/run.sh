@@ -115,6 +115,7 @@ export BLENDER_USER_CONFIG="${BLENDER_USER_CONFIG:-$BLENDER_USER_RESOURCES/confi
 export BLENDER_USER_SCRIPTS="${BLENDER_USER_SCRIPTS:-$BLENDER_USER_RESOURCES/scripts}"
 export BLENDER_USER_DATAFILES="${BLENDER_USER_DATAFILES:-$BLENDER_USER_RESOURCES/datafiles}"
 export BLENDER_USER_EXTENSIONS="${BLENDER_USER_EXTENSIONS:-$BLENDER_USER_RESOURCES/extensions}"
+export LVP_RUN_TMP="$RUN_TMP"
 export LVP_ADDON_DIR="${LVP_ADDON_DIR:-$DIST/$ADDON_ID}"
 export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$DIST/$ADDON_ID-$VERSION.zip}"
 [ -f "$LVP_EXTENSION_ZIP" ] || LVP_EXTENSION_ZIP=""
@@ -146,7 +147,7 @@ run_one() {
 			return 1
 		fi
 		builder_pid=""
-		tail -n 1 "$RUN_TMP/blender43-build.log" >&2
+		grep 'ready in' "$RUN_TMP/blender43-build.log" >&2 || true
 	fi
 
 	local results="$RUN_TMP/results-${label//[^A-Za-z0-9.]/_}"

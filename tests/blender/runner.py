@@ -154,7 +154,11 @@ def main():
     addon_dir = os.path.abspath(args.addon_dir)
     extension_zip = os.path.abspath(args.extension_zip) if args.extension_zip else newest_zip()
     rerun = args.rerun or "tests/blender/run.sh --blender %s" % version
-    tmp = tempfile.mkdtemp(prefix="lvp-test-", dir="/tmp" if os.path.isdir("/tmp") else None)
+    # Under run.sh's per-run directory when there is one, so that it goes even after a crash.
+    parent = os.environ.get("LVP_RUN_TMP")
+    if not (parent and os.path.isdir(parent)):
+        parent = "/tmp" if os.path.isdir("/tmp") else None
+    tmp = tempfile.mkdtemp(prefix="lvp-test-", dir=parent)
 
     os.environ.update({
         "LVP_REPO": REPO,

@@ -362,7 +362,7 @@ static void fuzz_decode_generated(fuzz_case *c, fuzz_reader *r)
 	/* Corruptions: each one edit of one array element. */
 	int edits = fuzz_byte(r) % 8;
 	for (int e = 0; e < edits; ++e) {
-		uint8_t target = fuzz_byte(r) % 10;
+		uint8_t target = fuzz_byte(r) % 13;
 		uint8_t at = fuzz_byte(r);
 		switch (target) {
 		case 0: c->positions[at % (c->vertex_count * 3)] = fuzz_float(r); break;
@@ -380,12 +380,35 @@ static void fuzz_decode_generated(fuzz_case *c, fuzz_reader *r)
 		case 6: c->rest_matrices[at % (bones * 16)] = fuzz_float(r); break;
 		case 7: c->posed[at % (bones * 16)] = fuzz_float(r); break;
 		case 8: c->deformed[at % (c->vertex_count * 3)] = fuzz_float(r); break;
-		default: /* collapse a triangle onto one corner (zero area, repeated vertex) */
+		case 9: /* collapse a triangle onto one corner (zero area, repeated vertex) */
 		{
 			int32_t f = at % c->triangle_count;
 			c->triangles[3 * f + 1] = c->triangles[3 * f];
 			break;
 		}
+		case 10: /* collapse a whole ring onto its first vertex (many equal centroids) */
+		{
+			int32_t ring = at % rings;
+			for (int j = 1; j < around; ++j)
+				memcpy(c->positions + 3 * (ring * around + j), c->positions + 3 * ring * around, 3 * sizeof(float));
+			break;
+		}
+		case 11: /* scale the rest mesh and the frame: tiny or huge models */
+		{
+			float scale = fuzz_float(r);
+			for (int32_t i = 0; i < c->vertex_count * 3; ++i) {
+				c->positions[i] *= scale;
+				c->deformed[i] *= scale;
+			}
+			break;
+		}
+		default: /* turn every triangle inside out (inward winding, negative volume) */
+			for (int32_t f = 0; f < c->triangle_count; ++f) {
+				int32_t swap = c->triangles[3 * f + 1];
+				c->triangles[3 * f + 1] = c->triangles[3 * f + 2];
+				c->triangles[3 * f + 2] = swap;
+			}
+			break;
 		}
 	}
 }
@@ -507,6 +530,14 @@ static void fuzz_check_result(const char *call, lvp_result result, const lvp_dia
 		fuzz_violation(call, "diagnostic message not terminated");
 	if (diag->message[0] == '\0')
 		fuzz_violation(call, "empty diagnostic message");
+}
+
+/* A call given a NULL where a binding belongs must fail, and say so. */
+static void fuzz_check_refused(const char *call, lvp_result result, const lvp_diagnostic *diag)
+{
+	if (result == lvp_success)
+		fuzz_violation(call, "accepted a NULL binding");
+	fuzz_check_result(call, result, diag);
 }
 
 #define FUZZ_CANARY 0xA5
@@ -706,6 +737,26 @@ static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *w
 	fuzz_decode_map(&options.map, c, r, bone_count);
 	lvp_binding *binding = NULL;
 	lvp_diagnostic diag = fuzz_diag();
+	if ((flags & 0x80) && (flags & 0x60) == 0x40) {
+		/* The calls that take a binding must refuse a missing one. */
+		lvp_frame_options frame = lvp_frame_default_options();
+		float out[3];
+		double change;
+		lvp_result missing = lvp_bind(NULL, c->positions, vertex_count, c->triangles, triangle_count, weights,
+		                              &skeleton, &options, &diag);
+		fuzz_check_refused("lvp_bind(NULL)", missing, &diag);
+		diag = fuzz_diag();
+		missing = lvp_correct(out, NULL, NULL, c->deformed, c->posed, NULL, &frame, NULL, &diag);
+		fuzz_check_refused("lvp_correct(NULL)", missing, &diag);
+		diag = fuzz_diag();
+		missing = lvp_region_volume_changes(&change, NULL, NULL, c->deformed, c->posed, NULL, &diag);
+		fuzz_check_refused("lvp_region_volume_changes(NULL)", missing, &diag);
+		diag = fuzz_diag();
+		missing = lvp_set_map(NULL, &options.map, &diag);
+		fuzz_check_refused("lvp_set_map(NULL)", missing, &diag);
+		lvp_free(NULL);
+		diag = fuzz_diag();
+	}
 	lvp_result result = lvp_bind(&binding, c->positions, vertex_count, c->triangles, triangle_count,
 	                             (flags & 2) ? NULL : weights, (flags & 4) ? NULL : &skeleton,
 	                             (flags & 8) ? NULL : &options, &diag);
@@ -726,9 +777,17 @@ static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *w
 	/* An artist changes the map: then the same frames again. */
 	lvp_map_options map = options.map;
 	fuzz_decode_map(&map, c, r, bone_count);
+	float *map_before = fuzz_alloc((size_t)vertex_count, sizeof(float));
+	float *map_after = fuzz_alloc((size_t)vertex_count, sizeof(float));
+	lvp_get_correction_map(binding, map_before);
 	diag = fuzz_diag();
 	result = lvp_set_map(binding, fuzz_byte(r) % 16 == 0 ? NULL : &map, &diag);
 	fuzz_check_result("lvp_set_map", result, &diag);
+	lvp_get_correction_map(binding, map_after);
+	if (result != lvp_success && memcmp(map_before, map_after, (size_t)vertex_count * sizeof(float)) != 0)
+		fuzz_violation("lvp_set_map", "the map changed although the call failed");
+	free(map_before);
+	free(map_after);
 	fuzz_check_binding(binding, vertex_count, triangle_count);
 	fuzz_correct(binding, c, fuzz_byte(r), &first);
 	fuzz_correct(binding, c, fuzz_byte(r), &second);

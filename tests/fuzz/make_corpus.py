@@ -136,6 +136,13 @@ def seeds():
     # Counts passed wrong: one vertex fewer than the triangles use, and a negative bone count
     # (case 15 of fuzz_count reads one more byte).
     s["tube_counts_wrong"] = generated(5, 3, 2, [0, 20]) + common_tail(counts=(13, 0, 15, 0))
+    # Inward winding (negative volume) on a bent tube: automatic weights must notice.
+    s["tube_inward_winding"] = generated(8, 5, 2, [0, 60], edits=[(12, 0)]) + common_tail()
+    # A ring collapsed to a point and the model scaled down to 1/32: tiny, degenerate geometry.
+    s["tube_collapsed_ring_tiny"] = generated(8, 6, 3, [0, 30, 30], edits=[(10, 2), (11, 0, f(1 / 32))]) + \
+        common_tail()
+    # The calls that take a binding, given NULL (bind flags 0xC0), before a normal run.
+    s["tube_null_binding_calls"] = generated(5, 3, 2, [0, 45]) + common_tail(bind=bind_and_run(flags=0xC0))
     return s
 
 

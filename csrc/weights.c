@@ -1,0 +1,414 @@
+/*
+ * weights.c - automatic skinning weights of Rohmer, Hahmann, Cani 2008, section 5.1:
+ * omega_ki = (l_i / d_ki)^alpha with d_ki the distance from vertex k to the SEGMENT of bone i, a bone
+ * ignored when the straight path from the vertex to its closest point on the bone leaves the body (the
+ * paper's normal-angle test, or an exact test of the path against the mesh through a BVH), the rigid
+ * fallback for vertices that see no bone, then normalization, pruning and renormalization.
+ *
+ * Per vertex, the candidate bones are taken strongest first from a heap, and the visibility of a bone is
+ * only decided when it could still change the result: once max_influences visible bones are certain to
+ * survive min_weight, or every bone left is certain to fall below it, the weaker bones cannot enter the
+ * row. The output is exactly what testing every bone would give, but the exact test casts a few paths
+ * per vertex instead of one per bone.
+ */
+#include "bvh.h"
+#include "lvp_internal.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+/* Distances below this fraction of the bone's length count as this fraction: a vertex on a bone gets a
+ * finite, overwhelming weight (1e12 times that of a bone one length away, for alpha = 2), and a vertex on
+ * the joint of two bones is shared evenly between them, the limit of approaching the joint. */
+#define LVP__DISTANCE_FLOOR 1e-6
+/* Exact test: crossings within this fraction of the path from either end are ignored, so the triangles
+ * that touch the start (duplicated seam vertices, neighbours grazed at the start) and a bone that touches
+ * the surface do not hide anything. */
+#define LVP__PATH_EPSILON 1e-6
+
+lvp_auto_weights_options lvp_auto_weights_default_options(void)
+{
+	lvp_auto_weights_options options;
+	options.alpha = 2.0f;
+	options.visibility = LVP_VISIBILITY_NORMAL;
+	options.normal_cos_max = 0.0f;
+	options.max_influences = 4;
+	options.min_weight = 0.01f;
+	return options;
+}
+
+/* Most influences one vertex can receive: all bones, at most max_influences, and at most 1/min_weight
+ * (normalized weights of at least min_weight sum to at most 1; one more covers rounding). Never 0: the
+ * rigid fallback always writes one. */
+static int64_t lvp__row_bound(int32_t bone_count, const lvp_auto_weights_options *options)
+{
+	int64_t bound = bone_count;
+	if (options->max_influences > 0 && options->max_influences < bound)
+		bound = options->max_influences;
+	if (options->min_weight > 0.0f && options->min_weight <= 1.0f) {
+		double by_weight = floor(1.0 / (double)options->min_weight) + 1.0;
+		if (by_weight < (double)bound)
+			bound = (int64_t)by_weight;
+	}
+	return bound < 1 ? 1 : bound;
+}
+
+int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const lvp_auto_weights_options *options)
+{
+	if (vertex_count <= 0 || vertex_count > LVP_MAX_VERTICES || bone_count <= 0 || bone_count > LVP_MAX_BONES)
+		return 0;
+	lvp_auto_weights_options defaults = lvp_auto_weights_default_options();
+	return (int64_t)vertex_count * lvp__row_bound(bone_count, options ? options : &defaults);
+}
+
+static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diagnostic *r_diag)
+{
+	if (!(isfinite(o->alpha) && o->alpha > 0.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.alpha", -1,
+		                 "options.alpha is %g; the weight exponent must be a finite number above 0 (default 2).",
+		                 (double)o->alpha);
+	if ((int)o->visibility < (int)LVP_VISIBILITY_NORMAL || (int)o->visibility > (int)LVP_VISIBILITY_NONE)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.visibility", -1,
+		                 "options.visibility is %d; use LVP_VISIBILITY_NORMAL, _EXACT or _NONE.", (int)o->visibility);
+	if (!(o->normal_cos_max >= -1.0f && o->normal_cos_max <= 1.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.normal_cos_max", -1,
+		                 "options.normal_cos_max is %g; it is a cosine, in [-1, 1] (default 0).",
+		                 (double)o->normal_cos_max);
+	if (o->max_influences < 0)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.max_influences", -1,
+		                 "options.max_influences is %d; use 0 for all bones or a positive count (default 4).",
+		                 (int)o->max_influences);
+	if (!(o->min_weight >= 0.0f && o->min_weight <= 1.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.min_weight", -1,
+		                 "options.min_weight is %g; it is a normalized weight, in [0, 1] (default 0.01).",
+		                 (double)o->min_weight);
+	return lvp_success;
+}
+
+typedef struct lvp__bone_segment {
+	lvp__vec3 head, axis;  /* axis = tail - head */
+	double inverse_length2; /* 1 / |axis|^2, 0 for a zero-length bone */
+	double length2;
+	double floor2; /* squared distance floor, see LVP__DISTANCE_FLOOR */
+} lvp__bone_segment;
+
+static inline lvp__vec3 lvp__closest_on_bone(const lvp__bone_segment *bone, lvp__vec3 p)
+{
+	double t = lvp__dot(lvp__sub(p, bone->head), bone->axis) * bone->inverse_length2;
+	t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+	return lvp__add(bone->head, lvp__scale(bone->axis, t));
+}
+
+/* A bone that may weigh on the current vertex. key = (l / d)^2 orders the bones exactly as their weights
+ * do, whatever alpha; weight is (key / key of the strongest visible bone)^(alpha/2), set once that bone is
+ * known, so it never overflows and the strongest visible bone weighs 1. */
+typedef struct lvp__candidate {
+	double key, weight;
+	int32_t bone;
+} lvp__candidate;
+
+static inline bool lvp__stronger(const lvp__candidate *a, const lvp__candidate *b)
+{
+	return a->key > b->key || (a->key == b->key && a->bone < b->bone);
+}
+
+static void lvp__sift_down(lvp__candidate *heap, int32_t count, int32_t i)
+{
+	for (;;) {
+		int32_t best = i, left = 2 * i + 1, right = left + 1;
+		if (left < count && lvp__stronger(&heap[left], &heap[best]))
+			best = left;
+		if (right < count && lvp__stronger(&heap[right], &heap[best]))
+			best = right;
+		if (best == i)
+			return;
+		lvp__candidate swap = heap[i];
+		heap[i] = heap[best];
+		heap[best] = swap;
+		i = best;
+	}
+}
+
+static inline double lvp__relative_weight(double ratio, double alpha)
+{
+	/* ratio = (l_i d_top / (l_top d_i))^2 in (0, 1]; the common exponents skip pow(). */
+	if (alpha == 2.0)
+		return ratio;
+	if (alpha == 1.0)
+		return sqrt(ratio);
+	if (alpha == 4.0)
+		return ratio * ratio;
+	return pow(ratio, 0.5 * alpha);
+}
+
+/* Everything a call needs, shared by the per-vertex routine. */
+typedef struct lvp__weights_context {
+	const float *positions;
+	const float *normals; /* NORMAL test only, outward */
+	const lvp__bone_segment *bones;
+	int32_t bone_count;
+	const lvp__bvh *bvh; /* EXACT test only */
+	lvp_visibility visibility;
+	double alpha, normal_cos_max, min_weight;
+	int32_t max_influences; /* 0 = all */
+	lvp__candidate *heap;   /* bone_count scratch */
+	lvp__candidate *visible; /* bone_count scratch */
+} lvp__weights_context;
+
+/* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
+static bool lvp__path_is_inside(const lvp__weights_context *ctx, int32_t k, lvp__vec3 p, int32_t bone)
+{
+	lvp__vec3 c = lvp__closest_on_bone(&ctx->bones[bone], p);
+	lvp__vec3 path = lvp__sub(c, p);
+	if (path.x == 0.0 && path.y == 0.0 && path.z == 0.0)
+		return true; /* the vertex is on the bone */
+	return !lvp__bvh_segment_hits(ctx->bvh, p, c, LVP__PATH_EPSILON, 1.0 - LVP__PATH_EPSILON, k);
+}
+
+/* Computes the row of vertex k into r_bones/r_values (room for the row bound); returns its length. */
+static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp__weights_context *ctx, int32_t k)
+{
+	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
+	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
+	/* A vertex without a normal (isolated, or only zero-area triangles) cannot be judged by its normal:
+	 * every bone passes the test. */
+	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
+	lvp__candidate *heap = ctx->heap;
+	int32_t count = 0;
+	/* The rigid fallback's bone: the closest bone with a length; a zero-length bone (a point) only when
+	 * the skeleton has no other, since such bones never receive weight otherwise. */
+	int32_t closest = -1, closest_point = -1;
+	double closest_d2 = INFINITY, closest_point_d2 = INFINITY;
+	for (int32_t i = 0; i < ctx->bone_count; ++i) {
+		const lvp__bone_segment *bone = &ctx->bones[i];
+		if (bone->length2 == 0.0) {
+			lvp__vec3 diff = lvp__sub(bone->head, p);
+			double d2 = lvp__dot(diff, diff);
+			if (d2 < closest_point_d2)
+				closest_point_d2 = d2, closest_point = i;
+			continue;
+		}
+		lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
+		double d2 = lvp__dot(diff, diff);
+		if (d2 < closest_d2)
+			closest_d2 = d2, closest = i;
+		if (normal_test && d2 > 0.0) {
+			double along = lvp__dot(diff, n); /* |n| = 1: cos(path, n) = along / d */
+			if (along > ctx->normal_cos_max * sqrt(d2))
+				continue;
+		}
+		heap[count].key = bone->length2 / (d2 > bone->floor2 ? d2 : bone->floor2);
+		heap[count].bone = i;
+		heap[count].weight = 0.0;
+		++count;
+	}
+	for (int32_t i = count / 2 - 1; i >= 0; --i)
+		lvp__sift_down(heap, count, i);
+
+	/* Take bones strongest first. visible[] receives the visible ones in that order (non-increasing
+	 * weight); the normalized weight of visible[j] is its weight / total with total the sum over every
+	 * visible bone, known to lie in [visible_sum, visible_sum + untested]. Bones kept by min_weight form
+	 * a prefix of visible[]; sure_kept counts the prefix certain to be kept. */
+	lvp__candidate *visible = ctx->visible;
+	int32_t visible_count = 0, sure_kept = 0;
+	double visible_sum = 0.0, untested = 0.0, mw = ctx->min_weight;
+	int32_t k_max = ctx->max_influences;
+	while (count > 0) {
+		lvp__candidate c = heap[0];
+		heap[0] = heap[--count];
+		lvp__sift_down(heap, count, 0);
+		if (visible_count > 0)
+			untested -= c.weight;
+		if (ctx->visibility == LVP_VISIBILITY_EXACT && !lvp__path_is_inside(ctx, k, p, c.bone))
+			continue;
+		if (visible_count == 0) {
+			/* The strongest visible bone: weights are measured relative to it from now on. */
+			c.weight = 1.0;
+			untested = 0.0;
+			for (int32_t j = 0; j < count; ++j) {
+				heap[j].weight = lvp__relative_weight(heap[j].key / c.key, ctx->alpha);
+				untested += heap[j].weight;
+			}
+		}
+		visible[visible_count++] = c;
+		visible_sum += c.weight;
+		if (count == 0 || untested < 0.0)
+			untested = 0.0;
+		double upper = mw * (visible_sum + untested), lower = mw * visible_sum;
+		/* A weight that underflowed to zero is never stored, whatever min_weight says. */
+		while (sure_kept < visible_count && visible[sure_kept].weight >= upper && visible[sure_kept].weight > 0.0)
+			++sure_kept;
+		if (k_max > 0 && sure_kept >= k_max)
+			break;
+		bool decided = sure_kept == visible_count || visible[sure_kept].weight < lower ||
+		               visible[sure_kept].weight == 0.0;
+		if (decided && count > 0 && (heap[0].weight < lower || heap[0].weight == 0.0))
+			break; /* every bone left would be pruned, whatever it sees */
+	}
+
+	int32_t kept;
+	if (visible_count == 0) {
+		/* The rigid fallback: a vertex that sees no bone (a horn) follows its closest bone. */
+		r_bones[0] = closest >= 0 ? closest : closest_point;
+		r_values[0] = 1.0f;
+		return 1;
+	}
+	if (count == 0) {
+		/* Every bone was decided: the total is exact. */
+		kept = 0;
+		while (kept < visible_count && visible[kept].weight >= mw * visible_sum && visible[kept].weight > 0.0)
+			++kept;
+	} else {
+		kept = sure_kept;
+	}
+	if (k_max > 0 && kept > k_max)
+		kept = k_max;
+	if (kept == 0)
+		kept = 1; /* min_weight above every weight: the strongest bone stays, rather than none */
+	double sum = 0.0;
+	for (int32_t j = 0; j < kept; ++j)
+		sum += visible[j].weight;
+	for (int32_t j = 0; j < kept; ++j) {
+		r_bones[j] = visible[j].bone;
+		r_values[j] = (float)(visible[j].weight / sum);
+	}
+	return kept;
+}
+
+lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
+                            const float *positions, int32_t vertex_count, const int32_t *triangles,
+                            int32_t triangle_count, const lvp_skeleton *skeleton,
+                            const lvp_auto_weights_options *options, lvp_diagnostic *r_diag)
+{
+	if (!r_offsets || !r_bones || !r_values) {
+		const char *name = !r_offsets ? "r_offsets" : (!r_bones ? "r_bones" : "r_values");
+		return lvp__fail(r_diag, lvp_error_null_argument, name, -1,
+		                 "%s is NULL; pass vertex_count+1 offsets and capacity bones and values.", name);
+	}
+	if (capacity < 0)
+		return lvp__fail(r_diag, lvp_error_invalid_size, "capacity", -1,
+		                 "capacity is %lld; it is the number of entries of r_bones and r_values (see "
+		                 "lvp_auto_weights_bound()).",
+		                 (long long)capacity);
+	lvp_result result = lvp__check_mesh(positions, vertex_count, triangles, triangle_count, "positions", r_diag);
+	if (result == lvp_success)
+		result = lvp__check_skeleton(skeleton, r_diag);
+	lvp_auto_weights_options defaults = lvp_auto_weights_default_options();
+	if (!options)
+		options = &defaults; /* NULL means the defaults */
+	if (result == lvp_success)
+		result = lvp__check_options(options, r_diag);
+	if (result != lvp_success)
+		return result;
+
+	int32_t bone_count = skeleton->bone_count;
+	int64_t row_bound = lvp__row_bound(bone_count, options);
+	int64_t bound = (int64_t)vertex_count * row_bound;
+	/* With room for the worst case the rows go straight to the caller's buffers: nothing can fail once
+	 * they are written (short of more than INT32_MAX influences in all, which int32 offsets cannot
+	 * address: that error leaves the outputs partly written). Otherwise the rows are staged, at most
+	 * `capacity` of them, so that a call that runs out of room leaves the outputs untouched. */
+	bool direct = capacity >= bound;
+	int64_t limit = capacity < INT32_MAX ? capacity : INT32_MAX;
+	size_t staged = direct ? 0 : (size_t)limit;
+	bool normal_test = options->visibility == LVP_VISIBILITY_NORMAL;
+	size_t n = (size_t)vertex_count, b = (size_t)bone_count, row = (size_t)row_bound;
+	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0, offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
+	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate)) * b + normal_bytes + offset_bytes +
+	               (sizeof(int32_t) + sizeof(float)) * (staged + row);
+	unsigned char *memory = malloc(bytes);
+	if (!memory)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
+		                 "could not allocate %zu bytes of work memory for the automatic weights.", bytes);
+	/* Carve the block, 8-byte types first. */
+	lvp__bone_segment *bones = (lvp__bone_segment *)memory;
+	lvp__candidate *heap = (lvp__candidate *)(bones + b);
+	lvp__candidate *visible = heap + b;
+	unsigned char *cursor = (unsigned char *)(visible + b);
+	float *normals = normal_test ? (float *)cursor : NULL;
+	cursor += normal_bytes;
+	int32_t *offsets = direct ? r_offsets : (int32_t *)cursor;
+	cursor += offset_bytes;
+	int32_t *out_bones = direct ? r_bones : (int32_t *)cursor;
+	cursor += sizeof(int32_t) * staged;
+	float *out_values = direct ? r_values : (float *)cursor;
+	cursor += sizeof(float) * staged;
+	int32_t *row_bones = (int32_t *)cursor; /* one row, for the rows that may not fit */
+	float *row_values = (float *)(row_bones + row);
+
+	for (int32_t i = 0; i < bone_count; ++i) {
+		lvp__bone_segment *bone = &bones[i];
+		bone->head = lvp__load(skeleton->heads + 3 * (int64_t)i);
+		bone->axis = lvp__sub(lvp__load(skeleton->tails + 3 * (int64_t)i), bone->head);
+		bone->length2 = lvp__dot(bone->axis, bone->axis);
+		bone->inverse_length2 = bone->length2 > 0.0 ? 1.0 / bone->length2 : 0.0;
+		bone->floor2 = LVP__DISTANCE_FLOOR * LVP__DISTANCE_FLOOR * bone->length2;
+	}
+
+	lvp__bvh bvh = {0};
+	if (normal_test) {
+		double volume = 0.0;
+		lvp_vertex_normals(normals, positions, vertex_count, triangles, triangle_count, NULL);
+		lvp_mesh_volume(&volume, positions, vertex_count, triangles, triangle_count, NULL);
+		/* The test needs outward normals: a mesh wound inward has a negative volume. */
+		if (volume < 0.0)
+			for (size_t i = 0; i < 3 * n; ++i)
+				normals[i] = -normals[i];
+	} else if (options->visibility == LVP_VISIBILITY_EXACT) {
+		result = lvp__bvh_build(&bvh, positions, triangles, triangle_count, r_diag);
+		if (result != lvp_success) {
+			free(memory);
+			return result;
+		}
+	}
+
+	lvp__weights_context ctx = {
+	    .positions = positions,
+	    .normals = normals,
+	    .bones = bones,
+	    .bone_count = bone_count,
+	    .bvh = &bvh,
+	    .visibility = options->visibility,
+	    .alpha = options->alpha,
+	    .normal_cos_max = options->normal_cos_max,
+	    .min_weight = options->min_weight,
+	    .max_influences = options->max_influences,
+	    .heap = heap,
+	    .visible = visible,
+	};
+	int64_t total = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		offsets[k] = (int32_t)(total <= limit ? total : limit);
+		if (total + row_bound <= limit) {
+			total += lvp__vertex_weights(out_bones + total, out_values + total, &ctx, k);
+			continue;
+		}
+		int32_t length = lvp__vertex_weights(row_bones, row_values, &ctx, k);
+		if (total + length <= limit) {
+			memcpy(out_bones + total, row_bones, sizeof(int32_t) * (size_t)length);
+			memcpy(out_values + total, row_values, sizeof(float) * (size_t)length);
+		}
+		total += length; /* past the limit, rows are still counted, to report the capacity needed */
+	}
+	lvp__bvh_free(&bvh);
+	if (total > limit) {
+		free(memory);
+		if (total > INT32_MAX)
+			return lvp__fail(r_diag, lvp_error_invalid_size, "capacity", -1,
+			                 "the weights need %lld entries, more than int32 offsets can address; lower "
+			                 "options.max_influences or raise options.min_weight.",
+			                 (long long)total);
+		return lvp__fail(r_diag, lvp_error_invalid_size, "capacity", -1,
+		                 "capacity is %lld but these weights need %lld entries; size r_bones and r_values with "
+		                 "at least %lld (lvp_auto_weights_bound() gives %lld, always enough).",
+		                 (long long)capacity, (long long)total, (long long)total, (long long)bound);
+	}
+	offsets[vertex_count] = (int32_t)total;
+	if (!direct) {
+		memcpy(r_offsets, offsets, sizeof(int32_t) * (n + 1));
+		memcpy(r_bones, out_bones, sizeof(int32_t) * (size_t)total);
+		memcpy(r_values, out_values, sizeof(float) * (size_t)total);
+	}
+	free(memory);
+	return lvp_success;
+}

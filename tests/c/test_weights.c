@@ -1,0 +1,720 @@
+/*
+ * test_weights.c - automatic skinning weights (paper 5.1) on meshes built here: two fingers side by side,
+ * a body with a hooked horn, bones on and off the surface. The visibility tests, the rigid fallback, the
+ * pruning against a brute-force reference, the capacity contract, zero-length bones and every error path.
+ */
+#include "bvh.h" /* the exact test's segment-triangle primitive, for the brute force */
+#include "lvp.h"
+#include "support/check.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+
+/* ---- geometry ------------------------------------------------------------------------------------ */
+
+typedef struct builder {
+	int32_t vertex_count, triangle_count, bone_count;
+	float positions[3 * 4096];
+	int32_t triangles[3 * 8192];
+	float heads[3 * 16], tails[3 * 16], rest_matrices[16 * 16];
+} builder;
+
+static int32_t add_vertex(builder *b, double x, double y, double z)
+{
+	float *p = b->positions + 3 * b->vertex_count;
+	p[0] = (float)x, p[1] = (float)y, p[2] = (float)z;
+	return b->vertex_count++;
+}
+
+static void add_triangle(builder *b, int32_t i, int32_t j, int32_t k)
+{
+	int32_t *t = b->triangles + 3 * b->triangle_count++;
+	t[0] = i, t[1] = j, t[2] = k;
+}
+
+/* A closed tube of radius r around the polyline centres[0..count), each ring perpendicular to its
+ * tangent, with a fan cap at both ends (cap centres added last, start then end). binormal must be
+ * perpendicular to every tangent (the tubes here lie in planes). Oriented outward. Returns the index of
+ * its first vertex. */
+static int32_t add_tube(builder *b, const double (*centres)[3], int count, double radius, int around,
+                        const double binormal[3])
+{
+	int32_t first = b->vertex_count, first_triangle = b->triangle_count;
+	for (int i = 0; i < count; ++i) {
+		const double *c = centres[i], *prev = centres[i > 0 ? i - 1 : 0], *next = centres[i < count - 1 ? i + 1 : i];
+		double t[3] = {next[0] - prev[0], next[1] - prev[1], next[2] - prev[2]};
+		double n[3] = {binormal[1] * t[2] - binormal[2] * t[1], binormal[2] * t[0] - binormal[0] * t[2],
+		               binormal[0] * t[1] - binormal[1] * t[0]};
+		double length = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+		for (int a = 0; a < around; ++a) {
+			double phi = 2.0 * PI * a / around, cn = cos(phi) * radius / length, cb = sin(phi) * radius;
+			add_vertex(b, c[0] + cn * n[0] + cb * binormal[0], c[1] + cn * n[1] + cb * binormal[1],
+			           c[2] + cn * n[2] + cb * binormal[2]);
+		}
+	}
+	for (int i = 0; i + 1 < count; ++i)
+		for (int a = 0; a < around; ++a) {
+			int32_t p = first + i * around + a, q = first + i * around + (a + 1) % around;
+			add_triangle(b, p, q, q + around);
+			add_triangle(b, p, q + around, p + around);
+		}
+	int32_t start = add_vertex(b, centres[0][0], centres[0][1], centres[0][2]);
+	int32_t end = add_vertex(b, centres[count - 1][0], centres[count - 1][1], centres[count - 1][2]);
+	int32_t last = first + (count - 1) * around;
+	for (int a = 0; a < around; ++a) {
+		add_triangle(b, start, first + (a + 1) % around, first + a);
+		add_triangle(b, end, last + a, last + (a + 1) % around);
+	}
+	/* orient outward: flip the tube if its own volume is negative */
+	double volume = 0.0;
+	lvp_diagnostic diag = {0};
+	CHECK_OK(lvp_mesh_volume(&volume, b->positions, b->vertex_count, b->triangles + 3 * first_triangle,
+	                         b->triangle_count - first_triangle, &diag),
+	         diag);
+	if (volume < 0.0)
+		for (int32_t t = first_triangle; t < b->triangle_count; ++t) {
+			int32_t swap = b->triangles[3 * t + 1];
+			b->triangles[3 * t + 1] = b->triangles[3 * t + 2];
+			b->triangles[3 * t + 2] = swap;
+		}
+	return first;
+}
+
+static void add_bone(builder *b, double hx, double hy, double hz, double tx, double ty, double tz)
+{
+	int32_t i = b->bone_count++;
+	float *h = b->heads + 3 * i, *t = b->tails + 3 * i, *m = b->rest_matrices + 16 * i;
+	h[0] = (float)hx, h[1] = (float)hy, h[2] = (float)hz;
+	t[0] = (float)tx, t[1] = (float)ty, t[2] = (float)tz;
+	memset(m, 0, sizeof(float) * 16);
+	m[0] = m[5] = m[10] = m[15] = 1.0f;
+	m[3] = h[0], m[7] = h[1], m[11] = h[2];
+}
+
+static lvp_skeleton skeleton_of(const builder *b)
+{
+	lvp_skeleton s = {b->bone_count, b->rest_matrices, b->heads, b->tails};
+	return s;
+}
+
+static const double y_axis[3] = {0, 1, 0};
+
+/* Two fingers along +Z, radius 0.2, centres 0.5 apart (a gap of 0.1), each with its bone on its axis.
+ * Finger 0 is vertices [0, *r_split), finger 1 the rest. */
+static void make_fingers(builder *b, int32_t *r_split)
+{
+	memset(b, 0, sizeof(*b));
+	for (int f = 0; f < 2; ++f) {
+		double x = f == 0 ? -0.25 : 0.25, centres[9][3];
+		for (int i = 0; i < 9; ++i)
+			centres[i][0] = x, centres[i][1] = 0.0, centres[i][2] = 2.0 * i / 8.0;
+		add_tube(b, (const double(*)[3])centres, 9, 0.2, 16, y_axis);
+		if (f == 0)
+			*r_split = b->vertex_count;
+		add_bone(b, x, 0, 0, x, 0, 2);
+	}
+}
+
+/* A body tube along +Z (radius 0.3, z in [0, 2], bones 0: z 0-1 and 1: z 1-2) with a hooked horn (radius
+ * 0.08) that leaves the body sideways at z = 1.2, curls up and points back at the body at z = 1.8, where
+ * its tip is 0.25 from the body. *r_tip is the horn's tip (its end cap's centre), whose normal faces the
+ * body: it sees no bone, by either test. */
+static void make_horned_body(builder *b, int32_t *r_tip)
+{
+	memset(b, 0, sizeof(*b));
+	double body[11][3];
+	for (int i = 0; i < 11; ++i)
+		body[i][0] = 0.0, body[i][1] = 0.0, body[i][2] = 2.0 * i / 10.0;
+	add_tube(b, (const double(*)[3])body, 11, 0.3, 16, y_axis);
+	double horn[20][3];
+	int n = 0;
+	for (int i = 0; i < 5; ++i) /* the straight base, from inside the body */
+		horn[n][0] = 0.55 * i / 5.0, horn[n][1] = 0.0, horn[n][2] = 1.2, ++n;
+	for (int i = 0; i <= 12; ++i) { /* half a circle of radius 0.3 about (0.55, 0, 1.5) */
+		double theta = PI * i / 12.0;
+		horn[n][0] = 0.55 + 0.3 * sin(theta), horn[n][1] = 0.0, horn[n][2] = 1.5 - 0.3 * cos(theta), ++n;
+	}
+	int32_t first = add_tube(b, (const double(*)[3])horn, n, 0.08, 12, y_axis);
+	*r_tip = first + n * 12 + 1;
+	add_bone(b, 0, 0, 0, 0, 0, 1);
+	add_bone(b, 0, 0, 1, 0, 0, 2);
+}
+
+/* ---- calling ------------------------------------------------------------------------------------- */
+
+typedef struct result {
+	int32_t *offsets, *bones;
+	float *values;
+	int64_t capacity;
+} result;
+
+static lvp_auto_weights_options options_with(lvp_visibility visibility)
+{
+	lvp_auto_weights_options o = lvp_auto_weights_default_options();
+	o.visibility = visibility;
+	return o;
+}
+
+static result compute(const builder *b, const lvp_auto_weights_options *o)
+{
+	result r;
+	r.capacity = lvp_auto_weights_bound(b->vertex_count, b->bone_count, o);
+	r.offsets = malloc(sizeof(int32_t) * ((size_t)b->vertex_count + 1));
+	r.bones = malloc(sizeof(int32_t) * (size_t)r.capacity);
+	r.values = malloc(sizeof(float) * (size_t)r.capacity);
+	lvp_skeleton s = skeleton_of(b);
+	lvp_diagnostic diag = {0};
+	CHECK_OK(lvp_auto_weights(r.offsets, r.bones, r.values, r.capacity, b->positions, b->vertex_count, b->triangles,
+	                          b->triangle_count, &s, o, &diag),
+	         diag);
+	return r;
+}
+
+static void result_free(result *r)
+{
+	free(r->offsets);
+	free(r->bones);
+	free(r->values);
+}
+
+static float weight_of(const result *r, int32_t vertex, int32_t bone)
+{
+	for (int32_t e = r->offsets[vertex]; e < r->offsets[vertex + 1]; ++e)
+		if (r->bones[e] == bone)
+			return r->values[e];
+	return 0.0f;
+}
+
+/* The row contract: offsets well formed, bones distinct and in range, weights > 0, sorted by decreasing
+ * weight, summing to 1, at most max_influences. */
+static void check_rows(const builder *b, const result *r, const lvp_auto_weights_options *o)
+{
+	CHECK(r->offsets[0] == 0);
+	CHECK(r->offsets[b->vertex_count] <= r->capacity);
+	for (int32_t v = 0; v < b->vertex_count; ++v) {
+		int32_t begin = r->offsets[v], end = r->offsets[v + 1];
+		CHECK(end > begin);
+		if (o->max_influences > 0)
+			CHECK(end - begin <= o->max_influences);
+		double sum = 0.0;
+		for (int32_t e = begin; e < end; ++e) {
+			CHECK(r->bones[e] >= 0 && r->bones[e] < b->bone_count);
+			CHECK(r->values[e] > 0.0f);
+			if (e > begin)
+				CHECK(r->values[e] <= r->values[e - 1]);
+			for (int32_t f = begin; f < e; ++f)
+				CHECK(r->bones[f] != r->bones[e]);
+			sum += r->values[e];
+		}
+		CHECK_NEAR(sum, 1.0, 1e-6);
+	}
+}
+
+/* ---- visibility ---------------------------------------------------------------------------------- */
+
+/* Every vertex of finger 0 on the side that faces finger 1 (and symmetrically). */
+static bool faces_the_other_finger(const builder *b, int32_t v, int32_t split)
+{
+	float x = b->positions[3 * v];
+	return v < split ? x > -0.25f + 0.1f : x < 0.25f - 0.1f;
+}
+
+static void test_fingers_neighbour_bone_only_without_visibility(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(b, &split);
+	const lvp_visibility modes[3] = {LVP_VISIBILITY_NONE, LVP_VISIBILITY_NORMAL, LVP_VISIBILITY_EXACT};
+	for (int m = 0; m < 3; ++m) {
+		lvp_auto_weights_options o = options_with(modes[m]);
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		int facing = 0, facing_with_neighbour = 0, any_with_neighbour = 0;
+		for (int32_t v = 0; v < b->vertex_count; ++v) {
+			int32_t own = v < split ? 0 : 1;
+			float neighbour = weight_of(&r, v, 1 - own);
+			CHECK(weight_of(&r, v, own) > 0.5f);
+			any_with_neighbour += neighbour > 0.0f;
+			if (faces_the_other_finger(b, v, split)) {
+				++facing;
+				facing_with_neighbour += neighbour > 0.0f;
+			}
+		}
+		CHECK(facing >= 40);
+		if (modes[m] == LVP_VISIBILITY_NONE) {
+			CHECK(facing_with_neighbour == facing); /* the paper's problem: fingers glued together */
+		} else {
+			CHECK(facing_with_neighbour == 0);
+		}
+		if (modes[m] == LVP_VISIBILITY_EXACT)
+			CHECK(any_with_neighbour == 0); /* no path to the other bone stays inside the body */
+		result_free(&r);
+	}
+	free(b);
+}
+
+/* A horn tip that sees no bone follows its closest bone rigidly; without visibility it blends. */
+static void test_horn_tip_gets_rigid_fallback(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t tip;
+	make_horned_body(b, &tip);
+	CHECK_NEAR(b->positions[3 * tip], 0.55, 1e-6);
+	CHECK_NEAR(b->positions[3 * tip + 2], 1.8, 1e-6);
+	const lvp_visibility modes[3] = {LVP_VISIBILITY_NONE, LVP_VISIBILITY_NORMAL, LVP_VISIBILITY_EXACT};
+	for (int m = 0; m < 3; ++m) {
+		lvp_auto_weights_options o = options_with(modes[m]);
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		int32_t count = r.offsets[tip + 1] - r.offsets[tip];
+		if (modes[m] == LVP_VISIBILITY_NONE) {
+			CHECK(count == 2);
+		} else {
+			CHECK(count == 1);
+			CHECK(r.bones[r.offsets[tip]] == 1); /* the closest bone: 0.55 away, bone 0 is 0.97 away */
+			CHECK(r.values[r.offsets[tip]] == 1.0f);
+		}
+		result_free(&r);
+	}
+	free(b);
+}
+
+/* Brute-force visibility of every (vertex, bone) pair: the normal test from the public normals, the
+ * exact one against every triangle. r_visible: vertex_count * bone_count. */
+static void brute_force_visibility(bool *r_visible, const builder *b, const float *normals,
+                                   const lvp_auto_weights_options *o)
+{
+	for (int32_t v = 0; v < b->vertex_count; ++v) {
+		lvp__vec3 p = lvp__load(b->positions + 3 * v), n = lvp__load(normals + 3 * v);
+		for (int32_t i = 0; i < b->bone_count; ++i) {
+			lvp__vec3 c;
+			lvp__closest_on_segment(&c, p, lvp__load(b->heads + 3 * i), lvp__load(b->tails + 3 * i));
+			lvp__vec3 path = lvp__sub(c, p);
+			double d = lvp__length(path);
+			bool visible = true;
+			if (d > 0.0 && o->visibility == LVP_VISIBILITY_NORMAL && lvp__length(n) > 0.0)
+				visible = lvp__dot(path, n) / d <= o->normal_cos_max;
+			if (d > 0.0 && o->visibility == LVP_VISIBILITY_EXACT)
+				for (int32_t f = 0; f < b->triangle_count && visible; ++f) {
+					const int32_t *tri = b->triangles + 3 * f;
+					if (tri[0] == v || tri[1] == v || tri[2] == v)
+						continue;
+					float corners[3][3];
+					for (int k = 0; k < 3; ++k)
+						memcpy(corners[k], b->positions + 3 * tri[k], sizeof(float) * 3);
+					double hit;
+					if (lvp__segment_triangle(&hit, p, path, (const float(*)[3])corners, 1e-6, 1.0 - 1e-6))
+						visible = false;
+				}
+			r_visible[v * b->bone_count + i] = visible;
+		}
+	}
+}
+
+/* Reference weights of vertex v from the brute-force visibility: normalized, pruned by min_weight, cut to
+ * max_influences and renormalized, as lvp.h specifies. r_bones/r_values: room for bone_count. */
+static int32_t reference_row(int32_t *r_bones, double *r_values, const builder *b, const bool *visible, int32_t v,
+                             const lvp_auto_weights_options *o)
+{
+	lvp__vec3 p = lvp__load(b->positions + 3 * v);
+	double weight[16] = {0}, closest_d = INFINITY, sum = 0.0;
+	int32_t closest = -1;
+	for (int32_t i = 0; i < b->bone_count; ++i) {
+		lvp__vec3 h = lvp__load(b->heads + 3 * i), t = lvp__load(b->tails + 3 * i), c;
+		double length = lvp__length(lvp__sub(t, h));
+		if (length == 0.0)
+			continue;
+		lvp__closest_on_segment(&c, p, h, t);
+		double d = lvp__length(lvp__sub(c, p));
+		if (d < closest_d)
+			closest_d = d, closest = i;
+		if (visible[v * b->bone_count + i])
+			weight[i] = pow(length / fmax(d, 1e-6 * length), o->alpha), sum += weight[i];
+	}
+	if (sum == 0.0) {
+		r_bones[0] = closest, r_values[0] = 1.0;
+		return 1;
+	}
+	int32_t count = 0;
+	for (;;) { /* selection by decreasing weight, ties to the lower bone */
+		int32_t best = -1;
+		for (int32_t i = 0; i < b->bone_count; ++i)
+			if (weight[i] > 0.0 && (best < 0 || weight[i] > weight[best]))
+				best = i;
+		if (best < 0 || weight[best] / sum < o->min_weight || (o->max_influences > 0 && count == o->max_influences))
+			break;
+		r_bones[count] = best, r_values[count++] = weight[best];
+		weight[best] = 0.0;
+	}
+	if (count == 0) {
+		int32_t best = 0;
+		for (int32_t i = 1; i < b->bone_count; ++i)
+			if (weight[i] > weight[best])
+				best = i;
+		r_bones[0] = best, r_values[0] = 1.0, count = 1;
+	}
+	double kept = 0.0;
+	for (int32_t j = 0; j < count; ++j)
+		kept += r_values[j];
+	for (int32_t j = 0; j < count; ++j)
+		r_values[j] /= kept;
+	return count;
+}
+
+/* The fingers and the horned body together with four bones (one per finger, two in the body): bones that
+ * hide behind other parts, and others that do not. */
+static void make_mixed_scene(builder *b)
+{
+	int32_t split, tip;
+	builder *horned = malloc(sizeof(builder));
+	make_horned_body(horned, &tip);
+	make_fingers(b, &split);
+	/* move the fingers beside the body, then append the body and its bones */
+	for (int32_t v = 0; v < b->vertex_count; ++v)
+		b->positions[3 * v] += 1.4f, b->positions[3 * v + 1] += 0.3f;
+	for (int32_t i = 0; i < b->bone_count; ++i)
+		b->heads[3 * i] += 1.4f, b->tails[3 * i] += 1.4f, b->heads[3 * i + 1] += 0.3f, b->tails[3 * i + 1] += 0.3f;
+	int32_t base = b->vertex_count;
+	memcpy(b->positions + 3 * base, horned->positions, sizeof(float) * 3 * (size_t)horned->vertex_count);
+	for (int32_t t = 0; t < 3 * horned->triangle_count; ++t)
+		b->triangles[3 * b->triangle_count + t] = horned->triangles[t] + base;
+	b->vertex_count += horned->vertex_count;
+	b->triangle_count += horned->triangle_count;
+	for (int32_t i = 0; i < horned->bone_count; ++i)
+		add_bone(b, horned->heads[3 * i], horned->heads[3 * i + 1], horned->heads[3 * i + 2], horned->tails[3 * i],
+		         horned->tails[3 * i + 1], horned->tails[3 * i + 2]);
+	free(horned);
+}
+
+/* lvp_auto_weights against the brute force, for both tests and many pruning settings: the exact test
+ * through the hierarchy must see what the all-triangle test sees, and taking bones strongest first
+ * (deciding visibility only while it matters) must give what testing every bone gives. */
+static void compare_with_brute_force(const builder *b, int *r_hidden)
+{
+	float *normals = malloc(sizeof(float) * 3 * (size_t)b->vertex_count);
+	lvp_diagnostic diag = {0};
+	CHECK_OK(lvp_vertex_normals(normals, b->positions, b->vertex_count, b->triangles, b->triangle_count, &diag), diag);
+	const float min_weights[4] = {0.0f, 0.01f, 0.1f, 0.45f};
+	const int32_t max_influences[4] = {0, 1, 2, 3};
+	const float alphas[2] = {2.0f, 1.5f};
+	int hidden_somewhere = 0;
+	bool *visible = malloc(sizeof(bool) * (size_t)b->vertex_count * (size_t)b->bone_count);
+	for (int vis = 0; vis < 2; ++vis) {
+		lvp_auto_weights_options brute = options_with(vis ? LVP_VISIBILITY_EXACT : LVP_VISIBILITY_NORMAL);
+		brute_force_visibility(visible, b, normals, &brute);
+		for (int a = 0; a < 2; ++a)
+			for (int mw = 0; mw < 4; ++mw)
+				for (int mi = 0; mi < 4; ++mi) {
+					lvp_auto_weights_options o = brute;
+					o.alpha = alphas[a], o.min_weight = min_weights[mw], o.max_influences = max_influences[mi];
+					result r = compute(b, &o);
+					check_rows(b, &r, &o);
+					int mismatches = 0;
+					for (int32_t v = 0; v < b->vertex_count; ++v) {
+						int32_t bones[16];
+						double values[16];
+						int32_t count = reference_row(bones, values, b, visible, v, &o);
+						bool same = count == r.offsets[v + 1] - r.offsets[v];
+						for (int32_t j = 0; same && j < count; ++j)
+							same = bones[j] == r.bones[r.offsets[v] + j] &&
+							       fabs(values[j] - r.values[r.offsets[v] + j]) < 1e-6;
+						mismatches += !same;
+						if (!same && mismatches <= 3)
+							fprintf(stderr, "    vertex %d (visibility %d, alpha %g, min_weight %g, max %d)\n", (int)v,
+							        (int)o.visibility, (double)o.alpha, (double)o.min_weight, (int)o.max_influences);
+						if (o.min_weight == 0.0f && o.max_influences == 0)
+							hidden_somewhere += count < b->bone_count;
+					}
+					CHECK(mismatches == 0);
+					result_free(&r);
+				}
+	}
+	*r_hidden = hidden_somewhere;
+	free(visible);
+	free(normals);
+}
+
+static void test_matches_brute_force_reference(void)
+{
+	builder *b = malloc(sizeof(builder));
+	make_mixed_scene(b);
+	int hidden;
+	compare_with_brute_force(b, &hidden);
+	CHECK(hidden > 100); /* the scene does exercise the visibility tests */
+	free(b);
+}
+
+/* The same on skeletons drawn at random around the scene: many bones, most of them hidden from most
+ * vertices, some outside the body, some crossing it. */
+static void test_matches_brute_force_on_random_skeletons(void)
+{
+	builder *b = malloc(sizeof(builder));
+	uint32_t state = 12345u;
+	for (int seed = 0; seed < 3; ++seed) {
+		make_mixed_scene(b);
+		b->bone_count = 0;
+		for (int i = 0; i < 12; ++i) {
+			double c[6];
+			for (int j = 0; j < 6; ++j) {
+				state = state * 1664525u + 1013904223u;
+				c[j] = (double)(state >> 8) / (double)(1u << 24);
+			}
+			add_bone(b, -0.4 + 2.2 * c[0], -0.4 + 0.8 * c[1], 2.0 * c[2], -0.4 + 2.2 * c[3], -0.4 + 0.8 * c[4],
+			         2.0 * c[5]);
+		}
+		int hidden;
+		compare_with_brute_force(b, &hidden);
+		CHECK(hidden > 100);
+	}
+	free(b);
+}
+
+/* The normal test works from the volume's sign: a mesh wound inward gets the same weights. */
+static void test_inward_winding_is_detected(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(b, &split);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	result outward = compute(b, &o);
+	for (int32_t t = 0; t < b->triangle_count; ++t) {
+		int32_t swap = b->triangles[3 * t + 1];
+		b->triangles[3 * t + 1] = b->triangles[3 * t + 2];
+		b->triangles[3 * t + 2] = swap;
+	}
+	result inward = compute(b, &o);
+	CHECK(memcmp(outward.offsets, inward.offsets, sizeof(int32_t) * ((size_t)b->vertex_count + 1)) == 0);
+	int32_t total = outward.offsets[b->vertex_count];
+	CHECK(memcmp(outward.bones, inward.bones, sizeof(int32_t) * (size_t)total) == 0);
+	CHECK(memcmp(outward.values, inward.values, sizeof(float) * (size_t)total) == 0);
+	result_free(&outward);
+	result_free(&inward);
+	free(b);
+}
+
+/* ---- bones --------------------------------------------------------------------------------------- */
+
+/* A zero-length bone never receives weight, even right inside a finger, unless the skeleton has no
+ * other bone: then it is every vertex's rigid fallback. */
+static void test_zero_length_bone_gets_no_weight(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(b, &split);
+	add_bone(b, -0.25, 0, 1, -0.25, 0, 1);
+	for (int vis = 0; vis < 3; ++vis) {
+		lvp_auto_weights_options o = options_with((lvp_visibility)vis);
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		for (int32_t e = 0; e < r.offsets[b->vertex_count]; ++e)
+			CHECK(r.bones[e] != 2);
+		result_free(&r);
+	}
+	b->bone_count = 0;
+	add_bone(b, 0.3, 0.1, 1, 0.3, 0.1, 1);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_EXACT);
+	result r = compute(b, &o);
+	for (int32_t v = 0; v < b->vertex_count; ++v)
+		CHECK(r.offsets[v + 1] - r.offsets[v] == 1 && r.bones[r.offsets[v]] == 0 && r.values[r.offsets[v]] == 1.0f);
+	result_free(&r);
+	free(b);
+}
+
+/* d = 0: a vertex on a bone weighs (almost) only on it, and one on the joint of two bones is shared
+ * evenly, without a division by zero. Isolated vertices (no normal) are placed there. */
+static void test_vertex_on_a_bone(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t tip;
+	make_horned_body(b, &tip);
+	int32_t on_bone = add_vertex(b, 0, 0, 0.4), on_joint = add_vertex(b, 0, 0, 1);
+	for (int vis = 0; vis < 3; ++vis) {
+		lvp_auto_weights_options o = options_with((lvp_visibility)vis);
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		CHECK(r.offsets[on_bone + 1] - r.offsets[on_bone] == 1);
+		CHECK(r.bones[r.offsets[on_bone]] == 0);
+		CHECK(weight_of(&r, on_joint, 0) == 0.5f);
+		CHECK(weight_of(&r, on_joint, 1) == 0.5f);
+		result_free(&r);
+	}
+	free(b);
+}
+
+/* ---- sizes --------------------------------------------------------------------------------------- */
+
+static void test_bound(void)
+{
+	lvp_auto_weights_options o = lvp_auto_weights_default_options();
+	CHECK(lvp_auto_weights_bound(100, 60, &o) == 400);
+	CHECK(lvp_auto_weights_bound(100, 60, NULL) == 400);
+	CHECK(lvp_auto_weights_bound(100, 3, &o) == 300);
+	o.max_influences = 0, o.min_weight = 0.0f;
+	CHECK(lvp_auto_weights_bound(100, 60, &o) == 6000);
+	o.min_weight = 0.25f; /* at most 4 weights can reach 1/4, one more for rounding */
+	CHECK(lvp_auto_weights_bound(100, 60, &o) == 500);
+	CHECK(lvp_auto_weights_bound(0, 60, &o) == 0);
+	CHECK(lvp_auto_weights_bound(100, 0, &o) == 0);
+	CHECK(lvp_auto_weights_bound(-1, 60, &o) == 0);
+}
+
+static void test_capacity_too_small_is_an_error(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(b, &split);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NONE);
+	result full = compute(b, &o);
+	int32_t needed = full.offsets[b->vertex_count], n = b->vertex_count;
+	CHECK(needed > n && needed < full.capacity); /* some vertices have two bones, not all four */
+	int32_t *offsets = malloc(sizeof(int32_t) * ((size_t)n + 1)), *bones = malloc(sizeof(int32_t) * (size_t)needed);
+	float *values = malloc(sizeof(float) * (size_t)needed);
+	lvp_skeleton s = skeleton_of(b);
+	for (int32_t i = 0; i <= n; ++i)
+		offsets[i] = -7;
+	for (int32_t i = 0; i < needed; ++i)
+		bones[i] = -7, values[i] = -7.0f;
+	lvp_diagnostic diag = {0};
+	lvp_result got = lvp_auto_weights(offsets, bones, values, needed - 1, b->positions, n, b->triangles,
+	                                  b->triangle_count, &s, &o, &diag);
+	CHECK(got == lvp_error_invalid_size);
+	CHECK(diag.argument && strcmp(diag.argument, "capacity") == 0);
+	char number[32];
+	snprintf(number, sizeof(number), "need %d", (int)needed);
+	CHECK(strstr(diag.message, number) != NULL);
+	for (int32_t i = 0; i <= n; ++i) /* untouched */
+		CHECK(offsets[i] == -7);
+	for (int32_t i = 0; i < needed; ++i)
+		CHECK(bones[i] == -7 && values[i] == -7.0f);
+	/* exactly enough: the same rows as with the bound */
+	CHECK_OK(lvp_auto_weights(offsets, bones, values, needed, b->positions, n, b->triangles, b->triangle_count, &s, &o,
+	                          &diag),
+	         diag);
+	CHECK(memcmp(offsets, full.offsets, sizeof(int32_t) * ((size_t)n + 1)) == 0);
+	CHECK(memcmp(bones, full.bones, sizeof(int32_t) * (size_t)needed) == 0);
+	CHECK(memcmp(values, full.values, sizeof(float) * (size_t)needed) == 0);
+	CHECK(lvp_auto_weights(offsets, bones, values, 0, b->positions, n, b->triangles, b->triangle_count, &s, &o,
+	                       &diag) == lvp_error_invalid_size);
+	CHECK(lvp_auto_weights(offsets, bones, values, -1, b->positions, n, b->triangles, b->triangle_count, &s, &o,
+	                       &diag) == lvp_error_invalid_size);
+	free(offsets);
+	free(bones);
+	free(values);
+	result_free(&full);
+	free(b);
+}
+
+/* ---- errors -------------------------------------------------------------------------------------- */
+
+static void expect(lvp_result got, const lvp_diagnostic *diag, lvp_result want, const char *argument, int64_t index)
+{
+	CHECK(got == want);
+	if (got != want)
+		fprintf(stderr, "    got %s, want %s\n", lvp_result_name(got), lvp_result_name(want));
+	CHECK(diag->argument && strcmp(diag->argument, argument) == 0);
+	if (diag->argument && strcmp(diag->argument, argument) != 0)
+		fprintf(stderr, "    argument %s, want %s\n", diag->argument, argument);
+	CHECK(diag->index == index);
+	CHECK(strlen(diag->message) > 10);
+}
+
+static void test_error_paths_name_the_argument(void)
+{
+	builder *b = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(b, &split);
+	int32_t n = b->vertex_count, f = b->triangle_count;
+	int32_t offsets[1024], bones[4096];
+	float values[4096];
+	int64_t cap = 4096;
+	lvp_skeleton s = skeleton_of(b), broken;
+	lvp_auto_weights_options o = lvp_auto_weights_default_options(), bad;
+	lvp_diagnostic d;
+	memset(&d, 0, sizeof(d));
+	const float *p = b->positions;
+	const int32_t *t = b->triangles;
+	CHECK(n < 1024);
+	expect(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	       "r_offsets", -1);
+	expect(lvp_auto_weights(offsets, NULL, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	       "r_bones", -1);
+	expect(lvp_auto_weights(offsets, bones, NULL, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	       "r_values", -1);
+	expect(lvp_auto_weights(offsets, bones, values, cap, NULL, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	       "positions", -1);
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, NULL, f, &s, &o, &d), &d, lvp_error_null_argument,
+	       "triangles", -1);
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, 0, t, f, &s, &o, &d), &d, lvp_error_invalid_size,
+	       "vertex_count", -1);
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, 0, &s, &o, &d), &d, lvp_error_invalid_size,
+	       "triangle_count", -1);
+	int64_t first_last = 0; /* the first corner that names the last vertex */
+	while (t[first_last] != n - 1)
+		++first_last;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n - 1, t, f, &s, &o, &d), &d,
+	       lvp_error_index_out_of_range, "triangles", first_last);
+	b->positions[10] = NAN;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
+	       "positions", 10);
+	b->positions[10] = 0.0f;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, NULL, &o, &d), &d, lvp_error_null_argument,
+	       "skeleton", -1);
+	broken = s, broken.bone_count = 0;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_invalid_size,
+	       "skeleton.bone_count", -1);
+	broken = s, broken.tails = NULL;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_null_argument,
+	       "skeleton.tails", -1);
+	b->heads[4] = INFINITY;
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
+	       "skeleton.heads", 4);
+	b->heads[4] = 0.0f;
+	b->rest_matrices[16 + 5] = 0.0f; /* bone 1's rest matrix loses its y axis */
+	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_singular_matrix,
+	       "skeleton.rest_matrices", 1);
+	b->rest_matrices[16 + 5] = 1.0f;
+	const struct {
+		const char *argument;
+		float alpha, cos_max, min_weight;
+		int visibility, max_influences;
+	} options[] = {
+	    {"options.alpha", 0.0f, 0.0f, 0.01f, 0, 4},          {"options.alpha", -1.0f, 0.0f, 0.01f, 0, 4},
+	    {"options.alpha", NAN, 0.0f, 0.01f, 0, 4},           {"options.alpha", INFINITY, 0.0f, 0.01f, 0, 4},
+	    {"options.visibility", 2.0f, 0.0f, 0.01f, 3, 4},     {"options.visibility", 2.0f, 0.0f, 0.01f, -1, 4},
+	    {"options.normal_cos_max", 2.0f, 1.5f, 0.01f, 0, 4}, {"options.normal_cos_max", 2.0f, NAN, 0.01f, 0, 4},
+	    {"options.max_influences", 2.0f, 0.0f, 0.01f, 0, -1}, {"options.min_weight", 2.0f, 0.0f, -0.1f, 0, 4},
+	    {"options.min_weight", 2.0f, 0.0f, 1.5f, 0, 4},      {"options.min_weight", 2.0f, 0.0f, NAN, 0, 4},
+	};
+	for (size_t i = 0; i < sizeof(options) / sizeof(options[0]); ++i) {
+		bad = o;
+		bad.alpha = options[i].alpha, bad.normal_cos_max = options[i].cos_max, bad.min_weight = options[i].min_weight;
+		bad.visibility = (lvp_visibility)options[i].visibility, bad.max_influences = options[i].max_influences;
+		expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d, lvp_error_invalid_option,
+		       options[i].argument, -1);
+	}
+	/* NULL options are the defaults */
+	CHECK_OK(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, NULL, &d), d);
+	CHECK(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, NULL) == lvp_error_null_argument);
+	free(b);
+}
+
+int main(void)
+{
+	RUN(test_fingers_neighbour_bone_only_without_visibility);
+	RUN(test_horn_tip_gets_rigid_fallback);
+	RUN(test_matches_brute_force_reference);
+	RUN(test_matches_brute_force_on_random_skeletons);
+	RUN(test_inward_winding_is_detected);
+	RUN(test_zero_length_bone_gets_no_weight);
+	RUN(test_vertex_on_a_bone);
+	RUN(test_bound);
+	RUN(test_capacity_too_small_is_an_error);
+	RUN(test_error_paths_name_the_argument);
+	return check_failures() != 0;
+}

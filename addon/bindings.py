@@ -1,0 +1,291 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The bind cache: one _lvp.Binding per object, in memory, with the per-frame buffers it needs.
+
+A Binding holds the rest-pose work of the C core (segmentation, maps, rest constants). It cannot
+be saved in a .blend file, so the file keeps only a bind record on the object (Object.lvp.bind_id
+and Object.lvp.topology_signature), and the Binding is rebuilt from the mesh, its weights and the
+armature the first time the handlers need it after a file load or an undo: no user action.
+
+When the mesh's topology no longer matches the record (vertices added or removed after the bind,
+or reconnected), nothing is rebuilt: the modifier passes the mesh through and the panel says
+"rebind needed". The Bind operator makes a new record.
+
+Entries are keyed by (object name, bind id): renaming an object or duplicating it gives a new key,
+and the new key gets its own binding the next time it is needed.
+"""
+
+import os
+import uuid
+
+from . import _lvp
+from . import mesh_data
+from . import node_group
+
+
+class BindError(Exception):
+    """A user-facing reason why an object cannot be bound: what is wrong and how to fix it."""
+
+
+class BoundObject:
+    """An object's binding and everything needed to correct a frame with it (runtime only)."""
+
+    def __init__(self, binding, bone_names, rest_frames, vertex_count, topology, bind_id, map_key, mode):
+        self.binding = binding
+        self.bone_names = bone_names
+        self.rest_frames = rest_frames
+        self.vertex_count = vertex_count
+        self.topology = topology
+        self.bind_id = bind_id
+        self.map_key = map_key
+        self.mode = mode
+        bone_count = len(bone_names)
+        self.positions = mesh_data.float_array(3 * vertex_count)
+        self.offsets = mesh_data.float_array(3 * vertex_count)
+        self.current_offsets = mesh_data.float_array(3 * vertex_count)
+        self.rest_positions = None          # allocated when shape keys are used
+        self.base_positions = None
+        self.bone_matrices = mesh_data.float_array(16 * bone_count)
+        self.expected_indices = None        # range(vertex_count), allocated for Subdivision after us
+        self.stats = None                   # the last frame's statistics (dict from Binding.correct)
+        self.last_input = None              # (pose fingerprint, positions bytes) of the last correction
+
+    def close(self):
+        if self.binding is not None:
+            self.binding.close()
+            self.binding = None
+
+
+# key (object name, bind id) -> BoundObject
+_entries = {}
+# object name -> (level, message): the last status of each object, shown by the panel.
+# level is 'INFO', 'WARNING' or 'ERROR'.
+_status = {}
+
+
+def thread_count():
+    return max(1, min(8, os.cpu_count() or 1))
+
+
+def set_status(obj, level, message):
+    _status[obj.name_full] = (level, message)
+
+
+def status(obj):
+    return _status.get(obj.name_full)
+
+
+def entry(obj):
+    """The object's cached binding if it is current, else None (never binds)."""
+    return _entries.get((obj.name_full, obj.lvp.bind_id))
+
+
+def forget(obj):
+    """Drops the object's cached binding and status."""
+    for key in [key for key in _entries if key[0] == obj.name_full]:
+        _entries.pop(key).close()
+    _status.pop(obj.name_full, None)
+
+
+def clear():
+    for bound in _entries.values():
+        bound.close()
+    _entries.clear()
+    _status.clear()
+
+
+def prune(objects):
+    """Drops cached bindings whose object is gone or has been bound again (after undo, delete...)."""
+    live = set()
+    for obj in objects:
+        settings = getattr(obj, "lvp", None)
+        if settings is not None and settings.bind_id:
+            live.add((obj.name_full, settings.bind_id))
+    for key in [key for key in _entries if key not in live]:
+        _entries.pop(key).close()
+    names = {key[0] for key in live}
+    for name in [name for name in _status if name not in names]:
+        del _status[name]
+
+
+# ---- what is bound, and how ----------------------------------------------------------------
+
+
+def armature_of(obj):
+    """(armature_modifier, armature_object) that Volume Preservation follows, or raises BindError."""
+    if obj.type != 'MESH':
+        raise BindError("%s is a %s, not a mesh: select the character's mesh objects"
+                        % (obj.name, obj.type.lower()))
+    armature_modifier = node_group.find_armature_modifier(obj)
+    if armature_modifier is None:
+        raise BindError("%s has no Armature modifier: parent it to the armature with Ctrl+P > With Empty "
+                        "Groups (or add an Armature modifier) first" % obj.name)
+    armature_object = armature_modifier.object
+    if armature_object is None or armature_object.type != 'ARMATURE':
+        raise BindError("The Armature modifier %r of %s has no armature object: set its Object field"
+                        % (armature_modifier.name, obj.name))
+    return armature_modifier, armature_object
+
+
+def map_key(settings):
+    """Everything in the settings that the binding's map depends on."""
+    restrictions = tuple((item.region, item.bones) for item in settings.region_restrictions)
+    return (settings.effect, round(settings.alpha, 6), round(settings.beta, 6), settings.painted_vertex_group,
+            restrictions)
+
+
+def mode_of(settings):
+    return 'GLOBAL' if settings.effect == 'GLOBAL' else 'LOCAL'
+
+
+def map_arguments(obj, settings, bone_names):
+    """Keyword arguments of Binding() / Binding.set_map() for the object's settings.
+
+    Raises BindError when the settings cannot be used (a missing painted vertex group).
+    """
+    arguments = {"alpha": float(settings.alpha), "beta": float(settings.beta)}
+    if settings.effect == 'PAINTED':
+        values = mesh_data.vertex_group_values(obj, settings.painted_vertex_group)
+        if values is None:
+            raise BindError("The Painted effect needs a vertex group: pick one in Painted Map (object %s has "
+                            "no vertex group %r)" % (obj.name, settings.painted_vertex_group))
+        arguments["map"] = 'PAINTED'
+        arguments["painted"] = values
+    elif settings.effect == 'RUBBER':
+        arguments["map"] = 'RUBBER'
+    else:  # ORGANIC, and GLOBAL, which uses the organic map over one region
+        arguments["map"] = 'ORGANIC'
+    restrictions = [item for item in settings.region_restrictions if item.region.strip()]
+    if restrictions and bone_names:
+        index_of = {name: index for index, name in enumerate(bone_names)}
+        per_region = [[] for _ in bone_names]
+        for item in restrictions:
+            region = index_of.get(item.region.strip())
+            if region is None:
+                raise BindError("Region restriction: %r is not a deforming bone with a vertex group on %s"
+                                % (item.region, obj.name))
+            for name in item.bones.split(","):
+                name = name.strip()
+                if not name:
+                    continue
+                if name not in index_of:
+                    raise BindError("Region restriction of %r: %r is not a deforming bone with a vertex group "
+                                    "on %s" % (item.region, name, obj.name))
+                if index_of[name] not in per_region[region]:
+                    per_region[region].append(index_of[name])
+        offsets = mesh_data.int_array(len(bone_names) + 1)
+        bones = mesh_data.int_array(0)
+        for region, region_bones in enumerate(per_region):
+            bones.extend(region_bones)
+            offsets[region + 1] = len(bones)
+        arguments["region_bone_offsets"] = offsets
+        arguments["region_bones"] = bones
+    return arguments
+
+
+def bind(obj):
+    """Builds a BoundObject from the object's current mesh, weights, armature rest pose and settings.
+
+    Changes no Blender data. Raises BindError (with what to fix) when the object cannot be bound.
+    """
+    settings = obj.lvp
+    _armature_modifier, armature_object = armature_of(obj)
+    bone_names = mesh_data.deforming_bone_names(obj, armature_object)
+    if not bone_names:
+        raise BindError("No vertex group of %s matches a deforming bone of %s: weight the mesh (Ctrl+P > With "
+                        "Automatic Weights, or Local Volume Preservation's Auto Weights) first"
+                        % (obj.name, armature_object.name))
+    mesh = obj.data
+    if len(mesh.vertices) == 0 or len(mesh.polygons) == 0:
+        raise BindError("%s has no faces: Volume Preservation needs a surface mesh" % obj.name)
+    positions = mesh_data.vertex_positions(mesh)
+    triangles = mesh_data.loop_triangles(mesh)
+    offsets, bones, values = mesh_data.weights_csr(obj, bone_names)
+    if len(values) == 0:
+        raise BindError("The vertex groups of %s that match deforming bones of %s are empty: weight the mesh "
+                        "first" % (obj.name, armature_object.name))
+    rest_matrices, heads, tails = mesh_data.rest_skeleton_arrays(obj, armature_object, bone_names)
+    mode = mode_of(settings)
+    try:
+        binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
+                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, bone_names))
+    except ValueError as error:
+        message = str(error)
+        if "closed" in message:
+            message = ("The Global effect needs a closed mesh and %s has holes: use Organic (per region), or "
+                       "close the mesh. (%s)" % (obj.name, message))
+        raise BindError("Cannot bind %s: %s" % (obj.name, message)) from None
+    except MemoryError:
+        raise BindError("Not enough memory to bind %s" % obj.name) from None
+    rest_frames = mesh_data.rest_bone_frames(obj, armature_object, bone_names)
+    return BoundObject(binding, bone_names, rest_frames, len(mesh.vertices), mesh_data.topology_signature(mesh),
+                       settings.bind_id, map_key(settings), mode)
+
+
+def new_bind_record(obj, bound):
+    """Stores a fresh bind record on the object for bound and caches it (operators only)."""
+    forget(obj)
+    obj.lvp.bind_id = uuid.uuid4().hex
+    obj.lvp.topology_signature = bound.topology
+    bound.bind_id = obj.lvp.bind_id
+    _entries[(obj.name_full, bound.bind_id)] = bound
+
+
+def ensure(obj):
+    """The object's BoundObject, rebuilt lazily when missing (after a file load, undo, rename).
+
+    Returns None and sets the status when that is not possible: no bind record, the topology
+    changed since the bind ("rebind needed"), or the object can no longer be bound.
+    """
+    settings = obj.lvp
+    if not settings.bind_id:
+        set_status(obj, 'ERROR', "Not bound: press Bind")
+        return None
+    key = (obj.name_full, settings.bind_id)
+    bound = _entries.get(key)
+    if bound is not None:
+        if bound.topology != settings.topology_signature:
+            return None
+        return bound
+    # Lazy rebuild: only for the topology that was bound.
+    signature = mesh_data.topology_signature(obj.data)
+    if signature != settings.topology_signature:
+        set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
+        return None
+    try:
+        bound = bind(obj)
+    except BindError as error:
+        set_status(obj, 'ERROR', str(error))
+        return None
+    bound.bind_id = settings.bind_id
+    for stale in [stale for stale in _entries if stale[0] == obj.name_full]:
+        _entries.pop(stale).close()
+    _entries[key] = bound
+    return bound
+
+
+def refresh_map(obj, bound):
+    """Applies changed map settings to the binding. Returns the BoundObject to use (a new one when the
+    effect switched between local and global), or None with the status set when it cannot be done."""
+    settings = obj.lvp
+    key = map_key(settings)
+    if key == bound.map_key:
+        return bound
+    if mode_of(settings) != bound.mode:
+        try:
+            rebound = bind(obj)
+        except BindError as error:
+            set_status(obj, 'ERROR', str(error))
+            return None
+        rebound.bind_id = bound.bind_id
+        _entries.pop((obj.name_full, bound.bind_id), None)
+        bound.close()
+        _entries[(obj.name_full, rebound.bind_id)] = rebound
+        return rebound
+    try:
+        bound.binding.set_map(**map_arguments(obj, settings, bound.bone_names))
+    except (BindError, ValueError) as error:
+        set_status(obj, 'ERROR', str(error))
+        return None
+    bound.map_key = key
+    bound.last_input = None
+    return bound

@@ -1,0 +1,163 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The application handlers that keep Volume Preservation live.
+
+- frame_change_post: after Blender evaluated a new frame (playback, scene.frame_set, each frame of
+  `blender -b file.blend -a`, F12), correct every object of the handler's depsgraph. Blender then
+  evaluates the tagged meshes once more WITHOUT calling handlers again, so the same frame shows
+  the corrected shape. Renders have their own depsgraph, which is why the depsgraph argument is
+  used and never the context's.
+- depsgraph_update_post: after an interactive change (posing a bone, moving an object, changing
+  a setting, undo), correct the objects whose geometry was re-evaluated. Writing the offsets tags
+  the mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
+  offsets and writes nothing, so there is no loop.
+- load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
+  lazily by the next correction, with no user action.
+- render_init: renders started from the interface run in a thread; handlers that write data then
+  need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
+  data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
+  and the panel tells the user; object.lvp_add and file loading turn it on.
+
+Every handler is guarded against re-entrancy and never lets an exception escape into Blender.
+"""
+
+import traceback
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import bindings
+from . import live
+from . import node_group
+
+_busy = False
+# Set when a render from the interface started without Lock Interface (shown by the panel).
+render_without_lock = False
+
+
+def _objects_with_modifier(depsgraph):
+    """Original objects of the depsgraph that carry a Volume Preservation modifier."""
+    found = []
+    seen = set()
+    for obj_eval in depsgraph.objects:
+        obj = obj_eval.original
+        if obj.type != 'MESH' or obj.name_full in seen:
+            continue
+        seen.add(obj.name_full)
+        if node_group.find_modifier(obj) is not None:
+            found.append(obj)
+    return found
+
+
+def _may_write(scene):
+    """Whether this thread may write Blender data now (see the render_init note above)."""
+    if live.is_main_thread() or bpy.app.background:
+        return True
+    return bool(scene.render.use_lock_interface)
+
+
+def _correct(objects, depsgraph, check_topology=()):
+    global _busy
+    if _busy:
+        return
+    _busy = True
+    try:
+        for obj in objects:
+            try:
+                live.correct_object(obj, depsgraph, check_topology=obj.data.name_full in check_topology)
+            except Exception:
+                traceback.print_exc()
+                bindings.set_status(obj, 'ERROR', "Internal error (see the system console); the mesh is passed "
+                                                  "through")
+    finally:
+        _busy = False
+
+
+@persistent
+def frame_change_post(scene, depsgraph=None):
+    if _busy:
+        return
+    if depsgraph is None:
+        if not live.is_main_thread():
+            return
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    if not _may_write(scene):
+        global render_without_lock
+        render_without_lock = True
+        return
+    _correct(_objects_with_modifier(depsgraph), depsgraph)
+
+
+@persistent
+def depsgraph_update_post(scene, depsgraph=None):
+    if _busy or depsgraph is None:
+        return
+    if not _may_write(scene):
+        return
+    objects = []
+    changed_meshes = set()
+    seen = set()
+    for update in depsgraph.updates:
+        data = update.id.original if update.id is not None else None
+        if isinstance(data, bpy.types.Mesh):
+            if update.is_updated_geometry:
+                changed_meshes.add(data.name_full)
+        elif isinstance(data, bpy.types.Object) and data.type == 'MESH':
+            if data.name_full not in seen and node_group.find_modifier(data) is not None:
+                seen.add(data.name_full)
+                objects.append(data)
+    if objects:
+        _correct(objects, depsgraph, check_topology=changed_meshes)
+
+
+@persistent
+def load_post(*_arguments):
+    global render_without_lock
+    bindings.clear()
+    render_without_lock = False
+    if bpy.app.background:
+        return
+    # F12 renders from the interface need Lock Interface for the correction to reach them.
+    for scene in bpy.data.scenes:
+        if not scene.render.use_lock_interface and any(
+                obj.type == 'MESH' and node_group.find_modifier(obj) is not None for obj in scene.objects):
+            scene.render.use_lock_interface = True
+            print("Local Volume Preservation: turned on Render > Lock Interface in scene %r so that renders "
+                  "show the volume correction" % scene.name)
+
+
+@persistent
+def undo_post(*_arguments):
+    bindings.prune(bpy.data.objects)
+
+
+@persistent
+def render_init(scene, *_arguments):
+    global render_without_lock
+    render_without_lock = not bpy.app.background and not scene.render.use_lock_interface
+
+
+HANDLERS = (
+    ("frame_change_post", frame_change_post),
+    ("depsgraph_update_post", depsgraph_update_post),
+    ("load_post", load_post),
+    ("undo_post", undo_post),
+    ("redo_post", undo_post),
+    ("render_init", render_init),
+)
+
+
+def register():
+    for name, function in HANDLERS:
+        handler_list = getattr(bpy.app.handlers, name)
+        # Reloading the add-on must not leave two copies behind.
+        for existing in [item for item in handler_list if getattr(item, "__name__", "") == function.__name__
+                         and getattr(item, "__module__", "") == function.__module__]:
+            handler_list.remove(existing)
+        handler_list.append(function)
+
+
+def unregister():
+    for name, function in HANDLERS:
+        handler_list = getattr(bpy.app.handlers, name)
+        if function in handler_list:
+            handler_list.remove(function)

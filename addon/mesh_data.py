@@ -1,0 +1,266 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Reading Blender data into the flat arrays the C core takes (see docs/python_module.md).
+
+Everything is expressed in the MESH OBJECT's local space, exactly as Blender's Armature modifier
+sees it. The modifier maps a vertex into armature space with premat^-1, deforms it there with
+pose_bone.matrix @ bone.matrix_local^-1 and maps it back with premat, where
+
+    premat = mesh_world^-1 @ armature_world
+
+so in mesh space a bone's rest frame is premat @ bone.matrix_local and its posed frame is
+premat @ pose_bone.matrix. Object and armature transforms, scale and parenting cancel out.
+
+The binding keeps the rest frames it was bound with. When an object moves relative to its armature
+after the bind, premat changes and so does the skinning transform S = premat @ P @ R^-1 @ premat^-1;
+the posed frame handed to the core is then S @ rest_frame_at_bind, which is what the bone frame
+became under the deformation that Blender actually applied.
+
+No numpy (Debian's Blender 3.4 has none): array.array buffers with foreach_get / foreach_set.
+"""
+
+import zlib
+from array import array
+
+from mathutils import Matrix, Vector
+
+
+def flatten_matrix(matrix, out, offset):
+    """Writes a 4x4 mathutils Matrix row by row into out[offset:offset + 16]."""
+    for row in range(4):
+        for column in range(4):
+            out[offset + 4 * row + column] = matrix[row][column]
+
+
+def float_array(count):
+    return array('f', bytes(4 * count))
+
+
+def int_array(count):
+    return array('i', bytes(4 * count))
+
+
+# ---- mesh ----------------------------------------------------------------------------------
+
+
+def vertex_positions(mesh):
+    """The mesh's vertex coordinates (its base shape, without shape keys), float32[3N]."""
+    positions = float_array(3 * len(mesh.vertices))
+    mesh.vertices.foreach_get("co", positions)
+    return positions
+
+
+def loop_triangles(mesh):
+    """The mesh's faces split into triangles, int32[3T], wound like the faces."""
+    if hasattr(mesh, "calc_loop_triangles"):
+        mesh.calc_loop_triangles()
+    triangles = int_array(3 * len(mesh.loop_triangles))
+    mesh.loop_triangles.foreach_get("vertices", triangles)
+    return triangles
+
+
+def topology_signature(mesh):
+    """A short string that changes when vertices, edges or faces are added, removed or reconnected.
+
+    Positions, weights and attributes do not enter it: it tells whether a binding made on an
+    earlier version of this mesh can still be applied to it vertex for vertex.
+    """
+    corner_vertices = int_array(len(mesh.loops))
+    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    face_sizes = int_array(len(mesh.polygons))
+    mesh.polygons.foreach_get("loop_total", face_sizes)
+    checksum = zlib.crc32(corner_vertices.tobytes())
+    checksum = zlib.crc32(face_sizes.tobytes(), checksum)
+    return "v%d e%d f%d l%d c%08x" % (len(mesh.vertices), len(mesh.edges), len(mesh.polygons), len(mesh.loops),
+                                      checksum)
+
+
+def quick_topology_counts(mesh):
+    """The element counts of topology_signature(), cheap enough to compare every frame."""
+    return "v%d e%d f%d l%d" % (len(mesh.vertices), len(mesh.edges), len(mesh.polygons), len(mesh.loops))
+
+
+# ---- skeleton ------------------------------------------------------------------------------
+
+
+def armature_space_to_mesh_space(mesh_object, armature_object):
+    """premat = mesh_world^-1 @ armature_world (see the top of this file)."""
+    return mesh_object.matrix_world.inverted_safe() @ armature_object.matrix_world
+
+
+def deforming_bone_names(mesh_object, armature_object):
+    """Names of the armature's deforming bones that have a vertex group on the mesh object, in the
+    armature's bone order. These are the bones the core binds to."""
+    group_names = {group.name for group in mesh_object.vertex_groups}
+    return [bone.name for bone in armature_object.data.bones if bone.use_deform and bone.name in group_names]
+
+
+def rest_bone_frames(mesh_object, armature_object, bone_names):
+    """Rest frames premat @ bone.matrix_local as mathutils matrices, in bone_names order."""
+    premat = armature_space_to_mesh_space(mesh_object, armature_object)
+    bones = armature_object.data.bones
+    return [premat @ bones[name].matrix_local for name in bone_names]
+
+
+def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
+    """(rest_matrices float32[16B], heads float32[3B], tails float32[3B]) in mesh space."""
+    premat = armature_space_to_mesh_space(mesh_object, armature_object)
+    bones = armature_object.data.bones
+    count = len(bone_names)
+    rest_matrices = float_array(16 * count)
+    heads = float_array(3 * count)
+    tails = float_array(3 * count)
+    for index, name in enumerate(bone_names):
+        bone = bones[name]
+        flatten_matrix(premat @ bone.matrix_local, rest_matrices, 16 * index)
+        head = premat @ Vector(bone.head_local)
+        tail = premat @ Vector(bone.tail_local)
+        heads[3 * index:3 * index + 3] = array('f', head)
+        tails[3 * index:3 * index + 3] = array('f', tail)
+    return rest_matrices, heads, tails
+
+
+def posed_bone_matrices(out, mesh_object, armature_object, bone_names, rest_frames):
+    """Writes the posed bone frames (float32[16B]) into out.
+
+    mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
+    corrected (their matrices and pose are those of the frame being evaluated). rest_frames are the
+    binding's rest frames (rest_bone_frames() at bind time). Returns False when a bone is missing.
+    """
+    premat = armature_space_to_mesh_space(mesh_object, armature_object)
+    premat_inverse = premat.inverted_safe()
+    pose_bones = armature_object.pose.bones
+    data_bones = armature_object.data.bones
+    for index, name in enumerate(bone_names):
+        pose_bone = pose_bones.get(name)
+        bone = data_bones.get(name)
+        if pose_bone is None or bone is None:
+            return False
+        skinning = premat @ pose_bone.matrix @ bone.matrix_local.inverted_safe() @ premat_inverse
+        flatten_matrix(skinning @ rest_frames[index], out, 16 * index)
+    return True
+
+
+def pose_fingerprint(mesh_object, armature_object, bone_names):
+    """Bytes that change whenever anything the posed frames depend on changes."""
+    values = array('f')
+    for matrix in (mesh_object.matrix_world, armature_object.matrix_world):
+        for row in matrix:
+            values.extend(row)
+    pose_bones = armature_object.pose.bones
+    for name in bone_names:
+        pose_bone = pose_bones.get(name)
+        if pose_bone is not None:
+            for row in pose_bone.matrix:
+                values.extend(row)
+    return values.tobytes()
+
+
+# ---- weights -------------------------------------------------------------------------------
+
+
+def weights_csr(mesh_object, bone_names):
+    """Skinning weights of the deforming bones as compressed rows.
+
+    Returns (offsets int32[N+1], bones int32[nnz], values float32[nnz]): the influences of vertex k
+    are bones[offsets[k]:offsets[k+1]], indices into bone_names. Zero weights are left out; other
+    vertex groups are ignored. The core normalizes by the weight sum, as the Armature modifier does.
+    """
+    bone_of_group = {}
+    for group in mesh_object.vertex_groups:
+        if group.name in bone_names:
+            bone_of_group[group.index] = bone_names.index(group.name)
+    mesh = mesh_object.data
+    offsets = int_array(len(mesh.vertices) + 1)
+    bones = array('i')
+    values = array('f')
+    count = 0
+    for vertex in mesh.vertices:
+        for element in vertex.groups:
+            bone = bone_of_group.get(element.group)
+            if bone is not None and element.weight > 0.0:
+                bones.append(bone)
+                values.append(element.weight)
+                count += 1
+        offsets[vertex.index + 1] = count
+    return offsets, bones, values
+
+
+def vertex_group_values(mesh_object, group_name):
+    """Per-vertex weights of one vertex group (0 where a vertex is not in it), float32[N]; None when
+    the object has no such group."""
+    group = mesh_object.vertex_groups.get(group_name)
+    if group is None:
+        return None
+    group_index = group.index
+    mesh = mesh_object.data
+    values = float_array(len(mesh.vertices))
+    for vertex in mesh.vertices:
+        for element in vertex.groups:
+            if element.group == group_index:
+                values[vertex.index] = element.weight
+                break
+    return values
+
+
+def replace_vertex_group_weights(mesh_object, bone_names, offsets, bones, values):
+    """Writes compressed-row weights into the vertex groups named bone_names (created when missing),
+    replacing what those groups held. Other vertex groups are left alone. Object Mode only."""
+    vertex_count = len(offsets) - 1
+    per_bone = [dict() for _ in bone_names]
+    for vertex in range(vertex_count):
+        for entry in range(offsets[vertex], offsets[vertex + 1]):
+            per_bone[bones[entry]][vertex] = values[entry]
+    all_vertices = list(range(vertex_count))
+    for bone_index, name in enumerate(bone_names):
+        group = mesh_object.vertex_groups.get(name)
+        if group is None:
+            group = mesh_object.vertex_groups.new(name=name)
+        group.remove(all_vertices)
+        by_weight = {}
+        for vertex, weight in per_bone[bone_index].items():
+            by_weight.setdefault(weight, []).append(vertex)
+        for weight, vertices in by_weight.items():
+            group.add(vertices, weight, 'REPLACE')
+
+
+# ---- shape keys ----------------------------------------------------------------------------
+
+
+def shape_key_rest_positions(mesh_object, base_positions, out):
+    """This frame's un-skinned positions when relative shape keys are active: the mix Blender
+    feeds the Armature modifier. Writes float32[3N] into out and returns True; returns False when
+    no shape key changes the base shape (then the binding's rest is the right reference).
+
+    Handles relative keys with value, slider range, mute, relative key and vertex group; absolute
+    (evaluation-time) keys and keys in Edit Mode are not mixed (returns False).
+    """
+    mesh = mesh_object.data
+    keys = mesh.shape_keys
+    if keys is None or not keys.use_relative or len(keys.key_blocks) < 2:
+        return False
+    if mesh_object.show_only_shape_key:
+        return False
+    vertex_count = len(mesh.vertices)
+    active = [block for block in keys.key_blocks[1:] if not block.mute and block.value != 0.0]
+    if not active:
+        return False
+    if len(out) != 3 * vertex_count:
+        return False
+    out[:] = base_positions
+    key_positions = float_array(3 * vertex_count)
+    relative_positions = float_array(3 * vertex_count)
+    for block in active:
+        block.data.foreach_get("co", key_positions)
+        relative = block.relative_key if block.relative_key is not None else keys.key_blocks[0]
+        relative.data.foreach_get("co", relative_positions)
+        value = block.value
+        mask = None
+        if block.vertex_group:
+            mask = vertex_group_values(mesh_object, block.vertex_group)
+        if mask is None:
+            for index in range(3 * vertex_count):
+                out[index] += value * (key_positions[index] - relative_positions[index])
+        else:
+            for index in range(3 * vertex_count):
+                out[index] += value * mask[index // 3] * (key_positions[index] - relative_positions[index])
+    return True

@@ -1,0 +1,194 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Volume Preservation" modifier: its node group, built by code, and its place in the stack.
+
+Python cannot define modifiers, so the add-on uses a Geometry Nodes modifier placed directly after
+the Armature modifier. Its node group does three things, in this order:
+
+    Group Input -> Store Named Attribute "lvp_position" = Position   (what the Armature modifier made)
+                -> Store Named Attribute "lvp_index"    = Index      (to find these vertices again
+                                                                      after a Subdivision Surface)
+                -> Set Position, Offset = Named Attribute "lvp_offset" (the correction)
+                -> Group Output
+
+The handlers read the two captured attributes from the evaluated mesh, compute the correction with
+the C core and write "lvp_offset" on the original mesh. When "lvp_offset" is missing the Named
+Attribute node reads zero, so the modifier passes the mesh through unchanged.
+
+The node group is never loaded from a file: it is rebuilt when missing or outdated. It works on
+Blender 3.4 (node_group.inputs / outputs, one "Value" socket per data type) and on 4.x
+(node_group.interface, a single "Value" socket that changes type).
+"""
+
+import bpy
+
+from . import names
+
+
+def _socket(sockets, name, socket_type=None):
+    """The socket called name (and of socket_type, e.g. 'VECTOR'), preferring an available one."""
+    candidates = [socket for socket in sockets
+                  if socket.name == name and (socket_type is None or socket.type == socket_type)]
+    for socket in candidates:
+        if getattr(socket, "enabled", True):
+            return socket
+    if candidates:
+        return candidates[0]
+    raise LookupError("node socket %r of type %r not found" % (name, socket_type))
+
+
+def _new_group_sockets(group):
+    if hasattr(group, "interface"):  # Blender 4.0+
+        group.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+        group.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+    else:  # Blender 3.x
+        group.inputs.new('NodeSocketGeometry', "Geometry")
+        group.outputs.new('NodeSocketGeometry', "Geometry")
+    if hasattr(group, "is_modifier"):  # Blender 4.1+: offered in the modifier's group list
+        group.is_modifier = True
+
+
+def _new_store_node(nodes, attribute_name, data_type, location):
+    node = nodes.new('GeometryNodeStoreNamedAttribute')
+    node.data_type = data_type
+    node.domain = 'POINT'
+    node.location = location
+    _socket(node.inputs, "Name").default_value = attribute_name
+    return node
+
+
+def build_node_group():
+    """Creates a new node group with the layout described at the top of this file."""
+    group = bpy.data.node_groups.new(names.NODE_GROUP_NAME, 'GeometryNodeTree')
+    _new_group_sockets(group)
+    nodes = group.nodes
+    links = group.links
+
+    group_input = nodes.new('NodeGroupInput')
+    group_input.location = (-800, 0)
+    group_output = nodes.new('NodeGroupOutput')
+    group_output.location = (600, 0)
+
+    position = nodes.new('GeometryNodeInputPosition')
+    position.location = (-800, -200)
+    store_position = _new_store_node(nodes, names.CAPTURED_POSITION_ATTRIBUTE, 'FLOAT_VECTOR', (-550, 0))
+
+    index = nodes.new('GeometryNodeInputIndex')
+    index.location = (-550, -250)
+    store_index = _new_store_node(nodes, names.CAPTURED_INDEX_ATTRIBUTE, 'INT', (-300, 0))
+
+    offset = nodes.new('GeometryNodeInputNamedAttribute')
+    offset.data_type = 'FLOAT_VECTOR'
+    offset.location = (-50, -250)
+    _socket(offset.inputs, "Name").default_value = names.OFFSET_ATTRIBUTE
+    set_position = nodes.new('GeometryNodeSetPosition')
+    set_position.location = (250, 0)
+
+    links.new(group_input.outputs[0], _socket(store_position.inputs, "Geometry"))
+    links.new(_socket(position.outputs, "Position"), _socket(store_position.inputs, "Value", 'VECTOR'))
+    links.new(_socket(store_position.outputs, "Geometry"), _socket(store_index.inputs, "Geometry"))
+    links.new(_socket(index.outputs, "Index"), _socket(store_index.inputs, "Value", 'INT'))
+    links.new(_socket(store_index.outputs, "Geometry"), _socket(set_position.inputs, "Geometry"))
+    links.new(_socket(offset.outputs, "Attribute", 'VECTOR'), _socket(set_position.inputs, "Offset"))
+    links.new(_socket(set_position.outputs, "Geometry"), group_output.inputs[0])
+
+    group[names.NODE_GROUP_TAG] = names.NODE_GROUP_VERSION
+    return group
+
+
+def is_our_node_group(group):
+    return group is not None and group.get(names.NODE_GROUP_TAG) is not None
+
+
+def ensure_node_group():
+    """Our node group with the current layout: an existing one when it is current, else a new one."""
+    for group in bpy.data.node_groups:
+        if group.library is None and group.get(names.NODE_GROUP_TAG) == names.NODE_GROUP_VERSION:
+            return group
+    return build_node_group()
+
+
+def is_our_modifier(modifier):
+    return modifier.type == 'NODES' and is_our_node_group(modifier.node_group)
+
+
+def find_modifier(obj):
+    """The object's Volume Preservation modifier, or None."""
+    for modifier in obj.modifiers:
+        if is_our_modifier(modifier):
+            return modifier
+    return None
+
+
+def find_armature_modifier(obj):
+    """The Armature modifier that Volume Preservation follows: the last one before our modifier, or
+    the first one in the stack when our modifier is not there yet. None when there is none."""
+    ours = find_modifier(obj)
+    found = None
+    for modifier in obj.modifiers:
+        if modifier == ours:
+            break
+        if modifier.type == 'ARMATURE':
+            if ours is None:
+                return modifier
+            found = modifier
+    return found
+
+
+def modifier_index(obj, modifier):
+    for index, candidate in enumerate(obj.modifiers):
+        if candidate == modifier:
+            return index
+    raise LookupError("modifier %r is not on object %r" % (modifier.name, obj.name))
+
+
+def move_modifier(context, obj, modifier, index):
+    """Moves modifier to position index of obj's stack (ObjectModifiers.move() does not exist on 3.4)."""
+    current = modifier_index(obj, modifier)
+    if current == index:
+        return
+    if hasattr(obj.modifiers, "move"):  # Blender 4.0+
+        obj.modifiers.move(current, index)
+        return
+    with context.temp_override(object=obj, active_object=obj):
+        result = bpy.ops.object.modifier_move_to_index(modifier=modifier.name, index=index)
+    if 'FINISHED' not in result or modifier_index(obj, modifier) != index:
+        raise RuntimeError("could not move modifier %r to position %d" % (modifier.name, index))
+
+
+def add_modifier(context, obj, armature_modifier):
+    """Adds the Volume Preservation modifier directly after armature_modifier and returns it."""
+    group = ensure_node_group()
+    modifier = obj.modifiers.new(names.MODIFIER_NAME, 'NODES')
+    try:
+        modifier.node_group = group
+        modifier.show_expanded = False
+        move_modifier(context, obj, modifier, modifier_index(obj, armature_modifier) + 1)
+    except Exception:
+        obj.modifiers.remove(modifier)
+        raise
+    return modifier
+
+
+def remove_modifier(obj):
+    """Removes the object's Volume Preservation modifier(s); returns how many were removed."""
+    removed = 0
+    modifier = find_modifier(obj)
+    while modifier is not None:
+        obj.modifiers.remove(modifier)
+        removed += 1
+        modifier = find_modifier(obj)
+    return removed
+
+
+def remove_unused_node_groups():
+    """Deletes our node groups that nothing uses any more (no modifier, no other node group)."""
+    for group in list(bpy.data.node_groups):
+        if is_our_node_group(group) and group.library is None and group.users == 0:
+            bpy.data.node_groups.remove(group)
+
+
+def modifier_enabled(modifier, depsgraph_mode):
+    """Whether the modifier runs in a depsgraph of this mode ('VIEWPORT' or 'RENDER')."""
+    if depsgraph_mode == 'RENDER':
+        return modifier.show_render
+    return modifier.show_viewport

@@ -1,0 +1,382 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The add-on's operators. Scripts call these ids; keep them:
+
+    object.lvp_add            bind the selected skinned meshes and add the modifier after Armature
+    object.lvp_bind           bind again after the weights or the rest mesh changed
+    object.lvp_remove         remove the modifier, its node group when unused, and its attributes
+    object.lvp_auto_weights   skinning weights by the paper's method (5.1) into the bones' groups
+
+Every operator checks every selected object first and changes nothing when one of them is wrong:
+it reports an ERROR that says what is wrong and how to fix it.
+"""
+
+import bpy
+from bpy.props import EnumProperty, FloatProperty, IntProperty
+
+from . import _lvp
+from . import bindings
+from . import display
+from . import live
+from . import mesh_data
+from . import names
+from . import node_group
+
+
+def _target_objects(context):
+    """The selected objects, or the active one when nothing is selected."""
+    objects = list(context.selected_objects)
+    if not objects and context.active_object is not None:
+        objects = [context.active_object]
+    return objects
+
+
+def _rig_armatures(objects):
+    """Armature objects that some other object of the list is deformed by (selected along with it)."""
+    rigs = set()
+    for obj in objects:
+        if obj.type == 'MESH':
+            for modifier in obj.modifiers:
+                if modifier.type == 'ARMATURE' and modifier.object is not None:
+                    rigs.add(modifier.object.name_full)
+    return rigs
+
+
+def _meshes_to_process(objects):
+    """(meshes, errors): the mesh objects to work on; an armature selected with its meshes is skipped,
+    any other object that is not a mesh is an error."""
+    rigs = _rig_armatures(objects)
+    meshes = []
+    errors = []
+    for obj in objects:
+        if obj.type == 'MESH':
+            meshes.append(obj)
+        elif obj.type == 'ARMATURE' and obj.name_full in rigs:
+            continue
+        else:
+            errors.append("%s is a %s, not a mesh: select the character's mesh objects (with an Armature "
+                          "modifier)" % (obj.name, obj.type.lower()))
+    if not meshes and not errors:
+        errors.append("Select the mesh objects of the character (with an Armature modifier)")
+    return meshes, errors
+
+
+def _editable_error(obj):
+    if obj.library is not None or obj.data.library is not None:
+        return "%s or its mesh is linked from a library: make it local first" % obj.name
+    if obj.mode != 'OBJECT':
+        return "%s is in %s: go back to Object Mode first" % (obj.name, obj.mode.replace("_", " ").title())
+    return None
+
+
+def _report_errors(operator, errors):
+    operator.report({'ERROR'}, "; ".join(errors) + ". Nothing was changed.")
+
+
+def _tag(obj):
+    obj.update_tag()
+    obj.data.update_tag()
+
+
+class OBJECT_OT_lvp_add(bpy.types.Operator):
+    """Bind the selected skinned meshes and add a Volume Preservation modifier right after their Armature \
+modifier, so they keep their volume when joints bend"""
+
+    bl_idname = "object.lvp_add"
+    bl_label = "Add Volume Preservation"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == 'OBJECT' and bool(_target_objects(context))
+
+    def execute(self, context):
+        meshes, errors = _meshes_to_process(_target_objects(context))
+        plans = []
+        for obj in meshes:
+            problem = _editable_error(obj)
+            if problem is None and node_group.find_modifier(obj) is not None:
+                problem = ("%s already has a Volume Preservation modifier: use Bind to bind it again, or Remove"
+                           % obj.name)
+            if problem is None and obj.data.users > 1:
+                problem = ("The mesh of %s is shared by %d users: make it single-user (Object > Relations > Make "
+                           "Single User > Object & Data)" % (obj.name, obj.data.users))
+            if problem is None:
+                try:
+                    armature_modifier, _armature_object = bindings.armature_of(obj)
+                    plans.append((obj, armature_modifier, bindings.bind(obj)))
+                except bindings.BindError as error:
+                    problem = str(error)
+            if problem is not None:
+                errors.append(problem)
+        if errors:
+            for _obj, _modifier, bound in plans:
+                bound.close()
+            _report_errors(self, errors)
+            return {'CANCELLED'}
+
+        added = []
+        try:
+            for obj, armature_modifier, bound in plans:
+                node_group.add_modifier(context, obj, armature_modifier)
+                added.append(obj)
+        except Exception as error:
+            for obj in added:
+                node_group.remove_modifier(obj)
+            node_group.remove_unused_node_groups()
+            for _obj, _modifier, bound in plans:
+                bound.close()
+            self.report({'ERROR'}, "Could not add the modifier (%s). Nothing was changed." % error)
+            return {'CANCELLED'}
+
+        for obj, _armature_modifier, bound in plans:
+            bindings.new_bind_record(obj, bound)
+            live.write_offsets(obj.data, mesh_data.float_array(3 * len(obj.data.vertices)))
+            _tag(obj)
+        message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)
+        scene = context.scene
+        if scene is not None and not scene.render.use_lock_interface:
+            scene.render.use_lock_interface = True
+            message += "; Render > Lock Interface turned on so that F12 renders show the correction"
+        self.report({'INFO'}, message)
+        return {'FINISHED'}
+
+
+class OBJECT_OT_lvp_bind(bpy.types.Operator):
+    """Bind the selected meshes again, after their weights, rest mesh, topology or rest pose changed"""
+
+    bl_idname = "object.lvp_bind"
+    bl_label = "Bind"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == 'OBJECT' and bool(_target_objects(context))
+
+    def execute(self, context):
+        meshes, errors = _meshes_to_process(_target_objects(context))
+        plans = []
+        for obj in meshes:
+            problem = _editable_error(obj)
+            if problem is None and node_group.find_modifier(obj) is None:
+                problem = "%s has no Volume Preservation modifier: use Add Volume Preservation first" % obj.name
+            if problem is None:
+                try:
+                    plans.append((obj, bindings.bind(obj)))
+                except bindings.BindError as error:
+                    problem = str(error)
+            if problem is not None:
+                errors.append(problem)
+        if errors:
+            for _obj, bound in plans:
+                bound.close()
+            _report_errors(self, errors)
+            return {'CANCELLED'}
+        for obj, bound in plans:
+            bindings.new_bind_record(obj, bound)
+            if obj.lvp.display != 'NONE':
+                display.update_display(obj, context)
+            _tag(obj)
+        self.report({'INFO'}, "Bound %s" % ", ".join(obj.name for obj, _b in plans))
+        return {'FINISHED'}
+
+
+def remove_from_object(obj):
+    """Removes the modifier, the add-on's attributes and the bind record of obj (not its settings)."""
+    node_group.remove_modifier(obj)
+    display.remove_display_attributes(obj)
+    mesh = obj.data
+    for name in names.ORIGINAL_MESH_ATTRIBUTES:
+        attribute = mesh.attributes.get(name)
+        if attribute is not None:
+            mesh.attributes.remove(attribute)
+    bindings.forget(obj)
+    settings = obj.lvp
+    settings.bind_id = ""
+    settings.topology_signature = ""
+    if settings.display != 'NONE':
+        settings["display"] = 0  # 'NONE' without running the update (the attributes are gone already)
+    _tag(obj)
+
+
+class OBJECT_OT_lvp_remove(bpy.types.Operator):
+    """Remove Volume Preservation from the selected meshes: the modifier, its node group when nothing \
+else uses it, and its attributes. The mesh is left exactly as it was"""
+
+    bl_idname = "object.lvp_remove"
+    bl_label = "Remove Volume Preservation"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == 'OBJECT' and bool(_target_objects(context))
+
+    def execute(self, context):
+        meshes, errors = _meshes_to_process(_target_objects(context))
+        targets = []
+        for obj in meshes:
+            problem = _editable_error(obj)
+            if problem is None and node_group.find_modifier(obj) is None and not obj.lvp.bind_id and not any(
+                    obj.data.attributes.get(name) is not None for name in names.ORIGINAL_MESH_ATTRIBUTES):
+                problem = "%s has no Volume Preservation modifier: nothing to remove" % obj.name
+            if problem is not None:
+                errors.append(problem)
+            else:
+                targets.append(obj)
+        if errors:
+            _report_errors(self, errors)
+            return {'CANCELLED'}
+        for obj in targets:
+            remove_from_object(obj)
+        node_group.remove_unused_node_groups()
+        self.report({'INFO'}, "Volume Preservation removed from %s" % ", ".join(obj.name for obj in targets))
+        return {'FINISHED'}
+
+
+class OBJECT_OT_lvp_auto_weights(bpy.types.Operator):
+    """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
+write them into the deforming bones' vertex groups, replacing their weights"""
+
+    bl_idname = "object.lvp_auto_weights"
+    bl_label = "Volume Preservation Auto Weights"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    visibility: EnumProperty(
+        name="Visibility Test",
+        description="How a bone hidden from a vertex (behind the surface) is detected",
+        items=(
+            ('NORMAL', "Normal", "The paper's fast test: the angle between the path to the bone and the normal"),
+            ('EXACT', "Exact", "The path to the bone is tested against the mesh (slower, exact)"),
+        ),
+        default='NORMAL',
+    )
+    alpha: FloatProperty(
+        name="Falloff",
+        description="Weight = (bone length / distance) ^ falloff, before normalization",
+        default=2.0, min=0.1, soft_max=8.0,
+    )
+    max_influences: IntProperty(
+        name="Max Influences",
+        description="Keep at most this many bones per vertex (0: all)",
+        default=4, min=0, max=32,
+    )
+    min_weight: FloatProperty(
+        name="Min Weight",
+        description="Drop weights below this, then normalize again",
+        default=0.01, min=0.0, max=0.5,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == 'OBJECT' and bool(_target_objects(context))
+
+    def execute(self, context):
+        meshes, errors = _meshes_to_process(_target_objects(context))
+        plans = []
+        for obj in meshes:
+            problem = _editable_error(obj)
+            if problem is None:
+                try:
+                    _armature_modifier, armature_object = bindings.armature_of(obj)
+                except bindings.BindError as error:
+                    problem = str(error)
+            if problem is None:
+                bone_names = [bone.name for bone in armature_object.data.bones if bone.use_deform]
+                if not bone_names:
+                    problem = "%s has no deforming bone: enable Deform on its bones" % armature_object.name
+                elif len(obj.data.polygons) == 0:
+                    problem = "%s has no faces: automatic weights need a surface mesh" % obj.name
+            if problem is None:
+                mesh = obj.data
+                rest_matrices, heads, tails = mesh_data.rest_skeleton_arrays(obj, armature_object, bone_names)
+                try:
+                    weights = _lvp.auto_weights(
+                        mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads,
+                        tails, alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
+                        min_weight=self.min_weight)
+                except (ValueError, MemoryError) as error:
+                    problem = "Cannot compute weights for %s: %s" % (obj.name, error)
+                else:
+                    plans.append((obj, bone_names, weights))
+            if problem is not None:
+                errors.append(problem)
+        if errors:
+            _report_errors(self, errors)
+            return {'CANCELLED'}
+        rebound = []
+        for obj, bone_names, (offsets, bones, values) in plans:
+            mesh_data.replace_vertex_group_weights(obj, bone_names, offsets, bones, values)
+            if node_group.find_modifier(obj) is not None:
+                try:
+                    bindings.new_bind_record(obj, bindings.bind(obj))
+                    rebound.append(obj.name)
+                except bindings.BindError as error:
+                    self.report({'WARNING'}, "Weights written, but %s" % error)
+            _tag(obj)
+        message = "Weights written to %s" % ", ".join(obj.name for obj, _n, _w in plans)
+        if rebound:
+            message += "; bound again: %s" % ", ".join(rebound)
+        self.report({'INFO'}, message)
+        return {'FINISHED'}
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+
+class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):
+    """Restrict the flesh of one region to chosen bones (e.g. the belly measured from the spine only)"""
+
+    bl_idname = "object.lvp_region_restriction_add"
+    bl_label = "Add Region Restriction"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.object is not None and context.object.type == 'MESH'
+
+    def execute(self, context):
+        settings = context.object.lvp
+        settings.region_restrictions.add()
+        settings.active_region_restriction = len(settings.region_restrictions) - 1
+        return {'FINISHED'}
+
+
+class OBJECT_OT_lvp_region_restriction_remove(bpy.types.Operator):
+    """Remove the selected region restriction"""
+
+    bl_idname = "object.lvp_region_restriction_remove"
+    bl_label = "Remove Region Restriction"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.object
+        return obj is not None and obj.type == 'MESH' and len(obj.lvp.region_restrictions) > 0
+
+    def execute(self, context):
+        obj = context.object
+        settings = obj.lvp
+        index = min(settings.active_region_restriction, len(settings.region_restrictions) - 1)
+        settings.region_restrictions.remove(index)
+        settings.active_region_restriction = max(0, index - 1)
+        obj.update_tag()
+        return {'FINISHED'}
+
+
+classes = (
+    OBJECT_OT_lvp_add,
+    OBJECT_OT_lvp_bind,
+    OBJECT_OT_lvp_remove,
+    OBJECT_OT_lvp_auto_weights,
+    OBJECT_OT_lvp_region_restriction_add,
+    OBJECT_OT_lvp_region_restriction_remove,
+)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -51,8 +51,8 @@ def _evaluated_positions(mesh_eval, bound):
         _read_vector_attribute(position_attribute, bound.positions)
         return None
     if evaluated_count < vertex_count:
-        return ("the mesh arriving at Volume Preservation has %d vertices, the bind has %d: a modifier changes "
-                "the vertex count" % (evaluated_count, vertex_count))
+        return ("the final mesh has %d vertices, fewer than the %d that were bound: a modifier before the "
+                "Armature modifier or after Volume Preservation removes vertices" % (evaluated_count, vertex_count))
     index_attribute = mesh_eval.attributes.get(names.CAPTURED_INDEX_ATTRIBUTE)
     if index_attribute is None or index_attribute.domain != 'POINT':
         return ("a modifier after Volume Preservation changes the topology and drops its attributes: move it "

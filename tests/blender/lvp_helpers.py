@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import unittest
 from array import array
 
 import bpy
@@ -113,7 +114,6 @@ def enable_addon():
 
 
 def unittest_skip(message):
-    import unittest
     return unittest.SkipTest(message)
 
 
@@ -405,3 +405,28 @@ def fresh_copy(path):
     target = os.path.join(directory, os.path.basename(path))
     shutil.copy(path, target)
     return target
+
+
+# ---- test base -----------------------------------------------------------------------------
+
+
+class AddonTestCase(unittest.TestCase):
+    """Enables the add-on once and starts every test from an empty scene."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.addon = enable_addon()
+
+    def setUp(self):
+        reset_scene()
+
+    def assertSmallerThan(self, value, limit, message=""):
+        self.assertLess(value, limit, "%s: %g is not below %g" % (message, value, limit))
+
+    def status_of(self, obj):
+        return self.addon.bindings.status(obj)
+
+    def assertStatusContains(self, obj, text):
+        status = self.status_of(obj)
+        self.assertIsNotNone(status, "no status for %s" % obj.name)
+        self.assertIn(text.lower(), status[1].lower(), "status of %s is %r" % (obj.name, status))

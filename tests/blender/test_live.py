@@ -1,0 +1,387 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Live behaviour of the Volume Preservation modifier on the paper's cylinder, in one Blender.
+
+The cylinder: 16 rings of 16 vertices, radius 0.5, length 4 along +Z, closed by two n-gon caps; two
+bones joined at z = 2; weights linear over a band of 2.6 around the joint. Bent by 90 degrees, plain
+skinning loses about 11 % of its volume (paper Table 2). Every assertion is on the evaluated mesh.
+"""
+
+import math
+import unittest
+
+import bpy
+import bmesh
+from mathutils import Matrix, Vector
+
+import lvp_helpers as helpers
+
+# Rings that follow one bone rigidly (weight 1): z <= 0.7 or z >= 3.3.
+RIGID_LIMITS = (0.7, 3.3)
+
+
+class CylinderTestCase(helpers.AddonTestCase):
+    """A bent cylinder with Volume Preservation: 0 degrees at frame 1, 90 degrees at frame 10."""
+
+    preserve_volume = False
+
+    def setUp(self):
+        super().setUp()
+        self.obj, self.rig = helpers.make_cylinder_character(preserve_volume=self.preserve_volume)
+        helpers.keyframe_bend(self.rig, {1: 0.0, 10: 90.0})
+        self.scene = bpy.context.scene
+        self.scene.frame_set(1)
+        self.triangles = helpers.mesh_triangles(self.obj.data)
+        self.rest_volume = helpers.volume(helpers.mesh_positions(self.obj.data), self.triangles)
+        self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
+
+    def errors_at_current_frame(self, obj=None):
+        """(corrected, plain) relative volume errors of the evaluated mesh."""
+        obj = obj or self.obj
+        corrected = helpers.evaluated_positions(obj)
+        plain = helpers.uncorrected_positions(obj)
+        return (helpers.relative_volume_error(corrected, self.triangles, self.rest_volume),
+                helpers.relative_volume_error(plain, self.triangles, self.rest_volume))
+
+    def assertCorrected(self, obj=None, plain_at_least=0.02, ratio=0.1, message=""):
+        corrected, plain = self.errors_at_current_frame(obj)
+        self.assertGreater(plain, plain_at_least, "%s: plain skinning should lose volume here" % message)
+        self.assertSmallerThan(corrected, ratio * plain, "%s: corrected volume error vs plain %g" % (message, plain))
+        return corrected, plain
+
+    def rigid_vertices(self, obj=None):
+        obj = obj or self.obj
+        return [vertex.index for vertex in obj.data.vertices
+                if vertex.co.z <= RIGID_LIMITS[0] or vertex.co.z >= RIGID_LIMITS[1]]
+
+
+class TestCylinder(CylinderTestCase):
+
+    def test_modifier_directly_after_armature(self):
+        types = [(modifier.type, modifier.name) for modifier in self.obj.modifiers]
+        self.assertEqual(types, [('ARMATURE', "Armature"), ('NODES', "Volume Preservation")])
+
+    def test_offsets_zero_at_rest(self):
+        self.scene.frame_set(1)
+        offsets = helpers.offsets_of(self.obj)
+        self.assertIsNotNone(offsets)
+        self.assertSmallerThan(helpers.max_abs(offsets), 1e-6, "largest offset at rest")
+        rest = helpers.mesh_positions(self.obj.data)
+        self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(self.obj), rest), 1e-5,
+                               "evaluated mesh vs rest mesh")
+
+    def test_frame_set_restores_volume(self):
+        self.scene.frame_set(10)
+        corrected, plain = self.assertCorrected(plain_at_least=0.08, message="frame 10, 90 degrees")
+        self.assertSmallerThan(corrected, 0.005, "corrected volume error at 90 degrees")
+
+    def test_playback_every_frame(self):
+        for frame in list(range(1, 11)) + list(range(9, 0, -1)):
+            self.scene.frame_set(frame)
+            corrected, plain = self.errors_at_current_frame()
+            self.assertLessEqual(corrected, max(0.1 * plain, 1e-4), "frame %d (plain %g)" % (frame, plain))
+
+    def test_far_parts_do_not_move(self):
+        self.scene.frame_set(10)
+        corrected = helpers.evaluated_positions(self.obj)
+        plain = helpers.uncorrected_positions(self.obj)
+        distances = helpers.vertex_distances(corrected, plain)
+        rigid = self.rigid_vertices()
+        self.assertGreater(len(rigid), 60)
+        self.assertSmallerThan(max(distances[index] for index in rigid), 1e-5, "displacement of rigid ends")
+        self.assertGreater(max(distances), 0.02, "the joint should bulge")
+
+    def test_posing_a_bone_without_changing_frame(self):
+        self.scene.frame_set(10)
+        self.rig.animation_data_clear()
+        for degrees in (30.0, 60.0, 120.0):
+            helpers.bend(self.rig, degrees)
+            bpy.context.view_layer.update()
+            corrected, plain = self.errors_at_current_frame()
+            self.assertSmallerThan(corrected, max(0.1 * plain, 1e-4), "posed %g degrees (plain %g)"
+                                   % (degrees, plain))
+        # The offsets follow the pose: compare with a fresh evaluation of the last pose.
+        offsets = helpers.offsets_of(self.obj)
+        helpers.bend(self.rig, 45.0)
+        bpy.context.view_layer.update()
+        self.assertGreater(helpers.max_distance(offsets, helpers.offsets_of(self.obj)), 1e-3)
+
+    def test_moving_the_armature_object(self):
+        """The mesh is not parented: moving and rotating the armature object drags the skin along."""
+        self.obj.parent = None
+        self.scene.frame_set(10)
+        self.rig.location = (1.0, -2.0, 0.5)
+        self.rig.rotation_euler = (0.3, 0.2, 1.0)
+        bpy.context.view_layer.update()
+        self.assertCorrected(message="armature object moved after the bind")
+
+    def test_settings_change_the_correction(self):
+        self.scene.frame_set(10)
+        settings = self.obj.lvp
+        for effect in ('RUBBER', 'GLOBAL', 'ORGANIC'):
+            settings.effect = effect
+            bpy.context.view_layer.update()
+            self.assertCorrected(message="effect %s" % effect)
+        before = helpers.offsets_of(self.obj)
+        settings.alpha = 3.0
+        bpy.context.view_layer.update()
+        self.assertGreater(helpers.max_distance(before, helpers.offsets_of(self.obj)), 1e-4,
+                           "alpha should reshape the correction")
+        settings.iterations = 1
+        bpy.context.view_layer.update()
+        corrected, plain = self.errors_at_current_frame()
+        self.assertSmallerThan(corrected, 0.5 * plain, "one pass (the paper's)")
+
+    def test_painted_effect(self):
+        group = self.obj.vertex_groups.new(name="Painted")
+        for vertex in self.obj.data.vertices:
+            group.add([vertex.index], max(0.0, 1.0 - abs(vertex.co.z - 2.0)), 'REPLACE')
+        self.obj.lvp.painted_vertex_group = "Painted"
+        self.obj.lvp.effect = 'PAINTED'
+        self.scene.frame_set(10)
+        self.assertCorrected(message="painted map")
+        self.obj.lvp.painted_vertex_group = "Missing"
+        bpy.context.view_layer.update()
+        self.assertStatusContains(self.obj, "vertex group")
+        # Pass-through while the setting is unusable.
+        plain = helpers.uncorrected_positions(self.obj)
+        self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(self.obj), plain), 1e-6,
+                               "pass-through with a missing painted group")
+
+    def test_region_restriction(self):
+        restriction = self.obj.lvp.region_restrictions.add()
+        restriction.region = "Upper"
+        restriction.bones = "Lower"
+        self.scene.frame_set(10)
+        self.assertCorrected(message="restricted region")
+        restriction.bones = "NoSuchBone"
+        bpy.context.view_layer.update()
+        self.assertStatusContains(self.obj, "NoSuchBone")
+
+    def test_fold_over_option(self):
+        self.obj.lvp.fold_over = True
+        self.scene.frame_set(10)
+        self.rig.animation_data_clear()
+        helpers.bend(self.rig, 150.0)
+        bpy.context.view_layer.update()
+        corrected, plain = self.errors_at_current_frame()
+        self.assertSmallerThan(corrected, plain, "150 degrees with fold-over prevention")
+        self.assertEqual(self.status_of(self.obj)[0], 'INFO')
+
+    def test_hide_and_show_in_viewport(self):
+        self.scene.frame_set(10)
+        corrected = helpers.evaluated_positions(self.obj)
+        modifier = self.addon.node_group.find_modifier(self.obj)
+        modifier.show_viewport = False
+        bpy.context.view_layer.update()
+        plain = helpers.evaluated_positions(self.obj)
+        self.assertGreater(helpers.max_distance(corrected, plain), 0.02)
+        self.scene.frame_set(5)  # frames change while it is hidden
+        self.scene.frame_set(10)
+        modifier.show_viewport = True
+        bpy.context.view_layer.update()
+        self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(self.obj), corrected), 1e-6,
+                               "shown again")
+        # show_render does not affect the viewport.
+        modifier.show_render = False
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(self.obj), corrected), 1e-6,
+                               "show_render off, viewport")
+        modifier.show_render = True
+
+    def test_display_colour_attributes(self):
+        mesh = self.obj.data
+        for display, name in (('SEGMENTATION', "lvp_segmentation"), ('CORRECTION_MAP', "lvp_correction_map")):
+            self.obj.lvp.display = display
+            attribute = mesh.attributes.get(name)
+            self.assertIsNotNone(attribute, display)
+            self.assertEqual((attribute.domain, attribute.data_type), ('POINT', 'FLOAT_COLOR'))
+            colors = helpers.array('f', bytes(16 * len(mesh.vertices)))
+            attribute.data.foreach_get("color", colors)
+            distinct = {tuple(round(value, 3) for value in colors[index:index + 3])
+                        for index in range(0, len(colors), 4)}
+            self.assertGreater(len(distinct), 1, "%s shows more than one colour" % display)
+        self.obj.lvp.display = 'NONE'
+        self.assertIsNone(mesh.attributes.get("lvp_segmentation"))
+        self.assertIsNone(mesh.attributes.get("lvp_correction_map"))
+
+
+class TestCylinderPreserveVolume(CylinderTestCase):
+    """The Armature modifier's Preserve Volume (dual quaternion skinning) before the correction."""
+
+    preserve_volume = True
+
+    def test_preserve_volume_on(self):
+        self.assertTrue(self.obj.modifiers["Armature"].use_deform_preserve_volume)
+        self.scene.frame_set(10)
+        corrected, plain = self.errors_at_current_frame()
+        self.assertSmallerThan(corrected, max(0.2 * plain, 5e-4), "dual quaternion + correction (plain %g)" % plain)
+        rigid = self.rigid_vertices()
+        distances = helpers.vertex_distances(helpers.evaluated_positions(self.obj),
+                                             helpers.uncorrected_positions(self.obj))
+        self.assertSmallerThan(max(distances[index] for index in rigid), 1e-5, "rigid ends")
+
+
+class TestTransforms(CylinderTestCase):
+    """Object and armature transforms that are not identity: scaled, rotated, parented."""
+
+    def transform_and_check(self):
+        for frame in (1, 10):
+            self.scene.frame_set(frame)
+            if frame == 1:
+                self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-5, "offsets at rest")
+            else:
+                self.assertCorrected(message="transformed")
+        rigid = self.rigid_vertices()
+        distances = helpers.vertex_distances(helpers.evaluated_positions(self.obj),
+                                             helpers.uncorrected_positions(self.obj))
+        self.assertSmallerThan(max(distances[index] for index in rigid), 1e-4, "rigid ends")
+
+    def test_transformed_before_binding(self):
+        # Rebind with the transforms in place: remove, transform, add again.
+        select = helpers.select_only
+        select(self.obj)
+        bpy.ops.object.lvp_remove()
+        self.rig.location = (2.0, 1.0, -1.0)
+        self.rig.rotation_euler = (0.4, -0.3, 0.9)
+        self.rig.scale = (1.5, 1.5, 1.5)
+        self.obj.matrix_parent_inverse = Matrix.Identity(4)
+        self.obj.location = (0.3, 0.2, 0.1)
+        self.obj.rotation_euler = (0.0, 0.5, 0.2)
+        self.obj.scale = (0.8, 1.3, 1.1)
+        bpy.context.view_layer.update()
+        self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
+        self.transform_and_check()
+
+    def test_transformed_after_binding(self):
+        self.rig.location = (-1.0, 3.0, 2.0)
+        self.rig.rotation_euler = (1.0, 0.2, -0.4)
+        self.rig.scale = (0.5, 0.5, 0.5)
+        self.obj.scale = (1.2, 0.9, 1.0)
+        bpy.context.view_layer.update()
+        self.transform_and_check()
+
+    def test_parented_to_an_empty(self):
+        empty = helpers.link(bpy.data.objects.new("Root", None))
+        empty.location = (0.0, 0.0, 3.0)
+        empty.rotation_euler = (0.0, 0.0, 1.2)
+        empty.scale = (2.0, 2.0, 2.0)
+        self.rig.parent = empty
+        bpy.context.view_layer.update()
+        self.transform_and_check()
+
+
+class TestSharedArmature(CylinderTestCase):
+    """Several characters sharing one armature, each with its own binding."""
+
+    def test_two_meshes_one_armature(self):
+        second, _rig = helpers.make_cylinder_character("Second", rig=self.rig, location=(1.5, 0.0, 0.0))
+        self.assertEqual(helpers.add_volume_preservation(second), {'FINISHED'})
+        self.scene.frame_set(10)
+        self.assertCorrected(self.obj, message="first")
+        self.assertCorrected(second, message="second")
+        # Both are corrected by one frame change, and removing one leaves the other working.
+        helpers.select_only(second)
+        bpy.ops.object.lvp_remove()
+        self.scene.frame_set(9)
+        self.assertCorrected(self.obj, message="first after removing the second")
+
+    def test_adding_two_at_once(self):
+        helpers.select_only(self.obj)
+        bpy.ops.object.lvp_remove()
+        second, _rig = helpers.make_cylinder_character("Second", rig=self.rig, location=(-1.5, 0.0, 0.0))
+        helpers.select_only(self.obj, second, self.rig)  # the rig selected along is fine
+        self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+        self.scene.frame_set(10)
+        self.assertCorrected(self.obj, message="first")
+        self.assertCorrected(second, message="second")
+
+
+class TestShapeKeys(CylinderTestCase):
+
+    def test_shape_keys_are_kept_and_corrected_against(self):
+        obj = self.obj
+        obj.shape_key_add(name="Basis")
+        key = obj.shape_key_add(name="FatEnd")
+        # Widen the upper end (rigid part) by 20 %: the rest volume of this frame grows.
+        for index, vertex in enumerate(obj.data.vertices):
+            if vertex.co.z > 3.0:
+                co = vertex.co
+                key.data[index].co = (co.x * 1.2, co.y * 1.2, co.z)
+        key.value = 1.0
+        self.scene.frame_set(1)
+        keyed_rest = helpers.evaluated_positions(obj)
+        keyed_volume = helpers.volume(keyed_rest, self.triangles)
+        self.assertGreater(keyed_volume, self.rest_volume * 1.02)
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(obj)), 1e-5, "offsets at rest with a shape key")
+        self.scene.frame_set(10)
+        corrected = helpers.evaluated_positions(obj)
+        plain = helpers.uncorrected_positions(obj)
+        plain_error = helpers.relative_volume_error(plain, self.triangles, keyed_volume)
+        corrected_error = helpers.relative_volume_error(corrected, self.triangles, keyed_volume)
+        self.assertSmallerThan(corrected_error, 0.1 * plain_error, "against the shape-keyed rest volume")
+        # The key's shape is still there on the far end.
+        top = [vertex.index for vertex in obj.data.vertices if vertex.co.z > 3.5]
+        distances = helpers.vertex_distances(corrected, plain)
+        self.assertSmallerThan(max(distances[index] for index in top), 1e-5, "far end keeps the key's shape")
+        # Changing the key value is followed without a frame change.
+        key.value = 0.0
+        bpy.context.view_layer.update()
+        corrected_error = helpers.relative_volume_error(helpers.evaluated_positions(obj), self.triangles,
+                                                        self.rest_volume)
+        self.assertSmallerThan(corrected_error, 0.01, "key switched off")
+
+
+class TestSubdivisionAfter(CylinderTestCase):
+
+    def test_subdivision_surface_after(self):
+        subdivision = self.obj.modifiers.new("Subdivision", 'SUBSURF')
+        subdivision.levels = 2
+        subdivision.render_levels = 2
+        self.scene.frame_set(10)
+        mesh = helpers.evaluated_mesh(self.obj)
+        self.assertGreater(len(mesh.vertices), 1000)
+        status = self.status_of(self.obj)
+        self.assertEqual(status[0], 'INFO', status)
+        offsets = helpers.offsets_of(self.obj)
+        # The same offsets as without subdivision.
+        subdivision.show_viewport = False
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertSmallerThan(helpers.max_distance(offsets, helpers.offsets_of(self.obj)), 1e-6,
+                               "offsets with and without Subdivision Surface")
+        subdivision.show_viewport = True
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        # The subdivided result keeps more volume than the subdivided plain skinning.
+        subdivided = helpers.evaluated_mesh(self.obj)
+        triangles = helpers.mesh_triangles(subdivided)
+        corrected = helpers.mesh_positions(subdivided)
+        plain = helpers.uncorrected_positions(self.obj)
+        modifier = self.addon.node_group.find_modifier(self.obj)
+        modifier.show_viewport = False
+        self.scene.frame_set(1)
+        rest = helpers.evaluated_positions(self.obj)
+        modifier.show_viewport = True
+        self.scene.frame_set(10)
+        rest_volume = helpers.volume(rest, triangles)
+        self.assertSmallerThan(helpers.relative_volume_error(corrected, triangles, rest_volume),
+                               0.2 * helpers.relative_volume_error(plain, triangles, rest_volume),
+                               "subdivided corrected vs subdivided plain")
+
+    def test_topology_changing_modifier_after_passes_through(self):
+        remesh = self.obj.modifiers.new("Decimate", 'DECIMATE')
+        remesh.ratio = 0.5
+        self.scene.frame_set(10)
+        self.assertEqual(self.status_of(self.obj)[0], 'ERROR')
+        self.assertStatusContains(self.obj, "passing the mesh through")
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-9, "zero offsets")
+        self.obj.modifiers.remove(remesh)
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertEqual(self.status_of(self.obj)[0], 'INFO')
+        self.assertCorrected(message="after removing Decimate")
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -61,7 +61,7 @@ support_sources() {
 # ---- build --------------------------------------------------------------------------------
 
 build_module() {
-	ensure_packages gcc python3-dev
+	ensure_packages gcc libc6-dev python3-dev
 	mkdir -p "$BUILD"
 	local out="$BUILD/_lvp.abi3.so"
 	log "compiling the core and the Python module ($out)"
@@ -72,7 +72,7 @@ build_module() {
 }
 
 build_core_library() {
-	ensure_packages gcc
+	ensure_packages gcc libc6-dev
 	mkdir -p "$BUILD/obj"
 	local objects=()
 	for src in $(core_sources); do
@@ -110,7 +110,7 @@ cmd_build() {
 # ---- tests --------------------------------------------------------------------------------
 
 run_c_tests() {
-	ensure_packages gcc libgmp-dev
+	ensure_packages gcc libc6-dev libgmp-dev
 	mkdir -p "$BUILD/tests"
 	local failed=0
 	for test_src in "$ROOT"/tests/c/test_*.c; do
@@ -130,7 +130,7 @@ run_c_tests() {
 
 run_c_test_alone() {
 	local name="$1"
-	ensure_packages gcc libgmp-dev
+	ensure_packages gcc libc6-dev libgmp-dev
 	mkdir -p "$BUILD/tests"
 	# shellcheck disable=SC2046
 	"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
@@ -174,7 +174,7 @@ cmd_fuzz() {
 
 cmd_bench() {
 	build_core_library
-	ensure_packages gcc
+	ensure_packages gcc libc6-dev
 	mkdir -p "$BUILD/bench"
 	"$CC" "${CFLAGS_COMMON[@]}" -O3 -march=x86-64-v2 -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
 		"$ROOT/tests/bench/bench_core.c" $(support_sources) "$BUILD/liblvp.a" -o "$BUILD/bench/bench_core" -lm -lgmp

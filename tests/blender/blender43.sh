@@ -76,6 +76,27 @@ remove_dir() {
 
 # ---- running inside the chroot -------------------------------------------------------------
 
+# private_namespace ARRAY_NAME: sets the array to the command prefix that runs a command in a
+# private mount namespace (unshare -m), or to nothing where that is not possible (no unshare, or
+# "/" is not a mount point, as inside another chroot): then the mounts are made in the host's
+# namespace and the trap in INNER (or debootstrap's own) unmounts them.
+PRIVATE_NS=""
+private_namespace() {
+	if [ -z "$PRIVATE_NS" ]; then
+		if [ "${LVP_NO_UNSHARE:-0}" != 1 ] && as_root unshare -m --propagation private -- true 2>/dev/null; then
+			PRIVATE_NS=yes
+		else
+			PRIVATE_NS=no
+			log "no private mount namespace (unshare -m): mounting in the host's, unmounted on exit"
+		fi
+	fi
+	if [ "$PRIVATE_NS" = yes ]; then
+		eval "$1=(unshare -m --propagation private --)"
+	else
+		eval "$1=()"
+	fi
+}
+
 # The script run as root by `unshare -m` (or, without unshare, by plain sh with a trap): mounts,
 # then runs the command in the chroot, then unmounts (the trap is what cleans up when mounts
 # are not private). Arguments: DIR USERSPEC CWD NBINDS BIND... -- CMD...
@@ -151,11 +172,8 @@ in_chroot() {
 		esac
 	done < <(env -0)
 	envs+=("PATH=$CHROOT_PATH" "HOME=$home" "LANG=C.UTF-8")
-	local launcher=(unshare -m --propagation private --)
-	if [ "${LVP_NO_UNSHARE:-0}" = 1 ] || ! as_root unshare -m --propagation private -- true 2>/dev/null; then
-		log "unshare -m is not available: mounting in the host namespace (unmounted on exit)"
-		launcher=()
-	fi
+	local launcher=()
+	private_namespace launcher
 	local cmd=(env -i "${envs[@]}" "${launcher[@]}" /bin/sh -c "$INNER" blender43-chroot
 		"$CHROOT" "$userspec" "$cwd" "${#binds[@]}" "${binds[@]}" -- "$@")
 	[ "$(id -u)" = 0 ] || cmd=(sudo "${cmd[@]}")
@@ -193,8 +211,9 @@ build_chroot() {
 	log "creating the Debian $SUITE chroot with blender 4.3 in $CHROOT (log: $logfile)"
 	: >"$logfile"
 	log "debootstrap --variant=minbase $SUITE ($MIRROR)"
-	if ! as_root unshare -m --propagation private -- \
-		debootstrap --variant=minbase "$SUITE" "$partial" "$MIRROR" >>"$logfile" 2>&1; then
+	local launcher=()
+	private_namespace launcher
+	if ! as_root "${launcher[@]}" debootstrap --variant=minbase "$SUITE" "$partial" "$MIRROR" >>"$logfile" 2>&1; then
 		tail -n 30 "$logfile" >&2
 		return 1
 	fi

@@ -113,8 +113,8 @@ def prune(objects):
 def armature_of(obj):
     """(armature_modifier, armature_object) that Volume Preservation follows, or raises BindError."""
     if obj.type != 'MESH':
-        raise BindError("%s is a %s, not a mesh: select the character's mesh objects"
-                        % (obj.name, obj.type.lower()))
+        raise BindError("%s is not a mesh (it is a %s object): select the character's mesh objects"
+                        % (obj.name, obj.type.lower().replace("_", " ")))
     armature_modifier = node_group.find_armature_modifier(obj)
     if armature_modifier is None:
         raise BindError("%s has no Armature modifier: parent it to the armature with Ctrl+P > With Empty "

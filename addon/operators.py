@@ -30,6 +30,10 @@ def _target_objects(context):
     return objects
 
 
+def _article(noun):
+    return ("an " if noun[:1] in "aeiou" else "a ") + noun
+
+
 def _rig_armatures(objects):
     """Armature objects that some other object of the list is deformed by (selected along with it)."""
     rigs = set()
@@ -53,8 +57,8 @@ def _meshes_to_process(objects):
         elif obj.type == 'ARMATURE' and obj.name_full in rigs:
             continue
         else:
-            errors.append("%s is a %s, not a mesh: select the character's mesh objects (with an Armature "
-                          "modifier)" % (obj.name, obj.type.lower()))
+            errors.append("%s is not a mesh (it is %s object): select the character's mesh objects "
+                          "(with an Armature modifier)" % (obj.name, _article(obj.type.lower().replace("_", " "))))
     if not meshes and not errors:
         errors.append("Select the mesh objects of the character (with an Armature modifier)")
     return meshes, errors

@@ -140,5 +140,6 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 
 /* foldover.c */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
+void lvp__fade_map_at_contact(lvp_binding *binding);
 
 #endif /* LVP_BINDING_H */

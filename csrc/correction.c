@@ -15,6 +15,9 @@
 
 #include <stdlib.h>
 
+/* Rounds of (volume step, contact test) after the first contact test of fold-over prevention. */
+#define LVP__FOLD_ROUNDS 4
+
 static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp_diagnostic *r_diag)
 {
 	if (options->max_iterations < 1 || options->max_iterations > 1000)
@@ -414,21 +417,25 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		                                      stats.volume_rest, rest_positions, base);
 	stats.active_regions = first_active;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
-		stats.folded_vertices = lvp__fold_over(binding, rest_positions);
-		if (stats.folded_vertices > 0) {
-			/* The extra volume step of 5.4 with the moved vertices held on the contact surface,
-			 * then the contact test again, since the bulge may push others across. */
+		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
+		 * contact surface (which turns the compression into a bulge); the bulge may push other
+		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
+		int32_t moved = lvp__fold_over(binding, rest_positions);
+		stats.folded_vertices = moved;
+		if (moved > 0)
+			lvp__fade_map_at_contact(binding);
+		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
 			lvp__measure(binding, rest_positions, base);
 			int32_t steps = lvp__volume_iterations(binding, options, rest_positions, base, &ignored);
 			steps += lvp__global_steps(binding, options, options->max_iterations - steps, stats.volume_rest,
 			                           rest_positions, base);
 			stats.iterations += steps;
-			memset(binding->frozen, 0, (size_t)n);
-			lvp__fold_over(binding, rest_positions);
-			memset(binding->frozen, 0, (size_t)n);
-			lvp__measure(binding, rest_positions, base);
+			moved = lvp__fold_over(binding, rest_positions);
+			stats.folded_vertices += moved;
 		}
+		memset(binding->frozen, 0, (size_t)n);
+		lvp__measure(binding, rest_positions, base);
 	}
 	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
 	if (stats.worst_region >= 0)

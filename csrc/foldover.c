@@ -16,6 +16,46 @@ static inline double lvp__side(lvp__vec3 p, lvp__vec3 s_head, lvp__vec3 s_tail, 
 	return lvp__segment_distance(p, s_head, s_tail) / s_length - lvp__segment_distance(p, j_head, j_tail) / j_length;
 }
 
+/* Moves p (on bone j's side, f > 0) back across the contact surface f = 0 along the steepest
+ * way, -grad f: where the two bones are straight near their joint the surface is the bisector
+ * plane and this is the orthogonal projection onto it, which keeps the skin that crossed
+ * untangled (a walk towards the bone would slide vertices along the surface and fold it). The
+ * crossing point is bracketed by doubling the step, then bisected; the vertex ends `gap` past
+ * it on its own side, so the skin of the two sides cannot touch. False if no crossing is found. */
+static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, lvp__vec3 st, double ls, lvp__vec3 jh,
+                                 lvp__vec3 jt, double lj, double gap)
+{
+	lvp__vec3 cs, cj;
+	lvp__closest_on_segment(&cs, p, sh, st);
+	lvp__closest_on_segment(&cj, p, jh, jt);
+	double ds = lvp__length(lvp__sub(p, cs)), dj = lvp__length(lvp__sub(p, cj));
+	if (!(ds > 0.0) || !(dj > 0.0))
+		return false;
+	lvp__vec3 gradient = lvp__sub(lvp__scale(lvp__sub(p, cs), 1.0 / (ds * ls)), lvp__scale(lvp__sub(p, cj), 1.0 / (dj * lj)));
+	double length = lvp__length(gradient);
+	if (!(length > 0.0))
+		return false;
+	lvp__vec3 direction = lvp__scale(gradient, -1.0 / length);
+	double f = lvp__side(p, sh, st, ls, jh, jt, lj);
+	double outside = 0.0, inside = f / length;
+	int doublings = 0;
+	while (lvp__side(lvp__add(p, lvp__scale(direction, inside)), sh, st, ls, jh, jt, lj) > 0.0) {
+		outside = inside;
+		inside *= 2.0;
+		if (++doublings > 40)
+			return false;
+	}
+	for (int step = 0; step < 60 && inside - outside > 1e-9 * (inside + 1e-30); ++step) {
+		double middle = 0.5 * (inside + outside);
+		if (lvp__side(lvp__add(p, lvp__scale(direction, middle)), sh, st, ls, jh, jt, lj) > 0.0)
+			outside = middle;
+		else
+			inside = middle;
+	}
+	*r_point = lvp__add(p, lvp__scale(direction, inside + gap));
+	return true;
+}
+
 /* Whether two bones move differently this frame (only then can skin fold between them). */
 static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 {
@@ -35,16 +75,17 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 	float *work = binding->work_positions;
 	int32_t moved = 0;
 	for (int32_t s = 0; s < binding->region_count; ++s) {
-		double ls = binding->bone_length[s];
+		double ls = binding->bone_length[s] > 0.0 ? 1.0 : 0.0;
 		if (binding->region_skipped[s] || !(ls > 0.0))
 			continue;
 		for (int32_t n = binding->neighbour_offsets[s]; n < binding->neighbour_offsets[s + 1]; ++n) {
 			int32_t j = binding->neighbour_bones[n];
-			double lj = binding->bone_length[j];
+			double lj = binding->bone_length[j] > 0.0 ? 1.0 : 0.0;
 			if (!(lj > 0.0) || !lvp__bends(binding, s, j))
 				continue;
 			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
 			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
+			double gap = 1e-4 * (binding->bone_length[s] + binding->bone_length[j]);
 			for (int32_t i = binding->region_vertex_offsets[s]; i < binding->region_vertex_offsets[s + 1]; ++i) {
 				int32_t k = binding->region_vertices[i];
 				/* Only vertices that were on their own side at rest can cross. */
@@ -54,22 +95,9 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				lvp__vec3 p = lvp__load(work + 3 * k);
 				if (lvp__side(p, sh, st, ls, jh, jt, lj) <= 0.0)
 					continue;
-				lvp__vec3 target;
-				lvp__closest_on_segment(&target, p, sh, st);
-				lvp__vec3 path = lvp__sub(target, p);
-				/* f > 0 at p; on bone s itself f <= 0. Bisect for the contact surface, keeping
-				 * the end that is on the vertex's own side. */
-				double inside = 1.0, outside = 0.0;
-				if (lvp__side(target, sh, st, ls, jh, jt, lj) > 0.0)
-					continue; /* bone s runs through j's side here: no contact surface on the path */
-				for (int step = 0; step < 48 && inside - outside > 1e-7; ++step) {
-					double middle = 0.5 * (inside + outside);
-					if (lvp__side(lvp__add(p, lvp__scale(path, middle)), sh, st, ls, jh, jt, lj) > 0.0)
-						outside = middle;
-					else
-						inside = middle;
-				}
-				lvp__vec3 q = lvp__add(p, lvp__scale(path, inside));
+				lvp__vec3 q;
+				if (!lvp__back_to_contact(&q, p, sh, st, ls, jh, jt, lj, gap))
+					continue;
 				work[3 * k] = (float)q.x;
 				work[3 * k + 1] = (float)q.y;
 				work[3 * k + 2] = (float)q.z;
@@ -79,4 +107,34 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 		}
 	}
 	return moved;
+}
+
+/* After a contact was found: flesh pressed against the contact surface does not bulge into it;
+ * the map is faded to zero there, over half the vertex's rest distance to its bone, so the
+ * extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of pushing
+ * skin back across. */
+void lvp__fade_map_at_contact(lvp_binding *binding)
+{
+	float *work = binding->work_positions;
+	for (int32_t s = 0; s < binding->region_count; ++s) {
+		if (binding->region_skipped[s] || !(binding->bone_length[s] > 0.0))
+			continue;
+		for (int32_t n = binding->neighbour_offsets[s]; n < binding->neighbour_offsets[s + 1]; ++n) {
+			int32_t j = binding->neighbour_bones[n];
+			if (!(binding->bone_length[j] > 0.0) || !lvp__bends(binding, s, j))
+				continue;
+			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
+			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
+			for (int32_t i = binding->region_vertex_offsets[s]; i < binding->region_vertex_offsets[s + 1]; ++i) {
+				int32_t k = binding->region_vertices[i];
+				if (!(binding->frame_gamma[k] > 0.0f))
+					continue;
+				double width = 0.5 * binding->distance[k];
+				double margin = -lvp__side(lvp__load(work + 3 * k), sh, st, 1.0, jh, jt, 1.0);
+				double fade = width > 0.0 ? margin / width : 1.0;
+				fade = fade < 0.0 ? 0.0 : (fade > 1.0 ? 1.0 : fade);
+				binding->frame_gamma[k] *= (float)(fade * fade * (3.0 - 2.0 * fade));
+			}
+		}
+	}
 }

@@ -298,11 +298,56 @@ void lvp__reference_volumes(lvp_binding *binding)
 }
 
 /* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
- * centroid; points in the bone's local frame. Returns 6 times its signed volume. */
-static double lvp__side_quad6(lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest, lvp__vec3 b)
+ * centroid; points in the bone's local frame. Returns 6 times its signed volume, and in
+ * r_grad_a, r_grad_b its gradient with respect to the deformed corners a and b (the centroid
+ * moves with them). */
+static double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest,
+                              lvp__vec3 b_rest, lvp__vec3 b)
 {
 	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
+	/* d/dm of sum x . (y x m) over the four triangles is the sum of x x y. */
+	lvp__vec3 through_m = lvp__scale(lvp__add(lvp__add(lvp__cross(a, a_rest), lvp__cross(a_rest, b_rest)),
+	                                          lvp__add(lvp__cross(b_rest, b), lvp__cross(b, a))),
+	                                 0.25);
+	*r_grad_a = lvp__add(lvp__add(lvp__cross(a_rest, m), lvp__cross(m, b)), through_m);
+	*r_grad_b = lvp__add(lvp__add(lvp__cross(m, b_rest), lvp__cross(a, m)), through_m);
 	return lvp__vol6(a, a_rest, m) + lvp__vol6(a_rest, b_rest, m) + lvp__vol6(b_rest, b, m) + lvp__vol6(b, a, m);
+}
+
+/* The slot of vertex k for region r (it exists when k is on one of r's triangles). */
+static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
+{
+	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
+		if (binding->slot_region[slot] == r)
+			return slot;
+	return -1;
+}
+
+/* Adds the side quad's gradient (local frame, 6 x volume) to the slot's <n, dV_s/dp>, in the
+ * units of the top part's gradient (which the correction multiplies by kappa). Without it the
+ * corrections of a narrow weight band, whose vertices are mostly on a region border, would be
+ * underestimated and converge slowly. */
+static void lvp__add_side_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient6, double scale)
+{
+	int32_t slot = lvp__find_slot(binding, k, r);
+	if (slot < 0)
+		return;
+	/* q = L p  =>  dV/dp = L^T dV/dq (L the linear part of the posed inverse) */
+	const double *m = binding->posed_inverse[r].m;
+	lvp__vec3 world = lvp__v(m[0] * gradient6.x + m[4] * gradient6.y + m[8] * gradient6.z,
+	                         m[1] * gradient6.x + m[5] * gradient6.y + m[9] * gradient6.z,
+	                         m[2] * gradient6.x + m[6] * gradient6.y + m[10] * gradient6.z);
+	const float *n = binding->normals + 3 * k;
+	binding->slot_g[slot] += (float)(scale * (n[0] * world.x + n[1] * world.y + n[2] * world.z) / 6.0);
+}
+
+static void lvp__add_world_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient)
+{
+	int32_t slot = lvp__find_slot(binding, k, r);
+	if (slot < 0)
+		return;
+	const float *n = binding->normals + 3 * k;
+	binding->slot_g[slot] += (float)(n[0] * gradient.x + n[1] * gradient.y + n[2] * gradient.z);
 }
 
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
@@ -320,13 +365,25 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 		if (binding->border_offsets[r + 1] > binding->border_offsets[r]) {
 			const lvp__mat4 *to_local = &binding->posed_inverse[r];
 			const lvp__mat4 *rest_to_local = &binding->rest_inverse[r];
+			double gradient_scale = binding->rest_det[r] / binding->kappa[r];
 			for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
-				lvp__vec3 qa = lvp__transform_point(to_local, lvp__load(positions + 3 * a));
-				lvp__vec3 qb = lvp__transform_point(to_local, lvp__load(positions + 3 * b));
+				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
+				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
 				lvp__vec3 ra = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * a));
 				lvp__vec3 rb = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * b));
-				sides6 += lvp__side_quad6(qa, ra, rb, qb);
+				lvp__vec3 grad_a, grad_b;
+				sides6 += lvp__side_quad6(&grad_a, &grad_b, qa, ra, rb, qb);
+				lvp__add_side_gradient(binding, a, r, grad_a, gradient_scale);
+				lvp__add_side_gradient(binding, b, r, grad_b, gradient_scale);
+				/* The top's gradient was taken in its translation-invariant form, exact only where
+				 * a vertex's fan is closed; on the border the fan is open and the exact gradient
+				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is
+				 * this half-edge's share for both of its ends. */
+				lvp__vec3 o = binding->origin[r];
+				lvp__vec3 top_share = lvp__scale(lvp__cross(lvp__sub(pb, o), lvp__sub(pa, o)), 1.0 / 6.0);
+				lvp__add_world_gradient(binding, a, r, top_share);
+				lvp__add_world_gradient(binding, b, r, top_share);
 			}
 			/* local units -> rest-world units */
 			sides6 *= binding->rest_det[r];

@@ -400,6 +400,10 @@ def run_blender(arguments, timeout=300):
                           timeout=timeout, env=environment)
 
 
+def fresh_directory(prefix):
+    return tempfile.mkdtemp(prefix=prefix + "-", dir=test_tmp())
+
+
 def fresh_copy(path):
     directory = tempfile.mkdtemp(prefix="copy-", dir=test_tmp())
     target = os.path.join(directory, os.path.basename(path))

@@ -1,0 +1,231 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What happens outside this Blender: saving and reopening in a fresh Blender, and renders made by
+`blender -b file.blend -a` (and -f), with and without a Subdivision Surface modifier after ours.
+
+Each test saves a temporary .blend here and starts a second Blender of the same version with the
+add-on enabled the same way (lvp_helpers.run_blender). Renders are compared by their alpha
+silhouettes (Cycles, one sample per pixel at the pixel centre, transparent film) against a render of
+a static copy of the mesh this process evaluated: equal when the render shows the corrected shape.
+"""
+
+import json
+import math
+import os
+import unittest
+from array import array
+
+import bpy
+from mathutils import Euler, Vector
+
+import lvp_helpers as helpers
+
+CHILD_DUMP = """
+import bpy, json, sys
+from array import array
+sys.path.insert(0, {here!r})
+import lvp_helpers
+addon = lvp_helpers.enable_addon()
+out = {out!r}
+obj = bpy.data.objects[{name!r}]
+result = {{}}
+def dump(key):
+    positions = lvp_helpers.evaluated_positions(obj)
+    result[key] = list(positions)
+    status = addon.bindings.status(obj)
+    result[key + "_status"] = list(status) if status else None
+dump("opened")
+for frame in {frames!r}:
+    bpy.context.scene.frame_set(frame)
+    dump("frame%d" % frame)
+result["bound"] = addon.bindings.entry(obj) is not None
+with open(out, "w") as file:
+    json.dump(result, file)
+"""
+
+
+def alpha_of(path):
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        pixels = array('f', bytes(4 * len(image.pixels)))
+        image.pixels.foreach_get(pixels)
+        return pixels[3::4], tuple(image.size)
+    finally:
+        bpy.data.images.remove(image)
+
+
+def count_differences(a, b):
+    return sum(1 for x, y in zip(a, b) if abs(x - y) > 0.5)
+
+
+class FileTestCase(helpers.AddonTestCase):
+
+    def setUp(self):
+        super().setUp()
+        self.directory = helpers.fresh_directory("files")
+        self.obj, self.rig = helpers.make_cylinder_character()
+        helpers.keyframe_bend(self.rig, {1: 0.0, 10: 90.0})
+        bpy.context.scene.frame_set(1)
+        self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
+
+    def save(self, name):
+        path = os.path.join(self.directory, name)
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+        return path
+
+    def run_child(self, arguments, what):
+        completed = helpers.run_blender(arguments)
+        if completed.returncode != 0:
+            self.fail("%s: the second Blender failed (exit %d):\n%s" % (what, completed.returncode,
+                                                                       completed.stdout[-4000:]))
+        return completed
+
+
+class TestSaveAndReopen(FileTestCase):
+
+    def test_reopen_in_a_fresh_blender(self):
+        scene = bpy.context.scene
+        expected = {}
+        for frame in (10, 4):
+            scene.frame_set(frame)
+            expected[frame] = helpers.evaluated_positions(self.obj)
+        scene.frame_set(7)
+        at_save = helpers.evaluated_positions(self.obj)
+        path = self.save("saved.blend")
+        out = os.path.join(self.directory, "reopened.json")
+        script = os.path.join(self.directory, "dump.py")
+        with open(script, "w") as file:
+            file.write(CHILD_DUMP.format(here=helpers.HERE, out=out, name=self.obj.name, frames=[10, 4]))
+        self.run_child([path, "--python", script], "reopen")
+        with open(out) as file:
+            result = json.load(file)
+        self.assertTrue(result["bound"], "the binding was not rebuilt after opening the file")
+        self.assertSmallerThan(helpers.max_distance(array('f', result["opened"]), at_save), 1e-5,
+                               "as saved, right after opening")
+        for frame in (10, 4):
+            self.assertSmallerThan(helpers.max_distance(array('f', result["frame%d" % frame]), expected[frame]),
+                                   1e-5, "frame %d in the fresh Blender" % frame)
+            self.assertEqual(result["frame%d_status" % frame][0], 'INFO', result["frame%d_status" % frame])
+
+    def test_topology_changed_before_saving_needs_rebind(self):
+        import bmesh
+        mesh = self.obj.data
+        bm = bmesh.new()
+        bm.from_mesh(mesh)
+        bm.edges.ensure_lookup_table()
+        bmesh.ops.subdivide_edges(bm, edges=[bm.edges[10]], cuts=2)
+        bm.to_mesh(mesh)
+        bm.free()
+        mesh.update()
+        bpy.context.scene.frame_set(10)
+        plain = helpers.uncorrected_positions(self.obj)
+        path = self.save("changed.blend")
+        out = os.path.join(self.directory, "changed.json")
+        script = os.path.join(self.directory, "dump_changed.py")
+        with open(script, "w") as file:
+            file.write(CHILD_DUMP.format(here=helpers.HERE, out=out, name=self.obj.name, frames=[10]))
+        self.run_child([path, "--python", script], "reopen after a topology change")
+        with open(out) as file:
+            result = json.load(file)
+        self.assertIn("rebind needed", result["frame10_status"][1].lower())
+        self.assertSmallerThan(helpers.max_distance(array('f', result["frame10"]), plain), 1e-6,
+                               "passes the mesh through")
+
+
+class TestRender(FileTestCase):
+    """Renders from a background Blender show the corrected shape."""
+
+    resolution = 120
+
+    def setup_render(self):
+        scene = bpy.context.scene
+        scene.render.engine = 'CYCLES'
+        scene.cycles.samples = 1
+        if hasattr(scene.cycles, "use_denoising"):
+            scene.cycles.use_denoising = False
+        if hasattr(scene.cycles, "use_adaptive_sampling"):
+            scene.cycles.use_adaptive_sampling = False
+        scene.cycles.pixel_filter_type = 'BOX'
+        scene.cycles.filter_width = 0.01
+        scene.cycles.device = 'CPU'
+        scene.render.film_transparent = True
+        scene.render.resolution_x = self.resolution
+        scene.render.resolution_y = self.resolution
+        scene.render.resolution_percentage = 100
+        scene.render.image_settings.file_format = 'PNG'
+        scene.render.image_settings.color_mode = 'RGBA'
+        scene.render.use_file_extension = True
+        scene.render.threads_mode = 'FIXED'
+        scene.render.threads = 2
+        camera_data = bpy.data.cameras.new("Camera")
+        camera_data.type = 'ORTHO'
+        camera_data.ortho_scale = 3.0
+        camera = helpers.link(bpy.data.objects.new("Camera", camera_data))
+        # Looking along -X at the joint (z = 2): the bend about X shows in the silhouette.
+        camera.location = (10.0, -0.2, 1.9)
+        camera.rotation_euler = Euler((math.pi / 2, 0.0, math.pi / 2))
+        scene.camera = camera
+        scene.frame_start = 9
+        scene.frame_end = 10
+
+    def render(self, path, frame_arguments, name):
+        output = os.path.join(self.directory, name + "_")
+        self.run_child([path, "-o", output, "-F", "PNG"] + frame_arguments, "render %s" % name)
+        return output + "0010.png"
+
+    def static_copy(self):
+        """Replaces the character by a static mesh of what this process evaluates at frame 10."""
+        bpy.context.scene.frame_set(10)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        obj_eval = self.obj.evaluated_get(depsgraph)
+        mesh = bpy.data.meshes.new_from_object(obj_eval)
+        static = helpers.link(bpy.data.objects.new("Static", mesh))
+        static.matrix_world = self.obj.matrix_world.copy()
+        self.obj.hide_render = True
+        return static
+
+    def check_renders(self, subdivision):
+        self.setup_render()
+        if subdivision:
+            modifier = self.obj.modifiers.new("Subdivision", 'SUBSURF')
+            modifier.levels = 2
+            modifier.render_levels = 2
+        ours = self.addon.node_group.find_modifier(self.obj)
+        # Saved at frame 1, so the offsets stored in the file are those of the rest pose: only the
+        # handlers running inside the render can produce frame 10's correction.
+        bpy.context.scene.frame_set(1)
+        if subdivision:
+            self.obj.modifiers["Subdivision"].levels = 0  # the viewport differs from the render
+        live = self.save("live.blend")
+        ours.show_render = False
+        plain = self.save("plain.blend")
+        ours.show_render = True
+        if subdivision:
+            self.obj.modifiers["Subdivision"].levels = 2
+        static = self.static_copy()
+        reference = self.save("reference.blend")
+        bpy.data.objects.remove(static)
+
+        live_alpha, size = alpha_of(self.render(live, ["-a"], "live"))
+        self.assertEqual(size, (self.resolution, self.resolution))
+        reference_alpha, _size = alpha_of(self.render(reference, ["-a"], "reference"))
+        plain_alpha, _size = alpha_of(self.render(plain, ["-a"], "plain"))
+        single_alpha, _size = alpha_of(self.render(live, ["-f", "10"], "single"))
+        bulge = count_differences(reference_alpha, plain_alpha)
+        print("\n    silhouette pixels changed by the correction: %d; -a render vs corrected: %d; -f: %d"
+              % (bulge, count_differences(live_alpha, reference_alpha),
+                 count_differences(single_alpha, reference_alpha)))
+        self.assertGreater(bulge, 20, "the correction should change the silhouette (pixels)")
+        self.assertLessEqual(count_differences(live_alpha, reference_alpha), 2,
+                             "-a render vs the corrected shape (%d pixels differ from plain)" % bulge)
+        self.assertLessEqual(count_differences(single_alpha, reference_alpha), 2,
+                             "-f render vs the corrected shape")
+
+    def test_render_animation_shows_corrected_shape(self):
+        self.check_renders(subdivision=False)
+
+    def test_render_with_subdivision_after(self):
+        self.check_renders(subdivision=True)
+
+
+if __name__ == "__main__":
+    unittest.main()

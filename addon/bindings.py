@@ -22,6 +22,11 @@ from . import mesh_data
 from . import node_group
 
 
+# A frame whose largest offset exceeds this fraction of the rest mesh's bounding box diagonal is
+# shown uncorrected: legitimate corrections are a few percent of the size of a character.
+DISPLACEMENT_LIMIT = 0.25
+
+
 class BindError(Exception):
     """A user-facing reason why an object cannot be bound: what is wrong and how to fix it."""
 
@@ -47,7 +52,7 @@ class BoundObject:
         self.bone_matrices = mesh_data.float_array(16 * bone_count)
         self.expected_indices = None        # range(vertex_count), allocated for Subdivision after us
         self.stats = None                   # the last frame's statistics (dict from Binding.correct)
-        self.last_input = None              # (pose fingerprint, positions bytes) of the last correction
+        self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
 
     def close(self):
         if self.binding is not None:
@@ -217,8 +222,10 @@ def bind(obj):
     except MemoryError:
         raise BindError("Not enough memory to bind %s" % obj.name) from None
     rest_frames = mesh_data.rest_bone_frames(obj, armature_object, bone_names)
-    return BoundObject(binding, bone_names, rest_frames, len(mesh.vertices), mesh_data.topology_signature(mesh),
-                       settings.bind_id, map_key(settings), mode)
+    bound = BoundObject(binding, bone_names, rest_frames, len(mesh.vertices), mesh_data.topology_signature(mesh),
+                        settings.bind_id, map_key(settings), mode)
+    bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
+    return bound
 
 
 def new_bind_record(obj, bound):
@@ -287,5 +294,4 @@ def refresh_map(obj, bound):
         set_status(obj, 'ERROR', str(error))
         return None
     bound.map_key = key
-    bound.last_input = None
     return bound

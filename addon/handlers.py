@@ -48,9 +48,12 @@ def _objects_with_modifier(depsgraph):
     return found
 
 
-def _may_write(scene):
-    """Whether this thread may write Blender data now (see the render_init note above)."""
-    if live.is_main_thread() or bpy.app.background:
+def may_write(scene, background=None):
+    """Whether this thread may write Blender data now (see the render_init note above): always on the
+    main thread and in background Blender; from a render thread only with Lock Interface on."""
+    if background is None:
+        background = bpy.app.background
+    if live.is_main_thread() or background:
         return True
     return bool(scene.render.use_lock_interface)
 
@@ -80,7 +83,7 @@ def frame_change_post(scene, depsgraph=None):
         if not live.is_main_thread():
             return
         depsgraph = bpy.context.evaluated_depsgraph_get()
-    if not _may_write(scene):
+    if not may_write(scene):
         global render_without_lock
         render_without_lock = True
         return
@@ -91,7 +94,7 @@ def frame_change_post(scene, depsgraph=None):
 def depsgraph_update_post(scene, depsgraph=None):
     if _busy or depsgraph is None:
         return
-    if not _may_write(scene):
+    if not may_write(scene):
         return
     objects = []
     changed_meshes = set()

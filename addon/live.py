@@ -180,5 +180,12 @@ def correct_object(obj, depsgraph, check_topology=False):
     stats["bone_names"] = bound.bone_names
     stats["mode"] = bound.mode
     bound.stats = stats
+    displacement = stats["max_displacement"]
+    if not displacement <= bound.displacement_limit:  # also catches NaN
+        # A safety net, not a feature: never show a blown-up mesh to the animator.
+        bindings.set_status(obj, 'WARNING', "The correction diverged at this pose (largest offset %.3g, above %.3g, "
+                                            "a quarter of the mesh size): showing plain skinning for this frame"
+                            % (displacement, bound.displacement_limit))
+        return write_zero_offsets(mesh)
     bindings.set_status(obj, 'INFO', "Correcting")
     return write_offsets(mesh, bound.offsets)

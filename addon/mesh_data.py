@@ -49,6 +49,14 @@ def vertex_positions(mesh):
     return positions
 
 
+def bounding_box_diagonal(positions):
+    """Length of the diagonal of the axis-aligned box around float[3N] positions (0 when empty)."""
+    if len(positions) < 3:
+        return 0.0
+    extent = [max(positions[axis::3]) - min(positions[axis::3]) for axis in range(3)]
+    return sum(value * value for value in extent) ** 0.5
+
+
 def loop_triangles(mesh):
     """The mesh's faces split into triangles, int32[3T], wound like the faces."""
     if hasattr(mesh, "calc_loop_triangles"):
@@ -138,21 +146,6 @@ def posed_bone_matrices(out, mesh_object, armature_object, bone_names, rest_fram
         skinning = premat @ pose_bone.matrix @ bone.matrix_local.inverted_safe() @ premat_inverse
         flatten_matrix(skinning @ rest_frames[index], out, 16 * index)
     return True
-
-
-def pose_fingerprint(mesh_object, armature_object, bone_names):
-    """Bytes that change whenever anything the posed frames depend on changes."""
-    values = array('f')
-    for matrix in (mesh_object.matrix_world, armature_object.matrix_world):
-        for row in matrix:
-            values.extend(row)
-    pose_bones = armature_object.pose.bones
-    for name in bone_names:
-        pose_bone = pose_bones.get(name)
-        if pose_bone is not None:
-            for row in pose_bone.matrix:
-                values.extend(row)
-    return values.tobytes()
 
 
 # ---- weights -------------------------------------------------------------------------------

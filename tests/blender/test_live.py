@@ -206,6 +206,37 @@ class TestCylinder(CylinderTestCase):
         self.assertIsNone(mesh.attributes.get("lvp_correction_map"))
 
 
+class TestSafety(CylinderTestCase):
+
+    def test_diverged_correction_is_not_shown(self):
+        self.scene.frame_set(10)
+        bound = self.addon.bindings.entry(self.obj)
+        bound.displacement_limit = 1e-4  # pretend the core returned an absurd correction
+        self.scene.frame_set(9)
+        self.assertStatusContains(self.obj, "diverged")
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-9, "plain skinning shown")
+        bound.displacement_limit = float("inf")
+        self.scene.frame_set(10)
+        self.assertCorrected(message="normal again")
+
+    def test_render_thread_writes_only_with_lock_interface(self):
+        import threading
+        handlers = self.addon.handlers
+        render = self.scene.render
+        answers = {}
+
+        def ask():
+            for locked in (False, True):
+                render.use_lock_interface = locked
+                answers[locked] = handlers.may_write(self.scene, background=False)
+
+        thread = threading.Thread(target=ask)
+        thread.start()
+        thread.join()
+        self.assertEqual(answers, {False: False, True: True})
+        self.assertTrue(handlers.may_write(self.scene, background=False))  # the main thread
+
+
 class TestCylinderPreserveVolume(CylinderTestCase):
     """The Armature modifier's Preserve Volume (dual quaternion skinning) before the correction."""
 

@@ -46,11 +46,14 @@ class BoundObject:
         bone_count = len(bone_names)
         self.positions = mesh_data.float_array(3 * vertex_count)
         self.offsets = mesh_data.float_array(3 * vertex_count)
-        self.current_offsets = mesh_data.float_array(3 * vertex_count)
+        self.written = None                 # the offsets last written to the mesh, when known
         self.rest_positions = None          # allocated when shape keys are used
         self.base_positions = None
         self.bone_matrices = mesh_data.float_array(16 * bone_count)
-        self.expected_indices = None        # range(vertex_count), allocated for Subdivision after us
+        self.expected_indices = None        # array('i', range(vertex_count))
+        self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
+        self.scratch_positions = None       # evaluated "lvp_position" when the final mesh has more vertices
+        self.mapping_checked_count = -1     # final vertex count whose index range was checked
         self.stats = None                   # the last frame's statistics (dict from Binding.correct)
         self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
 
@@ -96,6 +99,12 @@ def clear():
         bound.close()
     _entries.clear()
     _status.clear()
+
+
+def forget_written():
+    """Forgets what was last written to every mesh (after undo and redo, the file's data changed)."""
+    for bound in _entries.values():
+        bound.written = None
 
 
 def prune(objects):

@@ -131,6 +131,7 @@ def load_post(*_arguments):
 @persistent
 def undo_post(*_arguments):
     bindings.prune(bpy.data.objects)
+    bindings.forget_written()
 
 
 @persistent

@@ -18,6 +18,7 @@ why. With GPU subdivision in the viewport, the CPU mesh is not subdivided at all
 """
 
 import threading
+from array import array
 
 from . import bindings
 from . import mesh_data
@@ -25,50 +26,57 @@ from . import names
 from . import node_group
 
 
-def _read_vector_attribute(attribute, out):
-    attribute.data.foreach_get("vector", out)
+def _expected_indices(bound):
+    if bound.expected_indices is None:
+        bound.expected_indices = array('i', range(bound.vertex_count))
+    return bound.expected_indices
+
+
+def _scratch(bound, name, kind, count):
+    """A per-binding buffer of count items, reused from frame to frame while the count stays."""
+    buffer = getattr(bound, name)
+    if buffer is None or len(buffer) != count:
+        buffer = array(kind, bytes(4 * count))
+        setattr(bound, name, buffer)
+    return buffer
 
 
 def _evaluated_positions(mesh_eval, bound):
     """Fills bound.positions from the evaluated mesh. Returns None on success, else the reason."""
-    position_attribute = mesh_eval.attributes.get(names.CAPTURED_POSITION_ATTRIBUTE)
+    attributes = mesh_eval.attributes
+    position_attribute = attributes.get(names.CAPTURED_POSITION_ATTRIBUTE)
     if position_attribute is None or position_attribute.domain != 'POINT':
         return "the modifier produced no data (a modifier after it may have removed its attributes)"
+    index_attribute = attributes.get(names.CAPTURED_INDEX_ATTRIBUTE)
+    if index_attribute is not None and index_attribute.domain != 'POINT':
+        index_attribute = None
     vertex_count = bound.vertex_count
     evaluated_count = len(mesh_eval.vertices)
-    if evaluated_count == vertex_count:
-        index_attribute = mesh_eval.attributes.get(names.CAPTURED_INDEX_ATTRIBUTE)
-        if index_attribute is not None:
-            if bound.expected_indices is None:
-                bound.expected_indices = mesh_data.int_array(vertex_count)
-                for index in range(vertex_count):
-                    bound.expected_indices[index] = index
-            indices = mesh_data.int_array(vertex_count)
-            index_attribute.data.foreach_get("value", indices)
-            if indices != bound.expected_indices:
-                return ("the modifiers before Volume Preservation reorder or change the vertices (it must "
-                        "come right after the Armature modifier, with only deforming modifiers before that)")
-        _read_vector_attribute(position_attribute, bound.positions)
-        return None
     if evaluated_count < vertex_count:
         return ("the final mesh has %d vertices, fewer than the %d that were bound: a modifier before the "
                 "Armature modifier or after Volume Preservation removes vertices" % (evaluated_count, vertex_count))
-    index_attribute = mesh_eval.attributes.get(names.CAPTURED_INDEX_ATTRIBUTE)
-    if index_attribute is None or index_attribute.domain != 'POINT':
+    if evaluated_count > vertex_count and index_attribute is None:
         return ("a modifier after Volume Preservation changes the topology and drops its attributes: move it "
                 "above, or use Subdivision Surface")
-    indices = mesh_data.int_array(evaluated_count)
-    index_attribute.data.foreach_get("value", indices)
-    if bound.expected_indices is None:
-        bound.expected_indices = mesh_data.int_array(vertex_count)
-        for index in range(vertex_count):
-            bound.expected_indices[index] = index
-    if indices[:vertex_count] != bound.expected_indices or max(indices) >= vertex_count or min(indices) < 0:
-        return ("a modifier changes the topology in a way that loses the original vertices (Subdivision Surface "
-                "after Volume Preservation works; Remesh, Decimate and the like do not)")
-    captured = mesh_data.float_array(3 * evaluated_count)
-    _read_vector_attribute(position_attribute, captured)
-    bound.positions[:] = captured[:3 * vertex_count]
+    if index_attribute is not None:
+        indices = _scratch(bound, "scratch_indices", 'i', evaluated_count)
+        index_attribute.data.foreach_get("value", indices)
+        expected = _expected_indices(bound)
+        if (indices if evaluated_count == vertex_count else indices[:vertex_count]) != expected:
+            return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
+                    "the Armature modifier changes them, or one after Volume Preservation reorders them)")
+        if evaluated_count != vertex_count and bound.mapping_checked_count != evaluated_count:
+            # Once per topology of the final mesh: every vertex comes from the bound ones.
+            if max(indices) >= vertex_count or min(indices) < 0:
+                return ("the mesh entering Volume Preservation has more vertices than were bound: a modifier "
+                        "before the Armature modifier adds vertices")
+            bound.mapping_checked_count = evaluated_count
+    if evaluated_count == vertex_count:
+        position_attribute.data.foreach_get("vector", bound.positions)
+    else:
+        captured = _scratch(bound, "scratch_positions", 'f', 3 * evaluated_count)
+        position_attribute.data.foreach_get("vector", captured)
+        bound.positions[:] = captured[:3 * vertex_count]
     return None
 
 
@@ -84,26 +92,41 @@ def _offset_attribute(mesh, create):
     return attribute
 
 
-def write_offsets(mesh, offsets):
+def write_offsets(mesh, offsets, bound=None):
     """Writes offsets into the original mesh's offset attribute when they differ from what it holds,
-    and tags the mesh for a new evaluation. Returns whether anything was written."""
-    attribute = _offset_attribute(mesh, create=True)
-    current = mesh_data.float_array(3 * len(mesh.vertices))
-    attribute.data.foreach_get("vector", current)
-    if current == offsets:
+    and tags the mesh for a new evaluation. Returns whether anything was written.
+
+    bound.written remembers what was last written, which saves reading the attribute back every
+    frame; it is forgotten (None) whenever something else may have changed the mesh (undo, edits).
+    """
+    if bound is not None and bound.written is not None and bound.written == offsets:
         return False
+    attribute = _offset_attribute(mesh, create=True)
+    if len(attribute.data) * 3 != len(offsets):
+        return False
+    if bound is None or bound.written is None:
+        current = array('f', bytes(4 * len(offsets)))
+        attribute.data.foreach_get("vector", current)
+        if current == offsets:
+            if bound is not None:
+                bound.written = current
+            return False
     attribute.data.foreach_set("vector", offsets)
     mesh.update_tag()
+    if bound is not None:
+        bound.written = array('f', offsets)
     return True
 
 
-def write_zero_offsets(mesh):
+def write_zero_offsets(mesh, bound=None):
     """Pass-through: the modifier then adds nothing. Returns whether anything was written."""
     attribute = _offset_attribute(mesh, create=False)
     if attribute is None:
         return False
-    zeros = mesh_data.float_array(3 * len(mesh.vertices))
-    return write_offsets(mesh, zeros)
+    zeros = array('f', bytes(12 * len(mesh.vertices)))
+    if bound is not None and len(zeros) != 3 * bound.vertex_count:
+        bound = None
+    return write_offsets(mesh, zeros, bound)
 
 
 def is_main_thread():
@@ -138,6 +161,8 @@ def correct_object(obj, depsgraph, check_topology=False):
             check_topology and mesh_data.topology_signature(mesh) != bound.topology):
         bindings.set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
         return write_zero_offsets(mesh)
+    if check_topology:
+        bound.written = None  # the mesh was changed by someone else: read the attribute back once
     bound = bindings.refresh_map(obj, bound)
     if bound is None:
         return write_zero_offsets(mesh)
@@ -147,7 +172,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     if armature_object is None or armature_object.type != 'ARMATURE':
         bindings.set_status(obj, 'ERROR', "No Armature modifier with an armature before Volume Preservation: "
                                           "move it right after the Armature modifier, or remove it")
-        return write_zero_offsets(mesh)
+        return write_zero_offsets(mesh, bound)
 
     obj_eval = obj.evaluated_get(depsgraph)
     armature_eval = armature_object.evaluated_get(depsgraph)
@@ -155,11 +180,11 @@ def correct_object(obj, depsgraph, check_topology=False):
     problem = _evaluated_positions(mesh_eval, bound)
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
-        return write_zero_offsets(mesh)
+        return write_zero_offsets(mesh, bound)
     if not mesh_data.posed_bone_matrices(bound.bone_matrices, obj_eval, armature_eval, bound.bone_names,
                                          bound.rest_frames):
         bindings.set_status(obj, 'ERROR', "Rebind needed: a bound bone is missing from %s" % armature_object.name)
-        return write_zero_offsets(mesh)
+        return write_zero_offsets(mesh, bound)
 
     rest_positions = None
     if mesh.shape_keys is not None:
@@ -176,7 +201,7 @@ def correct_object(obj, depsgraph, check_topology=False):
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)
-        return write_zero_offsets(mesh)
+        return write_zero_offsets(mesh, bound)
     stats["bone_names"] = bound.bone_names
     stats["mode"] = bound.mode
     bound.stats = stats
@@ -186,6 +211,6 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'WARNING', "The correction diverged at this pose (largest offset %.3g, above %.3g, "
                                             "a quarter of the mesh size): showing plain skinning for this frame"
                             % (displacement, bound.displacement_limit))
-        return write_zero_offsets(mesh)
+        return write_zero_offsets(mesh, bound)
     bindings.set_status(obj, 'INFO', "Correcting")
-    return write_offsets(mesh, bound.offsets)
+    return write_offsets(mesh, bound.offsets, bound)

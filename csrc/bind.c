@@ -35,12 +35,15 @@ void lvp_free(lvp_binding *binding)
 {
 	if (!binding)
 		return;
+	lvp__pool_destroy(binding->pool);
 	void *arrays[] = {
 	    binding->rest_positions, binding->triangles, binding->triangle_original, binding->triangle_region,
 	    binding->region_triangle_offsets, binding->weight_offsets, binding->weight_bones, binding->weight_values,
 	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
 	    binding->heads, binding->tails, binding->bone_length, binding->rest_change_base, binding->reference_volume,
-	    binding->slot_offsets, binding->slot_region, binding->corner_slot, binding->border_offsets,
+	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_corners,
+	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
+	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->corner_slot, binding->border_offsets,
 	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
 	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
@@ -196,6 +199,13 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->normals = lvp__alloc(n * 3, sizeof(float), &ok);
 	binding->vertex_g = lvp__alloc(n, sizeof(float), &ok);
 	binding->rho = lvp__alloc(n, sizeof(float), &ok);
+	binding->triangle_gradient = lvp__alloc(f * 3, sizeof(float), &ok);
+	binding->triangle_volume6 = lvp__alloc(f, sizeof(double), &ok);
+	binding->triangle_dirty = lvp__alloc(f, sizeof(uint8_t), &ok);
+	binding->dirty_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->vertex_dirty = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->dirty_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->moved = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->frozen = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
 	binding->origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);
@@ -228,6 +238,12 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;
+	}
+	if (lvp__pool_create(&binding->pool, options->thread_count) != lvp_success) {
+		lvp_free(binding);
+		return lvp__fail(r_diag, lvp_error_thread, "options.thread_count", -1,
+		                 "the %d worker threads could not be started; use fewer threads (or 1).",
+		                 (int)options->thread_count - 1);
 	}
 	lvp__reference_volumes(binding);
 	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);

@@ -8,6 +8,10 @@
 #define LVP_BINDING_H
 
 #include "lvp_internal.h"
+#include "threads.h"
+
+/* Items per chunk of a parallel loop: large enough that waking a thread is negligible. */
+#define LVP__GRAIN 16384
 
 /* Above this many changed regions in one frame, the coupled region system is no longer
  * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
@@ -21,6 +25,7 @@ typedef struct lvp__region_sums {
 
 struct lvp_binding {
 	lvp_mode mode;
+	lvp__pool *pool; /* worker threads, NULL for one thread */
 	int32_t vertex_count, triangle_count, bone_count, region_count;
 
 	/* ---- rest mesh (copied) ---- */
@@ -57,6 +62,8 @@ struct lvp_binding {
 	int32_t *slot_region;    /* slot -> region (-1 for triangles without region) */
 	int32_t *corner_slot;    /* sorted triangle corner -> slot */
 	int32_t slot_count;
+	int32_t *vertex_corner_offsets; /* vertex_count+1: the sorted-triangle corners around each vertex */
+	int32_t *vertex_corners;
 
 	/* ---- region borders: half-edges whose side quad does not cancel ---- */
 	int32_t *border_offsets; /* region_count+1 */
@@ -90,6 +97,14 @@ struct lvp_binding {
 	float *vertex_g;         /* vertex_count: g_k = <n_k, grad_k V> */
 	float *slot_gradient;    /* slot_count*3 */
 	float *slot_g;           /* slot_count: <n_k, part of grad_k V from the slot's region> */
+	float *triangle_gradient; /* triangle_count*3: cr / 6 of the last pass */
+	double *triangle_volume6; /* triangle_count: (p0 - o) . cr of the last pass */
+	uint8_t *triangle_dirty;  /* triangle_count, kept zero between uses */
+	int32_t *dirty_triangles; /* triangle_count */
+	uint8_t *vertex_dirty;    /* vertex_count, kept zero between uses */
+	int32_t *dirty_vertices;  /* vertex_count */
+	int32_t *moved;           /* vertex_count: vertices moved by the last step */
+	int32_t moved_count;
 	float *rho;              /* vertex_count, kept zero between uses */
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */
 	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
@@ -120,6 +135,8 @@ lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_opti
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* One pass over the triangles at `positions`: region sums, slot gradients, normals, g. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions);
+/* The same after only the vertices moved[0..moved_count) moved: visits their triangles only. */
+void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count);
 /* Rest side: rest_change_base[] and reference volumes from rest positions (NULL = bind rest). */
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, double *r_base);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */

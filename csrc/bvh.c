@@ -14,6 +14,7 @@
 #define LVP__BVH_SAH_DEPTH 40     /* deeper nodes split at the median: depth <= 40 + log2(F) < 72 */
 #define LVP__BVH_STACK 96
 #define LVP__BVH_TRAVERSAL_COST 1.0f
+#define LVP__BVH_HINT_LEVELS 3 /* a query's hint is the blocking leaf's ancestor this many levels up */
 
 typedef struct lvp__box {
 	float lo[3], hi[3];
@@ -25,11 +26,22 @@ static void lvp__box_empty(lvp__box *box)
 		box->lo[a] = FLT_MAX, box->hi[a] = -FLT_MAX;
 }
 
+/* Comparisons rather than fminf/fmaxf, which compilers call out of line to honour NaN rules (nothing
+ * here is NaN: positions are validated). */
+static inline float lvp__minf(float a, float b)
+{
+	return a < b ? a : b;
+}
+static inline float lvp__maxf(float a, float b)
+{
+	return a > b ? a : b;
+}
+
 static void lvp__box_grow(lvp__box *box, const lvp__box *other)
 {
 	for (int a = 0; a < 3; ++a) {
-		box->lo[a] = fminf(box->lo[a], other->lo[a]);
-		box->hi[a] = fmaxf(box->hi[a], other->hi[a]);
+		box->lo[a] = lvp__minf(box->lo[a], other->lo[a]);
+		box->hi[a] = lvp__maxf(box->hi[a], other->hi[a]);
 	}
 }
 
@@ -176,10 +188,12 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 	lvp__bvh bvh = {0};
 	lvp__build build = {0};
 	bvh.nodes = malloc(sizeof(lvp__bvh_node) * node_capacity);
+	bvh.parents = malloc(sizeof(int32_t) * node_capacity);
 	bvh.triangles = malloc(sizeof(lvp__bvh_triangle) * (f ? f : 1));
 	void *scratch = malloc((sizeof(lvp__box) + 3 * sizeof(float) + sizeof(int32_t)) * (f ? f : 1));
-	if (!bvh.nodes || !bvh.triangles || !scratch) {
+	if (!bvh.nodes || !bvh.parents || !bvh.triangles || !scratch) {
 		free(bvh.nodes);
+		free(bvh.parents);
 		free(bvh.triangles);
 		free(scratch);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "triangles", -1,
@@ -206,8 +220,8 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 			out->vertices[c] = tri[c];
 			for (int axis = 0; axis < 3; ++axis) {
 				out->corners[c][axis] = p[axis];
-				box->lo[axis] = fminf(box->lo[axis], p[axis]);
-				box->hi[axis] = fmaxf(box->hi[axis], p[axis]);
+				box->lo[axis] = lvp__minf(box->lo[axis], p[axis]);
+				box->hi[axis] = lvp__maxf(box->hi[axis], p[axis]);
 			}
 		}
 		out->source = t;
@@ -222,6 +236,7 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 	} stack[LVP__BVH_STACK];
 	int top = 0;
 	bvh.node_count = 1;
+	bvh.parents[0] = -1;
 	if (slots > 0)
 		stack[top++].node = 0, stack[0].begin = 0, stack[0].end = slots, stack[0].depth = 0;
 	else
@@ -237,13 +252,20 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 			lvp__box_grow(&box, &build.boxes[slot]);
 			for (int axis = 0; axis < 3; ++axis) {
 				float c = lvp__centroid(&build, slot, axis);
-				centroid_box.lo[axis] = fminf(centroid_box.lo[axis], c);
-				centroid_box.hi[axis] = fmaxf(centroid_box.hi[axis], c);
+				centroid_box.lo[axis] = lvp__minf(centroid_box.lo[axis], c);
+				centroid_box.hi[axis] = lvp__maxf(centroid_box.hi[axis], c);
 			}
 		}
+		/* The stored box is padded by a millionth of its size and of its distance to the origin: the
+		 * triangle test accepts points a hair outside a triangle (its edge epsilon, and rounding), and the
+		 * box test runs in float; a box must never be tighter than what the test can hit. */
 		lvp__bvh_node *out = &bvh.nodes[node];
-		memcpy(out->lo, box.lo, sizeof(box.lo));
-		memcpy(out->hi, box.hi, sizeof(box.hi));
+		for (int axis = 0; axis < 3; ++axis) {
+			float far = lvp__maxf(fabsf(box.lo[axis]), fabsf(box.hi[axis]));
+			float pad = (box.hi[axis] - box.lo[axis]) * 1e-6f + far * 1e-6f + 1e-30f;
+			out->lo[axis] = box.lo[axis] - pad;
+			out->hi[axis] = box.hi[axis] + pad;
+		}
 		int32_t count = end - begin, mid = -1;
 		if (count > LVP__BVH_SMALL_LEAF) {
 			bool split = false;
@@ -268,6 +290,7 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 		}
 		int32_t left = bvh.node_count;
 		bvh.node_count += 2;
+		bvh.parents[left] = bvh.parents[left + 1] = node;
 		out->index = left;
 		out->count = 0;
 		stack[top].node = left + 1, stack[top].begin = mid, stack[top].end = end, stack[top].depth = depth + 1;
@@ -280,6 +303,7 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 	lvp__bvh_triangle *sorted = malloc(sizeof(lvp__bvh_triangle) * (f ? f : 1));
 	if (!sorted) {
 		free(bvh.nodes);
+		free(bvh.parents);
 		free(bvh.triangles);
 		free(scratch);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "triangles", -1,
@@ -300,68 +324,142 @@ void lvp__bvh_free(lvp__bvh *bvh)
 	if (!bvh)
 		return;
 	free(bvh->nodes);
+	free(bvh->parents);
 	free(bvh->triangles);
 	memset(bvh, 0, sizeof(*bvh));
 }
 
-/* Parametric interval of the segment inside a node's box, widened by a little so that a triangle lying
- * on the box's face is never culled by rounding (culling too little only costs a triangle test). */
-static bool lvp__segment_box(const lvp__bvh_node *node, const double from[3], const double direction[3],
-                             const double inverse[3], double t_min, double t_max)
+/* The segment, prepared once per query: in float for the box tests, the parametric range in double for
+ * the triangle tests. */
+typedef struct lvp__segment {
+	/* The box's low and high planes are measured from origin_lo and origin_hi: both the origin, except
+	 * along an axis the segment does not move along (inverse 1e30: no NaN), where they straddle it so
+	 * that a segment lying in a box's face plane is inside, not on an empty slab. */
+	float origin_lo[3], origin_hi[3], inverse[3];
+	float near, far;             /* the range, widened a little */
+	float slack;                 /* what rounding the origin to float can move a slab by, in t */
+	double t_min, t_max;
+} lvp__segment;
+
+static inline float lvp__min2(float a, float b)
 {
-	const double slack = 1e-9;
-	double near = t_min - slack, far = t_max + slack;
-	for (int axis = 0; axis < 3; ++axis) {
-		double lo = node->lo[axis], hi = node->hi[axis];
-		if (direction[axis] == 0.0) {
-			if (from[axis] < lo || from[axis] > hi)
-				return false;
+	return a < b ? a : b;
+}
+static inline float lvp__max2(float a, float b)
+{
+	return a > b ? a : b;
+}
+
+/* Whether the segment meets a node's box; *r_near receives where it enters. Branch-free slabs in float:
+ * the entry and exit are each off by a few float roundings, so the test is widened by 1e-6 of their size
+ * and never culls a box the segment touches (culling too little only costs a triangle test, which is
+ * exact). */
+static inline bool lvp__segment_box(float *r_near, const lvp__bvh_node *node, const lvp__segment *s)
+{
+	float x0 = (node->lo[0] - s->origin_lo[0]) * s->inverse[0], x1 = (node->hi[0] - s->origin_hi[0]) * s->inverse[0];
+	float y0 = (node->lo[1] - s->origin_lo[1]) * s->inverse[1], y1 = (node->hi[1] - s->origin_hi[1]) * s->inverse[1];
+	float z0 = (node->lo[2] - s->origin_lo[2]) * s->inverse[2], z1 = (node->hi[2] - s->origin_hi[2]) * s->inverse[2];
+	float near = lvp__max2(lvp__max2(lvp__min2(x0, x1), lvp__min2(y0, y1)), lvp__max2(lvp__min2(z0, z1), s->near));
+	float far = lvp__min2(lvp__min2(lvp__max2(x0, x1), lvp__max2(y0, y1)), lvp__min2(lvp__max2(z0, z1), s->far));
+	*r_near = near;
+	return near <= far + 1e-6f * (fabsf(near) + fabsf(far)) + s->slack;
+}
+
+static inline bool lvp__hits_triangle(const lvp__bvh_triangle *tri, lvp__vec3 from, lvp__vec3 direction,
+                                      const lvp__segment *s, int32_t skip_vertex)
+{
+	if (tri->vertices[0] == skip_vertex || tri->vertices[1] == skip_vertex || tri->vertices[2] == skip_vertex)
+		return false;
+	double t;
+	return lvp__segment_triangle(&t, from, direction, tri->corners, s->t_min, s->t_max);
+}
+
+/* Depth-first search of the subtree at start, nearer child first, skipping the subtree at skip. Returns
+ * the leaf that holds a crossed triangle, or -1. */
+static int32_t lvp__traverse(const lvp__bvh *bvh, int32_t start, int32_t skip, lvp__vec3 from, lvp__vec3 direction,
+                             const lvp__segment *s, int32_t skip_vertex)
+{
+	float near;
+	if (!lvp__segment_box(&near, &bvh->nodes[start], s))
+		return -1;
+	int32_t stack[LVP__BVH_STACK];
+	int top = 0;
+	stack[top++] = start;
+	while (top > 0) {
+		int32_t index = stack[--top];
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		if (node->count > 0) {
+			for (int32_t i = node->index; i < node->index + node->count; ++i)
+				if (lvp__hits_triangle(&bvh->triangles[i], from, direction, s, skip_vertex))
+					return index;
 			continue;
 		}
-		double t0 = (lo - from[axis]) * inverse[axis], t1 = (hi - from[axis]) * inverse[axis];
-		if (t0 > t1) {
-			double swap = t0;
-			t0 = t1;
-			t1 = swap;
+		/* Both children tested here, the nearer one visited first: the first wall the path meets ends the
+		 * query, and it is usually near the start. */
+		int32_t left = node->index, right = left + 1;
+		float near_left, near_right;
+		bool hit_left = left != skip && lvp__segment_box(&near_left, &bvh->nodes[left], s);
+		bool hit_right = right != skip && lvp__segment_box(&near_right, &bvh->nodes[right], s);
+		if (hit_left && hit_right) {
+			bool left_first = near_left <= near_right;
+			stack[top++] = left_first ? right : left;
+			stack[top++] = left_first ? left : right;
+		} else if (hit_left) {
+			stack[top++] = left;
+		} else if (hit_right) {
+			stack[top++] = right;
 		}
-		double pad = slack * (fabs(t0) + fabs(t1)) + slack;
-		near = fmax(near, t0 - pad);
-		far = fmin(far, t1 + pad);
-		if (near > far)
-			return false;
 	}
-	return true;
+	return -1;
 }
 
 bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
-                           int32_t skip_vertex)
+                           int32_t skip_vertex, int32_t *io_hints, int hint_count)
 {
 	if (bvh->triangle_count == 0)
 		return false;
 	lvp__vec3 direction = lvp__sub(to, from);
-	double o[3] = {from.x, from.y, from.z}, d[3] = {direction.x, direction.y, direction.z}, inverse[3];
-	for (int axis = 0; axis < 3; ++axis)
-		inverse[axis] = d[axis] != 0.0 ? 1.0 / d[axis] : 0.0;
-	int32_t stack[LVP__BVH_STACK];
-	int top = 0;
-	stack[top++] = 0;
-	while (top > 0) {
-		const lvp__bvh_node *node = &bvh->nodes[stack[--top]];
-		if (!lvp__segment_box(node, o, d, inverse, t_min, t_max))
-			continue;
-		if (node->count == 0) {
-			stack[top++] = node->index;
-			stack[top++] = node->index + 1;
-			continue;
-		}
-		const lvp__bvh_triangle *tri = bvh->triangles + node->index;
-		for (int32_t i = 0; i < node->count; ++i, ++tri) {
-			if (tri->vertices[0] == skip_vertex || tri->vertices[1] == skip_vertex || tri->vertices[2] == skip_vertex)
-				continue;
-			double t;
-			if (lvp__segment_triangle(&t, from, direction, tri->corners, t_min, t_max))
-				return true;
+	double d[3] = {direction.x, direction.y, direction.z};
+	double o[3] = {from.x, from.y, from.z};
+	lvp__segment s = {{0}, {0}, {0}, (float)t_min, (float)t_max, 0.0f, t_min, t_max};
+	s.near -= 1e-6f * (fabsf(s.near) + 1.0f);
+	s.far += 1e-6f * (fabsf(s.far) + 1.0f);
+	double slack = 0.0;
+	for (int axis = 0; axis < 3; ++axis) {
+		float origin = (float)o[axis];
+		s.origin_lo[axis] = s.origin_hi[axis] = origin;
+		if (fabs(d[axis]) > 1e-30) {
+			double inverse = 1.0 / d[axis];
+			s.inverse[axis] = (float)inverse;
+			/* zero for the mesh's own vertices, which are floats already */
+			slack = fmax(slack, fabs(o[axis] - (double)origin) * fabs(inverse));
+		} else {
+			/* a few ulps either side, and at least 1e-29 so that 1e30 times it is far outside [0, 1] */
+			float straddle = fabsf(origin) * 0x1p-21f + 1e-29f;
+			s.inverse[axis] = 1e30f;
+			s.origin_lo[axis] = origin + straddle;
+			s.origin_hi[axis] = origin - straddle;
 		}
 	}
-	return false;
+	s.slack = (float)(2.0 * slack);
+	/* Neighbouring queries are usually blocked by the same patch of wall: search the subtrees that held
+	 * the last blockers first, then the rest of the tree (without the first of them again). */
+	int32_t leaf = -1, skip = -1;
+	for (int h = 0; h < hint_count && leaf < 0; ++h) {
+		int32_t hint = io_hints[h];
+		if (hint <= 0 || hint >= bvh->node_count || (h > 0 && hint == io_hints[0]))
+			continue;
+		leaf = lvp__traverse(bvh, hint, -1, from, direction, &s, skip_vertex);
+		if (h == 0)
+			skip = hint;
+	}
+	if (leaf < 0)
+		leaf = lvp__traverse(bvh, 0, skip, from, direction, &s, skip_vertex);
+	if (leaf < 0)
+		return false;
+	for (int up = 0; up < LVP__BVH_HINT_LEVELS && bvh->parents[leaf] > 0; ++up)
+		leaf = bvh->parents[leaf];
+	for (int h = 0; h < hint_count; ++h)
+		io_hints[h] = leaf;
+	return true;
 }

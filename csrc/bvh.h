@@ -4,8 +4,8 @@
  *
  * ALGORITHM: top-down binned SAH (16 bins on each axis) over axis-aligned boxes, leaves of at most 8
  * triangles; below depth 40, or when the centroids coincide, splits at the object median instead, which
- * bounds the depth (and the fixed traversal stack) whatever the input. MEMORY: about 2F nodes of 32 bytes
- * and F triangles of 48 bytes (a copy of the corners in leaf order, for locality), plus 40F bytes during
+ * bounds the depth (and the fixed traversal stack) whatever the input. MEMORY: about 2F nodes of 36 bytes
+ * (with the parent links) and F triangles of 48 bytes (a copy of the corners in leaf order, for locality), plus 40F bytes during
  * the build. PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes.
  */
 #ifndef LVP_BVH_H
@@ -29,6 +29,7 @@ typedef struct lvp__bvh_triangle {
 
 typedef struct lvp__bvh {
 	lvp__bvh_node *nodes;
+	int32_t *parents; /* per node, -1 for the root */
 	lvp__bvh_triangle *triangles;
 	int32_t node_count;
 	int32_t triangle_count; /* triangles with a non-zero area; the others can never be hit */
@@ -46,9 +47,12 @@ void lvp__bvh_free(lvp__bvh *bvh);
 #define LVP__BVH_EDGE_EPSILON 1e-9
 
 /* Whether the segment from + t (to - from), t in [t_min, t_max], crosses a triangle that does not have
- * skip_vertex as a corner (pass -1 to skip none). Triangles parallel to the segment are never hit. */
+ * skip_vertex as a corner (pass -1 to skip none). Triangles parallel to the segment are never hit.
+ * io_hints[0 .. hint_count): subtrees searched first (node indices, or -1), which all receive the subtree
+ * around the blocking triangle on a hit, for the next, nearby queries; the answer does not depend on
+ * them, only the time does. */
 bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
-                           int32_t skip_vertex);
+                           int32_t skip_vertex, int32_t *io_hints, int hint_count);
 
 /* The segment-triangle test the queries use (Moller-Trumbore in double), exposed for the tests' brute
  * force. Returns true and the parameter in *r_t when it crosses inside [t_min, t_max]. */

@@ -193,6 +193,7 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 		}
 	}
 	float *p = binding->work_positions;
+	binding->moved_count = 0;
 	for (int32_t j = 0; j < m; ++j) {
 		int32_t t = active[j];
 		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
@@ -204,6 +205,7 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 			p[3 * k + 1] += r * binding->normals[3 * k + 1];
 			p[3 * k + 2] += r * binding->normals[3 * k + 2];
 			rho[k] = 0.0f;
+			binding->moved[binding->moved_count++] = k;
 		}
 	}
 }
@@ -275,6 +277,13 @@ static void lvp__measure(lvp_binding *binding, const float *rest_positions, cons
 	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
 }
 
+/* Measures again after a step that moved only binding->moved: only their triangles are visited. */
+static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, const double *base)
+{
+	lvp__update_pass(binding, binding->work_positions, binding->moved, binding->moved_count);
+	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
+}
+
 /* Correct, re-measure, correct... from a measured state; leaves the last measurement (sums,
  * normals, change[]) of work_positions. Returns the number of correction steps taken;
  * *r_first_active receives the number of regions corrected by the first one. */
@@ -291,7 +300,7 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 			*r_first_active = m;
 		lvp__correct_step(binding, m);
 		++steps;
-		lvp__measure(binding, rest_positions, base);
+		lvp__remeasure(binding, rest_positions, base);
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		binding->active_index[r] = -1;
@@ -327,21 +336,34 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		if (!(system > 0.0))
 			break;
 		double mu = -change / system;
+		float *rho = binding->rho;
 		for (int32_t r = 0; r < binding->region_count; ++r) {
 			if (!binding->region_touched[r])
 				continue;
 			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
 				int32_t k = binding->support_vertex[i];
-				if (binding->frozen[k])
+				if (!binding->frozen[k])
+					rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+			}
+		}
+		binding->moved_count = 0;
+		for (int32_t r = 0; r < binding->region_count; ++r) {
+			if (!binding->region_touched[r])
+				continue;
+			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
+				int32_t k = binding->support_vertex[i];
+				float value = rho[k];
+				if (value == 0.0f)
 					continue;
-				float rho = (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
-				p[3 * k] += rho * binding->normals[3 * k];
-				p[3 * k + 1] += rho * binding->normals[3 * k + 1];
-				p[3 * k + 2] += rho * binding->normals[3 * k + 2];
+				p[3 * k] += value * binding->normals[3 * k];
+				p[3 * k + 1] += value * binding->normals[3 * k + 1];
+				p[3 * k + 2] += value * binding->normals[3 * k + 2];
+				rho[k] = 0.0f;
+				binding->moved[binding->moved_count++] = k;
 			}
 		}
 		++steps;
-		lvp__measure(binding, rest_positions, base);
+		lvp__remeasure(binding, rest_positions, base);
 	}
 	return steps;
 }

@@ -146,61 +146,159 @@ static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
 	return binding->origin[region];
 }
 
-void lvp__mesh_pass(lvp_binding *binding, const float *positions)
+/* Volume term (p0 - o) . cr and cr / 6 (each corner's share of the gradient) of triangle t. */
+static inline double lvp__triangle_terms(float r_gradient[3], const float *positions, const int32_t *corners,
+                                         lvp__vec3 o)
 {
-	int32_t s = binding->region_count, n = binding->vertex_count;
-	memset(binding->slot_gradient, 0, sizeof(float) * 3 * (size_t)binding->slot_count);
-	const int32_t *tri = binding->triangles;
-	float *slot_gradient = binding->slot_gradient;
-	for (int32_t r = 0; r <= s; ++r) {
-		int32_t begin = binding->region_triangle_offsets[r];
-		int32_t end = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
-		lvp__vec3 o = lvp__region_origin(binding, r < s ? r : -1);
+	const float *p0 = positions + 3 * corners[0];
+	const float *p1 = positions + 3 * corners[1];
+	const float *p2 = positions + 3 * corners[2];
+	float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
+	float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
+	float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+	r_gradient[0] = cx * (1.0f / 6.0f);
+	r_gradient[1] = cy * (1.0f / 6.0f);
+	r_gradient[2] = cz * (1.0f / 6.0f);
+	return ((double)p0[0] - o.x) * cx + ((double)p0[1] - o.y) * cy + ((double)p0[2] - o.z) * cz;
+}
+
+/* Normal, g and the slots' <n, gradient> of vertex k from its slot gradients. */
+static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
+{
+	const float *slot_gradient = binding->slot_gradient;
+	int32_t first = binding->slot_offsets[k], last = binding->slot_offsets[k + 1];
+	float gx = 0.0f, gy = 0.0f, gz = 0.0f;
+	for (int32_t i = first; i < last; ++i) {
+		gx += slot_gradient[3 * i];
+		gy += slot_gradient[3 * i + 1];
+		gz += slot_gradient[3 * i + 2];
+	}
+	float length = sqrtf(gx * gx + gy * gy + gz * gz);
+	float inverse = length > 0.0f ? 1.0f / length : 0.0f;
+	float nx = gx * inverse, ny = gy * inverse, nz = gz * inverse;
+	binding->normals[3 * k] = nx;
+	binding->normals[3 * k + 1] = ny;
+	binding->normals[3 * k + 2] = nz;
+	binding->vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
+	for (int32_t i = first; i < last; ++i)
+		binding->slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+}
+
+/* The mesh pass runs in three loops that each write only their own outputs, so they can be
+ * split over threads with results independent of the split: triangles (their terms), regions
+ * (sums over their triangles, in order), vertices (gradients gathered from their corners). */
+typedef struct lvp__pass_context {
+	lvp_binding *binding;
+	const float *positions;
+} lvp__pass_context;
+
+static void lvp__triangle_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp__pass_context *c = context;
+	lvp_binding *binding = c->binding;
+	for (int32_t t = begin; t < end; ++t)
+		binding->triangle_volume6[t] =
+		    lvp__triangle_terms(binding->triangle_gradient + 3 * t, c->positions, binding->triangles + 3 * t,
+		                        lvp__region_origin(binding, binding->triangle_region[t]));
+}
+
+static void lvp__region_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
+	int32_t s = binding->region_count;
+	for (int32_t r = begin; r < end; ++r) {
+		int32_t first = binding->region_triangle_offsets[r];
+		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		for (int32_t t = begin; t < end; ++t) {
-			const float *p0 = positions + 3 * tri[3 * t];
-			const float *p1 = positions + 3 * tri[3 * t + 1];
-			const float *p2 = positions + 3 * tri[3 * t + 2];
-			/* Edges in float (exact enough for directions), everything summed in double. */
-			float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
-			float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
-			double cx = (double)e1y * e2z - (double)e1z * e2y;
-			double cy = (double)e1z * e2x - (double)e1x * e2z;
-			double cz = (double)e1x * e2y - (double)e1y * e2x;
-			volume6 += (p0[0] - o.x) * cx + (p0[1] - o.y) * cy + (p0[2] - o.z) * cz;
-			ax += cx;
-			ay += cy;
-			az += cz;
-			float gx = (float)(cx * (1.0 / 6.0)), gy = (float)(cy * (1.0 / 6.0)), gz = (float)(cz * (1.0 / 6.0));
-			for (int c = 0; c < 3; ++c) {
-				float *g = slot_gradient + 3 * binding->corner_slot[3 * t + c];
-				g[0] += gx;
-				g[1] += gy;
-				g[2] += gz;
-			}
+		for (int32_t t = first; t < last; ++t) {
+			const float *g = binding->triangle_gradient + 3 * t;
+			volume6 += binding->triangle_volume6[t];
+			ax += g[0];
+			ay += g[1];
+			az += g[2];
 		}
 		binding->sums[r].volume6 = volume6;
-		binding->sums[r].area6[0] = ax;
-		binding->sums[r].area6[1] = ay;
-		binding->sums[r].area6[2] = az;
+		binding->sums[r].area6[0] = 6.0 * ax;
+		binding->sums[r].area6[1] = 6.0 * ay;
+		binding->sums[r].area6[2] = 6.0 * az;
 	}
-	for (int32_t k = 0; k < n; ++k) {
-		int32_t first = binding->slot_offsets[k], last = binding->slot_offsets[k + 1];
-		float gx = 0.0f, gy = 0.0f, gz = 0.0f;
-		for (int32_t i = first; i < last; ++i) {
-			gx += slot_gradient[3 * i];
-			gy += slot_gradient[3 * i + 1];
-			gz += slot_gradient[3 * i + 2];
+}
+
+static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
+	float *slot_gradient = binding->slot_gradient;
+	for (int32_t k = begin; k < end; ++k) {
+		for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
+			slot_gradient[3 * slot] = slot_gradient[3 * slot + 1] = slot_gradient[3 * slot + 2] = 0.0f;
+		for (int32_t i = binding->vertex_corner_offsets[k]; i < binding->vertex_corner_offsets[k + 1]; ++i) {
+			int32_t corner = binding->vertex_corners[i];
+			const float *g = binding->triangle_gradient + 3 * (corner / 3);
+			float *sg = slot_gradient + 3 * binding->corner_slot[corner];
+			sg[0] += g[0];
+			sg[1] += g[1];
+			sg[2] += g[2];
 		}
-		float length = sqrtf(gx * gx + gy * gy + gz * gz);
-		float inverse = length > 0.0f ? 1.0f / length : 0.0f;
-		float nx = gx * inverse, ny = gy * inverse, nz = gz * inverse;
-		binding->normals[3 * k] = nx;
-		binding->normals[3 * k + 1] = ny;
-		binding->normals[3 * k + 2] = nz;
-		binding->vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
-		for (int32_t i = first; i < last; ++i)
-			binding->slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+		lvp__vertex_terms(binding, k);
+	}
+}
+
+void lvp__mesh_pass(lvp_binding *binding, const float *positions)
+{
+	lvp__pass_context context = {binding, positions};
+	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context, binding->triangle_count, LVP__GRAIN);
+	lvp__parallel_for(binding->pool, lvp__region_loop, &context, binding->region_count + 1, 1);
+	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->vertex_count, LVP__GRAIN);
+}
+
+void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count)
+{
+	/* The triangles around the moved vertices, each once. */
+	int32_t dirty = 0;
+	for (int32_t i = 0; i < moved_count; ++i) {
+		int32_t k = moved[i];
+		for (int32_t c = binding->vertex_corner_offsets[k]; c < binding->vertex_corner_offsets[k + 1]; ++c) {
+			int32_t t = binding->vertex_corners[c] / 3;
+			if (!binding->triangle_dirty[t]) {
+				binding->triangle_dirty[t] = 1;
+				binding->dirty_triangles[dirty++] = t;
+			}
+		}
+	}
+	/* Replace their terms in the region sums and the slot gradients. */
+	int32_t touched = 0;
+	for (int32_t i = 0; i < dirty; ++i) {
+		int32_t t = binding->dirty_triangles[i];
+		binding->triangle_dirty[t] = 0;
+		int32_t r = binding->triangle_region[t];
+		int32_t sum_index = r < 0 ? binding->region_count : r;
+		float g[3];
+		float *old = binding->triangle_gradient + 3 * t;
+		double v = lvp__triangle_terms(g, positions, binding->triangles + 3 * t, lvp__region_origin(binding, r));
+		lvp__region_sums *sums = &binding->sums[sum_index];
+		sums->volume6 += v - binding->triangle_volume6[t];
+		float d[3] = {g[0] - old[0], g[1] - old[1], g[2] - old[2]};
+		for (int c = 0; c < 3; ++c) {
+			sums->area6[c] += 6.0 * d[c];
+			old[c] = g[c];
+		}
+		binding->triangle_volume6[t] = v;
+		for (int c = 0; c < 3; ++c) {
+			float *sg = binding->slot_gradient + 3 * binding->corner_slot[3 * t + c];
+			sg[0] += d[0];
+			sg[1] += d[1];
+			sg[2] += d[2];
+			int32_t k = binding->triangles[3 * t + c];
+			if (!binding->vertex_dirty[k]) {
+				binding->vertex_dirty[k] = 1;
+				binding->dirty_vertices[touched++] = k;
+			}
+		}
+	}
+	for (int32_t i = 0; i < touched; ++i) {
+		int32_t k = binding->dirty_vertices[i];
+		binding->vertex_dirty[k] = 0;
+		lvp__vertex_terms(binding, k);
 	}
 }
 

@@ -159,8 +159,9 @@ static lvp_result lvp__build_slots(lvp_binding *binding, lvp_diagnostic *r_diag)
 			binding->corner_slot[corners[i]] = slot;
 		}
 	}
-	free(corner_offsets);
-	free(corners);
+	/* Kept: the incremental pass finds the triangles around moved vertices through them. */
+	binding->vertex_corner_offsets = corner_offsets;
+	binding->vertex_corners = corners;
 	return lvp_success;
 }
 

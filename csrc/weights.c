@@ -5,11 +5,13 @@
  * paper's normal-angle test, or an exact test of the path against the mesh through a BVH), the rigid
  * fallback for vertices that see no bone, then normalization, pruning and renormalization.
  *
- * Per vertex, the candidate bones are taken strongest first from a heap, and the visibility of a bone is
- * only decided when it could still change the result: once max_influences visible bones are certain to
- * survive min_weight, or every bone left is certain to fall below it, the weaker bones cannot enter the
- * row. The output is exactly what testing every bone would give, but the exact test casts a few paths
- * per vertex instead of one per bone.
+ * The normal test costs a dot product per (vertex, bone), so every bone is tested. With the exact test a
+ * path costs a BVH query, so the candidate bones are taken strongest first from a heap and a path is
+ * only cast while it could still change the row: once max_influences visible bones are certain to
+ * survive min_weight, or every bone left is certain to fall below it, weaker bones cannot enter the row.
+ * The output is what testing every bone would give (the tests check it against a brute force), but
+ * a vertex casts a few paths instead of one per bone; and the triangle that hid a bone from the previous
+ * vertex is tried first, since neighbours are usually hidden by the same wall.
  */
 #include "bvh.h"
 #include "lvp_internal.h"
@@ -153,6 +155,7 @@ typedef struct lvp__weights_context {
 	int32_t max_influences; /* 0 = all */
 	lvp__candidate *heap;   /* bone_count scratch */
 	lvp__candidate *visible; /* bone_count scratch */
+	int32_t *blockers; /* EXACT: per bone, the BVH subtree that last hid it (-1); then the last of all */
 } lvp__weights_context;
 
 /* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
@@ -162,64 +165,87 @@ static bool lvp__path_is_inside(const lvp__weights_context *ctx, int32_t k, lvp_
 	lvp__vec3 path = lvp__sub(c, p);
 	if (path.x == 0.0 && path.y == 0.0 && path.z == 0.0)
 		return true; /* the vertex is on the bone */
-	return !lvp__bvh_segment_hits(ctx->bvh, p, c, LVP__PATH_EPSILON, 1.0 - LVP__PATH_EPSILON, k);
+	/* Two guesses at the wall: where this bone was hidden from the previous vertex, and where the
+	 * previous bone was hidden from this one (or the previous vertex). */
+	int32_t hints[2] = {ctx->blockers[bone], ctx->blockers[ctx->bone_count]};
+	bool hidden = lvp__bvh_segment_hits(ctx->bvh, p, c, LVP__PATH_EPSILON, 1.0 - LVP__PATH_EPSILON, k, hints, 2);
+	if (hidden)
+		ctx->blockers[bone] = ctx->blockers[ctx->bone_count] = hints[0];
+	return !hidden;
 }
 
-/* Computes the row of vertex k into r_bones/r_values (room for the row bound); returns its length. */
-static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp__weights_context *ctx, int32_t k)
+/* Writes visible[0 .. kept) renormalized as the row; returns its length. */
+static int32_t lvp__write_row(int32_t *r_bones, float *r_values, const lvp__candidate *visible, int32_t kept)
 {
-	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
-	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
-	/* A vertex without a normal (isolated, or only zero-area triangles) cannot be judged by its normal:
-	 * every bone passes the test. */
-	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
-	lvp__candidate *heap = ctx->heap;
-	int32_t count = 0;
-	/* The rigid fallback's bone: the closest bone with a length; a zero-length bone (a point) only when
-	 * the skeleton has no other, since such bones never receive weight otherwise. */
-	int32_t closest = -1, closest_point = -1;
-	double closest_d2 = INFINITY, closest_point_d2 = INFINITY;
-	for (int32_t i = 0; i < ctx->bone_count; ++i) {
-		const lvp__bone_segment *bone = &ctx->bones[i];
-		if (bone->length2 == 0.0) {
-			lvp__vec3 diff = lvp__sub(bone->head, p);
-			double d2 = lvp__dot(diff, diff);
-			if (d2 < closest_point_d2)
-				closest_point_d2 = d2, closest_point = i;
-			continue;
-		}
-		lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
-		double d2 = lvp__dot(diff, diff);
-		if (d2 < closest_d2)
-			closest_d2 = d2, closest = i;
-		if (normal_test && d2 > 0.0) {
-			double along = lvp__dot(diff, n); /* |n| = 1: cos(path, n) = along / d */
-			if (along > ctx->normal_cos_max * sqrt(d2))
-				continue;
-		}
-		heap[count].key = bone->length2 / (d2 > bone->floor2 ? d2 : bone->floor2);
-		heap[count].bone = i;
-		heap[count].weight = 0.0;
-		++count;
+	double sum = 0.0;
+	for (int32_t j = 0; j < kept; ++j)
+		sum += visible[j].weight;
+	for (int32_t j = 0; j < kept; ++j) {
+		r_bones[j] = visible[j].bone;
+		r_values[j] = (float)(visible[j].weight / sum);
 	}
+	return kept;
+}
+
+/* NORMAL and NONE: every candidate is visible, so the total is known at once. Keeps the candidates of
+ * normalized weight >= min_weight, the strongest max_influences of them, in visible[] (by decreasing
+ * weight, ties to the lower bone); returns how many. */
+static int32_t lvp__select_known(const lvp__weights_context *ctx, lvp__candidate *candidates, int32_t count)
+{
+	double top = 0.0;
+	for (int32_t j = 0; j < count; ++j)
+		top = candidates[j].key > top ? candidates[j].key : top;
+	double sum = 0.0;
+	for (int32_t j = 0; j < count; ++j) {
+		candidates[j].weight = lvp__relative_weight(candidates[j].key / top, ctx->alpha);
+		sum += candidates[j].weight;
+	}
+	double threshold = ctx->min_weight * sum;
+	int32_t room = ctx->max_influences > 0 && ctx->max_influences < count ? ctx->max_influences : count;
+	lvp__candidate *visible = ctx->visible;
+	int32_t kept = 0;
+	for (int32_t j = 0; j < count; ++j) { /* insertion into a short sorted list; candidates are in bone order */
+		double w = candidates[j].weight;
+		if (!(w > 0.0) || w < threshold || (kept == room && !(w > visible[kept - 1].weight)))
+			continue;
+		int32_t at = kept < room ? kept++ : kept - 1;
+		while (at > 0 && visible[at - 1].weight < w) {
+			visible[at] = visible[at - 1];
+			--at;
+		}
+		visible[at] = candidates[j];
+	}
+	if (kept == 0) {
+		/* min_weight above every weight: the strongest bone stays, rather than none */
+		for (int32_t j = 0; j < count; ++j)
+			if (candidates[j].key == top) {
+				visible[0] = candidates[j];
+				return 1;
+			}
+	}
+	return kept;
+}
+
+/* EXACT: bones are taken strongest first from a heap and their paths tested only while the answer can
+ * still change. visible[] receives the visible ones in that order (non-increasing weight). The normalized
+ * weight of visible[j] is its weight / total, with total the sum over every visible bone, known to lie in
+ * [visible_sum, visible_sum + untested]; the bones kept by min_weight form a prefix of visible[], and
+ * sure_kept counts the part of it certain to be kept. Returns the number kept, 0 if no bone is visible. */
+static int32_t lvp__select_lazily(const lvp__weights_context *ctx, lvp__candidate *heap, int32_t count, int32_t k,
+                                  lvp__vec3 p)
+{
 	for (int32_t i = count / 2 - 1; i >= 0; --i)
 		lvp__sift_down(heap, count, i);
-
-	/* Take bones strongest first. visible[] receives the visible ones in that order (non-increasing
-	 * weight); the normalized weight of visible[j] is its weight / total with total the sum over every
-	 * visible bone, known to lie in [visible_sum, visible_sum + untested]. Bones kept by min_weight form
-	 * a prefix of visible[]; sure_kept counts the prefix certain to be kept. */
 	lvp__candidate *visible = ctx->visible;
-	int32_t visible_count = 0, sure_kept = 0;
+	int32_t visible_count = 0, sure_kept = 0, k_max = ctx->max_influences;
 	double visible_sum = 0.0, untested = 0.0, mw = ctx->min_weight;
-	int32_t k_max = ctx->max_influences;
 	while (count > 0) {
 		lvp__candidate c = heap[0];
 		heap[0] = heap[--count];
 		lvp__sift_down(heap, count, 0);
 		if (visible_count > 0)
 			untested -= c.weight;
-		if (ctx->visibility == LVP_VISIBILITY_EXACT && !lvp__path_is_inside(ctx, k, p, c.bone))
+		if (!lvp__path_is_inside(ctx, k, p, c.bone))
 			continue;
 		if (visible_count == 0) {
 			/* The strongest visible bone: weights are measured relative to it from now on. */
@@ -245,34 +271,68 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
 		if (decided && count > 0 && (heap[0].weight < lower || heap[0].weight == 0.0))
 			break; /* every bone left would be pruned, whatever it sees */
 	}
-
-	int32_t kept;
-	if (visible_count == 0) {
-		/* The rigid fallback: a vertex that sees no bone (a horn) follows its closest bone. */
-		r_bones[0] = closest >= 0 ? closest : closest_point;
-		r_values[0] = 1.0f;
-		return 1;
-	}
+	if (visible_count == 0)
+		return 0;
+	int32_t kept = sure_kept;
 	if (count == 0) {
 		/* Every bone was decided: the total is exact. */
 		kept = 0;
 		while (kept < visible_count && visible[kept].weight >= mw * visible_sum && visible[kept].weight > 0.0)
 			++kept;
-	} else {
-		kept = sure_kept;
 	}
 	if (k_max > 0 && kept > k_max)
 		kept = k_max;
-	if (kept == 0)
-		kept = 1; /* min_weight above every weight: the strongest bone stays, rather than none */
-	double sum = 0.0;
-	for (int32_t j = 0; j < kept; ++j)
-		sum += visible[j].weight;
-	for (int32_t j = 0; j < kept; ++j) {
-		r_bones[j] = visible[j].bone;
-		r_values[j] = (float)(visible[j].weight / sum);
+	return kept > 0 ? kept : 1; /* min_weight above every weight: the strongest bone stays, rather than none */
+}
+
+/* Computes the row of vertex k into r_bones/r_values (room for the row bound); returns its length. */
+static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp__weights_context *ctx, int32_t k)
+{
+	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
+	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
+	/* A vertex without a normal (isolated, or only zero-area triangles) cannot be judged by its normal:
+	 * every bone passes the test. */
+	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
+	lvp__candidate *candidates = ctx->heap;
+	int32_t count = 0;
+	/* The rigid fallback's bone: the closest bone with a length; a zero-length bone (a point) only when
+	 * the skeleton has no other, since such bones never receive weight otherwise. */
+	int32_t closest = -1, closest_point = -1;
+	double closest_d2 = INFINITY, closest_point_d2 = INFINITY;
+	for (int32_t i = 0; i < ctx->bone_count; ++i) {
+		const lvp__bone_segment *bone = &ctx->bones[i];
+		if (bone->length2 == 0.0) {
+			lvp__vec3 diff = lvp__sub(bone->head, p);
+			double d2 = lvp__dot(diff, diff);
+			if (d2 < closest_point_d2)
+				closest_point_d2 = d2, closest_point = i;
+			continue;
+		}
+		lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
+		double d2 = lvp__dot(diff, diff);
+		if (d2 < closest_d2)
+			closest_d2 = d2, closest = i;
+		if (normal_test && d2 > 0.0) {
+			double along = lvp__dot(diff, n); /* |n| = 1: cos(path, n) = along / d */
+			if (along > ctx->normal_cos_max * sqrt(d2))
+				continue;
+		}
+		candidates[count].key = bone->length2 / (d2 > bone->floor2 ? d2 : bone->floor2);
+		candidates[count].bone = i;
+		candidates[count].weight = 0.0;
+		++count;
 	}
-	return kept;
+	int32_t kept = 0;
+	if (count > 0)
+		kept = ctx->visibility == LVP_VISIBILITY_EXACT ? lvp__select_lazily(ctx, candidates, count, k, p)
+		                                               : lvp__select_known(ctx, candidates, count);
+	if (kept == 0) {
+		/* The rigid fallback: a vertex that sees no bone (a horn) follows its closest bone. */
+		r_bones[0] = closest >= 0 ? closest : closest_point;
+		r_values[0] = 1.0f;
+		return 1;
+	}
+	return lvp__write_row(r_bones, r_values, ctx->visible, kept);
 }
 
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
@@ -314,8 +374,8 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	bool normal_test = options->visibility == LVP_VISIBILITY_NORMAL;
 	size_t n = (size_t)vertex_count, b = (size_t)bone_count, row = (size_t)row_bound;
 	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0, offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
-	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate)) * b + normal_bytes + offset_bytes +
-	               (sizeof(int32_t) + sizeof(float)) * (staged + row);
+	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate) + sizeof(int32_t)) * b + sizeof(int32_t) +
+	               normal_bytes + offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
 	unsigned char *memory = malloc(bytes);
 	if (!memory)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
@@ -324,7 +384,10 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	lvp__bone_segment *bones = (lvp__bone_segment *)memory;
 	lvp__candidate *heap = (lvp__candidate *)(bones + b);
 	lvp__candidate *visible = heap + b;
-	unsigned char *cursor = (unsigned char *)(visible + b);
+	int32_t *blockers = (int32_t *)(visible + b);
+	unsigned char *cursor = (unsigned char *)(blockers + b + 1);
+	for (size_t i = 0; i <= b; ++i)
+		blockers[i] = -1;
 	float *normals = normal_test ? (float *)cursor : NULL;
 	cursor += normal_bytes;
 	int32_t *offsets = direct ? r_offsets : (int32_t *)cursor;
@@ -375,6 +438,7 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .max_influences = options->max_influences,
 	    .heap = heap,
 	    .visible = visible,
+	    .blockers = blockers,
 	};
 	int64_t total = 0;
 	for (int32_t k = 0; k < vertex_count; ++k) {

@@ -10,6 +10,7 @@
 #include "support/test_meshes.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -263,6 +264,75 @@ static void test_in_place_output(void)
 	free_cylinder(&c);
 }
 
+/* Worker threads change nothing in the result (fixed chunks, ordered sums), and two bindings
+ * can be used from two threads at once. */
+typedef struct frame_job {
+	lvp_binding *binding;
+	const float *positions, *posed;
+	float *out;
+	lvp_result result;
+} frame_job;
+
+static void *run_frame(void *argument)
+{
+	frame_job *job = argument;
+	for (int i = 0; i < 3; ++i)
+		job->result = lvp_correct(job->out, NULL, job->binding, job->positions, job->posed, NULL, NULL, NULL, NULL);
+	return NULL;
+}
+
+static void test_threads_give_identical_results(void)
+{
+	test_rig rig = test_make_chain(8, 1.0f, 0.3f, 48, 60, 0.5f);
+	int32_t n = rig.vertex_count, b = rig.bone_count;
+	float *rotations = calloc((size_t)b * 4, sizeof(float));
+	for (int32_t i = 1; i < b; ++i) {
+		rotations[4 * i] = 1.0f;
+		rotations[4 * i + 3] = 0.4f * (float)((i % 3) - 1) + 0.2f;
+	}
+	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	float *skinned = malloc(sizeof(float) * 3 * (size_t)n);
+	test_pose(posed, &rig, rotations);
+	test_skin_matrices(skin, &rig, posed);
+	lvp_weights weights = test_rig_weights(&rig);
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_skin_linear(skinned, rig.positions, n, &weights, skin, b, &diag), diag);
+	float *outputs[3];
+	lvp_binding *bindings[3];
+	for (int i = 0; i < 3; ++i) {
+		lvp_bind_options options = lvp_bind_default_options();
+		options.thread_count = i == 0 ? 1 : 2 + i;
+		bindings[i] = bind_rig(&rig, options);
+		outputs[i] = calloc((size_t)n * 3, sizeof(float));
+	}
+	CHECK(rig.triangle_count > 2 * 16384); /* several chunks per loop */
+	/* bindings 1 and 2 (3 and 4 threads each) run at the same time from two threads */
+	pthread_t threads[2];
+	frame_job jobs[3];
+	for (int i = 0; i < 3; ++i) {
+		frame_job job = {bindings[i], skinned, posed, outputs[i], lvp_error_null_argument};
+		jobs[i] = job;
+	}
+	run_frame(&jobs[0]);
+	for (int i = 0; i < 2; ++i)
+		pthread_create(&threads[i], NULL, run_frame, &jobs[i + 1]);
+	for (int i = 0; i < 2; ++i)
+		pthread_join(threads[i], NULL);
+	for (int i = 0; i < 3; ++i) {
+		CHECK(jobs[i].result == lvp_success);
+		CHECK(memcmp(outputs[0], outputs[i], sizeof(float) * 3 * (size_t)n) == 0);
+	}
+	for (int i = 0; i < 3; ++i) {
+		lvp_free(bindings[i]);
+		free(outputs[i]);
+	}
+	free(rotations);
+	free(posed);
+	free(skin);
+	free(skinned);
+	test_rig_free(&rig);
+}
+
 int main(void)
 {
 	RUN(test_cylinder_table);
@@ -272,5 +342,6 @@ int main(void)
 	RUN(test_global_mode_restores_volume);
 	RUN(test_rest_pose_gives_zero_offsets);
 	RUN(test_in_place_output);
+	RUN(test_threads_give_identical_results);
 	return check_failures() != 0;
 }

@@ -414,7 +414,7 @@ static int32_t lvp__traverse(const lvp__bvh *bvh, int32_t start, int32_t skip, l
 }
 
 bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
-                           int32_t skip_vertex, int32_t *io_hints, int hint_count)
+                           int32_t skip_vertex, int32_t *io_hint)
 {
 	if (bvh->triangle_count == 0)
 		return false;
@@ -442,24 +442,18 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 		}
 	}
 	s.slack = (float)(2.0 * slack);
-	/* Neighbouring queries are usually blocked by the same patch of wall: search the subtrees that held
-	 * the last blockers first, then the rest of the tree (without the first of them again). */
-	int32_t leaf = -1, skip = -1;
-	for (int h = 0; h < hint_count && leaf < 0; ++h) {
-		int32_t hint = io_hints[h];
-		if (hint <= 0 || hint >= bvh->node_count || (h > 0 && hint == io_hints[0]))
-			continue;
-		leaf = lvp__traverse(bvh, hint, -1, from, direction, &s, skip_vertex);
-		if (h == 0)
-			skip = hint;
-	}
+	/* Neighbouring queries are usually blocked by the same patch of wall: search the subtree that held
+	 * the last blocker first, then the rest of the tree. */
+	int32_t hint = io_hint && *io_hint > 0 && *io_hint < bvh->node_count ? *io_hint : -1;
+	int32_t leaf = hint >= 0 ? lvp__traverse(bvh, hint, -1, from, direction, &s, skip_vertex) : -1;
 	if (leaf < 0)
-		leaf = lvp__traverse(bvh, 0, skip, from, direction, &s, skip_vertex);
+		leaf = lvp__traverse(bvh, 0, hint, from, direction, &s, skip_vertex);
 	if (leaf < 0)
 		return false;
-	for (int up = 0; up < LVP__BVH_HINT_LEVELS && bvh->parents[leaf] > 0; ++up)
-		leaf = bvh->parents[leaf];
-	for (int h = 0; h < hint_count; ++h)
-		io_hints[h] = leaf;
+	if (io_hint) {
+		for (int up = 0; up < LVP__BVH_HINT_LEVELS && bvh->parents[leaf] > 0; ++up)
+			leaf = bvh->parents[leaf];
+		*io_hint = leaf;
+	}
 	return true;
 }

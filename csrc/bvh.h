@@ -48,11 +48,11 @@ void lvp__bvh_free(lvp__bvh *bvh);
 
 /* Whether the segment from + t (to - from), t in [t_min, t_max], crosses a triangle that does not have
  * skip_vertex as a corner (pass -1 to skip none). Triangles parallel to the segment are never hit.
- * io_hints[0 .. hint_count): subtrees searched first (node indices, or -1), which all receive the subtree
- * around the blocking triangle on a hit, for the next, nearby queries; the answer does not depend on
- * them, only the time does. */
+ * io_hint (may be NULL): a subtree searched first (a node index, or -1), and where the subtree around the
+ * blocking triangle is stored on a hit, for the next, nearby query; the answer does not depend on it,
+ * only the time does. */
 bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
-                           int32_t skip_vertex, int32_t *io_hints, int hint_count);
+                           int32_t skip_vertex, int32_t *io_hint);
 
 /* The segment-triangle test the queries use (Moller-Trumbore in double), exposed for the tests' brute
  * force. Returns true and the parameter in *r_t when it crosses inside [t_min, t_max]. */

@@ -155,7 +155,7 @@ typedef struct lvp__weights_context {
 	int32_t max_influences; /* 0 = all */
 	lvp__candidate *heap;   /* bone_count scratch */
 	lvp__candidate *visible; /* bone_count scratch */
-	int32_t *blockers; /* EXACT: per bone, the BVH subtree that last hid it (-1); then the last of all */
+	int32_t *blockers;       /* EXACT: per bone, the triangle that last hid it (-1), tried first next time */
 } lvp__weights_context;
 
 /* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
@@ -165,13 +165,8 @@ static bool lvp__path_is_inside(const lvp__weights_context *ctx, int32_t k, lvp_
 	lvp__vec3 path = lvp__sub(c, p);
 	if (path.x == 0.0 && path.y == 0.0 && path.z == 0.0)
 		return true; /* the vertex is on the bone */
-	/* Two guesses at the wall: where this bone was hidden from the previous vertex, and where the
-	 * previous bone was hidden from this one (or the previous vertex). */
-	int32_t hints[2] = {ctx->blockers[bone], ctx->blockers[ctx->bone_count]};
-	bool hidden = lvp__bvh_segment_hits(ctx->bvh, p, c, LVP__PATH_EPSILON, 1.0 - LVP__PATH_EPSILON, k, hints, 2);
-	if (hidden)
-		ctx->blockers[bone] = ctx->blockers[ctx->bone_count] = hints[0];
-	return !hidden;
+	return !lvp__bvh_segment_hits(ctx->bvh, p, c, LVP__PATH_EPSILON, 1.0 - LVP__PATH_EPSILON, k,
+	                              &ctx->blockers[bone]);
 }
 
 /* Writes visible[0 .. kept) renormalized as the row; returns its length. */
@@ -374,8 +369,8 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	bool normal_test = options->visibility == LVP_VISIBILITY_NORMAL;
 	size_t n = (size_t)vertex_count, b = (size_t)bone_count, row = (size_t)row_bound;
 	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0, offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
-	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate) + sizeof(int32_t)) * b + sizeof(int32_t) +
-	               normal_bytes + offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
+	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate) + sizeof(int32_t)) * b + normal_bytes +
+	               offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
 	unsigned char *memory = malloc(bytes);
 	if (!memory)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
@@ -385,8 +380,8 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	lvp__candidate *heap = (lvp__candidate *)(bones + b);
 	lvp__candidate *visible = heap + b;
 	int32_t *blockers = (int32_t *)(visible + b);
-	unsigned char *cursor = (unsigned char *)(blockers + b + 1);
-	for (size_t i = 0; i <= b; ++i)
+	unsigned char *cursor = (unsigned char *)(blockers + b);
+	for (size_t i = 0; i < b; ++i)
 		blockers[i] = -1;
 	float *normals = normal_test ? (float *)cursor : NULL;
 	cursor += normal_bytes;

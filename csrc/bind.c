@@ -44,7 +44,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_corners,
 	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
 	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
+	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
 	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
 	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->rho, binding->frozen,
@@ -192,6 +192,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->gamma = lvp__alloc(n, sizeof(float), &ok);
 	binding->frame_gamma = lvp__alloc(n, sizeof(float), &ok);
 	binding->distance = lvp__alloc(n, sizeof(float), &ok);
+	binding->log_gamma = lvp__alloc(n, sizeof(double), &ok);
 	binding->support_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
 	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
 	binding->region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);

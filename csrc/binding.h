@@ -78,6 +78,7 @@ struct lvp_binding {
 	float *gamma;            /* vertex_count, normalized to max 1 */
 	float *frame_gamma;      /* vertex_count: this frame's map, gamma times deformation weighting */
 	float *distance;         /* vertex_count: rest distance to the nearest (allowed) bone */
+	double *log_gamma;       /* vertex_count: the map before normalization, as a logarithm */
 	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
 	int32_t *region_bones;
 	int32_t *support_offsets; /* region_count+1: vertices that region s can move */

@@ -361,9 +361,28 @@ static double lvp__vertex_distance(const lvp_binding *binding, int32_t k, const 
 	return isfinite(best) ? best : 0.0;
 }
 
-static double lvp__power(double x, double exponent)
+/* log(x^exponent), with 0^0 = 1 and x <= 0 giving -infinity (a zero map). */
+static double lvp__log_power(double x, double exponent)
 {
-	return exponent == 0.0 ? 1.0 : (x <= 0.0 ? 0.0 : pow(x, exponent));
+	return exponent == 0.0 ? 0.0 : (x > 0.0 ? exponent * log(x) : -INFINITY);
+}
+
+/* log gamma_k for vertex k with largest weight w and rest bone distance d (lvp.h, maps). */
+static double lvp__log_map(const lvp_map_options *map, double w, double d, int32_t k)
+{
+	switch (map->map) {
+	case LVP_MAP_ORGANIC:
+		return lvp__log_power(1.0 - w, map->alpha) + lvp__log_power(d, map->beta);
+	case LVP_MAP_RUBBER:
+		return lvp__log_power(1.0 - w, map->alpha);
+	case LVP_MAP_BOUNDARY_FADE:
+		return lvp__log_power(2.0 * w - 1.0, map->alpha) + lvp__log_power(d, map->beta);
+	case LVP_MAP_PAINTED:
+		return map->painted[k] > 0.0f ? log((double)map->painted[k]) : -INFINITY;
+	case LVP_MAP_UNIFORM:
+		break;
+	}
+	return 0.0;
 }
 
 lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag)
@@ -393,7 +412,10 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	binding->map.region_bone_offsets = binding->region_bone_offsets;
 	binding->map.region_bones = binding->region_bones;
 
-	double alpha = map->alpha, beta = map->beta, largest = 0.0;
+	/* The map is built as a logarithm and normalized to a maximum of 1 before it is stored: only
+	 * its shape matters (the multipliers absorb its scale), and d^beta of a far vertex would
+	 * overflow a float (or a double) for large coordinates or exponents. */
+	double largest = -INFINITY;
 	for (int32_t k = 0; k < n; ++k) {
 		int32_t region = binding->vertex_region[k];
 		double distance = 0.0;
@@ -408,38 +430,15 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 			distance = lvp__vertex_distance(binding, k, bones, count);
 		}
 		binding->distance[k] = (float)distance;
-		double w = binding->max_weight[k], gamma = 0.0;
-		switch (map->map) {
-		case LVP_MAP_ORGANIC:
-			gamma = lvp__power(1.0 - w, alpha) * lvp__power(distance, beta);
-			break;
-		case LVP_MAP_RUBBER:
-			gamma = lvp__power(1.0 - w, alpha);
-			break;
-		case LVP_MAP_BOUNDARY_FADE:
-			gamma = lvp__power(2.0 * w - 1.0 > 0.0 ? 2.0 * w - 1.0 : 0.0, alpha) * lvp__power(distance, beta);
-			break;
-		case LVP_MAP_PAINTED:
-			gamma = map->painted[k];
-			break;
-		case LVP_MAP_UNIFORM:
-			gamma = 1.0;
-			break;
-		}
+		double log_gamma = lvp__log_map(map, binding->max_weight[k], distance, k);
 		/* Unweighted vertices belong to no region in local mode: they never move. */
 		if (local && region < 0)
-			gamma = 0.0;
-		binding->gamma[k] = (float)gamma;
-		largest = gamma > largest ? gamma : largest;
+			log_gamma = -INFINITY;
+		binding->log_gamma[k] = log_gamma;
+		largest = log_gamma > largest ? log_gamma : largest;
 	}
-	/* Only the shape of the map matters (the multipliers absorb its scale); normalizing keeps
-	 * the region system well scaled whatever the units and exponents are. */
-	if (largest > 0.0 && isfinite(largest))
-		for (int32_t k = 0; k < n; ++k)
-			binding->gamma[k] = (float)(binding->gamma[k] / largest);
-	else
-		for (int32_t k = 0; k < n; ++k)
-			binding->gamma[k] = isfinite(largest) ? 0.0f : binding->gamma[k];
+	for (int32_t k = 0; k < n; ++k)
+		binding->gamma[k] = isfinite(largest) ? (float)exp(binding->log_gamma[k] - largest) : 0.0f;
 
 	/* Supports: which vertices each region's multiplier reaches, and with which phi. */
 	bool soft = local && map->map != LVP_MAP_BOUNDARY_FADE;

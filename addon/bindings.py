@@ -48,7 +48,8 @@ class BoundObject:
         self.offsets = mesh_data.float_array(3 * vertex_count)
         self.written = None                 # the offsets last written to the mesh, when known
         self.rest_positions = None          # allocated when shape keys are used
-        self.base_positions = None
+        self.rest_in_use = False            # whether rest_positions differs from the bind rest
+        self.rest_state = None              # the shape key values rest_positions was mixed for
         self.bone_matrices = mesh_data.float_array(16 * bone_count)
         self.expected_indices = None        # array('i', range(vertex_count))
         self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
@@ -102,9 +103,11 @@ def clear():
 
 
 def forget_written():
-    """Forgets what was last written to every mesh (after undo and redo, the file's data changed)."""
+    """Forgets what was last written to and read from every mesh (after undo and redo, the file's
+    data changed)."""
     for bound in _entries.values():
         bound.written = None
+        bound.rest_state = None
 
 
 def prune(objects):

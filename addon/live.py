@@ -129,6 +129,25 @@ def write_zero_offsets(mesh, bound=None):
     return write_offsets(mesh, zeros, bound)
 
 
+def _shape_key_rest(obj, bound, mesh_changed):
+    """This frame's un-skinned positions with shape keys (None when they change nothing), cached
+    while the key values stay the same and nobody edited the mesh."""
+    mesh = obj.data
+    keys = mesh.shape_keys
+    state = (obj.show_only_shape_key, keys.use_relative,
+             tuple((block.name, block.value, block.mute, block.vertex_group,
+                    block.relative_key.name if block.relative_key is not None else "")
+                   for block in keys.key_blocks))
+    if not mesh_changed and bound.rest_state == state:
+        return bound.rest_positions if bound.rest_in_use else None
+    if bound.rest_positions is None:
+        bound.rest_positions = array('f', bytes(12 * bound.vertex_count))
+    base = mesh_data.vertex_positions(mesh)
+    bound.rest_in_use = mesh_data.shape_key_rest_positions(obj, base, bound.rest_positions)
+    bound.rest_state = state
+    return bound.rest_positions if bound.rest_in_use else None
+
+
 def is_main_thread():
     return threading.current_thread() is threading.main_thread()
 
@@ -188,11 +207,7 @@ def correct_object(obj, depsgraph, check_topology=False):
 
     rest_positions = None
     if mesh.shape_keys is not None:
-        if bound.rest_positions is None:
-            bound.rest_positions = mesh_data.float_array(3 * bound.vertex_count)
-        base = mesh_data.vertex_positions(mesh)
-        if mesh_data.shape_key_rest_positions(obj, base, bound.rest_positions):
-            rest_positions = bound.rest_positions
+        rest_positions = _shape_key_rest(obj, bound, check_topology)
 
     settings = obj.lvp
     try:

@@ -1,0 +1,136 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Frame times of Volume Preservation against Blender's own modifiers, on a ~100k-vertex mesh.
+
+Run by tests/blender/bench.sh in each Blender:
+
+    blender -b --factory-startup -noaudio --python tests/blender/bench.py -- [--vertices N] [--frames N]
+                                                                             [--result FILE]
+
+Three copies of the same skinned tube (the paper's cylinder, made dense: rings x 256 vertices,
+radius 0.5, length 4, two bones, weights linear over a band of 2.6) are timed one at a time, the
+others hidden, while the joint bends from 0 to 90 degrees and back:
+
+    Armature alone
+    Armature + Corrective Smooth (default settings)
+    Armature + Volume Preservation (this add-on, default settings)
+
+A frame time is the wall time of scene.frame_set(frame), which is what playback pays: animation,
+the modifier stack, and for Volume Preservation its handler and Blender's second evaluation. The
+median over the frames is reported. Targets (issue 3): Volume Preservation at most 2.5x Armature
+alone and at most 0.25x Armature + Corrective Smooth.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import lvp_helpers as helpers  # noqa: E402
+
+AROUND = 256
+
+
+def parse_arguments():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    parser = argparse.ArgumentParser(prog="bench.py")
+    parser.add_argument("--vertices", type=int, default=100_000)
+    parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--result", default="")
+    return parser.parse_args(argv)
+
+
+def dense_character(name, rig, rings):
+    obj = helpers.link(bpy.data.objects.new(name, helpers.cylinder_mesh(name, rings=rings, around=AROUND)))
+    helpers.weight_linear_band(obj)
+    helpers.add_armature_modifier(obj, rig)
+    obj.parent = rig
+    return obj
+
+
+def time_frames(scene, frames):
+    times = []
+    for frame in frames:
+        start = time.perf_counter()
+        scene.frame_set(frame)
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def main():
+    arguments = parse_arguments()
+    addon = helpers.enable_addon()
+    scene = helpers.reset_scene()
+    half = max(2, arguments.frames // 2)
+    scene.frame_start = 1
+    scene.frame_end = 2 * half
+    rings = max(16, round(arguments.vertices / AROUND))
+    rig = helpers.two_bone_armature("BenchRig")
+    helpers.keyframe_bend(rig, {1: 0.0, half: 90.0, 2 * half: 0.0})
+
+    setups = {}
+    setups["armature"] = dense_character("ArmatureOnly", rig, rings)
+    smooth_object = dense_character("CorrectiveSmooth", rig, rings)
+    smooth_object.modifiers.new("CorrectiveSmooth", 'CORRECTIVE_SMOOTH')
+    setups["corrective_smooth"] = smooth_object
+    ours = dense_character("VolumePreservation", rig, rings)
+    bpy.context.view_layer.update()
+    helpers.select_only(ours)
+    start = time.perf_counter()
+    bpy.ops.object.lvp_add()
+    bind_seconds = time.perf_counter() - start
+    setups["volume_preservation"] = ours
+    vertex_count = len(ours.data.vertices)
+
+    results = {}
+    frames = list(range(2, 2 * half + 1))
+    for name, obj in setups.items():
+        for other in setups.values():
+            other.hide_viewport = other is not obj
+        scene.frame_set(1)
+        time_frames(scene, frames[:4])  # warm up
+        times = time_frames(scene, frames)
+        results[name] = 1000.0 * statistics.median(times)
+
+    # Where the time goes in Volume Preservation: the C core's correction alone, on one frame.
+    scene.frame_set(half)
+    bound = addon.bindings.entry(ours)
+    status = addon.bindings.status(ours)
+    correct_times = []
+    for _repeat in range(5):
+        start = time.perf_counter()
+        bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=helpers.array(
+            'f', bytes(4 * len(bound.offsets))), iterations=ours.lvp.iterations)
+        correct_times.append(time.perf_counter() - start)
+    results["core_correct"] = 1000.0 * statistics.median(correct_times)
+    stats = bound.stats or {}
+
+    armature = results["armature"]
+    smooth = results["corrective_smooth"]
+    volume = results["volume_preservation"]
+    version = bpy.app.version_string
+    lines = [
+        "Blender %s, %d vertices, %d triangles, %d frames (median), %d threads for the core, bind %.0f ms"
+        % (version, vertex_count, bound.binding.triangle_count, len(frames), addon.bindings.thread_count(),
+           1000 * bind_seconds),
+        "| setup | ms / frame | vs Armature alone | vs Armature + Corrective Smooth |",
+        "|---|---|---|---|",
+        "| Armature alone | %.1f | 1.00x | %.2fx |" % (armature, armature / smooth),
+        "| Armature + Corrective Smooth (defaults) | %.1f | %.2fx | 1.00x |" % (smooth, smooth / armature),
+        "| Armature + Volume Preservation | %.1f | %.2fx (target <= 2.5x) | %.2fx (target <= 0.25x) |"
+        % (volume, volume / armature, volume / smooth),
+        "core Binding.correct alone: %.1f ms (%s passes at 90 degrees); status: %s"
+        % (results["core_correct"], stats.get("iterations", "?"), status[1] if status else "?"),
+    ]
+    print("\n".join(lines))
+    if arguments.result:
+        with open(arguments.result, "w") as file:
+            json.dump({"blender": version, "vertices": vertex_count, "ms": results, "table": lines}, file)
+
+
+if __name__ == "__main__":
+    main()

@@ -30,7 +30,7 @@ REPO="$(cd "$HERE/../.." && pwd)"
 # build.sh gives ensure_packages (apt, with sudo when not root), ADDON_ID, DIST and VERSION.
 # shellcheck source=../../build.sh
 source "$REPO/build.sh"
-log() { printf '\033[1m[blender-tests]\033[0m %s\n' "$*" >&2; }
+log() { printf '\033[1m[blender-tests +%ss]\033[0m %s\n' "$SECONDS" "$*" >&2; }
 die() { printf '\033[31m[blender-tests] error:\033[0m %s\n' "$*" >&2; exit 1; }
 
 usage() { sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
@@ -70,21 +70,12 @@ fi
 # How to call this script in the printed rerun commands: relative when run from the repo.
 if [ "$(pwd -P)" = "$(cd "$REPO" && pwd -P)" ]; then SELF=tests/blender/run.sh; else SELF="$HERE/run.sh"; fi
 
-# ---- build and set-up (in the foreground, so apt never runs twice at once) -----------------
-
-if [ "$build" = 1 ] && [ "$list" = 0 ]; then
-	if [ -f "$REPO/csrc/lvp_python.c" ]; then
-		log "building the module and the packages (./build.sh package)"
-		"$REPO/build.sh" package || die "./build.sh package failed; fix the build, or rerun with --no-build to test what is in dist/"
-	else
-		log "csrc/lvp_python.c does not exist yet: nothing to build, testing without the module"
-	fi
-fi
+# ---- set-up -------------------------------------------------------------------------------
 
 need_43=0
 for sel in "${selectors[@]}"; do
 	case "$sel" in
-	3.4) ensure_packages blender ;;
+	3.4) ;;
 	4.3) need_43=1 ;;
 	*) [ -x "$sel" ] || die "--blender $sel: not 3.4, 4.3 or an executable file" ;;
 	esac
@@ -99,15 +90,30 @@ cleanup() {
 	if [ "${LVP_KEEP_TMP:-0}" = 1 ]; then log "kept $RUN_TMP"; else rm -rf "$RUN_TMP"; fi
 }
 trap cleanup EXIT
-if [ "$need_43" = 1 ]; then
+
+if [ "$need_43" = 1 ] && [ "$list" = 0 ]; then
 	ensure_packages debootstrap
 	if ! "$BLENDER43" status >/dev/null 2>&1; then
-		# Build the chroot while the first Blender's tests run (it is mostly download and unpack).
+		# Build the chroot while the rest is built, installed and tested: it has its own dpkg, so
+		# the host's apt-get below can run at the same time.
 		log "building the Blender 4.3 chroot in the background (log: $RUN_TMP/blender43-build.log)"
 		"$BLENDER43" ensure >"$RUN_TMP/blender43-build.log" 2>&1 &
 		builder_pid=$!
 	fi
 fi
+
+if [ "$build" = 1 ] && [ "$list" = 0 ]; then
+	if [ -f "$REPO/csrc/lvp_python.c" ]; then
+		log "building the module and the packages (./build.sh package)"
+		"$REPO/build.sh" package || die "./build.sh package failed; fix the build, or rerun with --no-build to test what is in dist/"
+	else
+		log "csrc/lvp_python.c does not exist yet: nothing to build, testing without the module"
+	fi
+fi
+
+for sel in "${selectors[@]}"; do
+	if [ "$sel" = 3.4 ]; then ensure_packages blender; fi
+done
 
 # Blender's user directories: fresh for this run (an extension installed by a test stays here).
 export BLENDER_USER_RESOURCES="${BLENDER_USER_RESOURCES:-$RUN_TMP/user}"

@@ -109,6 +109,13 @@ static void lvp__select_median(const lvp__build *build, int32_t begin, int32_t e
 	}
 }
 
+/* The bin of a centroid, in double so that no float overflow can reach the integer conversion. */
+static inline int lvp__bin(float centroid, float lo, double scale)
+{
+	double x = ((double)centroid - lo) * scale;
+	return x > 0.0 ? (x < LVP__BVH_BINS ? (int)x : LVP__BVH_BINS - 1) : 0;
+}
+
 /* Chooses where to split order[begin, end) by the binned surface area heuristic. Returns false when a
  * leaf is cheaper (or the centroids coincide); otherwise partitions and sets *r_mid. */
 static bool lvp__split_sah(int32_t *r_mid, const lvp__build *build, int32_t begin, int32_t end,
@@ -121,15 +128,14 @@ static bool lvp__split_sah(int32_t *r_mid, const lvp__build *build, int32_t begi
 		float lo = centroid_box->lo[axis], extent = centroid_box->hi[axis] - lo;
 		if (!(extent > 0.0f))
 			continue;
-		float bin_scale = (float)LVP__BVH_BINS / extent;
+		double bin_scale = LVP__BVH_BINS / ((double)centroid_box->hi[axis] - lo);
 		lvp__box bins[LVP__BVH_BINS];
 		int32_t counts[LVP__BVH_BINS] = {0};
 		for (int b = 0; b < LVP__BVH_BINS; ++b)
 			lvp__box_empty(&bins[b]);
 		for (int32_t i = begin; i < end; ++i) {
 			int32_t slot = build->order[i];
-			int b = (int)((lvp__centroid(build, slot, axis) - lo) * bin_scale);
-			b = b < 0 ? 0 : (b >= LVP__BVH_BINS ? LVP__BVH_BINS - 1 : b);
+			int b = lvp__bin(lvp__centroid(build, slot, axis), lo, bin_scale);
 			++counts[b];
 			lvp__box_grow(&bins[b], &build->boxes[slot]);
 		}
@@ -163,11 +169,10 @@ static bool lvp__split_sah(int32_t *r_mid, const lvp__build *build, int32_t begi
 	if (split_cost >= (float)count && count <= LVP__BVH_MAX_LEAF)
 		return false;
 	float lo = centroid_box->lo[best_axis];
-	float bin_scale = (float)LVP__BVH_BINS / (centroid_box->hi[best_axis] - lo);
+	double bin_scale = LVP__BVH_BINS / ((double)centroid_box->hi[best_axis] - lo);
 	int32_t i = begin, j = end - 1;
 	while (i <= j) {
-		int b = (int)((lvp__centroid(build, build->order[i], best_axis) - lo) * bin_scale);
-		b = b < 0 ? 0 : (b >= LVP__BVH_BINS ? LVP__BVH_BINS - 1 : b);
+		int b = lvp__bin(lvp__centroid(build, build->order[i], best_axis), lo, bin_scale);
 		if (b <= best_bin) {
 			++i;
 		} else {

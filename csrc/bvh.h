@@ -4,9 +4,11 @@
  *
  * ALGORITHM: top-down binned SAH (16 bins on each axis) over axis-aligned boxes, leaves of at most 8
  * triangles; below depth 40, or when the centroids coincide, splits at the object median instead, which
- * bounds the depth (and the fixed traversal stack) whatever the input. MEMORY: about 2F nodes of 36 bytes
- * (with the parent links) and F triangles of 48 bytes (a copy of the corners in leaf order, for locality), plus 40F bytes during
- * the build. PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes.
+ * bounds the depth (and the fixed traversal stack) whatever the input. Node boxes are padded slightly so
+ * that the float box test never culls what the double triangle test would hit.
+ * MEMORY: about 2F nodes of 36 bytes (with the parent links) and F triangles of 48 bytes (a copy of the
+ * corners in leaf order, for locality), plus 40F bytes during the build.
+ * PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes.
  */
 #ifndef LVP_BVH_H
 #define LVP_BVH_H

@@ -155,7 +155,7 @@ typedef struct lvp__weights_context {
 	int32_t max_influences; /* 0 = all */
 	lvp__candidate *heap;   /* bone_count scratch */
 	lvp__candidate *visible; /* bone_count scratch */
-	int32_t *blockers;       /* EXACT: per bone, the triangle that last hid it (-1), tried first next time */
+	int32_t *blockers;       /* EXACT: per bone, the BVH subtree that last hid it (-1), searched first next time */
 } lvp__weights_context;
 
 /* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
@@ -368,7 +368,8 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	size_t staged = direct ? 0 : (size_t)limit;
 	bool normal_test = options->visibility == LVP_VISIBILITY_NORMAL;
 	size_t n = (size_t)vertex_count, b = (size_t)bone_count, row = (size_t)row_bound;
-	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0, offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
+	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0;
+	size_t offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
 	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate) + sizeof(int32_t)) * b + normal_bytes +
 	               offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
 	unsigned char *memory = malloc(bytes);

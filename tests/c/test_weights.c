@@ -547,6 +547,51 @@ static void test_vertex_on_a_bone(void)
 	free(b);
 }
 
+/* Awkward but valid input never fails or reads out of bounds: all triangles of zero area, hundreds of
+ * copies of one triangle (coincident centroids, so the hierarchy must split by count), coordinates near
+ * the float range. */
+static void test_degenerate_geometry_is_handled(void)
+{
+	builder *b = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	for (int i = 0; i < 600; ++i)
+		add_vertex(b, 0.1 * (i % 3), 0.2 * (i % 7), 0.3 * (i % 3 == 1));
+	for (int i = 0; i < 600; ++i)
+		add_triangle(b, 0, 1, 2); /* the same triangle over and over */
+	for (int i = 3; i + 2 < 600; i += 3)
+		add_triangle(b, i, i, i + 1); /* zero area */
+	add_bone(b, 0, 0, -1, 0, 0, 1);
+	add_bone(b, 1, 1, -1, 1, 1, 1);
+	for (int vis = 0; vis < 3; ++vis) {
+		lvp_auto_weights_options o = options_with((lvp_visibility)vis);
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		result_free(&r);
+	}
+	/* only zero-area triangles: nothing can hide a bone */
+	b->triangle_count = 0;
+	for (int i = 0; i < 100; ++i)
+		add_triangle(b, i, i + 1, i + 1);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_EXACT);
+	result r = compute(b, &o);
+	check_rows(b, &r, &o);
+	result_free(&r);
+	/* huge coordinates */
+	int32_t split;
+	make_fingers(b, &split);
+	for (int32_t i = 0; i < 3 * b->vertex_count; ++i)
+		b->positions[i] *= 1e37f;
+	for (int32_t i = 0; i < 3 * b->bone_count; ++i)
+		b->heads[i] *= 1e37f, b->tails[i] *= 1e37f;
+	for (int vis = 0; vis < 3; ++vis) {
+		o = options_with((lvp_visibility)vis);
+		r = compute(b, &o);
+		check_rows(b, &r, &o);
+		result_free(&r);
+	}
+	free(b);
+}
+
 /* ---- sizes --------------------------------------------------------------------------------------- */
 
 static void test_bound(void)
@@ -713,6 +758,7 @@ int main(void)
 	RUN(test_inward_winding_is_detected);
 	RUN(test_zero_length_bone_gets_no_weight);
 	RUN(test_vertex_on_a_bone);
+	RUN(test_degenerate_geometry_is_handled);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

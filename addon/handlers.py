@@ -11,7 +11,8 @@
   the mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
   offsets and writes nothing, so there is no loop.
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
-  lazily by the next correction, with no user action.
+  lazily by the next correction, with no user action. load_post also replaces node groups of an
+  older layout (or edited by hand) with the current one: the group is the add-on's code.
 - render_init: renders started from the interface run in a thread; handlers that write data then
   need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
   data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
@@ -117,6 +118,7 @@ def load_post(*_arguments):
     global render_without_lock
     bindings.clear()
     render_without_lock = False
+    node_group.repair_modifiers(bpy.data.objects)
     if bpy.app.background:
         return
     # F12 renders from the interface need Lock Interface for the correction to reach them.

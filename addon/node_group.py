@@ -99,12 +99,49 @@ def is_our_node_group(group):
     return group is not None and group.get(names.NODE_GROUP_TAG) is not None
 
 
+EXPECTED_NODES = sorted((
+    'NodeGroupInput', 'NodeGroupOutput', 'GeometryNodeInputPosition', 'GeometryNodeInputIndex',
+    'GeometryNodeStoreNamedAttribute', 'GeometryNodeStoreNamedAttribute', 'GeometryNodeInputNamedAttribute',
+    'GeometryNodeSetPosition'))
+EXPECTED_NAMES = sorted((names.CAPTURED_POSITION_ATTRIBUTE, names.CAPTURED_INDEX_ATTRIBUTE, names.OFFSET_ATTRIBUTE))
+
+
+def is_current(group):
+    """Whether group is ours, of the current layout, and was not edited by hand."""
+    if group is None or group.get(names.NODE_GROUP_TAG) != names.NODE_GROUP_VERSION:
+        return False
+    if sorted(node.bl_idname for node in group.nodes) != EXPECTED_NODES or len(group.links) != 7:
+        return False
+    attribute_names = []
+    for node in group.nodes:
+        if node.bl_idname in ('GeometryNodeStoreNamedAttribute', 'GeometryNodeInputNamedAttribute'):
+            attribute_names.append(_socket(node.inputs, "Name").default_value)
+    return sorted(attribute_names) == EXPECTED_NAMES
+
+
 def ensure_node_group():
     """Our node group with the current layout: an existing one when it is current, else a new one."""
     for group in bpy.data.node_groups:
-        if group.library is None and group.get(names.NODE_GROUP_TAG) == names.NODE_GROUP_VERSION:
+        if group.library is None and is_current(group):
             return group
     return build_node_group()
+
+
+def repair_modifiers(objects):
+    """Gives every Volume Preservation modifier a current node group (after loading a file made with
+    another version of the add-on, or whose group was edited by hand). Returns how many changed."""
+    repaired = 0
+    for obj in objects:
+        if obj.library is not None:
+            continue
+        for modifier in obj.modifiers:
+            if modifier.type == 'NODES' and is_our_node_group(modifier.node_group) and not is_current(
+                    modifier.node_group):
+                modifier.node_group = ensure_node_group()
+                repaired += 1
+    if repaired:
+        remove_unused_node_groups()
+    return repaired
 
 
 def is_our_modifier(modifier):

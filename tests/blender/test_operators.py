@@ -261,6 +261,29 @@ class TestBindAndRemove(helpers.AddonTestCase):
         self.assertSmallerThan(self.corrected_error(), 0.1 * self.plain_error(), "after undoing the removal")
 
 
+class TestNodeGroup(helpers.AddonTestCase):
+
+    def test_edited_node_group_is_rebuilt_on_load(self):
+        import os
+        obj, rig = helpers.make_cylinder_character()
+        helpers.keyframe_bend(rig, {1: 0.0, 10: 90.0})
+        helpers.add_volume_preservation(obj)
+        group = self.addon.node_group.find_modifier(obj).node_group
+        self.assertTrue(self.addon.node_group.is_current(group))
+        group.links.remove(group.links[0])  # someone edited it by hand
+        self.assertFalse(self.addon.node_group.is_current(group))
+        path = os.path.join(helpers.fresh_directory("group"), "edited.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+        bpy.ops.wm.open_mainfile(filepath=path)
+        obj = bpy.data.objects["Cylinder"]
+        modifier = self.addon.node_group.find_modifier(obj)
+        self.assertTrue(self.addon.node_group.is_current(modifier.node_group))
+        self.assertEqual(node_group_count(), 1)
+        bpy.context.scene.frame_set(10)
+        self.assertGreater(helpers.max_abs(helpers.offsets_of(obj)), 0.01)
+        self.assertEqual(self.status_of(obj)[0], 'INFO')
+
+
 class TestAutoWeights(helpers.AddonTestCase):
 
     def setUp(self):

@@ -10,7 +10,7 @@
 
 #define LVP__BVH_BINS 16
 #define LVP__BVH_MAX_LEAF 8
-#define LVP__BVH_SMALL_LEAF 2     /* below this many triangles, always a leaf */
+#define LVP__BVH_SMALL_LEAF 4     /* this many triangles or fewer: always a leaf */
 #define LVP__BVH_SAH_DEPTH 40     /* deeper nodes split at the median: depth <= 40 + log2(F) < 72 */
 #define LVP__BVH_STACK 96
 #define LVP__BVH_TRAVERSAL_COST 1.0f

@@ -26,6 +26,12 @@ from . import names
 from . import node_group
 
 
+def same_values(first, second):
+    """Bitwise equality of two arrays, at memcmp speed (array.__eq__ compares item by item in Python
+    objects, which costs milliseconds per frame on large meshes)."""
+    return len(first) == len(second) and first.tobytes() == second.tobytes()
+
+
 def _expected_indices(bound):
     if bound.expected_indices is None:
         bound.expected_indices = array('i', range(bound.vertex_count))
@@ -62,7 +68,7 @@ def _evaluated_positions(mesh_eval, bound):
         indices = _scratch(bound, "scratch_indices", 'i', evaluated_count)
         index_attribute.data.foreach_get("value", indices)
         expected = _expected_indices(bound)
-        if (indices if evaluated_count == vertex_count else indices[:vertex_count]) != expected:
+        if not same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
             return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
                     "the Armature modifier changes them, or one after Volume Preservation reorders them)")
         if evaluated_count != vertex_count and bound.mapping_checked_count != evaluated_count:
@@ -99,7 +105,7 @@ def write_offsets(mesh, offsets, bound=None):
     bound.written remembers what was last written, which saves reading the attribute back every
     frame; it is forgotten (None) whenever something else may have changed the mesh (undo, edits).
     """
-    if bound is not None and bound.written is not None and bound.written == offsets:
+    if bound is not None and bound.written is not None and same_values(bound.written, offsets):
         return False
     attribute = _offset_attribute(mesh, create=True)
     if len(attribute.data) * 3 != len(offsets):
@@ -107,7 +113,7 @@ def write_offsets(mesh, offsets, bound=None):
     if bound is None or bound.written is None:
         current = array('f', bytes(4 * len(offsets)))
         attribute.data.foreach_get("vector", current)
-        if current == offsets:
+        if same_values(current, offsets):
             if bound is not None:
                 bound.written = current
             return False

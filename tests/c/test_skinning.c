@@ -225,6 +225,17 @@ static void test_weights_are_normalized_by_their_sum(void)
 		free(out);
 	}
 	free(scaled);
+	/* weights 3 and 1: a quarter of the way from bone 0's motion to bone 1's, for linear blending */
+	int32_t offsets[2] = {0, 2}, bones[2] = {0, 1};
+	float values[2] = {3.0f, 1.0f}, rest[3] = {0.3f, -0.2f, 1.1f}, out[3];
+	lvp_weights single = {offsets, bones, values};
+	lvp_diagnostic diag = {0};
+	CHECK_OK(lvp_skin_linear(out, rest, 1, &single, matrices, 2, &diag), diag);
+	double a[3], b[3];
+	transform(a, matrices, rest);
+	transform(b, matrices + 16, rest);
+	for (int i = 0; i < 3; ++i)
+		CHECK_NEAR(out[i], 0.75 * a[i] + 0.25 * b[i], 1e-6);
 	tube_free(&t);
 }
 

@@ -17,6 +17,8 @@ and the new key gets its own binding the next time it is needed.
 import os
 import uuid
 
+import bpy
+
 from . import _lvp
 from . import mesh_data
 from . import node_group
@@ -279,6 +281,9 @@ def ensure(obj):
     for stale in [stale for stale in _entries if stale[0] == obj.name_full]:
         _entries.pop(stale).close()
     _entries[key] = bound
+    # Lazy binds are rare (file load, undo, rename): a good moment to drop the bindings of objects
+    # that were renamed or deleted.
+    prune(bpy.data.objects)
     return bound
 
 

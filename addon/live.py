@@ -21,6 +21,7 @@ import threading
 from array import array
 
 from . import bindings
+from . import display
 from . import mesh_data
 from . import names
 from . import node_group
@@ -188,9 +189,12 @@ def correct_object(obj, depsgraph, check_topology=False):
         return write_zero_offsets(mesh)
     if check_topology:
         bound.written = None  # the mesh was changed by someone else: read the attribute back once
+    previous_map = bound.map_key
     bound = bindings.refresh_map(obj, bound)
     if bound is None:
         return write_zero_offsets(mesh)
+    if bound.map_key != previous_map and obj.lvp.display == 'CORRECTION_MAP' and is_main_thread():
+        display.update_display(obj)  # the colours follow alpha, beta and the effect
 
     armature_modifier = node_group.find_armature_modifier(obj)
     armature_object = armature_modifier.object if armature_modifier is not None else None

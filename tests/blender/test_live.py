@@ -201,6 +201,15 @@ class TestCylinder(CylinderTestCase):
             distinct = {tuple(round(value, 3) for value in colors[index:index + 3])
                         for index in range(0, len(colors), 4)}
             self.assertGreater(len(distinct), 1, "%s shows more than one colour" % display)
+        # The correction map follows the settings.
+        before = helpers.array('f', bytes(16 * len(mesh.vertices)))
+        mesh.attributes["lvp_correction_map"].data.foreach_get("color", before)
+        self.obj.lvp.effect = 'RUBBER'
+        self.obj.lvp.alpha = 3.0
+        bpy.context.view_layer.update()
+        after = helpers.array('f', bytes(16 * len(mesh.vertices)))
+        mesh.attributes["lvp_correction_map"].data.foreach_get("color", after)
+        self.assertNotEqual(before.tobytes(), after.tobytes())
         self.obj.lvp.display = 'NONE'
         self.assertIsNone(mesh.attributes.get("lvp_segmentation"))
         self.assertIsNone(mesh.attributes.get("lvp_correction_map"))

@@ -13,6 +13,8 @@
 #include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static int compare_names(const void *a, const void *b)
 {
@@ -57,9 +59,25 @@ static int replay_directory(const char *directory)
 		if (data) {
 			printf("  %s (%zu bytes)\n", path, size);
 			fflush(stdout);
-			/* A crash here is the regression: ASan/UBSan or a contract check stops the program
-			 * with the file's name just printed above. */
-			fuzz_run((const uint8_t *)data, size);
+			fflush(stderr);
+			/* Each input runs in a child, so that one that still crashes (ASan, UBSan or a
+			 * contract check abort) is reported by name and the others still run. */
+			pid_t child = fork();
+			if (child == 0) {
+				fuzz_run((const uint8_t *)data, size);
+				fflush(stdout);
+				_exit(0);
+			}
+			int status = 0;
+			if (child < 0 || waitpid(child, &status, 0) != child) {
+				fuzz_run((const uint8_t *)data, size); /* no fork: run it here */
+			} else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+				fprintf(stderr, "  FAIL %s: still crashes (%s %d); replay it with the fuzzer: "
+				                "build/fuzz/fuzz_lvp tests/%s\n",
+				        path, WIFSIGNALED(status) ? "signal" : "exit status",
+				        WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status), path);
+				++check__failures;
+			}
 			++replayed;
 		}
 		free(data);

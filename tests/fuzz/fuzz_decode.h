@@ -25,9 +25,13 @@
  *     leaves its outputs untouched (lvp.h CONVENTIONS);
  *   - a binding reports the counts it was bound with, regions in [-1, region_count) and a
  *     correction map in [0, 1];
- *   - lvp_correct's stats count at most max_iterations passes (twice that with fold-over, whose
- *     extra volume step has its own budget); lvp_auto_weights writes well-formed rows.
+ *   - lvp_correct's stats count at most max_iterations passes without fold-over (with it, the
+ *     volume steps that follow each contact test have their own budget); lvp_auto_weights writes
+ *     well-formed rows.
  *   A violation prints what went wrong and aborts, which libFuzzer records as a crash.
+ *
+ * Build switches: -DFUZZ_TRACE prints every call's result (how deep an input gets);
+ * -DFUZZ_SKIP_FOLD_OVER turns fold-over off, to fuzz everything else while a fold-over bug is open.
  *
  * Sizes passed to the core never exceed the buffers given: the harness must not lie about a
  * buffer's size, since no library can detect that. Everything else may be wrong.
@@ -616,6 +620,10 @@ static void fuzz_decode_map(lvp_map_options *map, fuzz_case *c, fuzz_reader *r, 
 		map->region_bone_offsets = c->region_offsets;
 		map->region_bones = (flags & 32) ? NULL : c->region_bones; /* one of the two NULL */
 	}
+#ifdef FUZZ_TRACE
+	fprintf(stderr, "  map %d alpha %g beta %g painted %s regions %s\n", (int)map->map, (double)map->alpha,
+	        (double)map->beta, map->painted ? "yes" : "no", map->region_bone_offsets ? "yes" : "no");
+#endif
 }
 
 static lvp_frame_options fuzz_decode_frame(fuzz_reader *r)
@@ -654,11 +662,60 @@ static void fuzz_check_binding(lvp_binding *binding, int32_t vertex_count, int32
 			fuzz_violation("lvp_get_segmentation", "triangle region out of range");
 	lvp_get_correction_map(binding, map);
 	for (int32_t k = 0; k < vertex_count; ++k)
-		if (!(map[k] >= 0.0f && map[k] <= 1.0f))
-			fuzz_violation("lvp_get_correction_map", "map value outside [0, 1]");
+		/* The core rounds each value to float before dividing by the largest one, so 1 + 1 ulp
+		 * is tolerated; anything more (or not a number) is a wrong map. */
+		if (!(map[k] >= 0.0f && map[k] <= 1.0f + 1e-6f)) {
+			char what[96];
+			snprintf(what, sizeof(what), "map[%d] = %.9g, outside [0, 1]", (int)k, (double)map[k]);
+			fuzz_violation("lvp_get_correction_map", what);
+		}
 	free(vertex_regions);
 	free(triangle_regions);
 	free(map);
+}
+
+/* The largest magnitude among `values`; infinity when one of them is NaN. */
+static float fuzz_largest(const float *values, int64_t count)
+{
+	float largest = 0.0f;
+	for (int64_t i = 0; i < count; ++i) {
+		if (isnan(values[i]))
+			return INFINITY;
+		if (fabsf(values[i]) > largest)
+			largest = fabsf(values[i]);
+	}
+	return largest;
+}
+
+/* Inputs of an ordinary scene: every coordinate and matrix entry within +-1e4. On those, a
+ * successful frame must not write NaN or infinity into the artist's mesh. */
+static int fuzz_ordinary_scale(const fuzz_case *c)
+{
+	float largest = fuzz_largest(c->positions, (int64_t)c->vertex_count * 3);
+	float deformed = fuzz_largest(c->deformed, (int64_t)c->vertex_count * 3);
+	float rest = fuzz_largest(c->rest_matrices, (int64_t)c->bone_count * 16);
+	float posed = fuzz_largest(c->posed, (int64_t)c->bone_count * 16);
+	float heads = fuzz_largest(c->heads, (int64_t)c->bone_count * 3);
+	float tails = fuzz_largest(c->tails, (int64_t)c->bone_count * 3);
+	float values[5] = {deformed, rest, posed, heads, tails};
+	for (int i = 0; i < 5; ++i)
+		largest = values[i] > largest ? values[i] : largest;
+	return largest <= 1e4f;
+}
+
+/* Diagonal of the bounding box of `count` points. */
+static double fuzz_diagonal(const float *points, int32_t count)
+{
+	double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+	for (int32_t k = 0; k < count; ++k)
+		for (int i = 0; i < 3; ++i) {
+			lo[i] = fmin(lo[i], points[3 * k + i]);
+			hi[i] = fmax(hi[i], points[3 * k + i]);
+		}
+	double d2 = 0.0;
+	for (int i = 0; i < 3 && count > 0; ++i)
+		d2 += (hi[i] - lo[i]) * (hi[i] - lo[i]);
+	return sqrt(d2);
 }
 
 /* One frame through lvp_correct, with outputs chosen by `how`, checking the failure contract. */
@@ -684,6 +741,11 @@ static void fuzz_correct(lvp_binding *binding, fuzz_case *c, uint8_t how, const 
 	lvp_result result = lvp_correct(r_positions, r_offsets, binding, positions, bones, rest, frame,
 	                                (how & 64) ? NULL : &stats, &diag);
 	fuzz_check_result("lvp_correct", result, &diag);
+#ifdef FUZZ_TRACE
+	if (result == lvp_success && !(how & 64))
+		fprintf(stderr, "  how %d iterations %d folded %d before %.17g after %.17g\n", how, (int)stats.iterations,
+		        (int)stats.folded_vertices, stats.volume_before, stats.volume_after);
+#endif
 	if (result != lvp_success) {
 		if (!in_place || !r_positions)
 			fuzz_check_canary("lvp_correct r_positions", out, bytes);
@@ -691,13 +753,38 @@ static void fuzz_correct(lvp_binding *binding, fuzz_case *c, uint8_t how, const 
 			fuzz_violation("lvp_correct", "positions changed although the call failed");
 		if (r_offsets)
 			fuzz_check_canary("lvp_correct r_offsets", offsets, bytes);
-	} else if (!(how & 64)) {
+	} else {
+		if (fuzz_ordinary_scale(c)) {
+			int32_t n = lvp_vertex_count(binding);
+			const float *written[2] = {r_positions, r_offsets};
+			for (int w = 0; w < 2; ++w)
+				if (written[w] && !isfinite(fuzz_largest(written[w], (int64_t)n * 3)))
+					fuzz_violation("lvp_correct", "NaN or infinity written for ordinary finite input");
+			/* A volume correction moves skin by about the flesh it restores: a vertex sent a
+			 * hundred times the model's size away means the iteration diverged. */
+			double size = fmax(fuzz_diagonal(c->deformed, n), fuzz_diagonal(c->positions, n));
+			if (rest) /* the volumes to restore are this frame's rest shape's */
+				size = fmax(size, fuzz_diagonal(rest, n));
+			double moved = 0.0;
+			for (int32_t i = 0; i < 3 * n; ++i) {
+				if (r_offsets)
+					moved = fmax(moved, fabs(r_offsets[i]));
+				else if (r_positions)
+					moved = fmax(moved, fabs((double)r_positions[i] - before[i]));
+			}
+			if (moved > 100.0 * size + 1e-3) {
+				char what[160];
+				snprintf(what, sizeof(what), "a vertex moved by %g on a model of size %g (diverged)", moved, size);
+				fuzz_violation("lvp_correct", what);
+			}
+		}
+	}
+	if (result == lvp_success && !(how & 64)) {
 		int32_t cap = frame ? frame->max_iterations : lvp_frame_default_options().max_iterations;
-		/* Fold-over runs the volume correction once more after moving vertices, with its own
-		 * max_iterations (csrc/correction.c), so a frame with fold-over can take twice as many. */
-		if (frame && frame->fold_over)
-			cap *= 2;
-		if (stats.iterations < 0 || stats.iterations > cap) {
+		/* Fold-over alternates contact tests with volume steps that each have their own
+		 * max_iterations (csrc/correction.c): only frames without it are held to the cap. */
+		int fold = frame ? frame->fold_over : lvp_frame_default_options().fold_over;
+		if (stats.iterations < 0 || (!fold && stats.iterations > cap)) {
 			char what[128];
 			snprintf(what, sizeof(what), "stats.iterations = %d, max_iterations = %d, fold_over = %d",
 			         (int)stats.iterations, (int)cap, frame ? (int)frame->fold_over : 0);
@@ -772,6 +859,9 @@ static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *w
 	lvp_frame_options first = fuzz_decode_frame(r), second = fuzz_decode_frame(r);
 	first.fold_over = 1;
 	second.fold_over = 0;
+#ifdef FUZZ_SKIP_FOLD_OVER /* -DFUZZ_SKIP_FOLD_OVER: fuzz the rest while a fold-over bug is open */
+	first.fold_over = 0;
+#endif
 	fuzz_correct(binding, c, fuzz_byte(r), &first);
 	fuzz_correct(binding, c, fuzz_byte(r), &second);
 	/* An artist changes the map: then the same frames again. */

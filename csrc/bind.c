@@ -41,7 +41,8 @@ void lvp_free(lvp_binding *binding)
 	    binding->region_triangle_offsets, binding->weight_offsets, binding->weight_bones, binding->weight_values,
 	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
 	    binding->heads, binding->tails, binding->bone_length, binding->rest_change_base, binding->reference_volume,
-	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_corners,
+	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_triangles,
+	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class,
 	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
 	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->corner_slot, binding->border_offsets,
 	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
@@ -210,6 +211,8 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->frozen = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
 	binding->origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);
+	binding->origin_float = lvp__alloc((s + 1) * 3, sizeof(float), &ok);
+	binding->skin_class = lvp__alloc(b, sizeof(int32_t), &ok);
 	binding->change = lvp__alloc(s, sizeof(double), &ok);
 	binding->kappa = lvp__alloc(s, sizeof(double), &ok);
 	binding->frame_base = lvp__alloc(s, sizeof(double), &ok);

@@ -63,7 +63,8 @@ struct lvp_binding {
 	int32_t *corner_slot;    /* sorted triangle corner -> slot */
 	int32_t slot_count;
 	int32_t *vertex_corner_offsets; /* vertex_count+1: the sorted-triangle corners around each vertex */
-	int32_t *vertex_corners;
+	int32_t *vertex_triangles;      /* per such corner: its triangle */
+	int32_t *vertex_corner_slot;    /* per such corner: the vertex's slot for that triangle */
 
 	/* ---- region borders: half-edges whose side quad does not cancel ---- */
 	int32_t *border_offsets; /* region_count+1 */
@@ -110,6 +111,8 @@ struct lvp_binding {
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */
 	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
 	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */
+	float *origin_float;     /* (region_count + 1)*3: the same in float, last = 0 (no region) */
+	int32_t *skin_class;     /* bone_count: bones with equal skin matrices this frame share a class */
 	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
 	double *frame_base;      /* region_count: rest side when the frame brings its own rest */
 	double *kappa;           /* region_count: det(rest)/det(posed) */

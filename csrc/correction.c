@@ -240,6 +240,36 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 }
 
 /* This frame's map: the bind map times the deformation weighting a_k of lvp.h. */
+/* Bones whose skin matrices agree (to 1e-6 of their size) this frame share a class: the
+ * vertices they alone move, move rigidly. Quadratic in the bones, so only for rigs of up to
+ * LVP__CLASS_BONES bones; beyond, every bone is its own class (correct, only slower). */
+#define LVP__CLASS_BONES 512
+static void lvp__skin_classes(lvp_binding *binding)
+{
+	int32_t b = binding->bone_count;
+	for (int32_t i = 0; i < b; ++i) {
+		binding->skin_class[i] = i;
+		if (b > LVP__CLASS_BONES)
+			continue;
+		const double *m = binding->skin[i].m;
+		double scale = 1.0;
+		for (int c = 0; c < 12; ++c)
+			scale = fmax(scale, fabs(m[c]));
+		for (int32_t j = 0; j < i; ++j) {
+			if (binding->skin_class[j] != j)
+				continue;
+			const double *other = binding->skin[j].m;
+			bool same = true;
+			for (int c = 0; c < 12 && same; ++c)
+				same = fabs(m[c] - other[c]) <= 1e-6 * scale;
+			if (same) {
+				binding->skin_class[i] = j;
+				break;
+			}
+		}
+	}
+}
+
 static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 {
 	int32_t n = binding->vertex_count;
@@ -249,13 +279,22 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 		return;
 	}
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	lvp__skin_classes(binding);
 	for (int32_t k = 0; k < n; ++k) {
 		if (!(binding->gamma[k] > 0.0f)) {
 			binding->frame_gamma[k] = 0.0f;
 			continue;
 		}
-		lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
 		int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
+		/* All bones of the vertex in one class: it moves rigidly, no need to transform. */
+		bool rigid = true;
+		for (int32_t e = begin + 1; e < end && rigid; ++e)
+			rigid = binding->skin_class[binding->weight_bones[e]] == binding->skin_class[binding->weight_bones[begin]];
+		if (rigid) {
+			binding->frame_gamma[k] = 0.0f;
+			continue;
+		}
+		lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
 		for (int32_t e = begin; e < end; ++e)
 			blend = lvp__add(blend, lvp__scale(lvp__transform_point(&binding->skin[binding->weight_bones[e]], p),
 			                                   binding->weight_values[e]));

@@ -146,9 +146,10 @@ static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
 	return binding->origin[region];
 }
 
-/* Volume term (p0 - o) . cr and cr / 6 (each corner's share of the gradient) of triangle t. */
+/* Volume term (p0 - o) . cr and cr / 6 (each corner's share of the gradient) of triangle t. In
+ * float: each term is exact to float precision and the sums are taken in double. */
 static inline double lvp__triangle_terms(float r_gradient[3], const float *positions, const int32_t *corners,
-                                         lvp__vec3 o)
+                                         const float *o)
 {
 	const float *p0 = positions + 3 * corners[0];
 	const float *p1 = positions + 3 * corners[1];
@@ -159,7 +160,7 @@ static inline double lvp__triangle_terms(float r_gradient[3], const float *posit
 	r_gradient[0] = cx * (1.0f / 6.0f);
 	r_gradient[1] = cy * (1.0f / 6.0f);
 	r_gradient[2] = cz * (1.0f / 6.0f);
-	return ((double)p0[0] - o.x) * cx + ((double)p0[1] - o.y) * cy + ((double)p0[2] - o.z) * cz;
+	return (double)((p0[0] - o[0]) * cx + (p0[1] - o[1]) * cy + (p0[2] - o[2]) * cz);
 }
 
 /* Normal, g and the slots' <n, gradient> of vertex k from its slot gradients. */
@@ -197,9 +198,12 @@ static void lvp__triangle_loop(void *context, int32_t begin, int32_t end)
 	lvp__pass_context *c = context;
 	lvp_binding *binding = c->binding;
 	for (int32_t t = begin; t < end; ++t)
+	{
+		int32_t r = binding->triangle_region[t];
+		const float *o = binding->origin_float + 3 * (r < 0 ? binding->region_count : r);
 		binding->triangle_volume6[t] =
-		    lvp__triangle_terms(binding->triangle_gradient + 3 * t, c->positions, binding->triangles + 3 * t,
-		                        lvp__region_origin(binding, binding->triangle_region[t]));
+		    lvp__triangle_terms(binding->triangle_gradient + 3 * t, c->positions, binding->triangles + 3 * t, o);
+	}
 }
 
 static void lvp__region_loop(void *context, int32_t begin, int32_t end)
@@ -228,16 +232,33 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
 	float *slot_gradient = binding->slot_gradient;
+	const float *triangle_gradient = binding->triangle_gradient;
 	for (int32_t k = begin; k < end; ++k) {
-		for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
-			slot_gradient[3 * slot] = slot_gradient[3 * slot + 1] = slot_gradient[3 * slot + 2] = 0.0f;
-		for (int32_t i = binding->vertex_corner_offsets[k]; i < binding->vertex_corner_offsets[k + 1]; ++i) {
-			int32_t corner = binding->vertex_corners[i];
-			const float *g = binding->triangle_gradient + 3 * (corner / 3);
-			float *sg = slot_gradient + 3 * binding->corner_slot[corner];
-			sg[0] += g[0];
-			sg[1] += g[1];
-			sg[2] += g[2];
+		int32_t first = binding->vertex_corner_offsets[k], last = binding->vertex_corner_offsets[k + 1];
+		int32_t slot_first = binding->slot_offsets[k];
+		if (binding->slot_offsets[k + 1] - slot_first == 1) {
+			/* inside a region: one slot, summed in registers */
+			float gx = 0.0f, gy = 0.0f, gz = 0.0f;
+			for (int32_t i = first; i < last; ++i) {
+				const float *g = triangle_gradient + 3 * binding->vertex_triangles[i];
+				gx += g[0];
+				gy += g[1];
+				gz += g[2];
+			}
+			float *sg = slot_gradient + 3 * slot_first;
+			sg[0] = gx;
+			sg[1] = gy;
+			sg[2] = gz;
+		} else {
+			for (int32_t slot = slot_first; slot < binding->slot_offsets[k + 1]; ++slot)
+				slot_gradient[3 * slot] = slot_gradient[3 * slot + 1] = slot_gradient[3 * slot + 2] = 0.0f;
+			for (int32_t i = first; i < last; ++i) {
+				const float *g = triangle_gradient + 3 * binding->vertex_triangles[i];
+				float *sg = slot_gradient + 3 * binding->vertex_corner_slot[i];
+				sg[0] += g[0];
+				sg[1] += g[1];
+				sg[2] += g[2];
+			}
 		}
 		lvp__vertex_terms(binding, k);
 	}
@@ -246,6 +267,16 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 {
 	lvp__pass_context context = {binding, positions};
+	/* The triangle terms are taken about float origins; every other use of the origins (the
+	 * whole-mesh volume, the update pass) takes the same rounded points, so all agree exactly. */
+	for (int32_t r = 0; r <= binding->region_count; ++r) {
+		lvp__vec3 o = lvp__region_origin(binding, r < binding->region_count ? r : -1);
+		binding->origin_float[3 * r] = (float)o.x;
+		binding->origin_float[3 * r + 1] = (float)o.y;
+		binding->origin_float[3 * r + 2] = (float)o.z;
+		if (r < binding->region_count)
+			binding->origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
+	}
 	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context, binding->triangle_count, LVP__GRAIN);
 	lvp__parallel_for(binding->pool, lvp__region_loop, &context, binding->region_count + 1, 1);
 	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->vertex_count, LVP__GRAIN);
@@ -258,7 +289,7 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 	for (int32_t i = 0; i < moved_count; ++i) {
 		int32_t k = moved[i];
 		for (int32_t c = binding->vertex_corner_offsets[k]; c < binding->vertex_corner_offsets[k + 1]; ++c) {
-			int32_t t = binding->vertex_corners[c] / 3;
+			int32_t t = binding->vertex_triangles[c];
 			if (!binding->triangle_dirty[t]) {
 				binding->triangle_dirty[t] = 1;
 				binding->dirty_triangles[dirty++] = t;
@@ -274,7 +305,7 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 		int32_t sum_index = r < 0 ? binding->region_count : r;
 		float g[3];
 		float *old = binding->triangle_gradient + 3 * t;
-		double v = lvp__triangle_terms(g, positions, binding->triangles + 3 * t, lvp__region_origin(binding, r));
+		double v = lvp__triangle_terms(g, positions, binding->triangles + 3 * t, binding->origin_float + 3 * sum_index);
 		lvp__region_sums *sums = &binding->sums[sum_index];
 		sums->volume6 += v - binding->triangle_volume6[t];
 		float d[3] = {g[0] - old[0], g[1] - old[1], g[2] - old[2]};

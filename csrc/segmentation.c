@@ -159,9 +159,20 @@ static lvp_result lvp__build_slots(lvp_binding *binding, lvp_diagnostic *r_diag)
 			binding->corner_slot[corners[i]] = slot;
 		}
 	}
-	/* Kept: the incremental pass finds the triangles around moved vertices through them. */
+	/* Kept, as (triangle, slot) per corner around each vertex: the mesh pass gathers each
+	 * vertex's gradient through them, the incremental pass finds the triangles of moved
+	 * vertices. */
 	binding->vertex_corner_offsets = corner_offsets;
-	binding->vertex_corners = corners;
+	binding->vertex_corner_slot = malloc(sizeof(int32_t) * (size_t)(3 * f > 0 ? 3 * f : 1));
+	if (!binding->vertex_corner_slot) {
+		free(corners);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	}
+	for (int32_t i = 0; i < 3 * f; ++i) {
+		binding->vertex_corner_slot[i] = binding->corner_slot[corners[i]];
+		corners[i] /= 3;
+	}
+	binding->vertex_triangles = corners;
 	return lvp_success;
 }
 

@@ -78,6 +78,10 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
  * somewhere other than their shared vertex or edge. Zero-area triangles are ignored. */
 int64_t test_count_intersecting_pairs(const float *positions, const int32_t *triangles, int32_t triangle_count);
 
+/* Splits every triangle in four at its edge midpoints, `levels` times (the surface keeps its
+ * shape and volume); a midpoint's weights are the average of its edge's. For benchmarks. */
+test_rig test_subdivide(const test_rig *rig, int levels);
+
 /* Reads a whole file into a malloc'ed, NUL-terminated buffer; NULL on failure. */
 char *test_read_file(const char *path, size_t *r_size);
 

@@ -1,0 +1,204 @@
+/*
+ * bench_core.c - `./build.sh bench`: bind time and per-frame correction time of the C core for
+ * about 5k, 100k and 1M vertices (a long chain of bones skinned as a subdivided tube, and the
+ * paper's giraffe subdivided), on one thread and on all cores. Medians of repeated runs, wall
+ * clock. Prints a Markdown table for BENCHMARKS.md.
+ */
+#include "lvp.h"
+#include "support/test_meshes.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#define PI 3.14159265358979323846
+
+static double now(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static int compare_doubles(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return (x > y) - (x < y);
+}
+
+static double median(double *values, int count)
+{
+	qsort(values, (size_t)count, sizeof(double), compare_doubles);
+	return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
+}
+
+typedef struct bench_case {
+	const char *name;
+	test_rig rig;
+	const char *pose;   /* what is bent */
+	float *rotations;   /* bone_count*4 */
+} bench_case;
+
+/* Median wall time of lvp_correct over `repeats` frames with `threads` threads. */
+static double frame_time(const bench_case *c, int32_t threads, const float *skinned, const float *posed,
+                         lvp_frame_stats *r_stats, double *r_bind)
+{
+	const test_rig *rig = &c->rig;
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_skeleton skeleton = test_rig_skeleton(rig);
+	lvp_bind_options options = lvp_bind_default_options();
+	options.thread_count = threads;
+	lvp_binding *binding = NULL;
+	lvp_diagnostic diag;
+	double start = now();
+	if (lvp_bind(&binding, rig->positions, rig->vertex_count, rig->triangles, rig->triangle_count, &weights,
+	             &skeleton, &options, &diag) != lvp_success) {
+		fprintf(stderr, "bind failed: %s\n", diag.message);
+		exit(1);
+	}
+	*r_bind = now() - start;
+	float *offsets = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	int repeats = rig->vertex_count > 500000 ? 7 : 21;
+	double times[21];
+	for (int i = 0; i < repeats; ++i) {
+		start = now();
+		lvp_correct(NULL, offsets, binding, skinned, posed, NULL, NULL, r_stats, NULL);
+		times[i] = now() - start;
+	}
+	free(offsets);
+	lvp_free(binding);
+	return median(times, repeats);
+}
+
+static double auto_weights_time(const test_rig *rig, lvp_visibility visibility)
+{
+	lvp_auto_weights_options options = lvp_auto_weights_default_options();
+	options.visibility = visibility;
+	lvp_skeleton skeleton = test_rig_skeleton(rig);
+	int64_t capacity = lvp_auto_weights_bound(rig->vertex_count, rig->bone_count, &options);
+	int32_t *offsets = malloc(sizeof(int32_t) * ((size_t)rig->vertex_count + 1));
+	int32_t *bones = malloc(sizeof(int32_t) * (size_t)capacity);
+	float *values = malloc(sizeof(float) * (size_t)capacity);
+	lvp_diagnostic diag;
+	double start = now();
+	lvp_result result = lvp_auto_weights(offsets, bones, values, capacity, rig->positions, rig->vertex_count,
+	                                     rig->triangles, rig->triangle_count, &skeleton, &options, &diag);
+	double elapsed = now() - start;
+	if (result != lvp_success)
+		fprintf(stderr, "auto weights failed: %s\n", diag.message);
+	free(offsets);
+	free(bones);
+	free(values);
+	return elapsed;
+}
+
+static void run_case(bench_case *c, int32_t cores)
+{
+	test_rig *rig = &c->rig;
+	int32_t n = rig->vertex_count, b = rig->bone_count;
+	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	float *skinned = malloc(sizeof(float) * 3 * (size_t)n);
+	test_pose(posed, rig, c->rotations);
+	test_skin_matrices(skin, rig, posed);
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_skin_linear(skinned, rig->positions, n, &weights, skin, b, NULL);
+	lvp_frame_stats stats;
+	double bind1, bind_all;
+	double one = frame_time(c, 1, skinned, posed, &stats, &bind1);
+	double all = frame_time(c, cores, skinned, posed, &stats, &bind_all);
+	double normal = auto_weights_time(rig, LVP_VISIBILITY_NORMAL);
+	double exact = n <= 200000 ? auto_weights_time(rig, LVP_VISIBILITY_EXACT) : NAN;
+	double before = 100.0 * (stats.volume_before - stats.volume_rest) / stats.volume_rest;
+	double after = 100.0 * (stats.volume_after - stats.volume_rest) / stats.volume_rest;
+	char exact_text[32] = "-";
+	if (!isnan(exact))
+		snprintf(exact_text, sizeof(exact_text), "%.0f", 1e3 * exact);
+	printf("| %s | %d | %d | %s | %.0f | %s | %.0f | %.2f | %.2f | %.2f | %.2f%% -> %.4f%% (%d steps) |\n", c->name,
+	       (int)n, (int)b, c->pose, 1e3 * normal, exact_text, 1e3 * bind1, 1e3 * one, 1e3 * all, one / all, before,
+	       after, (int)stats.iterations);
+	fflush(stdout);
+	free(posed);
+	free(skin);
+	free(skinned);
+}
+
+static float *chain_pose(int32_t bone_count, int bend_all)
+{
+	float *rotations = calloc((size_t)bone_count * 4, sizeof(float));
+	for (int32_t i = 1; i < bone_count; ++i) {
+		if (!bend_all && i != bone_count / 2)
+			continue;
+		rotations[4 * i] = 1.0f;
+		rotations[4 * i + 3] = (float)(40.0 * PI / 180.0);
+	}
+	return rotations;
+}
+
+static float *giraffe_pose(const test_rig *rig)
+{
+	float *rotations = calloc((size_t)rig->bone_count * 4, sizeof(float));
+	const char *bent[] = {"gi_neckC7", "gi_neckC4", "gi_neckC2", "gi_L_elbow", "gi_R_knee"};
+	for (int i = 0; i < 5; ++i) {
+		int32_t bone = test_find_bone(rig, bent[i]);
+		if (bone < 0)
+			continue;
+		const float *m = rig->rest_matrices + 16 * bone;
+		for (int c = 0; c < 3; ++c)
+			rotations[4 * bone + c] = m[4 * c]; /* world +X in the joint's frame */
+		rotations[4 * bone + 3] = (float)(45.0 * PI / 180.0);
+	}
+	return rotations;
+}
+
+int main(void)
+{
+	int32_t cores = (int32_t)sysconf(_SC_NPROCESSORS_ONLN);
+	cores = cores < 1 ? 1 : (cores > LVP_MAX_THREADS ? LVP_MAX_THREADS : cores);
+	printf("Core benchmark: median wall time per frame (default options: organic map, up to 8 steps, "
+	       "tolerance 1e-4), %d cores.\n\n",
+	       (int)cores);
+	printf("| mesh | vertices | bones | bent | automatic weights, normal test (ms) | automatic weights, exact test (ms) "
+	       "| bind (ms) | frame, 1 thread (ms) | frame, %d threads (ms) | speed-up | volume error |\n",
+	       (int)cores);
+	printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+
+	struct {
+		const char *name;
+		int bones, around, rings;
+	} chains[3] = {{"chain 5k", 8, 32, 20}, {"chain 100k", 32, 64, 50}, {"chain 1M", 64, 128, 122}};
+	for (int i = 0; i < 3; ++i) {
+		for (int all = 1; all >= 0; --all) {
+			bench_case c;
+			c.name = chains[i].name;
+			c.rig = test_make_chain(chains[i].bones, 1.0f, 0.3f, chains[i].around, chains[i].rings, 0.5f);
+			c.pose = all ? "every joint" : "one joint";
+			c.rotations = chain_pose(c.rig.bone_count, all);
+			run_case(&c, cores);
+			free(c.rotations);
+			test_rig_free(&c.rig);
+		}
+	}
+	test_rig giraffe;
+	if (test_load_giraffe(&giraffe, "data/giraffe") != 0) {
+		fprintf(stderr, "cannot load data/giraffe (run from tests/)\n");
+		return 1;
+	}
+	const int levels[3] = {0, 3, 5};
+	const char *names[3] = {"giraffe", "giraffe x64", "giraffe x1024"};
+	for (int i = 0; i < 3; ++i) {
+		bench_case c;
+		c.name = names[i];
+		c.rig = levels[i] ? test_subdivide(&giraffe, levels[i]) : giraffe;
+		c.pose = "neck, 2 legs";
+		c.rotations = giraffe_pose(&c.rig);
+		run_case(&c, cores);
+		free(c.rotations);
+		if (levels[i])
+			test_rig_free(&c.rig);
+	}
+	test_rig_free(&giraffe);
+	return 0;
+}

@@ -233,8 +233,9 @@ typedef struct lvp_weights {
 
 /* Linear blend skinning: r_positions[k] = sum_i w_ki (posed_i * rest_i^-1) rest_positions[k],
  * with the weights normalized by their sum. skin_matrices are the products posed_i * rest_i^-1,
- * bone_count*16 floats. Vertices without weight keep their rest position. r_positions
- * (vertex_count*3) must not overlap the inputs. */
+ * bone_count*16 floats (bone_count >= 1; the last row of each matrix is ignored). Vertices
+ * without weight keep their rest position. r_positions (vertex_count*3) must not overlap the
+ * inputs: an overlap is refused with lvp_error_invalid_option. */
 lvp_result lvp_skin_linear(float *r_positions, const float *rest_positions, int32_t vertex_count,
                            const lvp_weights *weights, const float *skin_matrices, int32_t bone_count,
                            lvp_diagnostic *r_diag);
@@ -285,9 +286,14 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
 
 /* Computes weights by 5.1: distance to the bone segment (not to the joint), a visibility test
  * per (vertex, bone), the rigid fallback (a vertex that sees no bone gets weight 1 on its
- * closest bone), then normalization. Zero-length bones get no weight.
+ * closest bone with a length; a zero-length one only when the skeleton has no other), then
+ * normalization. Zero-length bones get no weight. Distances below 1e-6 of a bone's length
+ * count as that (a vertex on a bone is all its; on a joint, split evenly). When min_weight
+ * would drop every bone of a vertex, its strongest one is kept. options may be NULL (defaults).
  * r_offsets: vertex_count+1; r_bones and r_values: capacity entries (use
- * lvp_auto_weights_bound()). Rows are sorted by decreasing weight. */
+ * lvp_auto_weights_bound(); a smaller capacity works through a temporary buffer of up to
+ * `capacity` entries and fails, outputs untouched, with the needed size if it is too small).
+ * Rows are sorted by decreasing weight. */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,

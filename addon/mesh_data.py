@@ -21,7 +21,7 @@ No numpy (Debian's Blender 3.4 has none): array.array buffers with foreach_get /
 import zlib
 from array import array
 
-from mathutils import Matrix, Vector
+from mathutils import Vector
 
 
 def flatten_matrix(matrix, out, offset):

@@ -15,7 +15,7 @@ import unittest
 from array import array
 
 import bpy
-from mathutils import Matrix, Quaternion, Vector
+from mathutils import Quaternion, Vector
 
 ADDON_ID = "local_volume_preservation"
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -15,7 +15,7 @@ import unittest
 from array import array
 
 import bpy
-from mathutils import Euler, Vector
+from mathutils import Euler
 
 import lvp_helpers as helpers
 

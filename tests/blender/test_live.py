@@ -6,12 +6,10 @@ bones joined at z = 2; weights linear over a band of 2.6 around the joint. Bent 
 skinning loses about 11 % of its volume (paper Table 2). Every assertion is on the evaluated mesh.
 """
 
-import math
 import unittest
 
 import bpy
-import bmesh
-from mathutils import Matrix, Vector
+from mathutils import Matrix
 
 import lvp_helpers as helpers
 

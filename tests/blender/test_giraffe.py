@@ -75,6 +75,32 @@ class TestGiraffe(helpers.AddonTestCase):
                                "displacement of vertices far from the bent knee")
         self.assertGreater(max(distances), 1e-3, "the knee should be corrected")
 
+    def test_many_single_joint_poses(self):
+        """Every major joint bent by 60 degrees both ways about two axes: the correction never makes the
+        volume worse, never trips the add-on's divergence safety net, and stays a small displacement."""
+        failures = []
+        names = ("gi_neckC7", "gi_neckC4", "gi_head", "gi_L_shoulder", "gi_L_elbow", "gi_R_elbow", "gi_L_hip",
+                 "gi_L_knee", "gi_R_knee", "gi_tailA", "gi_tailB")
+        for bone_name in names:
+            for axis in ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)):
+                for degrees in (60.0, -60.0):
+                    for pose_bone in self.rig.pose.bones:
+                        pose_bone.rotation_mode = 'QUATERNION'
+                        pose_bone.rotation_quaternion = (1.0, 0.0, 0.0, 0.0)
+                    pose(self.rig, bone_name, axis, degrees)
+                    bpy.context.view_layer.update()
+                    corrected = helpers.evaluated_positions(self.obj)
+                    plain = helpers.uncorrected_positions(self.obj)
+                    corrected_error = helpers.relative_volume_error(corrected, self.triangles, self.rest_volume)
+                    plain_error = helpers.relative_volume_error(plain, self.triangles, self.rest_volume)
+                    status = self.status_of(self.obj)
+                    moved = helpers.max_distance(corrected, plain)
+                    if status[0] != 'INFO' or corrected_error > max(0.5 * plain_error, 1e-3) or moved > 0.1:
+                        failures.append("%s %s %+g: volume error %.4f%% plain, %.4f%% corrected, largest offset "
+                                        "%.3f, status %r" % (bone_name, axis, degrees, 100 * plain_error,
+                                                             100 * corrected_error, moved, status))
+        self.assertEqual(failures, [], "\n".join(failures))
+
     def test_subdivision_and_animation(self):
         subdivision = self.obj.modifiers.new("Subdivision", 'SUBSURF')
         subdivision.levels = 1

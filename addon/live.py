@@ -172,8 +172,9 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'WARNING', "The mesh is linked from a library: its volume cannot be corrected "
                                             "here (make it local)")
         return False
-    if obj.mode == 'EDIT':
-        bindings.set_status(obj, 'INFO', "Paused in Edit Mode")
+    if obj.mode in {'EDIT', 'SCULPT'}:
+        # Those modes own the mesh data while they run; writing it from a handler would fight them.
+        bindings.set_status(obj, 'INFO', "Paused in %s Mode" % obj.mode.title())
         return False
     if not node_group.modifier_enabled(modifier, depsgraph.mode):
         bindings.set_status(obj, 'INFO', "The modifier is disabled in the %s" %

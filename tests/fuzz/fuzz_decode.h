@@ -820,7 +820,9 @@ static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *w
 		options.mode = (lvp_mode)2; /* not a mode */
 	uint8_t threads = fuzz_byte(r);
 	/* Mostly one thread (fast); sometimes two or three, or an invalid count. */
-	options.thread_count = threads < 200 ? 1 : threads < 240 ? 2 + threads % 2 : (threads % 2 ? 0 : LVP_MAX_THREADS + 1);
+	options.thread_count = threads < 200   ? 1
+	                       : threads < 240 ? 2 + threads % 2
+	                                       : (threads % 2 ? 0 : LVP_MAX_THREADS + 1);
 	fuzz_decode_map(&options.map, c, r, bone_count);
 	lvp_binding *binding = NULL;
 	lvp_diagnostic diag = fuzz_diag();

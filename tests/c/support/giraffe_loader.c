@@ -161,8 +161,9 @@ static int test__load_obj(test_rig *rig, char *text)
 		const float *a = rig->positions + 3 * rig->triangles[3 * i];
 		const float *b = rig->positions + 3 * rig->triangles[3 * i + 1];
 		const float *c = rig->positions + 3 * rig->triangles[3 * i + 2];
-		volume += a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) +
-		          a[1] * ((double)b[2] * c[0] - (double)b[0] * c[2]) + a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0]);
+		volume += a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]);
+		volume += a[1] * ((double)b[2] * c[0] - (double)b[0] * c[2]);
+		volume += a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0]);
 	}
 	if (volume < 0.0)
 		for (int32_t i = 0; i < t; ++i) {
@@ -179,7 +180,8 @@ static void test__giraffe_mul(double *r_m, const double *a, const double *b)
 	double out[16];
 	for (int r = 0; r < 4; ++r)
 		for (int c = 0; c < 4; ++c)
-			out[4 * r + c] = a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c] + a[4 * r + 3] * b[12 + c];
+			out[4 * r + c] =
+			    a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c] + a[4 * r + 3] * b[12 + c];
 	memcpy(r_m, out, sizeof(out));
 }
 

@@ -341,7 +341,8 @@ static void test__mat_mul(double *r_m, const double *a, const double *b)
 	double out[16];
 	for (int r = 0; r < 4; ++r)
 		for (int c = 0; c < 4; ++c)
-			out[4 * r + c] = a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c] + a[4 * r + 3] * b[12 + c];
+			out[4 * r + c] =
+			    a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c] + a[4 * r + 3] * b[12 + c];
 	memcpy(r_m, out, sizeof(out));
 }
 

@@ -39,6 +39,7 @@ from . import properties  # noqa: E402
 from . import operators  # noqa: E402
 from . import ui  # noqa: E402
 from . import handlers  # noqa: E402
+from . import bake  # noqa: E402  (baking to point caches, issue 4: bake/__init__.py)
 
 # Registered in this order, unregistered in reverse.
 modules = (
@@ -46,6 +47,7 @@ modules = (
     operators,
     ui,
     handlers,
+    bake,
 )
 
 

@@ -44,7 +44,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_triangles,
 	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class,
 	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
-	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->corner_slot, binding->border_offsets,
+	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
 	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
 	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
@@ -208,6 +208,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->vertex_dirty = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->dirty_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->moved = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->step_backup = lvp__alloc(n * 3, sizeof(float), &ok);
 	binding->frozen = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
 	binding->origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);

@@ -106,6 +106,7 @@ struct lvp_binding {
 	uint8_t *vertex_dirty;    /* vertex_count, kept zero between uses */
 	int32_t *dirty_vertices;  /* vertex_count */
 	int32_t *moved;           /* vertex_count: vertices moved by the last step */
+	float *step_backup;       /* vertex_count*3: their positions before it, in the same order */
 	int32_t moved_count;
 	float *rho;              /* vertex_count, kept zero between uses */
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */

@@ -119,6 +119,31 @@ static bool lvp__lu_solve(double *a, double *rhs, int32_t *pivots, int32_t m)
 	return true;
 }
 
+/* Moves vertex k by rho along its normal, remembering where it was (lvp__undo_step). A single
+ * step moves a vertex by at most a quarter of the mesh's size: a pose folded onto itself (a
+ * joint bent near 180 degrees) can make the linearization meaningless, and no sane correction
+ * needs more in one step. */
+static void lvp__move_vertex(lvp_binding *binding, int32_t k, float rho)
+{
+	float limit = (float)(0.25 * binding->size);
+	rho = rho > limit ? limit : (rho < -limit ? -limit : rho);
+	float *p = binding->work_positions + 3 * k, *backup = binding->step_backup + 3 * binding->moved_count;
+	backup[0] = p[0];
+	backup[1] = p[1];
+	backup[2] = p[2];
+	p[0] += rho * binding->normals[3 * k];
+	p[1] += rho * binding->normals[3 * k + 1];
+	p[2] += rho * binding->normals[3 * k + 2];
+	binding->moved[binding->moved_count++] = k;
+}
+
+/* Puts the vertices of the last step back where they were. */
+static void lvp__undo_step(lvp_binding *binding)
+{
+	for (int32_t i = 0; i < binding->moved_count; ++i)
+		memcpy(binding->work_positions + 3 * binding->moved[i], binding->step_backup + 3 * i, sizeof(float) * 3);
+}
+
 /* One correction step over the active regions (active[0..m)); moves work_positions. */
 static void lvp__correct_step(lvp_binding *binding, int32_t m)
 {
@@ -192,20 +217,15 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
 		}
 	}
-	float *p = binding->work_positions;
 	binding->moved_count = 0;
 	for (int32_t j = 0; j < m; ++j) {
 		int32_t t = active[j];
 		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
 			int32_t k = binding->support_vertex[i];
-			float r = rho[k];
-			if (r == 0.0f)
+			if (rho[k] == 0.0f)
 				continue;
-			p[3 * k] += r * binding->normals[3 * k];
-			p[3 * k + 1] += r * binding->normals[3 * k + 1];
-			p[3 * k + 2] += r * binding->normals[3 * k + 2];
+			lvp__move_vertex(binding, k, rho[k]);
 			rho[k] = 0.0f;
-			binding->moved[binding->moved_count++] = k;
 		}
 	}
 }
@@ -323,6 +343,18 @@ static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, co
 	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
 }
 
+/* Sum over the regions of their squared relative change: what the iterations decrease. */
+static double lvp__error_norm(const lvp_binding *binding)
+{
+	double sum = 0.0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		double reference = binding->reference_volume[r];
+		if (!binding->region_skipped[r] && reference > 0.0)
+			sum += (binding->change[r] / reference) * (binding->change[r] / reference);
+	}
+	return sum;
+}
+
 /* Correct, re-measure, correct... from a measured state; leaves the last measurement (sums,
  * normals, change[]) of work_positions. Returns the number of correction steps taken;
  * *r_first_active receives the number of regions corrected by the first one. */
@@ -337,9 +369,17 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 			break;
 		if (steps == 0)
 			*r_first_active = m;
+		double before = lvp__error_norm(binding);
 		lvp__correct_step(binding, m);
 		++steps;
 		lvp__remeasure(binding, rest_positions, base);
+		/* A step that makes the regions worse overall is undone and ends the iteration (a pose
+		 * folded onto itself, where the linearization no longer describes the volume). */
+		if (!(lvp__error_norm(binding) < before)) {
+			lvp__undo_step(binding);
+			lvp__measure(binding, rest_positions, base);
+			break;
+		}
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		binding->active_index[r] = -1;
@@ -356,9 +396,8 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
                                  double target, const float *rest_positions, const double *base)
 {
 	int32_t steps = 0;
-	float *p = binding->work_positions;
 	while (steps < budget) {
-		double change = lvp__pass_volume(binding, p) - target;
+		double change = lvp__pass_volume(binding, binding->work_positions) - target;
 		if (!(fabs(change) > options->tolerance * fabs(target)))
 			break;
 		double system = 0.0;
@@ -391,18 +430,20 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 				continue;
 			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
 				int32_t k = binding->support_vertex[i];
-				float value = rho[k];
-				if (value == 0.0f)
+				if (rho[k] == 0.0f)
 					continue;
-				p[3 * k] += value * binding->normals[3 * k];
-				p[3 * k + 1] += value * binding->normals[3 * k + 1];
-				p[3 * k + 2] += value * binding->normals[3 * k + 2];
+				lvp__move_vertex(binding, k, rho[k]);
 				rho[k] = 0.0f;
-				binding->moved[binding->moved_count++] = k;
 			}
 		}
 		++steps;
 		lvp__remeasure(binding, rest_positions, base);
+		double after = lvp__pass_volume(binding, binding->work_positions) - target;
+		if (!(fabs(after) < fabs(change))) { /* no better: the step is undone, and that is all */
+			lvp__undo_step(binding);
+			lvp__measure(binding, rest_positions, base);
+			break;
+		}
 	}
 	return steps;
 }
@@ -498,6 +539,15 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		memset(binding->frozen, 0, (size_t)n);
 		lvp__measure(binding, rest_positions, base);
 	}
+	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
+	 * through unchanged and says so. */
+	for (int32_t i = 0; i < 3 * n; ++i)
+		if (!lvp__finite(binding->work_positions[i])) {
+			memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
+			lvp__measure(binding, rest_positions, base);
+			stats.passed_through = 1;
+			break;
+		}
 	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
 	if (stats.worst_region >= 0)
 		stats.worst_region_change_after =

@@ -39,10 +39,12 @@ static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, 
 	double f = lvp__side(p, sh, st, ls, jh, jt, lj);
 	double outside = 0.0, inside = f / length;
 	int doublings = 0;
+	/* The contact surface is nearer than the farther bone: past that, give up on this vertex. */
+	double reach = 2.0 * (ds + dj);
 	while (lvp__side(lvp__add(p, lvp__scale(direction, inside)), sh, st, ls, jh, jt, lj) > 0.0) {
 		outside = inside;
 		inside *= 2.0;
-		if (++doublings > 40)
+		if (++doublings > 40 || inside > reach)
 			return false;
 	}
 	for (int step = 0; step < 60 && inside - outside > 1e-9 * (inside + 1e-30); ++step) {

@@ -138,6 +138,10 @@
  *   - A posed bone matrix that is singular (a bone scaled to zero) leaves its region
  *     uncorrected for that frame, and the frame's stats count it.
  *   - Regions whose map is zero everywhere (fully rigid) cannot move and are left as they are.
+ *   - Poses folded onto themselves (a joint bent near 180 degrees): a step moves a vertex by at
+ *     most a quarter of the mesh's size, a step that makes the regions' volumes worse is undone and ends
+ *     the iteration, and if anything still went non-finite the frame is passed through
+ *     unchanged with stats.passed_through set.
  *
  * THREADS AND MEMORY
  *
@@ -392,6 +396,8 @@ typedef struct lvp_frame_stats {
 	int32_t skipped_regions;  /* regions left as they were: singular posed bone, or map all zero */
 	int32_t folded_vertices;  /* vertices moved back to a contact surface */
 	double max_displacement;  /* largest |offset| written */
+	int32_t passed_through;   /* 1 when no finite correction was found (a pose folded onto itself):
+	                             the input was written back unchanged */
 } lvp_frame_stats;
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what

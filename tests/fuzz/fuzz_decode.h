@@ -442,10 +442,14 @@ static void fuzz_decode_raw(fuzz_case *c, fuzz_reader *r)
 		}
 	}
 	c->weight_offsets[c->vertex_count] = used;
-	/* A broken CSR now and then: an inner offset out of order or negative (the last one stays
-	 * true, since it sizes the bone and value arrays). */
-	if (c->vertex_count > 1 && fuzz_byte(r) % 8 == 0)
-		c->weight_offsets[1 + fuzz_byte(r) % (c->vertex_count - 1)] = (int32_t)fuzz_byte(r) - 128;
+	/* A broken CSR now and then: an inner offset out of order or negative. Never above the
+	 * arrays' capacity: with the vertex count passed one short, that offset becomes the last
+	 * one, which tells the core how many influences the arrays hold. */
+	if (c->vertex_count > 1 && fuzz_byte(r) % 8 == 0) {
+		int32_t value = (int32_t)fuzz_byte(r) - 128;
+		c->weight_offsets[1 + fuzz_byte(r) % (c->vertex_count - 1)] =
+		    value < c->weight_capacity ? value : c->weight_capacity;
+	}
 	if (fuzz_byte(r) % 16 == 0)
 		c->weight_offsets[0] = 1;
 	for (int32_t b = 0; b < c->bone_count; ++b) {

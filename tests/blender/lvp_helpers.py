@@ -68,11 +68,12 @@ def _install_extension(zip_path):
             repo = candidate
     if repo is None:
         repo = repos.new(name="LVP Test", module=EXTENSION_REPO, custom_directory=directory, source='USER')
-    result = bpy.ops.extensions.package_install_files(filepath=zip_path, repo=EXTENSION_REPO,
-                                                      enable_on_install=True)
-    if 'FINISHED' not in result:
-        raise RuntimeError("installing %s as an extension failed: %r" % (zip_path, result))
     module_name = "bl_ext.%s.%s" % (EXTENSION_REPO, ADDON_ID)
+    if not os.path.isfile(os.path.join(directory, ADDON_ID, "blender_manifest.toml")):
+        result = bpy.ops.extensions.package_install_files(filepath=zip_path, repo=EXTENSION_REPO,
+                                                          enable_on_install=True)
+        if 'FINISHED' not in result:
+            raise RuntimeError("installing %s as an extension failed: %r" % (zip_path, result))
     if module_name not in {addon.module for addon in bpy.context.preferences.addons}:
         addon_utils.enable(module_name, default_set=True)
     return module_name
@@ -89,8 +90,10 @@ def enable_addon():
     runner puts its parent on sys.path).
     """
     global _addon_module
-    if _addon_module is not None:
+    if _addon_module is not None and is_registered():
         return _addon_module
+    # First call, or something disabled the add-on since (wm.read_factory_settings in another test
+    # module resets the preferences and with them the enabled add-ons and extension repositories).
     import addon_utils
     import importlib
     if uses_extensions():
@@ -111,6 +114,10 @@ def enable_addon():
     if not hasattr(bpy.types.Object, "lvp"):
         raise RuntimeError("the add-on %s did not register (Object.lvp is missing)" % module_name)
     return _addon_module
+
+
+def is_registered():
+    return hasattr(bpy.types.Object, "lvp") and hasattr(bpy.types, "OBJECT_OT_lvp_add")
 
 
 def unittest_skip(message):
@@ -422,6 +429,7 @@ class AddonTestCase(unittest.TestCase):
         cls.addon = enable_addon()
 
     def setUp(self):
+        type(self).addon = enable_addon()
         reset_scene()
 
     def assertSmallerThan(self, value, limit, message=""):

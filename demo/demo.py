@@ -22,9 +22,9 @@ sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.join(REPO, "tests", "blender"))
 
 import lvp_helpers as helpers  # noqa: E402
-import plot  # noqa: E402
-import render  # noqa: E402
-import scenes  # noqa: E402
+import demo_plot as plot  # noqa: E402
+import demo_render as render  # noqa: E402
+import demo_scenes as scenes  # noqa: E402
 
 SWEEP_ANGLES = list(range(0, 121, 5))
 # The paper's Table 2 for the cylinder (relative volume error, volume lost): before and after its one pass.

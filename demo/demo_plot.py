@@ -7,7 +7,7 @@ import math
 
 import bpy
 
-import render
+import demo_render as render
 
 BLACK = (0.0, 0.0, 0.0, 1.0)
 GRID = (0.82, 0.82, 0.82, 1.0)

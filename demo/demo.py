@@ -38,6 +38,12 @@ COLORS = {
 PAPER_COLOR = (0.45, 0.45, 0.45, 1.0)
 
 
+def percent(value, digits):
+    """A signed percentage with `digits` decimals, without a minus sign on a rounded zero."""
+    text = "%+.*f %%" % (digits, 100 * value)
+    return text.replace("-", "+") if float(text[:-2]) == 0.0 else text
+
+
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="demo.py")
@@ -52,6 +58,7 @@ class Demo:
         self.scale = 0.5 if quick else 1.0
         self.samples = 8 if quick else 64
         self.images = []
+        self.tables = []  # (title, Markdown lines)
         self.rows = []  # (scene, plain, preserve volume, corrected) signed changes, for the summary table
         os.makedirs(out, exist_ok=True)
 
@@ -104,20 +111,28 @@ class Demo:
     def sweep(self):
         self.new_scene(64, 64)
         changes = scenes.cylinder_sweep(SWEEP_ANGLES)
-        print("\nThe paper's cylinder (16 x 16 side vertices, radius 0.5, length 4, weights linear over 2.6),")
-        print("bent at its joint: volume change, % of the rest volume")
-        print("  angle | Armature (plain) | Armature, Preserve Volume | Armature + Volume Preservation")
+        self.sweep_changes = changes
+        lines = ["| bend | Armature | Armature, Preserve Volume | Armature + Volume Preservation |",
+                 "|---:|---:|---:|---:|"]
         for index, degrees in enumerate(SWEEP_ANGLES):
-            if degrees % 10 == 0:
-                print("  %4d  | %+15.3f%% | %+24.3f%% | %+29.4f%%" % (
-                    degrees, 100 * changes["plain"][index], 100 * changes["preserve_volume"][index],
-                    100 * changes["corrected"][index]))
-        print("  the paper's Table 2 (volume lost, one correction pass): "
+            if degrees % 10 == 0 and degrees > 0:
+                lines.append("| %d\u00b0 | %s | %s | %s |" % (
+                    degrees, percent(changes["plain"][index], 3), percent(changes["preserve_volume"][index], 3),
+                    percent(changes["corrected"][index], 4)))
+        self.table("The paper's cylinder (16 x 16 side vertices, radius 0.5, length 4, weights linear over a "
+                   "band of 2.6) bent at its joint: volume change, % of the rest volume", lines)
+        print("The paper's Table 2 (volume lost, before -> after its one correction pass): "
               + ", ".join("%d deg %.2g %% -> %.2g %%" % row for row in PAPER_TABLE2))
         index = SWEEP_ANGLES.index(90)
-        self.rows.append(("cylinder, 90 deg", changes["plain"][index], changes["preserve_volume"][index],
+        self.rows.append(("cylinder, bent 90\u00b0", changes["plain"][index], changes["preserve_volume"][index],
                           changes["corrected"][index]))
-        self.sweep_changes = changes
+
+    def table(self, title, lines):
+        """Prints a Markdown table and keeps it for demo/out/volume_tables.md (README.md quotes it)."""
+        print("\n" + title)
+        for line in lines:
+            print(line)
+        self.tables.append((title, lines))
 
     def cylinder(self):
         self.new_scene(400, 400)
@@ -144,7 +159,7 @@ class Demo:
         triangles = scenes.triangles_of(plain)
         rest = scenes.rest_volume(plain)
         changes = [scenes.volume_change(obj, triangles, rest) for obj in (plain, dual, corrected)]
-        self.rows.append(("giraffe, neck down, knee folded", changes[0], changes[1], changes[2]))
+        self.rows.append(("giraffe, neck bent down, a knee folded", changes[0], changes[1], changes[2]))
         camera = render.add_camera((-6.0, 0.5, 0.06), (0.0, 0.5, 0.06), (0.0, 1.0, 0.0), 1.15)
         self.before_after("giraffe", (plain, corrected), camera,
                           (("Armature only", "volume %+.1f %%" % (100 * changes[0])),
@@ -154,6 +169,11 @@ class Demo:
     def finger(self):
         self.new_scene(360, 360)
         plain, volume_only, corrected = scenes.finger_trio()
+        dual, dual_rig = scenes.finger_character("FingerPreserveVolume")  # measured, not rendered
+        dual.modifiers["Armature"].use_deform_preserve_volume = True
+        dual.hide_render = True
+        scenes.bend_finger(dual_rig)
+        bpy.context.view_layer.update()
         objects = (plain, volume_only, corrected)
         for obj in objects:
             render.smooth(obj)
@@ -162,7 +182,8 @@ class Demo:
         rest = scenes.rest_volume(plain)
         changes = [scenes.volume_change(obj, triangles, rest) for obj in objects]
         crossings = [scenes.crossing_face_pairs(obj) for obj in objects]
-        self.rows.append(("finger, knuckles %g deg, fold-over" % scenes.FINGER_BEND, changes[0], None, changes[2]))
+        self.rows.append(("finger, both knuckles %g\u00b0, Fold-Over on" % scenes.FINGER_BEND, changes[0],
+                          scenes.volume_change(dual, triangles, rest), changes[2]))
         self.finger_crossings = crossings
         camera = render.add_camera((6.0, 0.62, 0.6), (0.0, 0.62, 0.6), (0.0, 0.0, 1.0), 2.1)
         titles = ("Armature only", "Volume Preservation", "Volume Preservation + Fold-Over")
@@ -188,13 +209,17 @@ class Demo:
         self.images.append(path)
 
     def summary(self):
-        print("\nVolume change of the whole mesh, % of the rest volume (positive: gained, negative: lost)")
-        print("  %-36s | %9s | %16s | %19s" % ("scene", "Armature", "Preserve Volume", "Volume Preservation"))
+        lines = ["| scene | Armature | Armature, Preserve Volume | Armature + Volume Preservation |",
+                 "|---|---:|---:|---:|"]
         for name, plain, dual, corrected in self.rows:
-            print("  %-36s | %+8.2f%% | %16s | %+18.4f%%" % (
-                name, 100 * plain, "-" if dual is None else "%+15.2f%%" % (100 * dual), 100 * corrected))
-        print("  finger: pairs of faces that cross each other: %d with plain skinning, %d with Volume Preservation, "
+            lines.append("| %s | %s | %s | %s |" % (name, percent(plain, 2), percent(dual, 2), percent(corrected, 4)))
+        self.table("The demo's scenes: volume change of the whole mesh, % of the rest volume", lines)
+        print("Finger: pairs of faces that cross each other: %d with plain skinning, %d with Volume Preservation, "
               "%d with Fold-Over Prevention on" % tuple(self.finger_crossings))
+        path = self.path("volume_tables.md")
+        with open(path, "w") as file:
+            for title, table_lines in self.tables:
+                file.write("%s\n\n%s\n\n" % (title, "\n".join(table_lines)))
 
     def check_images(self):
         """Every image must be a real picture: readable, of the right size, not one flat colour."""

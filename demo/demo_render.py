@@ -208,7 +208,8 @@ def _outline(mask, width, height):
         row = y * width
         for x in range(1, width - 1):
             index = row + x
-            if mask[index] and not (mask[index - 1] and mask[index + 1] and mask[index - width] and mask[index + width]):
+            inside = mask[index - 1] and mask[index + 1] and mask[index - width] and mask[index + width]
+            if mask[index] and not inside:
                 edge.update((index, index + 1, index + width))
     return edge
 

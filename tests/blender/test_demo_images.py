@@ -62,7 +62,8 @@ def box_corners(y_range, z_range, x_range=(-0.6, 0.6)):
 
 def count_in_box(mask, width, box, height):
     x0, y0, x1, y1 = box
-    return sum(mask[y * width + x] for y in range(max(0, y0), min(height, y1)) for x in range(max(0, x0), min(width, x1)))
+    return sum(mask[y * width + x]
+               for y in range(max(0, y0), min(height, y1)) for x in range(max(0, x0), min(width, x1)))
 
 
 class TestCylinderSilhouettes(helpers.AddonTestCase):

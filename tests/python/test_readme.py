@@ -193,7 +193,8 @@ class TestReadmeContent(unittest.TestCase):
         steps = self.text.split("## Using it, step by step", 1)[1].split("\n## ", 1)[0]
         self.assertIn("**Modifiers**", steps)
         for idname in ("object.lvp_add", "object.lvp_bind", "object.lvp_auto_weights"):
-            self.assertIn("**%s**" % labels[idname], steps, "the button %s (%s) is not in the steps" % (labels[idname], idname))
+            self.assertIn("**%s**" % labels[idname], steps,
+                          "the button %s (%s) is not in the steps" % (labels[idname], idname))
         self.assertIn('text="Remove"', ui)
         self.assertIn("**Remove**", steps)
         for idname in re.findall(r"`bpy\.ops\.object\.(\w+)\(\)`", self.text) + \

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The demo's characters, built by code: the paper's cylinder, the giraffe of tests/data/giraffe and
-a three-phalanx finger. Each is made twice, as plain skinning (Armature modifier only) and with Volume
-Preservation added by the add-on's own operator, in the same pose.
+a three-phalanx finger. Each is made several times in the same pose: with plain skinning (Armature
+modifier only), with Volume Preservation added by the add-on's own operator (object.lvp_add), and for
+the measurements with Blender's "Preserve Volume" (dual quaternion skinning).
 
 The cylinder and the giraffe come from the test helpers (tests/blender/lvp_helpers.py,
 tests/blender/giraffe_import.py), so the demo shows exactly what the tests measure. The finger is the

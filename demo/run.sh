@@ -36,7 +36,7 @@ export LVP_REPO="$REPO"
 export LVP_ADDON_DIR="$DIST/$ADDON_ID"
 export LVP_EXTENSION_ZIP="$DIST/$ADDON_ID-$VERSION.zip"
 
-log "rendering with $BLENDER (Cycles, CPU) into ${*:-demo/out}"
+log "rendering with $BLENDER (Cycles on the CPU)"
 # Blender's per-frame render lines are left out; everything the demo prints is kept.
 set +e
 "$BLENDER" -b --factory-startup -noaudio --python-exit-code 1 --python "$HERE/demo.py" -- "$@" 2>&1 |

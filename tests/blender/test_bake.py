@@ -195,14 +195,23 @@ class TestOperator(BakeTestCase):
 # ---- the command in a second Blender --------------------------------------------------------
 
 
-def can_mount():
+def mount_namespace():
+    """The command prefix that runs a command in a private mount namespace where it may mount a tmpfs, or
+    None (not root, no unshare). Inside the 4.3 chroot "/" is not a mount point: its namespace is already
+    private (blender43.sh), so a copy with unchanged propagation is private too."""
     if os.geteuid() != 0 or shutil.which("unshare") is None:
-        return False
-    probe = subprocess.run(["unshare", "-m", "--propagation", "private", "sh", "-c",
-                            "mount -t tmpfs -o size=64k tmpfs /mnt 2>/dev/null || "
-                            "mount -t tmpfs -o size=64k tmpfs \"$0\"", tempfile.mkdtemp(dir=helpers.test_tmp())],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return probe.returncode == 0
+        return None
+    attempts = [["unshare", "-m", "--propagation", "private"]]
+    with open("/proc/self/mountinfo") as file:
+        if "shared:" not in file.read():
+            attempts.append(["unshare", "-m", "--propagation", "unchanged"])
+    for prefix in attempts:
+        probe = subprocess.run(prefix + ["sh", "-c", 'mount -t tmpfs -o size=64k tmpfs "$0"',
+                                         tempfile.mkdtemp(dir=helpers.test_tmp())],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        if probe.returncode == 0:
+            return prefix
+    return None
 
 
 class CommandTestCase(BakeTestCase):
@@ -305,8 +314,9 @@ class TestCommand(CommandTestCase):
     def test_unwritable_directory(self):
         target = os.path.join(self.out, "readonly")
         os.makedirs(target)
-        if can_mount():
-            wrapper = ["unshare", "-m", "--propagation", "private", "sh", "-c",
+        prefix = mount_namespace()
+        if prefix:
+            wrapper = prefix + ["sh", "-c",
                        'mount -t tmpfs -o ro,size=1m tmpfs "$0" && shift && exec "$@"', target, "--"]
             self.assertBakeFails(["--objects", "Giraffe", "--output", target], "Read-only file system",
                                  wrapper=wrapper)
@@ -321,10 +331,12 @@ class TestCommand(CommandTestCase):
         os.makedirs(target)
         listing = os.path.join(self.out, "listing")
         frame_size = 12 * len(self.obj.data.vertices)
-        if can_mount():
+        prefix = mount_namespace()
+        if prefix:
+            print("\n    a %d KiB tmpfs fills mid-bake" % ((10 * frame_size) // 1024))
             # Room for about 10 of the 24 frames: the disk fills mid-bake.
             size_k = (10 * frame_size) // 1024
-            wrapper = ["unshare", "-m", "--propagation", "private", "sh", "-c",
+            wrapper = prefix + ["sh", "-c",
                        'mount -t tmpfs -o size=%dk tmpfs "$0" && shift && "$@"; status=$?; '
                        'ls -R "$0" > %s; exit $status' % (size_k, listing), target, "--"]
             output = self.assertBakeFails(["--objects", "Giraffe", "--output", target], "the disk is full",
@@ -334,6 +346,7 @@ class TestCommand(CommandTestCase):
             self.assertIn(".journal", files, "the finished frames should be kept")
             self.assertNotIn("Giraffe.pc2\n", files.replace("Giraffe.pc2.parts", ""))
         else:
+            print("\n    no mount namespace here: RLIMIT_FSIZE stands in for a full disk")
             limit = 10 * frame_size
 
             def limit_file_size():

@@ -402,3 +402,107 @@ class TestCommand(CommandTestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+# ---- docs/baking.md, command by command ---------------------------------------------------------
+
+DOC = os.path.join(helpers.REPO, "docs", "baking.md")
+DOC_OUTPUT = "/shared/cache/shot"
+DOC_SCRIPT_FOLDER = "~/.config/blender/3.4/scripts/addons/local_volume_preservation"
+
+
+def doc_commands():
+    """The shell commands of docs/baking.md's ```sh blocks, in order."""
+    commands = []
+    inside = False
+    with open(DOC) as file:
+        for line in file:
+            if line.startswith("```"):
+                inside = line.strip() == "```sh"
+                continue
+            if inside and line.strip():
+                commands.append(line.strip())
+    return commands
+
+
+SETUP_PREFERENCES = """
+import os, sys, shutil, bpy, addon_utils
+if bpy.app.version >= (4, 2, 0):
+    result = bpy.ops.extensions.package_install_files(filepath=%(zip)r, repo="user_default", enable_on_install=True)
+    assert 'FINISHED' in result, result
+else:
+    target = os.path.join(bpy.utils.user_resource('SCRIPTS', path="addons"), "local_volume_preservation")
+    shutil.copytree(%(folder)r, target)
+    addon_utils.enable("local_volume_preservation", default_set=True)
+bpy.ops.wm.save_userpref()
+"""
+
+
+class TestDocs(CommandTestCase):
+    """Runs every command of docs/baking.md as written, in a Blender whose user preferences have the add-on
+    enabled (like a user's or a farm worker's), with only the file names replaced by the test's."""
+
+    last_frame = 48
+
+    def setUp(self):
+        super().setUp()
+        user = helpers.fresh_directory("user")
+        self.user_environment = dict(os.environ)
+        for name, sub in (("BLENDER_USER_RESOURCES", ""), ("BLENDER_USER_CONFIG", "config"),
+                          ("BLENDER_USER_SCRIPTS", "scripts"), ("BLENDER_USER_DATAFILES", "datafiles"),
+                          ("BLENDER_USER_EXTENSIONS", "extensions")):
+            self.user_environment[name] = os.path.join(user, sub) if sub else user
+        script = os.path.join(user, "setup.py")
+        with open(script, "w") as file:
+            file.write(SETUP_PREFERENCES % {"zip": helpers.extension_zip(), "folder": helpers.addon_dir()})
+        completed = subprocess.run([bpy.app.binary_path, "-b", "--factory-startup", "-noaudio", "--python-exit-code",
+                                    "1", "--python", script], env=self.user_environment, stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, universal_newlines=True, timeout=300)
+        self.assertEqual(completed.returncode, 0, completed.stdout[-3000:])
+
+    def script_folder(self):
+        probe = subprocess.run([bpy.app.binary_path, "-b", "-noaudio", "--python-expr",
+                                "import addon_utils, os\n"
+                                "for m in addon_utils.modules():\n"
+                                "    if m.__name__.endswith('local_volume_preservation'):\n"
+                                "        print('FOLDER=' + os.path.dirname(m.__file__))\n"],
+                               env=self.user_environment, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               universal_newlines=True, timeout=300)
+        folders = [line[len("FOLDER="):] for line in probe.stdout.splitlines() if line.startswith("FOLDER=")]
+        self.assertTrue(folders, probe.stdout[-2000:])
+        return folders[0]
+
+    def run_doc_command(self, command, output):
+        import shlex
+        text = command.replace(DOC_SCRIPT_FOLDER, self.script_folder()).replace(DOC_OUTPUT, output)
+        arguments = shlex.split(text)
+        self.assertEqual(arguments[0], "blender")
+        arguments = [bpy.app.binary_path] + [self.blend if word == "shot.blend" else word for word in arguments[1:]]
+        completed = subprocess.run(arguments, env=self.user_environment, stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, universal_newlines=True, timeout=600)
+        self.assertEqual(completed.returncode, 0, "%s\n%s" % (command, completed.stdout[-4000:]))
+        return completed.stdout
+
+    def test_every_command(self):
+        commands = doc_commands()
+        self.assertGreaterEqual(len(commands), 5)
+        has_command = bpy.app.version >= (4, 2, 0)
+        ran = 0
+        output = None
+        previous_farm = False
+        for command in commands:
+            if " -c " in command and not has_command:
+                continue  # the -c form needs Blender 4.2+ (Blender 4.3 runs it)
+            farm = "--chunk" in command or "--merge" in command
+            if not (farm and previous_farm):  # the farm's chunks and merge share one output directory
+                output = helpers.fresh_directory("doc")
+            previous_farm = farm and "--merge" not in command
+            log = self.run_doc_command(command, output)
+            ran += 1
+            if "--chunk" not in command:
+                self.assertIn("wrote %s" % os.path.join(output, "Giraffe.pc2"), log)
+                self.assertFramesEqualLive(self.obj, os.path.join(output, "Giraffe.pc2"), 1, 48)
+        self.assertEqual(ran, len(commands) if has_command else 1)
+        if has_command:
+            help_text = self.run_doc_command("blender -b -c lvp_bake --help", "")
+            self.assertIn("--jobs N", help_text)

@@ -53,4 +53,5 @@ for selection in "${blenders[@]}"; do
 	sed -n '/^Blender [0-9].*vertices/,/^core /p' "$RUN_TMP/log"
 	echo
 done
+"$HERE/bench_bake.sh" || status=1  # bake speed to PC2 with 1 and 2 jobs (issue 4)
 exit $status

@@ -133,7 +133,8 @@ already baked"""
         self._timer = window_manager.event_timer_add(0.001, window=context.window)
         window_manager.modal_handler_add(self)
         if context.workspace is not None:
-            context.workspace.status_text_set("Baking Volume Preservation to PC2: Esc to cancel (baked frames are kept)")
+            context.workspace.status_text_set("Baking Volume Preservation to PC2: Esc to cancel (baked frames "
+                                              "are kept)")
         return {'RUNNING_MODAL'}
 
     def _end_modal(self, context):

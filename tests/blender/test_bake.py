@@ -17,7 +17,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import tempfile
 import time
 import unittest
@@ -386,7 +385,8 @@ class TestCommand(CommandTestCase):
         # Identical to a bake that was never interrupted.
         fresh = os.path.join(self.out, "fresh")
         self.assertBakeOk(common + ["--output", fresh, "--frames", "1-%d" % last])
-        with open(os.path.join(self.out, "Giraffe.pc2"), "rb") as a, open(os.path.join(fresh, "Giraffe.pc2"), "rb") as b:
+        with open(os.path.join(self.out, "Giraffe.pc2"), "rb") as a, \
+                open(os.path.join(fresh, "Giraffe.pc2"), "rb") as b:
             self.assertTrue(a.read() == b.read(), "the resumed bake differs from an uninterrupted one")
 
     @staticmethod

@@ -89,7 +89,8 @@ class TestFlamencoJobType(unittest.TestCase):
     def test_several_objects_and_uneven_chunks(self):
         tasks = self.compile({"objects": "Giraffe  Horse", "frames": "1-50", "chunk_size": 20,
                               "output_dir": "/out", "blendfile": "a.blend"})
-        chunks = [task["commands"][0][task["commands"][0].index("--frames") + 1] for task in tasks if task["name"] != "merge"]
+        commands = [task["commands"][0] for task in tasks if task["name"] != "merge"]
+        chunks = [command[command.index("--frames") + 1] for command in commands]
         self.assertEqual(chunks, ["1-20", "21-40", "41-50"])
         self.assertIn("Horse", tasks[0]["commands"][0])
         self.assertEqual(tasks[0]["commands"][0][-1], "--chunk")

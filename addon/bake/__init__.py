@@ -4,7 +4,7 @@
     pc2.py       the PC2 format, crash-safe part files, merging (pure Python, no bpy)
     capture.py   what is baked for an object at a frame, and the checks before baking
     engine.py    one bake in this Blender: plan, frame after frame, merge; progress; Alembic
-    bake_operator.py  object.lvp_bake (modal with progress bar and Esc in the interface)
+    operator.py  object.lvp_bake (modal with progress bar and Esc in the interface)
     command.py   the headless command `blender -b FILE -c lvp_bake ...` (Blender 4.2+), --jobs N
     lvp_bake.py  the same command for any Blender: `blender -b FILE --python .../bake/lvp_bake.py -- ...`
 
@@ -16,17 +16,17 @@ import bpy
 from . import pc2  # noqa: F401
 from . import capture  # noqa: F401
 from . import engine  # noqa: F401
-from . import bake_operator
+from . import operator
 from . import command
 
 
 def register():
-    for cls in bake_operator.classes:
+    for cls in operator.classes:
         bpy.utils.register_class(cls)
     command.register()
 
 
 def unregister():
     command.unregister()
-    for cls in reversed(bake_operator.classes):
+    for cls in reversed(operator.classes):
         bpy.utils.unregister_class(cls)

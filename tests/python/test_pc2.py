@@ -18,9 +18,20 @@ from array import array
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
-sys.path.insert(0, os.path.join(REPO, "addon", "bake"))
+PC2_PATH = os.path.join(REPO, "addon", "bake", "pc2.py")
 
-import pc2  # noqa: E402
+
+def load_pc2():
+    """addon/bake/pc2.py by its path (putting addon/bake on sys.path would let its operator.py shadow the
+    standard library's operator module)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("pc2", PC2_PATH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+pc2 = load_pc2()
 
 IDENTITY = {"object": "Thing", "vertices": 3, "source": "sha256:abc", "blender": "test", "addon": "0"}
 
@@ -226,11 +237,13 @@ class TestMerge(TempDir):
         parts, _ = pc2.scan_parts(self.final, IDENTITY)
         part_files = sorted(os.listdir(pc2.parts_directory(self.final)))
         limit = os.path.getsize(parts[0].path) // 2
-        code = ("import sys; sys.path.insert(0, %r); import pc2\n"
+        code = ("import importlib.util, sys\n"
+                "spec = importlib.util.spec_from_file_location('pc2', %r)\n"
+                "pc2 = importlib.util.module_from_spec(spec); spec.loader.exec_module(pc2)\n"
                 "parts, _ = pc2.scan_parts(%r, %r)\n"
                 "try:\n    pc2.merge(parts, 1, 40, %r, 3)\n"
                 "except pc2.DiskFullError as error:\n    print(error); sys.exit(3)\n"
-                % (os.path.join(REPO, "addon", "bake"), self.final, IDENTITY, self.final))
+                % (PC2_PATH, self.final, IDENTITY, self.final))
 
         def limit_file_size():
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

@@ -32,15 +32,18 @@ static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, 
 	if (!(ds > 0.0) || !(dj > 0.0))
 		return false;
 	lvp__vec3 gradient = lvp__sub(lvp__scale(lvp__sub(p, cs), 1.0 / (ds * ls)), lvp__scale(lvp__sub(p, cj), 1.0 / (dj * lj)));
+	/* Each term of the gradient has length 1 / l. When they (nearly) cancel, the two bones lie on
+	 * top of each other here (a joint folded to 180 degrees): there is no contact surface to
+	 * project onto, and the direction would be rounding noise. */
 	double length = lvp__length(gradient);
-	if (!(length > 0.0))
+	if (!(length > 1e-6 * (1.0 / ls + 1.0 / lj)))
 		return false;
 	lvp__vec3 direction = lvp__scale(gradient, -1.0 / length);
 	double f = lvp__side(p, sh, st, ls, jh, jt, lj);
-	double outside = 0.0, inside = f / length;
-	int doublings = 0;
 	/* The contact surface is nearer than the farther bone: past that, give up on this vertex. */
 	double reach = 2.0 * (ds + dj);
+	double outside = 0.0, inside = fmin(f / length, reach);
+	int doublings = 0;
 	while (lvp__side(lvp__add(p, lvp__scale(direction, inside)), sh, st, ls, jh, jt, lj) > 0.0) {
 		outside = inside;
 		inside *= 2.0;

@@ -46,7 +46,8 @@ void lvp_free(lvp_binding *binding)
 	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
 	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
 	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
-	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->neighbour_offsets,
+	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->movable_offsets,
+	    binding->movable_vertex, binding->movable_phi, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
 	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->rho, binding->frozen,
 	    binding->sums, binding->origin, binding->change, binding->frame_base, binding->kappa, binding->posed, binding->posed_inverse,
@@ -195,6 +196,9 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->distance = lvp__alloc(n, sizeof(float), &ok);
 	binding->log_gamma = lvp__alloc(n, sizeof(double), &ok);
 	binding->support_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->movable_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->movable_vertex = lvp__alloc(n + e, sizeof(int32_t), &ok); /* a support never has more */
+	binding->movable_phi = lvp__alloc(n + e, sizeof(float), &ok);
 	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
 	binding->region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->work_positions = lvp__alloc(n * 3, sizeof(float), &ok);

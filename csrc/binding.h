@@ -86,6 +86,12 @@ struct lvp_binding {
 	int32_t *support_vertex;
 	float *support_phi;       /* phi_ks */
 	int32_t support_capacity;
+	/* This frame's movable part of each support: entries whose vertex the frame map lets move
+	 * (frame_gamma > 0). In a rig bent at a few joints most of the support is rigid, so the
+	 * correction loops visit only these. Capacity: vertex_count + weight entries. */
+	int32_t *movable_offsets; /* region_count+1 */
+	int32_t *movable_vertex;
+	float *movable_phi;
 
 	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
 	int32_t *neighbour_offsets; /* region_count+1 */

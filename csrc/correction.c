@@ -160,11 +160,11 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 	 * regions past the dense block keep only their diagonal (stored in mu temporarily). */
 	for (int32_t j = 0; j < m; ++j) {
 		int32_t t = active[j];
-		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
-			int32_t k = binding->support_vertex[i];
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
 			if (binding->frozen[k])
 				continue;
-			double c = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i];
+			double c = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i];
 			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
 				int32_t s = binding->slot_region[slot];
 				int32_t row = s >= 0 ? binding->active_index[s] : -1;
@@ -211,17 +211,17 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 		double mu = binding->mu[t];
 		if (mu == 0.0)
 			continue;
-		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
-			int32_t k = binding->support_vertex[i];
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
 			if (!binding->frozen[k])
-				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
 		}
 	}
 	binding->moved_count = 0;
 	for (int32_t j = 0; j < m; ++j) {
 		int32_t t = active[j];
-		for (int32_t i = binding->support_offsets[t]; i < binding->support_offsets[t + 1]; ++i) {
-			int32_t k = binding->support_vertex[i];
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
 			if (rho[k] == 0.0f)
 				continue;
 			lvp__move_vertex(binding, k, rho[k]);
@@ -242,7 +242,7 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
 		if (binding->region_skipped[r] || !(reference > 0.0) ||
-		    binding->support_offsets[r + 1] == binding->support_offsets[r])
+		    binding->movable_offsets[r + 1] == binding->movable_offsets[r])
 			continue;
 		bool off = fabs(binding->change[r]) > tolerance * reference;
 		any_off = any_off || off;
@@ -329,6 +329,23 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 	}
 }
 
+/* The movable part of each region's support under this frame's map (binding.h). */
+static void lvp__movable_support(lvp_binding *binding)
+{
+	int32_t at = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		binding->movable_offsets[r] = at;
+		for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
+			int32_t k = binding->support_vertex[i];
+			if (binding->frame_gamma[k] > 0.0f && binding->support_phi[i] != 0.0f) {
+				binding->movable_vertex[at] = k;
+				binding->movable_phi[at++] = binding->support_phi[i];
+			}
+		}
+	}
+	binding->movable_offsets[binding->region_count] = at;
+}
+
 /* Measures work_positions (mesh pass and region changes). */
 static void lvp__measure(lvp_binding *binding, const float *rest_positions, const double *base)
 {
@@ -404,11 +421,11 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		for (int32_t r = 0; r < binding->region_count; ++r) {
 			if (!binding->region_touched[r])
 				continue;
-			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
-				int32_t k = binding->support_vertex[i];
+			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
+				int32_t k = binding->movable_vertex[i];
 				if (!binding->frozen[k])
 					system += (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k] *
-					          binding->support_phi[i];
+					          binding->movable_phi[i];
 			}
 		}
 		if (!(system > 0.0))
@@ -418,18 +435,18 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		for (int32_t r = 0; r < binding->region_count; ++r) {
 			if (!binding->region_touched[r])
 				continue;
-			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
-				int32_t k = binding->support_vertex[i];
+			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
+				int32_t k = binding->movable_vertex[i];
 				if (!binding->frozen[k])
-					rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->support_phi[i] * mu);
+					rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
 			}
 		}
 		binding->moved_count = 0;
 		for (int32_t r = 0; r < binding->region_count; ++r) {
 			if (!binding->region_touched[r])
 				continue;
-			for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
-				int32_t k = binding->support_vertex[i];
+			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
+				int32_t k = binding->movable_vertex[i];
 				if (rho[k] == 0.0f)
 					continue;
 				lvp__move_vertex(binding, k, rho[k]);
@@ -500,6 +517,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__frame_map(binding, rest_positions);
+	lvp__movable_support(binding);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
@@ -524,8 +542,10 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
 		int32_t moved = lvp__fold_over(binding, rest_positions);
 		stats.folded_vertices = moved;
-		if (moved > 0)
+		if (moved > 0) {
 			lvp__fade_map_at_contact(binding);
+			lvp__movable_support(binding);
+		}
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
 			lvp__measure(binding, rest_positions, base);

@@ -40,19 +40,22 @@ void lvp_free(lvp_binding *binding)
 	    binding->rest_positions, binding->triangles, binding->triangle_original, binding->triangle_region,
 	    binding->region_triangle_offsets, binding->weight_offsets, binding->weight_bones, binding->weight_values,
 	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
-	    binding->heads, binding->tails, binding->bone_length, binding->rest_change_base, binding->reference_volume,
+	    binding->heads, binding->tails, binding->bone_length, binding->rest_totals, binding->reference_volume,
 	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_triangles,
-	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class,
-	    binding->triangle_gradient, binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles,
-	    binding->vertex_dirty, binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets, binding->region_bones,
-	    binding->support_offsets, binding->support_vertex, binding->support_phi, binding->movable_offsets,
-	    binding->movable_vertex, binding->movable_phi, binding->neighbour_offsets,
-	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
-	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->rho, binding->frozen,
-	    binding->sums, binding->origin, binding->change, binding->frame_base, binding->kappa, binding->posed, binding->posed_inverse,
-	    binding->skin, binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
-	    binding->active_index, binding->system, binding->rhs, binding->pivots, binding->mu,
+	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class, binding->triangle_gradient,
+	    binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles, binding->vertex_dirty,
+	    binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
+	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma,
+	    binding->distance, binding->region_bone_offsets, binding->region_bones, binding->support_offsets,
+	    binding->support_vertex, binding->support_phi, binding->movable_offsets, binding->movable_vertex,
+	    binding->movable_phi, binding->neighbour_offsets, binding->neighbour_bones, binding->region_vertex_offsets,
+	    binding->region_vertices, binding->work_positions, binding->normals, binding->vertex_g, binding->slot_gradient,
+	    binding->slot_g, binding->rho, binding->frozen, binding->sums, binding->origin, binding->change,
+	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic,
+	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest,
+	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->posed_heads,
+	    binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active, binding->active_index,
+	    binding->system, binding->rhs, binding->pivots, binding->mu,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -187,7 +190,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		binding->posed_heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
 		binding->posed_tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
 	}
-	binding->rest_change_base = lvp__alloc(s, sizeof(double), &ok);
+	binding->rest_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
 	binding->reference_volume = lvp__alloc(s, sizeof(double), &ok);
 	binding->slot_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
 	binding->corner_slot = lvp__alloc(f * 3, sizeof(int32_t), &ok);
@@ -220,7 +223,14 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->skin_class = lvp__alloc(b, sizeof(int32_t), &ok);
 	binding->change = lvp__alloc(s, sizeof(double), &ok);
 	binding->kappa = lvp__alloc(s, sizeof(double), &ok);
-	binding->frame_base = lvp__alloc(s, sizeof(double), &ok);
+	binding->frame_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	binding->vertex_class = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->vertex_dynamic = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->dynamic_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->region_dynamic_offsets = lvp__alloc(s + 2, sizeof(int32_t), &ok);
+	binding->dynamic_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->static_rest = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	binding->static_count = lvp__alloc(s, sizeof(int32_t), &ok);
 	binding->region_skipped = lvp__alloc(s, sizeof(uint8_t), &ok);
 	binding->region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
 	binding->active = lvp__alloc(s, sizeof(int32_t), &ok);
@@ -263,7 +273,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		hi = lvp__v(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
 	}
 	binding->size = lvp__length(lvp__sub(hi, lo));
-	lvp__rest_constants(binding, NULL, binding->rest_change_base);
+	lvp__rest_constants(binding, NULL, binding->rest_totals);
 	*r_binding = binding;
 	return lvp_success;
 }

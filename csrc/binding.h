@@ -54,7 +54,7 @@ struct lvp_binding {
 	double rest_volume;          /* signed volume of the bind rest mesh */
 	double size;                 /* diagonal of the rest bounding box */
 	lvp__vec3 global_origin;     /* global mode: rest centroid, to keep the sums well conditioned */
-	double *rest_change_base;    /* region_count: rest prism part (sum over rest triangles) */
+	lvp__region_sums *rest_totals; /* region_count: the region sums of the bind rest, about each bone's rest origin */
 	double *reference_volume;    /* region_count: V_ref,s for the tolerance (0 = empty region) */
 
 	/* ---- slots: the distinct regions of the triangles around each vertex ---- */
@@ -117,11 +117,21 @@ struct lvp_binding {
 	float *rho;              /* vertex_count, kept zero between uses */
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */
 	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
+	/* The dynamic set (local_volume.c): what a pass visits. A triangle whose three corners follow
+	 * its region's bone rigidly is static: its terms are its rest terms moved by the bone. */
+	int32_t *vertex_class;   /* vertex_count: the skin class all its bones share this frame, or -1 */
+	uint8_t *vertex_dynamic; /* vertex_count: not rigid, movable by the map, or moved by fold-over */
+	int32_t *dynamic_triangles; /* triangle_count: the dynamic ones, in sorted order */
+	int32_t *region_dynamic_offsets; /* region_count+2 into dynamic_triangles (the last range: no region) */
+	int32_t *dynamic_vertices; /* vertex_count: the dynamic vertices */
+	int32_t dynamic_vertex_count;
+	lvp__region_sums *static_rest; /* region_count: rest sums of the static triangles */
+	int32_t *static_count;   /* region_count: how many static triangles */
 	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */
 	float *origin_float;     /* (region_count + 1)*3: the same in float, last = 0 (no region) */
 	int32_t *skin_class;     /* bone_count: bones with equal skin matrices this frame share a class */
 	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
-	double *frame_base;      /* region_count: rest side when the frame brings its own rest */
+	lvp__region_sums *frame_totals; /* region_count: rest_totals of the frame's own rest, when given */
 	double *kappa;           /* region_count: det(rest)/det(posed) */
 	lvp__mat4 *posed;        /* bone_count */
 	lvp__mat4 *posed_inverse;
@@ -144,17 +154,21 @@ lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_opti
 
 /* local_volume.c */
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* One pass over the triangles at `positions`: region sums, slot gradients, normals, g. */
+/* Which triangles and vertices a pass visits (binding.h), from vertex_class and vertex_dynamic;
+ * with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
+void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
+                      bool all_dynamic);
+/* One pass over the dynamic set at `positions`: region sums, slot gradients, normals, g. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions);
 /* The same after only the vertices moved[0..moved_count) moved: visits their triangles only. */
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count);
-/* Rest side: rest_change_base[] and reference volumes from rest positions (NULL = bind rest). */
-void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, double *r_base);
+/* Rest side: the region sums of the rest positions (NULL = bind rest) about the rest origins. */
+void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
 void lvp__reference_volumes(lvp_binding *binding);
 /* Region changes (rest-world units) from the last mesh pass; needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
-                         const double *rest_base, double *r_change);
+                         const lvp__region_sums *rest_totals, double *r_change);
 /* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */
 double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
 /* Signed volume of the mesh at positions, holes capped (double precision). */

@@ -290,38 +290,65 @@ static void lvp__skin_classes(lvp_binding *binding)
 	}
 }
 
+/* vertex_class[k]: the skin class that all bones of vertex k (with weight) share, or -1. */
+static void lvp__vertex_classes(lvp_binding *binding)
+{
+	lvp__skin_classes(binding);
+	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		int32_t shared = -1;
+		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+			if (!(binding->weight_values[e] > 0.0f))
+				continue;
+			int32_t c = binding->skin_class[binding->weight_bones[e]];
+			if (shared >= 0 && c != shared) {
+				shared = -1;
+				break;
+			}
+			shared = c;
+		}
+		binding->vertex_class[k] = shared;
+	}
+}
+
+/* This frame's map, and which vertices are dynamic (binding.h). */
 static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 {
 	int32_t n = binding->vertex_count;
-	bool weighted = binding->map.deformation_weighted && binding->mode == LVP_MODE_LOCAL;
-	if (!weighted) {
+	if (binding->mode != LVP_MODE_LOCAL) {
 		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
+		memset(binding->vertex_dynamic, 1, (size_t)n);
+		return;
+	}
+	lvp__vertex_classes(binding);
+	if (!binding->map.deformation_weighted) {
+		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
+		for (int32_t k = 0; k < n; ++k)
+			binding->vertex_dynamic[k] = binding->vertex_class[k] < 0 || binding->frame_gamma[k] > 0.0f;
 		return;
 	}
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	lvp__skin_classes(binding);
 	for (int32_t k = 0; k < n; ++k) {
-		if (!(binding->gamma[k] > 0.0f)) {
+		binding->vertex_dynamic[k] = binding->vertex_class[k] < 0;
+		/* All bones of the vertex in one class: it moves rigidly, no need to transform. */
+		if (!(binding->gamma[k] > 0.0f) || binding->vertex_class[k] >= 0) {
 			binding->frame_gamma[k] = 0.0f;
 			continue;
 		}
 		int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
-		/* All bones of the vertex in one class: it moves rigidly, no need to transform. */
-		bool rigid = true;
-		for (int32_t e = begin + 1; e < end && rigid; ++e)
-			rigid = binding->skin_class[binding->weight_bones[e]] == binding->skin_class[binding->weight_bones[begin]];
-		if (rigid) {
-			binding->frame_gamma[k] = 0.0f;
-			continue;
-		}
 		lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
-		for (int32_t e = begin; e < end; ++e)
-			blend = lvp__add(blend, lvp__scale(lvp__transform_point(&binding->skin[binding->weight_bones[e]], p),
-			                                   binding->weight_values[e]));
+		lvp__vec3 moved[8]; /* the first few bones' images of p, kept for the second loop */
+		for (int32_t e = begin; e < end; ++e) {
+			lvp__vec3 q = lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
+			if (e - begin < 8)
+				moved[e - begin] = q;
+			blend = lvp__add(blend, lvp__scale(q, binding->weight_values[e]));
+		}
 		double spread = 0.0;
-		for (int32_t e = begin; e < end; ++e)
-			spread += binding->weight_values[e] *
-			          lvp__length(lvp__sub(lvp__transform_point(&binding->skin[binding->weight_bones[e]], p), blend));
+		for (int32_t e = begin; e < end; ++e) {
+			lvp__vec3 q = e - begin < 8 ? moved[e - begin]
+			                            : lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
+			spread += binding->weight_values[e] * lvp__length(lvp__sub(q, blend));
+		}
 		/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
 		if (spread < 1e-6 * binding->size)
 			spread = 0.0;
@@ -347,17 +374,22 @@ static void lvp__movable_support(lvp_binding *binding)
 }
 
 /* Measures work_positions (mesh pass and region changes). */
-static void lvp__measure(lvp_binding *binding, const float *rest_positions, const double *base)
+static void lvp__measure(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
 {
+	lvp__dynamic_set(binding, rest_positions, totals, false);
 	lvp__mesh_pass(binding, binding->work_positions);
-	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
+	lvp__region_changes(binding, binding->work_positions, rest_positions, totals, binding->change);
 }
 
-/* Measures again after a step that moved only binding->moved: only their triangles are visited. */
-static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, const double *base)
+/* Measures again after a step that moved only binding->moved: only their triangles are visited,
+ * or, when they are most of the dynamic set, the whole set again (streaming and threaded). */
+static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
 {
-	lvp__update_pass(binding, binding->work_positions, binding->moved, binding->moved_count);
-	lvp__region_changes(binding, binding->work_positions, rest_positions, base, binding->change);
+	if (2 * binding->moved_count >= binding->dynamic_vertex_count)
+		lvp__mesh_pass(binding, binding->work_positions);
+	else
+		lvp__update_pass(binding, binding->work_positions, binding->moved, binding->moved_count);
+	lvp__region_changes(binding, binding->work_positions, rest_positions, totals, binding->change);
 }
 
 /* Sum over the regions of their squared relative change: what the iterations decrease. */
@@ -376,7 +408,8 @@ static double lvp__error_norm(const lvp_binding *binding)
  * normals, change[]) of work_positions. Returns the number of correction steps taken;
  * *r_first_active receives the number of regions corrected by the first one. */
 static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_options *options,
-                                      const float *rest_positions, const double *base, int32_t *r_first_active)
+                                      const float *rest_positions, const lvp__region_sums *totals,
+                                      int32_t *r_first_active)
 {
 	int32_t steps = 0;
 	*r_first_active = 0;
@@ -389,12 +422,12 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		double before = lvp__error_norm(binding);
 		lvp__correct_step(binding, m);
 		++steps;
-		lvp__remeasure(binding, rest_positions, base);
+		lvp__remeasure(binding, rest_positions, totals);
 		/* A step that makes the regions worse overall is undone and ends the iteration (a pose
 		 * folded onto itself, where the linearization no longer describes the volume). */
 		if (!(lvp__error_norm(binding) < before)) {
 			lvp__undo_step(binding);
-			lvp__measure(binding, rest_positions, base);
+			lvp__measure(binding, rest_positions, totals);
 			break;
 		}
 	}
@@ -410,7 +443,7 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
  * removes what is left of the whole mesh's change, holes capped: the total is then exact and
  * the fix stays where the regions put it. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
-                                 double target, const float *rest_positions, const double *base)
+                                 double target, const float *rest_positions, const lvp__region_sums *totals)
 {
 	int32_t steps = 0;
 	while (steps < budget) {
@@ -454,11 +487,11 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			}
 		}
 		++steps;
-		lvp__remeasure(binding, rest_positions, base);
+		lvp__remeasure(binding, rest_positions, totals);
 		double after = lvp__pass_volume(binding, binding->work_positions) - target;
 		if (!(fabs(after) < fabs(change))) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
-			lvp__measure(binding, rest_positions, base);
+			lvp__measure(binding, rest_positions, totals);
 			break;
 		}
 	}
@@ -510,10 +543,10 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		return result;
 
 	int32_t n = binding->vertex_count;
-	const double *base = binding->rest_change_base;
+	const lvp__region_sums *totals = binding->rest_totals;
 	if (rest_positions) {
-		lvp__rest_constants(binding, rest_positions, binding->frame_base);
-		base = binding->frame_base;
+		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
+		totals = binding->frame_totals;
 	}
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__frame_map(binding, rest_positions);
@@ -525,16 +558,16 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 
 	int32_t first_active = 0;
-	lvp__measure(binding, rest_positions, base);
+	lvp__measure(binding, rest_positions, totals);
 	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
 
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
-	stats.iterations = lvp__volume_iterations(binding, options, rest_positions, base, &first_active);
+	stats.iterations = lvp__volume_iterations(binding, options, rest_positions, totals, &first_active);
 	if (binding->mode == LVP_MODE_LOCAL)
 		stats.iterations += lvp__global_steps(binding, options, options->max_iterations - stats.iterations,
-		                                      stats.volume_rest, rest_positions, base);
+		                                      stats.volume_rest, rest_positions, totals);
 	stats.active_regions = first_active;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
@@ -548,23 +581,23 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		}
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
-			lvp__measure(binding, rest_positions, base);
-			int32_t steps = lvp__volume_iterations(binding, options, rest_positions, base, &ignored);
+			lvp__measure(binding, rest_positions, totals);
+			int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, &ignored);
 			steps += lvp__global_steps(binding, options, options->max_iterations - steps, stats.volume_rest,
-			                           rest_positions, base);
+			                           rest_positions, totals);
 			stats.iterations += steps;
 			moved = lvp__fold_over(binding, rest_positions);
 			stats.folded_vertices += moved;
 		}
 		memset(binding->frozen, 0, (size_t)n);
-		lvp__measure(binding, rest_positions, base);
+		lvp__measure(binding, rest_positions, totals);
 	}
 	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
 	 * through unchanged and says so. */
 	for (int32_t i = 0; i < 3 * n; ++i)
 		if (!lvp__finite(binding->work_positions[i])) {
 			memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
-			lvp__measure(binding, rest_positions, base);
+			lvp__measure(binding, rest_positions, totals);
 			stats.passed_through = 1;
 			break;
 		}
@@ -607,13 +640,14 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 	lvp_result result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag);
 	if (result)
 		return result;
-	const double *base = binding->rest_change_base;
+	const lvp__region_sums *totals = binding->rest_totals;
 	if (rest_positions) {
-		lvp__rest_constants(binding, rest_positions, binding->frame_base);
-		base = binding->frame_base;
+		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
+		totals = binding->frame_totals;
 	}
+	lvp__dynamic_set(binding, rest_positions, totals, true);
 	lvp__mesh_pass(binding, positions);
-	lvp__region_changes(binding, positions, rest_positions, base, r_changes);
+	lvp__region_changes(binding, positions, rest_positions, totals, r_changes);
 	if (r_references)
 		memcpy(r_references, binding->reference_volume, sizeof(double) * (size_t)binding->region_count);
 	return lvp_success;

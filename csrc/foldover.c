@@ -108,6 +108,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				work[3 * k + 2] = (float)q.z;
 				moved += !binding->frozen[k];
 				binding->frozen[k] = 1;
+				binding->vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
 			}
 		}
 	}

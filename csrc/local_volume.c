@@ -16,6 +16,7 @@
 #include "binding.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 static inline double lvp__vol6(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
 {
@@ -185,6 +186,106 @@ static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 		binding->slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
 }
 
+static lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
+{
+	if (binding->mode == LVP_MODE_GLOBAL)
+		return binding->global_origin;
+	const double *m = binding->rest_matrices[region].m;
+	return lvp__v(m[3], m[7], m[11]);
+}
+
+/* 6 x the rest volume term of triangle t about o, and its cr. */
+static double lvp__rest_terms(lvp__vec3 *r_area6, const float *rest, const int32_t *corners, lvp__vec3 o)
+{
+	lvp__vec3 p0 = lvp__load(rest + 3 * corners[0]);
+	lvp__vec3 p1 = lvp__load(rest + 3 * corners[1]);
+	lvp__vec3 p2 = lvp__load(rest + 3 * corners[2]);
+	*r_area6 = lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0));
+	return lvp__dot(lvp__sub(p0, o), *r_area6);
+}
+
+/* ---- the dynamic set ------------------------------------------------------------------------ */
+
+/* A triangle whose three corners are moved by bones of its region's bone's skin class alone,
+ * and that the correction never moves, is where its rest triangle is, moved by that bone:
+ * (p0 - o) . cr = det(L) (r0 - o_rest) . cr_rest + delta . cof(L) cr_rest, where L is the
+ * bone's linear part, cof(L) = det(L) L^-T maps rest area vectors to posed ones, and delta is
+ * what the rounded origin o differs from the exact posed rest origin by. So a region's static
+ * triangles enter its sums through their rest sums, and a pass visits only the dynamic rest:
+ * in a pose bent at a few joints, a small part of the mesh. */
+void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
+                      bool all_dynamic)
+{
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	int32_t s = binding->region_count, count = 0;
+	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
+	if (!local)
+		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
+	for (int32_t r = 0; r <= s; ++r) {
+		int32_t first = binding->region_triangle_offsets[r];
+		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
+		binding->region_dynamic_offsets[r] = count;
+		bool may_be_static = local && r < s && !binding->region_skipped[r];
+		if (!may_be_static) {
+			for (int32_t t = first; t < last; ++t)
+				binding->dynamic_triangles[count++] = t;
+			if (r < s) {
+				memset(&binding->static_rest[r], 0, sizeof(lvp__region_sums));
+				binding->static_count[r] = 0;
+			}
+			continue;
+		}
+		int32_t bone_class = binding->skin_class[r];
+		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
+		double volume6 = 0.0;
+		for (int32_t t = first; t < last; ++t) {
+			const int32_t *c = binding->triangles + 3 * t;
+			bool is_static = true;
+			for (int i = 0; i < 3 && is_static; ++i)
+				is_static = !binding->vertex_dynamic[c[i]] && binding->vertex_class[c[i]] == bone_class;
+			if (is_static)
+				continue;
+			binding->dynamic_triangles[count++] = t;
+			lvp__vec3 cr;
+			volume6 += lvp__rest_terms(&cr, rest, c, o);
+			area = lvp__add(area, cr);
+		}
+		/* static = all - dynamic; none static: exactly zero, not the rounding of a difference */
+		int32_t statics = (last - first) - (count - binding->region_dynamic_offsets[r]);
+		binding->static_count[r] = statics;
+		lvp__region_sums *sums = &binding->static_rest[r];
+		sums->volume6 = statics ? rest_totals[r].volume6 - volume6 : 0.0;
+		sums->area6[0] = statics ? rest_totals[r].area6[0] - area.x : 0.0;
+		sums->area6[1] = statics ? rest_totals[r].area6[1] - area.y : 0.0;
+		sums->area6[2] = statics ? rest_totals[r].area6[2] - area.z : 0.0;
+	}
+	binding->region_dynamic_offsets[s + 1] = count;
+	int32_t vertices = 0;
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		if (!local || binding->vertex_dynamic[k])
+			binding->dynamic_vertices[vertices++] = k;
+	binding->dynamic_vertex_count = vertices;
+}
+
+/* The static triangles' part of region r's sums this frame (see lvp__dynamic_set). */
+static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volume6, double r_area6[3])
+{
+	const lvp__region_sums *rest = &binding->static_rest[r];
+	const double *m = binding->skin[r].m;
+	/* cof(L): columns c1 x c2, c2 x c0, c0 x c1 of L's columns c0, c1, c2 */
+	lvp__vec3 c0 = lvp__v(m[0], m[4], m[8]), c1 = lvp__v(m[1], m[5], m[9]), c2 = lvp__v(m[2], m[6], m[10]);
+	lvp__vec3 k0 = lvp__cross(c1, c2), k1 = lvp__cross(c2, c0), k2 = lvp__cross(c0, c1);
+	lvp__vec3 area = lvp__add(lvp__add(lvp__scale(k0, rest->area6[0]), lvp__scale(k1, rest->area6[1])),
+	                          lvp__scale(k2, rest->area6[2]));
+	lvp__vec3 exact_origin = lvp__transform_point(&binding->skin[r], lvp__rest_origin(binding, r));
+	const float *o = binding->origin_float + 3 * r;
+	lvp__vec3 delta = lvp__sub(exact_origin, lvp__v(o[0], o[1], o[2]));
+	*r_volume6 += lvp__dot(c0, k0) * rest->volume6 + lvp__dot(delta, area);
+	r_area6[0] += area.x;
+	r_area6[1] += area.y;
+	r_area6[2] += area.z;
+}
+
 /* The mesh pass runs in three loops that each write only their own outputs, so they can be
  * split over threads with results independent of the split: triangles (their terms), regions
  * (sums over their triangles, in order), vertices (gradients gathered from their corners). */
@@ -197,8 +298,8 @@ static void lvp__triangle_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp__pass_context *c = context;
 	lvp_binding *binding = c->binding;
-	for (int32_t t = begin; t < end; ++t)
-	{
+	for (int32_t i = begin; i < end; ++i) {
+		int32_t t = binding->dynamic_triangles[i];
 		int32_t r = binding->triangle_region[t];
 		const float *o = binding->origin_float + 3 * (r < 0 ? binding->region_count : r);
 		binding->triangle_volume6[t] =
@@ -211,20 +312,20 @@ static void lvp__region_loop(void *context, int32_t begin, int32_t end)
 	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
 	int32_t s = binding->region_count;
 	for (int32_t r = begin; r < end; ++r) {
-		int32_t first = binding->region_triangle_offsets[r];
-		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		for (int32_t t = first; t < last; ++t) {
+		for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1]; ++i) {
+			int32_t t = binding->dynamic_triangles[i];
 			const float *g = binding->triangle_gradient + 3 * t;
 			volume6 += binding->triangle_volume6[t];
 			ax += g[0];
 			ay += g[1];
 			az += g[2];
 		}
+		double area6[3] = {6.0 * ax, 6.0 * ay, 6.0 * az};
+		if (r < s && binding->static_count[r] > 0)
+			lvp__add_static_part(binding, r, &volume6, area6);
 		binding->sums[r].volume6 = volume6;
-		binding->sums[r].area6[0] = 6.0 * ax;
-		binding->sums[r].area6[1] = 6.0 * ay;
-		binding->sums[r].area6[2] = 6.0 * az;
+		memcpy(binding->sums[r].area6, area6, sizeof(area6));
 	}
 }
 
@@ -233,7 +334,8 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
 	float *slot_gradient = binding->slot_gradient;
 	const float *triangle_gradient = binding->triangle_gradient;
-	for (int32_t k = begin; k < end; ++k) {
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
 		int32_t first = binding->vertex_corner_offsets[k], last = binding->vertex_corner_offsets[k + 1];
 		int32_t slot_first = binding->slot_offsets[k];
 		if (binding->slot_offsets[k + 1] - slot_first == 1) {
@@ -264,6 +366,8 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* Every triangle around a dynamic vertex is dynamic, so its gradients are complete; static
+ * vertices never move this frame and need none. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 {
 	lvp__pass_context context = {binding, positions};
@@ -277,9 +381,10 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 		if (r < binding->region_count)
 			binding->origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
 	}
-	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context, binding->triangle_count, LVP__GRAIN);
+	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context,
+	                  binding->region_dynamic_offsets[binding->region_count + 1], LVP__GRAIN);
 	lvp__parallel_for(binding->pool, lvp__region_loop, &context, binding->region_count + 1, 1);
-	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->vertex_count, LVP__GRAIN);
+	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->dynamic_vertex_count, LVP__GRAIN);
 }
 
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count)
@@ -360,27 +465,21 @@ double lvp__volume_of(const lvp_binding *binding, const float *positions)
 
 /* ---- rest side and region changes ----------------------------------------------------------- */
 
-static lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
-{
-	if (binding->mode == LVP_MODE_GLOBAL)
-		return binding->global_origin;
-	const double *m = binding->rest_matrices[region].m;
-	return lvp__v(m[3], m[7], m[11]);
-}
-
-void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, double *r_base)
+void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		lvp__vec3 o = lvp__rest_origin(binding, r);
+		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
 		double volume6 = 0.0;
 		for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
-			lvp__vec3 p0 = lvp__load(rest + 3 * binding->triangles[3 * t]);
-			lvp__vec3 p1 = lvp__load(rest + 3 * binding->triangles[3 * t + 1]);
-			lvp__vec3 p2 = lvp__load(rest + 3 * binding->triangles[3 * t + 2]);
-			volume6 += lvp__dot(lvp__sub(p0, o), lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0)));
+			lvp__vec3 cr;
+			volume6 += lvp__rest_terms(&cr, rest, binding->triangles + 3 * t, o);
+			area = lvp__add(area, cr);
 		}
-		r_base[r] = volume6 / 6.0;
+		r_totals[r].volume6 = volume6;
+		r_totals[r].area6[0] = area.x;
+		r_totals[r].area6[1] = area.y;
+		r_totals[r].area6[2] = area.z;
 	}
 }
 
@@ -480,7 +579,7 @@ static void lvp__add_world_gradient(lvp_binding *binding, int32_t k, int32_t r, 
 }
 
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
-                         const double *rest_base, double *r_change)
+                         const lvp__region_sums *rest_totals, double *r_change)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
@@ -495,8 +594,14 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 			const lvp__mat4 *to_local = &binding->posed_inverse[r];
 			const lvp__mat4 *rest_to_local = &binding->rest_inverse[r];
 			double gradient_scale = binding->rest_det[r] / binding->kappa[r];
+			int32_t bone_class = binding->skin_class[r];
 			for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
+				/* Both ends static with the region's bone: rest and posed edge are the same in the
+				 * bone's frame, the quad is flat, and neither end moves this frame. */
+				if (!binding->vertex_dynamic[a] && !binding->vertex_dynamic[b] &&
+				    binding->vertex_class[a] == bone_class && binding->vertex_class[b] == bone_class)
+					continue;
 				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
 				lvp__vec3 ra = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * a));
@@ -517,6 +622,6 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 			/* local units -> rest-world units */
 			sides6 *= binding->rest_det[r];
 		}
-		r_change[r] = top + sides6 / 6.0 - rest_base[r];
+		r_change[r] = top + sides6 / 6.0 - rest_totals[r].volume6 / 6.0;
 	}
 }

@@ -155,10 +155,18 @@
  *
  * PERFORMANCE
  *
- *   Per frame and iteration: one pass over the triangles and one over the vertices that
- *   active regions can move, plus a dense solve of the active regions' system (m^3/3 for m
- *   active regions, negligible below a few hundred). Bind: O(N B) for maps and, in
- *   lvp_auto_weights(), O(N B) for the normal test or O(N B log F) for the exact test.
+ *   Per frame, bones whose skin matrices agree (to 1e-6) form one class. A triangle whose
+ *   three corners are moved by one class only, the class of its region's bone, and that the
+ *   map does not let move, is static: in its bone's frame it is its rest triangle, so it
+ *   enters the region sums through its rest sums moved by the bone in closed form, and no
+ *   pass visits it. The passes visit the dynamic rest: in a pose bent at a few joints, the
+ *   skin around those joints. (This is where `positions` being the skinning of the rest, as
+ *   lvp_correct() says, is relied on: a vertex weighted to one bone is where that bone puts
+ *   it.) Per iteration: one pass over the dynamic triangles (or over the triangles around
+ *   the moved vertices, when they are few) and one over the vertices active regions can
+ *   move, plus a dense solve of the active regions' system (m^3/3 for m active regions,
+ *   negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(),
+ *   O(N B) for the normal test or O(N B log F) for the exact test.
  */
 #ifndef LVP_H
 #define LVP_H
@@ -403,7 +411,8 @@ typedef struct lvp_frame_stats {
 } lvp_frame_stats;
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what
- * leaves Blender's Armature modifier. bone_matrices: bone_count*16, the posed bone frames T_i
+ * leaves Blender's Armature modifier: the rest (or rest_positions) skinned by the bound
+ * weights and these bones, linear or dual quaternion (see PERFORMANCE). bone_matrices: bone_count*16, the posed bone frames T_i
  * in the same space as the rest matrices (may be NULL in LVP_MODE_GLOBAL). rest_positions:
  * NULL to use the bind rest, or vertex_count*3 of this frame's un-skinned positions (shape keys),
  * against which volumes are then compared.

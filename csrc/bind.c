@@ -55,7 +55,8 @@ void lvp_free(lvp_binding *binding)
 	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->posed_heads,
 	    binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active, binding->active_index,
-	    binding->system, binding->rhs, binding->pivots, binding->mu,
+	    binding->system, binding->rhs, binding->pivots, binding->mu, binding->region_corner_offsets,
+	    binding->region_corners,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -254,6 +255,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 
 	if ((result = lvp__segment(binding, r_diag)) || (result = lvp__build_borders(binding, r_diag)) ||
+	    (result = lvp__build_region_corners(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;

@@ -66,6 +66,11 @@ struct lvp_binding {
 	int32_t *vertex_triangles;      /* per such corner: its triangle */
 	int32_t *vertex_corner_slot;    /* per such corner: the vertex's slot for that triangle */
 
+	/* ---- the distinct corner vertices of each region's triangles (a region is static in a
+	 * frame when all of them are: lvp__dynamic_set then skips its triangles unread) ---- */
+	int32_t *region_corner_offsets; /* region_count+1 */
+	int32_t *region_corners;
+
 	/* ---- region borders: half-edges whose side quad does not cancel ---- */
 	int32_t *border_offsets; /* region_count+1 */
 	int32_t *border_edges;   /* 2 per border half-edge: a, b in the triangle's orientation */
@@ -154,6 +159,7 @@ lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_opti
 
 /* local_volume.c */
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
+lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Which triangles and vertices a pass visits (binding.h), from vertex_class and vertex_dynamic;
  * with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
 void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,

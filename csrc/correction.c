@@ -593,22 +593,29 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		lvp__measure(binding, rest_positions, totals);
 	}
 	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
-	 * through unchanged and says so. */
-	for (int32_t i = 0; i < 3 * n; ++i)
-		if (!lvp__finite(binding->work_positions[i])) {
+	 * through unchanged and says so. Only dynamic vertices can have moved (binding.h); the
+	 * others are the input, which was checked. */
+	for (int32_t v = 0; v < binding->dynamic_vertex_count && !stats.passed_through; ++v) {
+		const float *p = binding->work_positions + 3 * binding->dynamic_vertices[v];
+		if (!lvp__finite(p[0]) || !lvp__finite(p[1]) || !lvp__finite(p[2])) {
 			memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 			lvp__measure(binding, rest_positions, totals);
 			stats.passed_through = 1;
-			break;
 		}
+	}
 	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
 	if (stats.worst_region >= 0)
 		stats.worst_region_change_after =
 		    binding->change[stats.worst_region] / binding->reference_volume[stats.worst_region];
 	stats.skipped_regions = lvp__count_skipped(binding);
 
+	if (r_offsets)
+		memset(r_offsets, 0, sizeof(float) * 3 * (size_t)n);
+	if (r_positions && r_positions != positions)
+		memcpy(r_positions, positions, sizeof(float) * 3 * (size_t)n);
 	double largest = 0.0;
-	for (int32_t i = 0; i < 3 * n; i += 3) {
+	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+		int32_t i = 3 * binding->dynamic_vertices[v];
 		float in[3] = {positions[i], positions[i + 1], positions[i + 2]};
 		const float *out = binding->work_positions + i;
 		double d2 = 0.0;

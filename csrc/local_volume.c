@@ -117,6 +117,42 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	return lvp_success;
 }
 
+lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	int32_t s = binding->region_count, n = binding->vertex_count;
+	int32_t *seen = malloc(sizeof(int32_t) * (size_t)n);
+	binding->region_corner_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	if (!seen || !binding->region_corner_offsets) {
+		free(seen);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	}
+	for (int pass = 0; pass < 2; ++pass) {
+		int64_t count = 0;
+		for (int32_t k = 0; k < n; ++k)
+			seen[k] = -1;
+		for (int32_t r = 0; r < s; ++r) {
+			binding->region_corner_offsets[r] = (int32_t)count;
+			for (int32_t i = 3 * binding->region_triangle_offsets[r]; i < 3 * binding->region_triangle_offsets[r + 1];
+			     ++i) {
+				int32_t k = binding->triangles[i];
+				if (seen[k] == r)
+					continue;
+				seen[k] = r;
+				if (pass)
+					binding->region_corners[count] = k;
+				++count;
+			}
+		}
+		binding->region_corner_offsets[s] = (int32_t)count; /* at most 3 F, below LVP_MAX_TRIANGLES*3 */
+		if (!pass && !(binding->region_corners = malloc(sizeof(int32_t) * (size_t)(count > 0 ? count : 1)))) {
+			free(seen);
+			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+		}
+	}
+	free(seen);
+	return lvp_success;
+}
+
 /* 6 times the volume of the cones from the mesh's holes to one apex (the mean of the hole
  * vertices): added to the divergence sum, it closes the surface, so the volume of an open
  * mesh no longer depends on the origin. Zero for closed meshes. */
@@ -236,6 +272,19 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 			continue;
 		}
 		int32_t bone_class = binding->skin_class[r];
+		bool whole_region_static = true;
+		for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
+			int32_t k = binding->region_corners[i];
+			if (binding->vertex_dynamic[k] || binding->vertex_class[k] != bone_class) {
+				whole_region_static = false;
+				break;
+			}
+		}
+		if (whole_region_static) { /* the bone carries the region rigidly: nothing to visit */
+			binding->static_rest[r] = rest_totals[r];
+			binding->static_count[r] = last - first;
+			continue;
+		}
 		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
 		double volume6 = 0.0;
 		for (int32_t t = first; t < last; ++t) {

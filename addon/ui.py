@@ -65,9 +65,13 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         column.prop(settings, "effect")
         if settings.effect == 'PAINTED':
             column.prop_search(settings, "painted_vertex_group", obj, "vertex_groups")
-        column.prop(settings, "alpha")
+        # The painted map is taken as painted: alpha and beta stay visible, greyed, as Blender shows
+        # settings that the current choice ignores.
+        shaping = column.column()
+        shaping.active = settings.effect != 'PAINTED'
+        shaping.prop(settings, "alpha")
         if settings.effect != 'RUBBER':
-            column.prop(settings, "beta")
+            shaping.prop(settings, "beta")
         column.prop(settings, "iterations")
         sub = column.row()
         sub.active = settings.effect != 'GLOBAL'
@@ -84,6 +88,8 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         buttons.operator("object.lvp_region_restriction_remove", icon='REMOVE', text="")
 
         self.draw_statistics(layout, context, obj)
+        # The scene's frame range into //lvp_cache/<object>.pc2, with a progress bar (Esc keeps what is baked).
+        layout.operator("object.lvp_bake", text="Bake to PC2", icon='FILE_CACHE')
 
         render = context.scene.render
         if not render.use_lock_interface or handlers.render_without_lock:

@@ -17,7 +17,7 @@ class RecordingLayout:
 
     def __init__(self, test, record=None):
         self.test = test
-        self.record = record if record is not None else {"labels": [], "props": [], "operators": []}
+        self.record = record if record is not None else {"labels": [], "props": [], "inactive": [], "operators": []}
         self.use_property_split = False
         self.active = True
         self.enabled = True
@@ -37,6 +37,8 @@ class RecordingLayout:
 
     def prop(self, data, name, **_keywords):
         self._check_property(data, name)
+        if not self.active:
+            self.record["inactive"].append(name)  # drawn greyed out
 
     def prop_search(self, data, name, search_data, search_name, **_keywords):
         self._check_property(data, name)
@@ -79,14 +81,17 @@ class TestPanel(helpers.AddonTestCase):
         obj.lvp.effect = 'PAINTED'
         obj.lvp.region_restrictions.add()
         record = self.draw(obj)
-        for idname in ("object.lvp_bind", "object.lvp_remove", "object.lvp_region_restriction_add"):
+        for idname in ("object.lvp_bind", "object.lvp_remove", "object.lvp_region_restriction_add", "object.lvp_bake"):
             self.assertIn(idname, record["operators"])
         for name in ("effect", "alpha", "beta", "iterations", "fold_over", "painted_vertex_group", "display"):
             self.assertIn(name, record["props"])
+        self.assertEqual(record["inactive"], ["alpha", "beta"], "the painted map ignores alpha and beta")
         obj.lvp.effect = 'ORGANIC'
         bpy.context.scene.frame_set(9)
         bpy.context.scene.frame_set(10)
-        labels = "\n".join(self.draw(obj)["labels"])
+        record = self.draw(obj)
+        self.assertEqual(record["inactive"], [])
+        labels = "\n".join(record["labels"])
         self.assertIn("Volume change:", labels)
         self.assertIn("Worst region", labels)
         self.assertIn("before", labels)

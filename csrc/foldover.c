@@ -21,9 +21,10 @@ static inline double lvp__side(lvp__vec3 p, lvp__vec3 s_head, lvp__vec3 s_tail, 
  * plane and this is the orthogonal projection onto it, which keeps the skin that crossed
  * untangled (a walk towards the bone would slide vertices along the surface and fold it). The
  * crossing point is bracketed by doubling the step, then bisected; the vertex ends `gap` past
- * it on its own side, so the skin of the two sides cannot touch. False if no crossing is found. */
+ * it on its own side, so the skin of the two sides cannot touch. False if no crossing is found
+ * within `limit`. */
 static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, lvp__vec3 st, double ls, lvp__vec3 jh,
-                                 lvp__vec3 jt, double lj, double gap)
+                                 lvp__vec3 jt, double lj, double gap, double limit)
 {
 	lvp__vec3 cs, cj;
 	lvp__closest_on_segment(&cs, p, sh, st);
@@ -40,8 +41,10 @@ static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, 
 		return false;
 	lvp__vec3 direction = lvp__scale(gradient, -1.0 / length);
 	double f = lvp__side(p, sh, st, ls, jh, jt, lj);
-	/* The contact surface is nearer than the farther bone: past that, give up on this vertex. */
-	double reach = 2.0 * (ds + dj);
+	/* The contact surface is nearer than the farther bone, and no sane contact is further than
+	 * a volume step may go (a quarter of the mesh's size): past that, the pose is not one skin
+	 * can follow (bones sent far from their skin), and the vertex is left where it is. */
+	double reach = fmin(2.0 * (ds + dj), limit);
 	double outside = 0.0, inside = fmin(f / length, reach);
 	int doublings = 0;
 	while (lvp__side(lvp__add(p, lvp__scale(direction, inside)), sh, st, ls, jh, jt, lj) > 0.0) {
@@ -101,7 +104,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				if (lvp__side(p, sh, st, ls, jh, jt, lj) <= 0.0)
 					continue;
 				lvp__vec3 q;
-				if (!lvp__back_to_contact(&q, p, sh, st, ls, jh, jt, lj, gap))
+				if (!lvp__back_to_contact(&q, p, sh, st, ls, jh, jt, lj, gap, 0.25 * binding->size))
 					continue;
 				work[3 * k] = (float)q.x;
 				work[3 * k + 1] = (float)q.y;

@@ -606,6 +606,8 @@ static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
  * underestimated and converge slowly. */
 static void lvp__add_side_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient6, double scale)
 {
+	if (!binding->vertex_dynamic[k])
+		return; /* never moves this frame: its slots are not kept */
 	int32_t slot = lvp__find_slot(binding, k, r);
 	if (slot < 0)
 		return;
@@ -620,6 +622,8 @@ static void lvp__add_side_gradient(lvp_binding *binding, int32_t k, int32_t r, l
 
 static void lvp__add_world_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient)
 {
+	if (!binding->vertex_dynamic[k])
+		return;
 	int32_t slot = lvp__find_slot(binding, k, r);
 	if (slot < 0)
 		return;

@@ -126,7 +126,9 @@
  *   towards its own bone there can add crossings; a crease pressed flatter than the bisector
  *   plane can hold (a finger folded past about 90 degrees with a 0.2-wide weight band) may
  *   still fold after projection. Where two bones lie on top of each other (a joint folded to
- *   180 degrees) there is no contact surface, and such vertices are left where they are.
+ *   180 degrees) there is no contact surface, and a vertex whose contact surface is further
+ *   than a quarter of the rest mesh's size (bones posed far from their skin) is not moved:
+ *   such vertices are left where they are.
  *
  * FALLBACKS (defined outcomes for awkward input; everything else is an error)
  *

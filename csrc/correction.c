@@ -259,7 +259,6 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 	return m;
 }
 
-/* This frame's map: the bind map times the deformation weighting a_k of lvp.h. */
 /* Bones whose skin matrices agree (to 1e-6 of their size) this frame share a class: the
  * vertices they alone move, move rigidly. Quadratic in the bones, so only for rigs of up to
  * LVP__CLASS_BONES bones; beyond, every bone is its own class (correct, only slower). */
@@ -290,27 +289,71 @@ static void lvp__skin_classes(lvp_binding *binding)
 	}
 }
 
-/* vertex_class[k]: the skin class that all bones of vertex k (with weight) share, or -1. */
-static void lvp__vertex_classes(lvp_binding *binding)
+/* The skin class that all bones of vertex k (with weight) share, or -1. */
+static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
 {
-	lvp__skin_classes(binding);
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
-		int32_t shared = -1;
-		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-			if (!(binding->weight_values[e] > 0.0f))
-				continue;
-			int32_t c = binding->skin_class[binding->weight_bones[e]];
-			if (shared >= 0 && c != shared) {
-				shared = -1;
-				break;
-			}
-			shared = c;
-		}
-		binding->vertex_class[k] = shared;
+	int32_t shared = -1;
+	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		if (!(binding->weight_values[e] > 0.0f))
+			continue;
+		int32_t c = binding->skin_class[binding->weight_bones[e]];
+		if (shared >= 0 && c != shared)
+			return -1;
+		shared = c;
+	}
+	return shared;
+}
+
+/* a_k of lvp.h: how far apart the vertex's bones would carry it (weighted mean distance of
+ * each bone's image of the rest point from their blend). */
+static double lvp__spread(const lvp_binding *binding, const float *rest, int32_t k)
+{
+	int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
+	lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
+	lvp__vec3 moved[8]; /* the first few bones' images of p, kept for the second loop */
+	for (int32_t e = begin; e < end; ++e) {
+		lvp__vec3 q = lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
+		if (e - begin < 8)
+			moved[e - begin] = q;
+		blend = lvp__add(blend, lvp__scale(q, binding->weight_values[e]));
+	}
+	double spread = 0.0;
+	for (int32_t e = begin; e < end; ++e) {
+		lvp__vec3 q =
+		    e - begin < 8 ? moved[e - begin] : lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
+		spread += binding->weight_values[e] * lvp__length(lvp__sub(q, blend));
+	}
+	/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
+	return spread < 1e-6 * binding->size ? 0.0 : spread;
+}
+
+typedef struct lvp__frame_map_context {
+	lvp_binding *binding;
+	const float *rest;
+} lvp__frame_map_context;
+
+/* Per vertex, independent of every other: split over the worker threads. */
+static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__frame_map_context *c = context;
+	lvp_binding *binding = c->binding;
+	bool weighted = binding->map.deformation_weighted;
+	for (int32_t k = begin; k < end; ++k) {
+		int32_t vertex_class = lvp__vertex_class(binding, k);
+		binding->vertex_class[k] = vertex_class;
+		float gamma = binding->gamma[k];
+		if (!weighted)
+			binding->frame_gamma[k] = gamma;
+		else if (!(gamma > 0.0f) || vertex_class >= 0)
+			binding->frame_gamma[k] = 0.0f; /* all its bones in one class: it moves rigidly */
+		else
+			binding->frame_gamma[k] = (float)(gamma * lvp__spread(binding, c->rest, k));
+		binding->vertex_dynamic[k] = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
 	}
 }
 
-/* This frame's map, and which vertices are dynamic (binding.h). */
+/* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
+ * vertices are dynamic (binding.h). */
 static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 {
 	int32_t n = binding->vertex_count;
@@ -319,41 +362,9 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 		memset(binding->vertex_dynamic, 1, (size_t)n);
 		return;
 	}
-	lvp__vertex_classes(binding);
-	if (!binding->map.deformation_weighted) {
-		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
-		for (int32_t k = 0; k < n; ++k)
-			binding->vertex_dynamic[k] = binding->vertex_class[k] < 0 || binding->frame_gamma[k] > 0.0f;
-		return;
-	}
-	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	for (int32_t k = 0; k < n; ++k) {
-		binding->vertex_dynamic[k] = binding->vertex_class[k] < 0;
-		/* All bones of the vertex in one class: it moves rigidly, no need to transform. */
-		if (!(binding->gamma[k] > 0.0f) || binding->vertex_class[k] >= 0) {
-			binding->frame_gamma[k] = 0.0f;
-			continue;
-		}
-		int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
-		lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
-		lvp__vec3 moved[8]; /* the first few bones' images of p, kept for the second loop */
-		for (int32_t e = begin; e < end; ++e) {
-			lvp__vec3 q = lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
-			if (e - begin < 8)
-				moved[e - begin] = q;
-			blend = lvp__add(blend, lvp__scale(q, binding->weight_values[e]));
-		}
-		double spread = 0.0;
-		for (int32_t e = begin; e < end; ++e) {
-			lvp__vec3 q = e - begin < 8 ? moved[e - begin]
-			                            : lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
-			spread += binding->weight_values[e] * lvp__length(lvp__sub(q, blend));
-		}
-		/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
-		if (spread < 1e-6 * binding->size)
-			spread = 0.0;
-		binding->frame_gamma[k] = (float)(binding->gamma[k] * spread);
-	}
+	lvp__skin_classes(binding);
+	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	lvp__parallel_for(binding->pool, lvp__frame_map_loop, &context, n, LVP__GRAIN);
 }
 
 /* The movable part of each region's support under this frame's map (binding.h). */

@@ -144,6 +144,50 @@ static void lvp__undo_step(lvp_binding *binding)
 		memcpy(binding->work_positions + 3 * binding->moved[i], binding->step_backup + 3 * i, sizeof(float) * 3);
 }
 
+typedef struct lvp__assembly_context {
+	lvp_binding *binding;
+	int32_t m, dense;
+} lvp__assembly_context;
+
+/* Columns [begin, end) of the active regions' system. The regions past the dense block keep
+ * only their diagonal (stored in mu temporarily). Each column is summed in a local array, in
+ * the same order whatever the threads, and written once. */
+static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
+{
+	const lvp__assembly_context *c = context;
+	lvp_binding *binding = c->binding;
+	int32_t dense = c->dense;
+	double column[LVP__DENSE_MAX];
+	for (int32_t j = begin; j < end; ++j) {
+		int32_t t = binding->active[j];
+		double diagonal = 0.0;
+		for (int32_t row = 0; row < dense; ++row)
+			column[row] = 0.0;
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
+			if (binding->frozen[k])
+				continue;
+			double weight = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i];
+			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
+				int32_t s = binding->slot_region[slot];
+				int32_t row = s >= 0 ? binding->active_index[s] : -1;
+				if (row < 0)
+					continue;
+				double value = binding->kappa[s] * binding->slot_g[slot] * weight;
+				if (row < dense && j < dense)
+					column[row] += value;
+				else if (row == j)
+					diagonal += value;
+			}
+		}
+		if (j < dense)
+			for (int32_t row = 0; row < dense; ++row)
+				binding->system[row * dense + j] = column[row];
+		else
+			binding->mu[t] = diagonal;
+	}
+}
+
 /* One correction step over the active regions (active[0..m)); moves work_positions. */
 static void lvp__correct_step(lvp_binding *binding, int32_t m)
 {
@@ -156,28 +200,10 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 		binding->region_touched[active[i]] = 1;
 	}
 
-	/* Assemble: column t gathers what region t's multiplier does to each active region s. The
-	 * regions past the dense block keep only their diagonal (stored in mu temporarily). */
-	for (int32_t j = 0; j < m; ++j) {
-		int32_t t = active[j];
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (binding->frozen[k])
-				continue;
-			double c = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i];
-			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
-				int32_t s = binding->slot_region[slot];
-				int32_t row = s >= 0 ? binding->active_index[s] : -1;
-				if (row < 0)
-					continue;
-				double value = binding->kappa[s] * binding->slot_g[slot] * c;
-				if (row < dense && j < dense)
-					system[row * dense + j] += value;
-				else if (row == j)
-					binding->mu[t] += value;
-			}
-		}
-	}
+	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
+	 * Columns are independent, so they are split over the worker threads. */
+	lvp__assembly_context context = {binding, m, dense};
+	lvp__parallel_for(binding->pool, lvp__assemble_columns, &context, m, 1);
 	/* Regions that cannot move (zero map around them) are taken out of the system. The diagonal
 	 * is kept in mu[] for the per-region fallback. */
 	double largest_diagonal = 0.0;

@@ -56,7 +56,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->posed_heads,
 	    binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active, binding->active_index,
 	    binding->system, binding->rhs, binding->pivots, binding->mu, binding->region_corner_offsets,
-	    binding->region_corners,
+	    binding->region_corners, binding->region_state, binding->triangle_static,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -229,6 +229,8 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->vertex_dynamic = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->dynamic_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
 	binding->region_dynamic_offsets = lvp__alloc(s + 2, sizeof(int32_t), &ok);
+	binding->region_state = lvp__alloc(s + 1, sizeof(uint8_t), &ok);
+	binding->triangle_static = lvp__alloc(f, sizeof(uint8_t), &ok);
 	binding->dynamic_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->static_rest = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
 	binding->static_count = lvp__alloc(s, sizeof(int32_t), &ok);

@@ -128,6 +128,8 @@ struct lvp_binding {
 	uint8_t *vertex_dynamic; /* vertex_count: not rigid, movable by the map, or moved by fold-over */
 	int32_t *dynamic_triangles; /* triangle_count: the dynamic ones, in sorted order */
 	int32_t *region_dynamic_offsets; /* region_count+2 into dynamic_triangles (the last range: no region) */
+	uint8_t *region_state;    /* region_count+1: all dynamic, all static or mixed (local_volume.c) */
+	uint8_t *triangle_static; /* triangle_count: per triangle of a mixed region */
 	int32_t *dynamic_vertices; /* vertex_count: the dynamic vertices */
 	int32_t dynamic_vertex_count;
 	lvp__region_sums *static_rest; /* region_count: rest sums of the static triangles */

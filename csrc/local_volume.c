@@ -249,22 +249,29 @@ static double lvp__rest_terms(lvp__vec3 *r_area6, const float *rest, const int32
  * what the rounded origin o differs from the exact posed rest origin by. So a region's static
  * triangles enter its sums through their rest sums, and a pass visits only the dynamic rest:
  * in a pose bent at a few joints, a small part of the mesh. */
-void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
-                      bool all_dynamic)
+typedef struct lvp__dynamic_context {
+	lvp_binding *binding;
+	const float *rest;
+	const lvp__region_sums *rest_totals;
+	bool local;
+} lvp__dynamic_context;
+
+enum { LVP__REGION_DYNAMIC, LVP__REGION_STATIC, LVP__REGION_MIXED };
+
+/* First phase, per region (the last: triangles without region): whether it is static, dynamic
+ * or mixed, the static flag of each triangle of a mixed one, its number of dynamic triangles
+ * (in region_dynamic_offsets[r + 1], summed into offsets afterwards) and its static rest sums. */
+static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 {
-	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	int32_t s = binding->region_count, count = 0;
-	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
-	if (!local)
-		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
-	for (int32_t r = 0; r <= s; ++r) {
+	const lvp__dynamic_context *c = context;
+	lvp_binding *binding = c->binding;
+	int32_t s = binding->region_count;
+	for (int32_t r = begin; r < end; ++r) {
 		int32_t first = binding->region_triangle_offsets[r];
 		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
-		binding->region_dynamic_offsets[r] = count;
-		bool may_be_static = local && r < s && !binding->region_skipped[r];
-		if (!may_be_static) {
-			for (int32_t t = first; t < last; ++t)
-				binding->dynamic_triangles[count++] = t;
+		if (!(c->local && r < s && !binding->region_skipped[r])) {
+			binding->region_state[r] = LVP__REGION_DYNAMIC;
+			binding->region_dynamic_offsets[r + 1] = last - first;
 			if (r < s) {
 				memset(&binding->static_rest[r], 0, sizeof(lvp__region_sums));
 				binding->static_count[r] = 0;
@@ -281,37 +288,79 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 			}
 		}
 		if (whole_region_static) { /* the bone carries the region rigidly: nothing to visit */
-			binding->static_rest[r] = rest_totals[r];
+			binding->region_state[r] = LVP__REGION_STATIC;
+			binding->region_dynamic_offsets[r + 1] = 0;
+			binding->static_rest[r] = c->rest_totals[r];
 			binding->static_count[r] = last - first;
 			continue;
 		}
 		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
 		double volume6 = 0.0;
+		int32_t dynamic = 0;
 		for (int32_t t = first; t < last; ++t) {
-			const int32_t *c = binding->triangles + 3 * t;
+			const int32_t *corners = binding->triangles + 3 * t;
 			bool is_static = true;
 			for (int i = 0; i < 3 && is_static; ++i)
-				is_static = !binding->vertex_dynamic[c[i]] && binding->vertex_class[c[i]] == bone_class;
+				is_static = !binding->vertex_dynamic[corners[i]] && binding->vertex_class[corners[i]] == bone_class;
+			binding->triangle_static[t] = is_static;
 			if (is_static)
 				continue;
-			binding->dynamic_triangles[count++] = t;
+			++dynamic;
 			lvp__vec3 cr;
-			volume6 += lvp__rest_terms(&cr, rest, c, o);
+			volume6 += lvp__rest_terms(&cr, c->rest, corners, o);
 			area = lvp__add(area, cr);
 		}
+		binding->region_state[r] = LVP__REGION_MIXED;
+		binding->region_dynamic_offsets[r + 1] = dynamic;
 		/* static = all - dynamic; none static: exactly zero, not the rounding of a difference */
-		int32_t statics = (last - first) - (count - binding->region_dynamic_offsets[r]);
-		binding->static_count[r] = statics;
+		int32_t statics = (last - first) - dynamic;
+		const lvp__region_sums *total = &c->rest_totals[r];
 		lvp__region_sums *sums = &binding->static_rest[r];
-		sums->volume6 = statics ? rest_totals[r].volume6 - volume6 : 0.0;
-		sums->area6[0] = statics ? rest_totals[r].area6[0] - area.x : 0.0;
-		sums->area6[1] = statics ? rest_totals[r].area6[1] - area.y : 0.0;
-		sums->area6[2] = statics ? rest_totals[r].area6[2] - area.z : 0.0;
+		binding->static_count[r] = statics;
+		sums->volume6 = statics ? total->volume6 - volume6 : 0.0;
+		sums->area6[0] = statics ? total->area6[0] - area.x : 0.0;
+		sums->area6[1] = statics ? total->area6[1] - area.y : 0.0;
+		sums->area6[2] = statics ? total->area6[2] - area.z : 0.0;
 	}
-	binding->region_dynamic_offsets[s + 1] = count;
+}
+
+/* Second phase, per region: its dynamic triangles, in order, from its offset on. */
+static void lvp__list_dynamic_triangles(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = ((const lvp__dynamic_context *)context)->binding;
+	int32_t s = binding->region_count;
+	for (int32_t r = begin; r < end; ++r) {
+		int32_t first = binding->region_triangle_offsets[r];
+		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
+		int32_t *out = binding->dynamic_triangles + binding->region_dynamic_offsets[r];
+		if (binding->region_state[r] == LVP__REGION_DYNAMIC) {
+			for (int32_t t = first; t < last; ++t)
+				*out++ = t;
+		} else if (binding->region_state[r] == LVP__REGION_MIXED) {
+			for (int32_t t = first; t < last; ++t)
+				if (!binding->triangle_static[t])
+					*out++ = t;
+		}
+	}
+}
+
+void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
+                      bool all_dynamic)
+{
+	int32_t s = binding->region_count;
+	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
+	if (!local)
+		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
+	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
+	                                local};
+	lvp__parallel_for(binding->pool, lvp__classify_regions, &context, s + 1, 1);
+	binding->region_dynamic_offsets[0] = 0;
+	for (int32_t r = 0; r <= s; ++r)
+		binding->region_dynamic_offsets[r + 1] += binding->region_dynamic_offsets[r];
+	lvp__parallel_for(binding->pool, lvp__list_dynamic_triangles, &context, s + 1, 1);
 	int32_t vertices = 0;
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
-		if (!local || binding->vertex_dynamic[k])
+		if (binding->vertex_dynamic[k])
 			binding->dynamic_vertices[vertices++] = k;
 	binding->dynamic_vertex_count = vertices;
 }

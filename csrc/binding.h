@@ -13,6 +13,10 @@
 /* Items per chunk of a parallel loop: large enough that waking a thread is negligible. */
 #define LVP__GRAIN 16384
 
+/* The pool for a loop over regions that does about `work` items of work: none when that is
+ * too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
+#define LVP__POOL_FOR(binding, work) ((work) >= 2 * LVP__GRAIN ? (binding)->pool : NULL)
+
 /* Above this many changed regions in one frame, the coupled region system is no longer
  * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
  * next iteration re-measures. Real rigs bend far fewer regions at once. */

@@ -203,7 +203,8 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
 	 * Columns are independent, so they are split over the worker threads. */
 	lvp__assembly_context context = {binding, m, dense};
-	lvp__parallel_for(binding->pool, lvp__assemble_columns, &context, m, 1);
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_offsets[binding->region_count]), lvp__assemble_columns,
+	                  &context, m, 1);
 	/* Regions that cannot move (zero map around them) are taken out of the system. The diagonal
 	 * is kept in mu[] for the per-region fallback. */
 	double largest_diagonal = 0.0;

@@ -353,11 +353,12 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
 	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
 	                                local};
-	lvp__parallel_for(binding->pool, lvp__classify_regions, &context, s + 1, 1);
+	lvp__pool *pool = LVP__POOL_FOR(binding, binding->triangle_count);
+	lvp__parallel_for(pool, lvp__classify_regions, &context, s + 1, 1);
 	binding->region_dynamic_offsets[0] = 0;
 	for (int32_t r = 0; r <= s; ++r)
 		binding->region_dynamic_offsets[r + 1] += binding->region_dynamic_offsets[r];
-	lvp__parallel_for(binding->pool, lvp__list_dynamic_triangles, &context, s + 1, 1);
+	lvp__parallel_for(pool, lvp__list_dynamic_triangles, &context, s + 1, 1);
 	int32_t vertices = 0;
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
 		if (binding->vertex_dynamic[k])
@@ -481,7 +482,8 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 	}
 	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context,
 	                  binding->region_dynamic_offsets[binding->region_count + 1], LVP__GRAIN);
-	lvp__parallel_for(binding->pool, lvp__region_loop, &context, binding->region_count + 1, 1);
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->region_dynamic_offsets[binding->region_count + 1]),
+	                  lvp__region_loop, &context, binding->region_count + 1, 1);
 	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->dynamic_vertex_count, LVP__GRAIN);
 }
 

@@ -283,7 +283,8 @@ static void *run_frame(void *argument)
 
 static void test_threads_give_identical_results(void)
 {
-	test_rig rig = test_make_chain(8, 1.0f, 0.3f, 48, 60, 0.5f);
+	/* large enough that every threaded loop (over triangles, vertices and regions) is split */
+	test_rig rig = test_make_chain(8, 1.0f, 0.3f, 48, 128, 0.5f);
 	int32_t n = rig.vertex_count, b = rig.bone_count;
 	float *rotations = calloc((size_t)b * 4, sizeof(float));
 	for (int32_t i = 1; i < b; ++i) {

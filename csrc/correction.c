@@ -194,11 +194,8 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 	const int32_t *active = binding->active;
 	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
 	double *system = binding->system, *rhs = binding->rhs;
-	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
-	for (int32_t i = 0; i < m; ++i) {
-		binding->mu[active[i]] = 0.0;
+	for (int32_t i = 0; i < m; ++i)
 		binding->region_touched[active[i]] = 1;
-	}
 
 	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
 	 * Columns are independent, so they are split over the worker threads. */

@@ -525,7 +525,7 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 			sg[1] += d[1];
 			sg[2] += d[2];
 			int32_t k = binding->triangles[3 * t + c];
-			if (!binding->vertex_dirty[k]) {
+			if (!binding->vertex_dirty[k] && binding->vertex_dynamic[k]) { /* static ones need no normal */
 				binding->vertex_dirty[k] = 1;
 				binding->dirty_vertices[touched++] = k;
 			}

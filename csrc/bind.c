@@ -45,12 +45,12 @@ void lvp_free(lvp_binding *binding)
 	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class, binding->triangle_gradient,
 	    binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles, binding->vertex_dirty,
 	    binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma,
+	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma,
 	    binding->distance, binding->region_bone_offsets, binding->region_bones, binding->support_offsets,
 	    binding->support_vertex, binding->support_phi, binding->movable_offsets, binding->movable_vertex,
 	    binding->movable_phi, binding->neighbour_offsets, binding->neighbour_bones, binding->region_vertex_offsets,
 	    binding->region_vertices, binding->work_positions, binding->normals, binding->vertex_g, binding->slot_gradient,
-	    binding->slot_g, binding->rho, binding->frozen, binding->sums, binding->origin, binding->change,
+	    binding->slot_g, binding->rho, binding->frozen, binding->sums, binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
 	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic,
 	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->posed_heads,
@@ -223,6 +223,9 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->origin_float = lvp__alloc((s + 1) * 3, sizeof(float), &ok);
 	binding->skin_class = lvp__alloc(b, sizeof(int32_t), &ok);
 	binding->change = lvp__alloc(s, sizeof(double), &ok);
+	binding->target = lvp__alloc(s, sizeof(double), &ok);
+	binding->uniform_gain = lvp__alloc(s, sizeof(double), &ok);
+	binding->total_gain = lvp__alloc(s, sizeof(double), &ok);
 	binding->kappa = lvp__alloc(s, sizeof(double), &ok);
 	binding->frame_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
 	binding->vertex_class = lvp__alloc(n, sizeof(int32_t), &ok);

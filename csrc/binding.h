@@ -78,6 +78,9 @@ struct lvp_binding {
 	/* ---- region borders: half-edges whose side quad does not cancel ---- */
 	int32_t *border_offsets; /* region_count+1 */
 	int32_t *border_edges;   /* 2 per border half-edge: a, b in the triangle's orientation */
+	int32_t *border_slots;   /* 2 per border half-edge: the slots of a and b for the region */
+	float *border_gradient;  /* 6 per border half-edge: this frame's border terms of the region's
+	                            volume gradient at a and at b (world, lvp__region_changes) */
 
 	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
 	int32_t *cap_edges;      /* 2 per half-edge */
@@ -114,6 +117,7 @@ struct lvp_binding {
 	float *vertex_g;         /* vertex_count: g_k = <n_k, grad_k V> */
 	float *slot_gradient;    /* slot_count*3 */
 	float *slot_g;           /* slot_count: <n_k, part of grad_k V from the slot's region> */
+	bool vertex_terms_current; /* normals, g and slot gradients gathered for the last mesh pass */
 	float *triangle_gradient; /* triangle_count*3: cr / 6 of the last pass */
 	double *triangle_volume6; /* triangle_count: (p0 - o) . cr of the last pass */
 	uint8_t *triangle_dirty;  /* triangle_count, kept zero between uses */
@@ -142,6 +146,15 @@ struct lvp_binding {
 	float *origin_float;     /* (region_count + 1)*3: the same in float, last = 0 (no region) */
 	int32_t *skin_class;     /* bone_count: bones with equal skin matrices this frame share a class */
 	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
+	double *target;          /* region_count: the change a region is corrected to (correction.c,
+	                            lvp__correct_volumes): zero, plus its part of the whole mesh's fix */
+	double *uniform_gain;    /* region_count: per active region, what equal multipliers of all
+	                            active regions do to its volume (its row of the system) */
+	double *total_gain;      /* region_count: per active region, what its multiplier does to the
+	                            whole mesh's volume (sum_k g_k gamma_k g_k phi_kt) */
+	double frame_rest_volume; /* the whole mesh's volume at this frame's rest */
+	bool spread_total;       /* steps also restore the whole mesh's volume (lvp__correct_volumes) */
+	double last_uniform;     /* the uniform multiplier of the last step (0 when not spreading) */
 	lvp__region_sums *frame_totals; /* region_count: rest_totals of the frame's own rest, when given */
 	double *kappa;           /* region_count: det(rest)/det(posed) */
 	lvp__mat4 *posed;        /* bone_count */
@@ -170,15 +183,21 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
  * with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
 void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
                       bool all_dynamic);
-/* One pass over the dynamic set at `positions`: region sums, slot gradients, normals, g. */
+/* One pass over the dynamic triangles at `positions`: their terms and the region sums. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions);
-/* The same after only the vertices moved[0..moved_count) moved: visits their triangles only. */
+/* The same after only the vertices moved[0..moved_count) moved: visits their triangles only
+ * (and keeps the vertex terms current when they were). */
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count);
+/* What a correction step needs of the last measurement: normals, g and slot_g of the dynamic
+ * vertices, the border terms of lvp__region_changes() included. Measuring alone does not need
+ * them, so the measurement that ends the iteration skips them. */
+void lvp__vertex_gradients(lvp_binding *binding);
 /* Rest side: the region sums of the rest positions (NULL = bind rest) about the rest origins. */
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
 void lvp__reference_volumes(lvp_binding *binding);
-/* Region changes (rest-world units) from the last mesh pass; needs posed/posed_inverse. */
+/* Region changes (rest-world units) from the last mesh pass, and the border terms of the
+ * gradients (binding.h, border_gradient); needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
                          const lvp__region_sums *rest_totals, double *r_change);
 /* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */

@@ -144,6 +144,35 @@ static void lvp__undo_step(lvp_binding *binding)
 		memcpy(binding->work_positions + 3 * binding->moved[i], binding->step_backup + 3 * i, sizeof(float) * 3);
 }
 
+/* Moves work_positions by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t over the given
+ * regions (their multipliers in mu[]), remembering the step (lvp__undo_step). */
+static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
+{
+	float *rho = binding->rho;
+	for (int32_t j = 0; j < count; ++j) {
+		int32_t t = regions[j];
+		double mu = binding->mu[t];
+		if (mu == 0.0)
+			continue;
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
+			if (!binding->frozen[k])
+				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
+		}
+	}
+	binding->moved_count = 0;
+	for (int32_t j = 0; j < count; ++j) {
+		int32_t t = regions[j];
+		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
+			int32_t k = binding->movable_vertex[i];
+			if (rho[k] == 0.0f)
+				continue;
+			lvp__move_vertex(binding, k, rho[k]);
+			rho[k] = 0.0f;
+		}
+	}
+}
+
 typedef struct lvp__assembly_context {
 	lvp_binding *binding;
 	int32_t m, dense;
@@ -160,7 +189,7 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 	double column[LVP__DENSE_MAX];
 	for (int32_t j = begin; j < end; ++j) {
 		int32_t t = binding->active[j];
-		double diagonal = 0.0;
+		double diagonal = 0.0, total = 0.0;
 		for (int32_t row = 0; row < dense; ++row)
 			column[row] = 0.0;
 		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
@@ -168,6 +197,7 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 			if (binding->frozen[k])
 				continue;
 			double weight = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i];
+			total += weight * binding->vertex_g[k];
 			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
 				int32_t s = binding->slot_region[slot];
 				int32_t row = s >= 0 ? binding->active_index[s] : -1;
@@ -185,15 +215,34 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 				binding->system[row * dense + j] = column[row];
 		else
 			binding->mu[t] = diagonal;
+		binding->total_gain[t] = total;
 	}
 }
 
-/* One correction step over the active regions (active[0..m)); moves work_positions. */
-static void lvp__correct_step(lvp_binding *binding, int32_t m)
+static double lvp__error_norm(const lvp_binding *binding);
+
+/* The multiplier added to every active region's, so that the whole mesh's volume, answering
+ * with its true gradient (total_gain), is restored to first order after the regions' own step
+ * mu. Added this way, the uniform part never goes through the region system, which is badly
+ * conditioned where many regions overlap (a shoulder). */
+static double lvp__uniform_multiplier(const lvp_binding *binding, int32_t m)
+{
+	double total = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume, gain = 0.0;
+	for (int32_t i = 0; i < m; ++i) {
+		int32_t t = binding->active[i];
+		total += binding->total_gain[t] * binding->mu[t];
+		gain += binding->total_gain[t];
+	}
+	double mu = gain > 0.0 ? -total / gain : 0.0;
+	return isfinite(mu) ? mu : 0.0;
+}
+
+/* The system of a correction step over the active regions (active[0..m)), and what equal
+ * multipliers do to each (uniform_gain). Returns the error norm of the measured state. */
+static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->active;
 	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
-	double *system = binding->system, *rhs = binding->rhs;
 	for (int32_t i = 0; i < m; ++i)
 		binding->region_touched[active[i]] = 1;
 
@@ -202,14 +251,32 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 	lvp__assembly_context context = {binding, m, dense};
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_offsets[binding->region_count]), lvp__assemble_columns,
 	                  &context, m, 1);
-	/* Regions that cannot move (zero map around them) are taken out of the system. The diagonal
-	 * is kept in mu[] for the per-region fallback. */
+	/* What equal multipliers do to each region: its row of the system (past the dense block, its
+	 * diagonal, kept in mu[] by the assembly). */
+	for (int32_t i = 0; i < m; ++i) {
+		double row = i < dense ? 0.0 : binding->mu[active[i]];
+		for (int32_t j = 0; j < dense && i < dense; ++j)
+			row += binding->system[i * dense + j];
+		binding->uniform_gain[active[i]] = row;
+	}
+	return lvp__error_norm(binding);
+}
+
+/* Solves the assembled system and moves work_positions. */
+static void lvp__take_step(lvp_binding *binding, int32_t m)
+{
+	const int32_t *active = binding->active;
+	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
+	double *system = binding->system, *rhs = binding->rhs;
+	/* The regions' own step, towards their measured rest volumes. Regions that cannot move (zero
+	 * map around them) are taken out of the system. The diagonal is kept in mu[] for the
+	 * per-region fallback. */
 	double largest_diagonal = 0.0;
 	for (int32_t i = 0; i < dense; ++i)
 		largest_diagonal = fmax(largest_diagonal, fabs(system[i * dense + i]));
 	for (int32_t i = 0; i < dense; ++i) {
 		binding->mu[active[i]] = system[i * dense + i];
-		rhs[i] = -binding->change[active[i]];
+		rhs[i] = binding->target[active[i]] - binding->change[active[i]];
 		if (!(fabs(system[i * dense + i]) > 1e-12 * largest_diagonal)) {
 			for (int32_t j = 0; j < dense; ++j)
 				system[i * dense + j] = system[j * dense + i] = 0.0;
@@ -224,51 +291,45 @@ static void lvp__correct_step(lvp_binding *binding, int32_t m)
 		if (i < dense && solved)
 			mu = rhs[i];
 		else /* past the dense block, or a singular system: the region's own eq. 5 step */
-			mu = diagonal > 1e-12 * largest_diagonal ? -binding->change[t] / diagonal : 0.0;
+			mu = diagonal > 1e-12 * largest_diagonal ? (binding->target[t] - binding->change[t]) / diagonal : 0.0;
 		binding->mu[t] = isfinite(mu) ? mu : 0.0;
 	}
-
-	/* Apply: rho_k = gamma_k g_k sum_t phi_kt mu_t, then p_k += rho_k n_k. */
-	float *rho = binding->rho;
-	for (int32_t j = 0; j < m; ++j) {
-		int32_t t = active[j];
-		double mu = binding->mu[t];
-		if (mu == 0.0)
-			continue;
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (!binding->frozen[k])
-				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
+	binding->last_uniform = 0.0;
+	if (binding->spread_total) {
+		/* Each region's target moves by what the uniform part does to it (uniform_gain). */
+		double uniform = binding->last_uniform = lvp__uniform_multiplier(binding, m);
+		for (int32_t i = 0; i < m; ++i) {
+			int32_t t = active[i];
+			binding->mu[t] += uniform;
+			binding->target[t] += binding->uniform_gain[t] * uniform;
 		}
 	}
-	binding->moved_count = 0;
-	for (int32_t j = 0; j < m; ++j) {
-		int32_t t = active[j];
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (rho[k] == 0.0f)
-				continue;
-			lvp__move_vertex(binding, k, rho[k]);
-			rho[k] = 0.0f;
-		}
-	}
+	lvp__apply_multipliers(binding, active, m);
 }
 
-/* When some region is off by more than the tolerance: that region, and every region already
+/* The whole mesh's change, holes capped, from the last measurement. */
+static double lvp__total_change(const lvp_binding *binding)
+{
+	return lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+}
+
+/* When some region is off its target by more than the tolerance (or, spreading the whole
+ * mesh's change, the whole mesh is off its rest volume): that region, and every region already
  * corrected this frame (so that a corrected region is held at its volume while its neighbours
  * are fixed, instead of being let go and disturbed again). Regions the map cannot move are
  * left out. Returns the number of active regions, 0 when all are within tolerance. */
 static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
-	bool any_off = false;
+	bool any_off = binding->spread_total &&
+	               fabs(lvp__total_change(binding)) > tolerance * fabs(binding->frame_rest_volume);
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
 		if (binding->region_skipped[r] || !(reference > 0.0) ||
 		    binding->movable_offsets[r + 1] == binding->movable_offsets[r])
 			continue;
-		bool off = fabs(binding->change[r]) > tolerance * reference;
+		bool off = fabs(binding->change[r] - binding->target[r]) > tolerance * reference;
 		any_off = any_off || off;
 		if (off || binding->region_touched[r]) {
 			binding->active_index[r] = m;
@@ -427,42 +488,54 @@ static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, co
 	lvp__region_changes(binding, binding->work_positions, rest_positions, totals, binding->change);
 }
 
-/* Sum over the regions of their squared relative change: what the iterations decrease. */
+/* Sum over the regions of their squared relative distance to their targets, and, spreading
+ * the whole mesh's change, the whole mesh's squared relative change: what the iterations
+ * decrease. */
 static double lvp__error_norm(const lvp_binding *binding)
 {
 	double sum = 0.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		double reference = binding->reference_volume[r];
-		if (!binding->region_skipped[r] && reference > 0.0)
-			sum += (binding->change[r] / reference) * (binding->change[r] / reference);
+		if (binding->region_skipped[r] || !(reference > 0.0))
+			continue;
+		double off = (binding->change[r] - binding->target[r]) / reference;
+		sum += off * off;
+	}
+	if (binding->spread_total && binding->frame_rest_volume != 0.0) {
+		double off = lvp__total_change(binding) / binding->frame_rest_volume;
+		sum += off * off;
 	}
 	return sum;
 }
 
-/* Correct, re-measure, correct... from a measured state; leaves the last measurement (sums,
- * normals, change[]) of work_positions. Returns the number of correction steps taken;
- * *r_first_active receives the number of regions corrected by the first one. */
+/* Correct, re-measure, correct... from a measured state, at most `budget` steps; leaves the
+ * last measurement of work_positions. Returns the number of steps taken; *r_first_active
+ * receives the number of regions corrected by the first one. A step that makes the regions
+ * worse overall is undone and ends the iteration, with *r_failed set. */
 static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_options *options,
-                                      const float *rest_positions, const lvp__region_sums *totals,
-                                      int32_t *r_first_active)
+                                      const float *rest_positions, const lvp__region_sums *totals, int32_t budget,
+                                      int32_t *r_first_active, bool *r_failed)
 {
 	int32_t steps = 0;
 	*r_first_active = 0;
-	while (steps < options->max_iterations) {
+	*r_failed = false;
+	while (steps < budget) {
 		int32_t m = lvp__collect_active(binding, options->tolerance);
 		if (m == 0)
 			break;
 		if (steps == 0)
 			*r_first_active = m;
-		double before = lvp__error_norm(binding);
-		lvp__correct_step(binding, m);
+		lvp__vertex_gradients(binding);
+		double before = lvp__assemble_step(binding, m);
+		lvp__take_step(binding, m);
 		++steps;
 		lvp__remeasure(binding, rest_positions, totals);
-		/* A step that makes the regions worse overall is undone and ends the iteration (a pose
-		 * folded onto itself, where the linearization no longer describes the volume). */
 		if (!(lvp__error_norm(binding) < before)) {
 			lvp__undo_step(binding);
+			for (int32_t i = 0; i < m; ++i) /* and the targets it moved */
+				binding->target[binding->active[i]] -= binding->uniform_gain[binding->active[i]] * binding->last_uniform;
 			lvp__measure(binding, rest_positions, totals);
+			*r_failed = true;
 			break;
 		}
 	}
@@ -471,24 +544,25 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 	return steps;
 }
 
-/* The local volumes are estimates (5.2): summed over a closed surface they differ from the true
- * change by what each region border sees from two different bone frames (second order in the
- * bend, 0.4 % of the cylinder at 90 degrees). Once every region is within tolerance, one global
- * multiplier spread over the regions corrected this frame (eq. 5 with the sum of their maps)
- * removes what is left of the whole mesh's change, holes capped: the total is then exact and
- * the fix stays where the regions put it. */
+/* The second phase of the fallback of lvp__correct_volumes(): once every region is within
+ * tolerance of its rest volume, one multiplier spread over the regions corrected this frame
+ * (eq. 5 with the sum of their maps) removes what is left of the whole mesh's change, holes
+ * capped. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
-                                 double target, const float *rest_positions, const lvp__region_sums *totals)
+                                 const float *rest_positions, const lvp__region_sums *totals)
 {
-	int32_t steps = 0;
-	while (steps < budget) {
-		double change = lvp__pass_volume(binding, binding->work_positions) - target;
-		if (!(fabs(change) > options->tolerance * fabs(target)))
+	int32_t steps = 0, touched = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r)
+		if (binding->region_touched[r])
+			binding->active[touched++] = r;
+	while (steps < budget && touched > 0) {
+		double change = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+		if (!(fabs(change) > options->tolerance * fabs(binding->frame_rest_volume)))
 			break;
+		lvp__vertex_gradients(binding);
 		double system = 0.0;
-		for (int32_t r = 0; r < binding->region_count; ++r) {
-			if (!binding->region_touched[r])
-				continue;
+		for (int32_t j = 0; j < touched; ++j) {
+			int32_t r = binding->active[j];
 			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
 				int32_t k = binding->movable_vertex[i];
 				if (!binding->frozen[k])
@@ -498,32 +572,12 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		}
 		if (!(system > 0.0))
 			break;
-		double mu = -change / system;
-		float *rho = binding->rho;
-		for (int32_t r = 0; r < binding->region_count; ++r) {
-			if (!binding->region_touched[r])
-				continue;
-			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
-				int32_t k = binding->movable_vertex[i];
-				if (!binding->frozen[k])
-					rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
-			}
-		}
-		binding->moved_count = 0;
-		for (int32_t r = 0; r < binding->region_count; ++r) {
-			if (!binding->region_touched[r])
-				continue;
-			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
-				int32_t k = binding->movable_vertex[i];
-				if (rho[k] == 0.0f)
-					continue;
-				lvp__move_vertex(binding, k, rho[k]);
-				rho[k] = 0.0f;
-			}
-		}
+		for (int32_t j = 0; j < touched; ++j)
+			binding->mu[binding->active[j]] = -change / system;
+		lvp__apply_multipliers(binding, binding->active, touched);
 		++steps;
 		lvp__remeasure(binding, rest_positions, totals);
-		double after = lvp__pass_volume(binding, binding->work_positions) - target;
+		double after = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
 		if (!(fabs(after) < fabs(change))) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
 			lvp__measure(binding, rest_positions, totals);
@@ -531,6 +585,36 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		}
 	}
 	return steps;
+}
+
+/* The volume correction, from a measured state. The local volumes are estimates (5.2): summed
+ * over a closed surface they differ from the true change by what each region border sees from
+ * two bone frames (second order in the bend, 0.4 % of the cylinder at 90 degrees), and regions
+ * the correction cannot move, or triangles without a region, change too. So each step adds to
+ * the regions' own step (towards their targets, zero at first) one multiplier for all of them
+ * that restores the whole mesh's volume, measured with its true gradient, and moves each
+ * region's target by what it does to that region: the regions end at their targets and the
+ * whole mesh at its rest volume, in the same steps. Where a step makes things worse (many
+ * regions overlapping, as at a shoulder, and most of the whole mesh's change missed by the
+ * region changes: the uniform part leaves the range where the linearization holds) it is
+ * undone, and the correction goes on in two phases: the regions to their targets, then one
+ * multiplier for the whole mesh (lvp__global_steps). Returns the number of steps;
+ * *r_first_active: the regions corrected by the first. */
+static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_options *options,
+                                    const float *rest_positions, const lvp__region_sums *totals,
+                                    int32_t *r_first_active)
+{
+	bool failed;
+	binding->spread_total = binding->mode == LVP_MODE_LOCAL;
+	int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations,
+	                                       r_first_active, &failed);
+	binding->spread_total = false;
+	if (!failed || binding->mode != LVP_MODE_LOCAL)
+		return steps;
+	int32_t ignored;
+	steps += lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations - steps,
+	                                &ignored, &failed);
+	return steps + lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
 }
 
 static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
@@ -593,16 +677,16 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 
 	int32_t first_active = 0;
+	binding->frame_rest_volume = stats.volume_rest;
+	binding->spread_total = false; /* until lvp__correct_volumes() */
+	memset(binding->region_touched, 0, (size_t)binding->region_count);
+	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);
 	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
-	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
 
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
-	stats.iterations = lvp__volume_iterations(binding, options, rest_positions, totals, &first_active);
-	if (binding->mode == LVP_MODE_LOCAL)
-		stats.iterations += lvp__global_steps(binding, options, options->max_iterations - stats.iterations,
-		                                      stats.volume_rest, rest_positions, totals);
+	stats.iterations = lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
 	stats.active_regions = first_active;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
@@ -617,10 +701,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
 			lvp__measure(binding, rest_positions, totals);
-			int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, &ignored);
-			steps += lvp__global_steps(binding, options, options->max_iterations - steps, stats.volume_rest,
-			                           rest_positions, totals);
-			stats.iterations += steps;
+			stats.iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
 			moved = lvp__fold_over(binding, rest_positions);
 			stats.folded_vertices += moved;
 		}

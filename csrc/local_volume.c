@@ -75,6 +75,15 @@ static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], 
 	return written;
 }
 
+/* The slot of vertex k for region r (it exists when k is on one of r's triangles). */
+static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
+{
+	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
+		if (binding->slot_region[slot] == r)
+			return slot;
+	return -1;
+}
+
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count, f = binding->triangle_count;
@@ -114,6 +123,15 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	shrunk = realloc(binding->cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->cap_edge_count > 0 ? binding->cap_edge_count : 1));
 	if (shrunk)
 		binding->cap_edges = shrunk;
+	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
+	binding->border_slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
+	binding->border_gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
+	if (!binding->border_slots || !binding->border_gradient)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	for (int32_t r = 0; r < s; ++r)
+		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+			for (int end = 0; end < 2; ++end)
+				binding->border_slots[2 * i + end] = lvp__find_slot(binding, binding->border_edges[2 * i + end], r);
 	return lvp_success;
 }
 
@@ -385,9 +403,10 @@ static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volu
 	r_area6[2] += area.z;
 }
 
-/* The mesh pass runs in three loops that each write only their own outputs, so they can be
- * split over threads with results independent of the split: triangles (their terms), regions
- * (sums over their triangles, in order), vertices (gradients gathered from their corners). */
+/* The mesh pass and the vertex gradients run in loops that each write only their own outputs,
+ * so they can be split over threads with results independent of the split: triangles (their
+ * terms), regions (sums over their triangles, in order), vertices (gradients gathered from
+ * their corners; only when a correction step follows). */
 typedef struct lvp__pass_context {
 	lvp_binding *binding;
 	const float *positions;
@@ -428,6 +447,8 @@ static void lvp__region_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* Every triangle around a dynamic vertex is dynamic, so its gradients are complete; static
+ * vertices never move this frame and need none. */
 static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
@@ -465,8 +486,6 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
-/* Every triangle around a dynamic vertex is dynamic, so its gradients are complete; static
- * vertices never move this frame and need none. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 {
 	lvp__pass_context context = {binding, positions};
@@ -484,7 +503,7 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 	                  binding->region_dynamic_offsets[binding->region_count + 1], LVP__GRAIN);
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->region_dynamic_offsets[binding->region_count + 1]),
 	                  lvp__region_loop, &context, binding->region_count + 1, 1);
-	lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->dynamic_vertex_count, LVP__GRAIN);
+	binding->vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */
 }
 
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count)
@@ -519,6 +538,8 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 			old[c] = g[c];
 		}
 		binding->triangle_volume6[t] = v;
+		if (!binding->vertex_terms_current)
+			continue; /* the slot gradients are gathered afresh from the triangles when needed */
 		for (int c = 0; c < 3; ++c) {
 			float *sg = binding->slot_gradient + 3 * binding->corner_slot[3 * t + c];
 			sg[0] += d[0];
@@ -642,46 +663,6 @@ static double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec
 	return lvp__vol6(a, a_rest, m) + lvp__vol6(a_rest, b_rest, m) + lvp__vol6(b_rest, b, m) + lvp__vol6(b, a, m);
 }
 
-/* The slot of vertex k for region r (it exists when k is on one of r's triangles). */
-static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
-{
-	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
-		if (binding->slot_region[slot] == r)
-			return slot;
-	return -1;
-}
-
-/* Adds the side quad's gradient (local frame, 6 x volume) to the slot's <n, dV_s/dp>, in the
- * units of the top part's gradient (which the correction multiplies by kappa). Without it the
- * corrections of a narrow weight band, whose vertices are mostly on a region border, would be
- * underestimated and converge slowly. */
-static void lvp__add_side_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient6, double scale)
-{
-	if (!binding->vertex_dynamic[k])
-		return; /* never moves this frame: its slots are not kept */
-	int32_t slot = lvp__find_slot(binding, k, r);
-	if (slot < 0)
-		return;
-	/* q = L p  =>  dV/dp = L^T dV/dq (L the linear part of the posed inverse) */
-	const double *m = binding->posed_inverse[r].m;
-	lvp__vec3 world = lvp__v(m[0] * gradient6.x + m[4] * gradient6.y + m[8] * gradient6.z,
-	                         m[1] * gradient6.x + m[5] * gradient6.y + m[9] * gradient6.z,
-	                         m[2] * gradient6.x + m[6] * gradient6.y + m[10] * gradient6.z);
-	const float *n = binding->normals + 3 * k;
-	binding->slot_g[slot] += (float)(scale * (n[0] * world.x + n[1] * world.y + n[2] * world.z) / 6.0);
-}
-
-static void lvp__add_world_gradient(lvp_binding *binding, int32_t k, int32_t r, lvp__vec3 gradient)
-{
-	if (!binding->vertex_dynamic[k])
-		return;
-	int32_t slot = lvp__find_slot(binding, k, r);
-	if (slot < 0)
-		return;
-	const float *n = binding->normals + 3 * k;
-	binding->slot_g[slot] += (float)(n[0] * gradient.x + n[1] * gradient.y + n[2] * gradient.z);
-}
-
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
                          const lvp__region_sums *rest_totals, double *r_change)
 {
@@ -697,8 +678,12 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 		if (binding->border_offsets[r + 1] > binding->border_offsets[r]) {
 			const lvp__mat4 *to_local = &binding->posed_inverse[r];
 			const lvp__mat4 *rest_to_local = &binding->rest_inverse[r];
-			double gradient_scale = binding->rest_det[r] / binding->kappa[r];
+			const double *m = to_local->m;
+			/* side gradients: local frame, 6 x volume -> world, in the units of the top part's
+			 * gradient (which the correction multiplies by kappa); q = L p => dV/dp = L^T dV/dq */
+			double gradient_scale = binding->rest_det[r] / binding->kappa[r] / 6.0;
 			int32_t bone_class = binding->skin_class[r];
+			lvp__vec3 o = binding->origin[r];
 			for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
 				/* Both ends static with the region's bone: rest and posed edge are the same in the
@@ -710,22 +695,73 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
 				lvp__vec3 ra = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * a));
 				lvp__vec3 rb = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * b));
-				lvp__vec3 grad_a, grad_b;
-				sides6 += lvp__side_quad6(&grad_a, &grad_b, qa, ra, rb, qb);
-				lvp__add_side_gradient(binding, a, r, grad_a, gradient_scale);
-				lvp__add_side_gradient(binding, b, r, grad_b, gradient_scale);
+				lvp__vec3 local[2];
+				sides6 += lvp__side_quad6(&local[0], &local[1], qa, ra, rb, qb);
 				/* The top's gradient was taken in its translation-invariant form, exact only where
 				 * a vertex's fan is closed; on the border the fan is open and the exact gradient
 				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is
 				 * this half-edge's share for both of its ends. */
-				lvp__vec3 o = binding->origin[r];
 				lvp__vec3 top_share = lvp__scale(lvp__cross(lvp__sub(pb, o), lvp__sub(pa, o)), 1.0 / 6.0);
-				lvp__add_world_gradient(binding, a, r, top_share);
-				lvp__add_world_gradient(binding, b, r, top_share);
+				float *gradient = binding->border_gradient + 6 * i;
+				for (int end = 0; end < 2; ++end) {
+					lvp__vec3 g = local[end];
+					gradient[3 * end] = (float)(gradient_scale * (m[0] * g.x + m[4] * g.y + m[8] * g.z) + top_share.x);
+					gradient[3 * end + 1] = (float)(gradient_scale * (m[1] * g.x + m[5] * g.y + m[9] * g.z) + top_share.y);
+					gradient[3 * end + 2] = (float)(gradient_scale * (m[2] * g.x + m[6] * g.y + m[10] * g.z) + top_share.z);
+				}
 			}
 			/* local units -> rest-world units */
 			sides6 *= binding->rest_det[r];
 		}
 		r_change[r] = top + sides6 / 6.0 - rest_totals[r].volume6 / 6.0;
 	}
+}
+
+/* The border terms of the last lvp__region_changes() added to the slots' <n, gradient> of the
+ * dynamic border vertices (static ones never move this frame: their slots are not kept). Each
+ * such vertex's slots are first recomputed from its slot gradients, so that the border terms of
+ * an earlier measurement are not counted again. Without them the corrections of a narrow weight
+ * band, whose vertices are mostly on a region border, would be underestimated and converge
+ * slowly. */
+static void lvp__add_border_gradients(lvp_binding *binding)
+{
+	int32_t touched = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (binding->region_skipped[r])
+			continue;
+		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+			for (int end = 0; end < 2; ++end) {
+				int32_t k = binding->border_edges[2 * i + end];
+				if (binding->vertex_dynamic[k] && !binding->vertex_dirty[k]) {
+					binding->vertex_dirty[k] = 1;
+					binding->dirty_vertices[touched++] = k;
+					lvp__vertex_terms(binding, k);
+				}
+			}
+	}
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (binding->region_skipped[r])
+			continue;
+		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+			for (int end = 0; end < 2; ++end) {
+				int32_t k = binding->border_edges[2 * i + end];
+				int32_t slot = binding->border_slots[2 * i + end];
+				if (!binding->vertex_dynamic[k] || slot < 0)
+					continue;
+				const float *n = binding->normals + 3 * k, *g = binding->border_gradient + 6 * i + 3 * end;
+				binding->slot_g[slot] += n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
+			}
+	}
+	for (int32_t i = 0; i < touched; ++i)
+		binding->vertex_dirty[binding->dirty_vertices[i]] = 0;
+}
+
+void lvp__vertex_gradients(lvp_binding *binding)
+{
+	if (!binding->vertex_terms_current) {
+		lvp__pass_context context = {binding, NULL};
+		lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->dynamic_vertex_count, LVP__GRAIN);
+		binding->vertex_terms_current = true;
+	}
+	lvp__add_border_gradients(binding);
 }

@@ -51,16 +51,19 @@
  *      g_k phi_kt, g_sk the part of g_k from region s's triangles) over the regions whose
  *      volume changed; unchanged regions cost nothing. With one region this is exactly eq. 5.
  *   4. The true volumes are measured again and steps 1-3 repeat until every region is within
- *      `tolerance` of its rest volume or `max_iterations` is reached: the linearization error
+ *      `tolerance` of its target (step 5) or `max_iterations` is reached: the linearization error
  *      of the paper's single pass is removed, not reported. The gradient of each region's
  *      volume is exact, side quads included, so this converges like Newton's method.
  *   5. The local volumes are estimates (paper 5.2): summed over the mesh they differ from its
  *      true change by what each region border sees from two bone frames (second order in the
- *      bend; 0.4 % of the paper's cylinder at 90 degrees, more for narrow weight bands). With
- *      the iteration budget left, one global multiplier spread over the regions corrected this
- *      frame (eq. 5 with the sum of their maps) removes what remains of the whole mesh's
- *      change, holes capped: the total volume is then exact, at the cost of leaving each
- *      region off by its share of that difference.
+ *      bend; 0.4 % of the paper's cylinder at 90 degrees, more for narrow weight bands), and
+ *      answer a step differently than the whole mesh does. So a corrected region is not
+ *      corrected to its rest volume but to its share of what the corrected regions' changes
+ *      miss of the whole mesh's change, holes capped (the share: what the region gains when
+ *      all multipliers are equal, fixed while the same regions are corrected); the system of
+ *      step 3 carries how that target moves with the step. When every region is at its
+ *      target the whole mesh is at its rest volume: no pass is spent on a separate global
+ *      step, and each region is left off its rest volume by its share of the difference.
  *   6. Fold-over prevention (5.4), when enabled: see FOLD-OVER.
  *
  * CORRECTION MAPS (gamma, where the volume goes; paper sections 4 and 5.3)
@@ -124,7 +127,7 @@
  *   alternate up to 4 more rounds. Limits: two parts of one bone's flesh, and bones that are
  *   not neighbours (a fingertip folded onto the palm), are not separated, and moving skin back
  *   towards its own bone there can add crossings; a crease pressed flatter than the bisector
- *   plane can hold (a finger folded past about 90 degrees with a 0.2-wide weight band) may
+ *   plane can hold (a finger folded past about 100 degrees with a 0.2-wide weight band) may
  *   still fold after projection. Where two bones lie on top of each other (a joint folded to
  *   180 degrees) there is no contact surface, and a vertex whose contact surface is further
  *   than a quarter of the rest mesh's size (bones posed far from their skin) is not moved:
@@ -165,9 +168,9 @@
  *   skin around those joints. (This is where `positions` being the skinning of the rest, as
  *   lvp_correct() says, is relied on: a vertex weighted to one bone is where that bone puts
  *   it.) Per iteration: one pass over the dynamic triangles (or over the triangles around
- *   the moved vertices, when they are few) and one over the vertices active regions can
- *   move, plus a dense solve of the active regions' system (m^3/3 for m active regions,
- *   negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(),
+ *   the moved vertices, when they are few) and, when a step follows, one over the dynamic
+ *   vertices and one over the vertices active regions can move, plus a dense solve of the
+ *   active regions' system (m^3/3 for m active regions, negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(),
  *   O(N B) for the normal test or O(N B log F) for the exact test.
  */
 #ifndef LVP_H
@@ -386,11 +389,11 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
 void lvp_get_correction_map(const lvp_binding *binding, float *r_map);
 
 typedef struct lvp_frame_options {
-	int32_t max_iterations; /* correction steps per volume correction (local steps, then global
-	                           ones), 1..1000, default 8; 1 is the paper's single pass. Fold-over
-	                           runs up to 4 more volume corrections, each with this budget. */
+	int32_t max_iterations; /* correction steps per volume correction, 1..1000, default 8; 1 is
+	                           the paper's single pass. Fold-over runs up to 4 more volume
+	                           corrections, each with this budget. */
 	float tolerance;        /* stop when every region is within tolerance * its reference volume
-	                           of its rest volume; > 0, default 1e-4 (0.01 %) */
+	                           of its target (ALGORITHM, 5); > 0, default 1e-4 (0.01 %) */
 	int32_t fold_over;      /* nonzero: fold-over prevention (local mode only), default 0 */
 } lvp_frame_options;
 

@@ -38,7 +38,7 @@ static void test_fold_over_removes_self_intersections(void)
 {
 	/* Plain skinning crosses itself from about 50 degrees; asserted up to 90 degrees, printed
 	 * beyond (past 90 degrees the crease can be pressed so flat that projecting it onto the
-	 * contact surface folds it, 4 pairs at 95 degrees; past 110 the tip crosses the first
+	 * contact surface folds it, 4 pairs at 110 degrees; past 110 the tip crosses the first
 	 * phalanx, bones that are not neighbours: limitations stated in lvp.h and README). */
 	const double angles[] = {60, 70, 80, 90, 95, 100, 110, 120};
 	printf("  finger, both knuckles bent; intersecting triangle pairs and volume error:\n");

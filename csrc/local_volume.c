@@ -201,9 +201,9 @@ static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
 	return binding->origin[region];
 }
 
-/* Volume term (p0 - o) . cr and cr / 6 (each corner's share of the gradient) of triangle t. In
- * float: each term is exact to float precision and the sums are taken in double. */
-static inline double lvp__triangle_terms(float r_gradient[3], const float *positions, const int32_t *corners,
+/* Volume term (p0 - o) . cr and cr = (p1 - p0) x (p2 - p0) of a triangle. In float: each term
+ * is exact to float precision and the sums are taken in double. */
+static inline double lvp__triangle_cross(float r_cross[3], const float *positions, const int32_t *corners,
                                          const float *o)
 {
 	const float *p0 = positions + 3 * corners[0];
@@ -212,10 +212,21 @@ static inline double lvp__triangle_terms(float r_gradient[3], const float *posit
 	float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
 	float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
 	float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
-	r_gradient[0] = cx * (1.0f / 6.0f);
-	r_gradient[1] = cy * (1.0f / 6.0f);
-	r_gradient[2] = cz * (1.0f / 6.0f);
+	r_cross[0] = cx;
+	r_cross[1] = cy;
+	r_cross[2] = cz;
 	return (double)((p0[0] - o[0]) * cx + (p0[1] - o[1]) * cy + (p0[2] - o[2]) * cz);
+}
+
+/* The same with cr / 6 (each corner's share of the gradient). */
+static inline double lvp__triangle_terms(float r_gradient[3], const float *positions, const int32_t *corners,
+                                         const float *o)
+{
+	double volume6 = lvp__triangle_cross(r_gradient, positions, corners, o);
+	r_gradient[0] *= 1.0f / 6.0f;
+	r_gradient[1] *= 1.0f / 6.0f;
+	r_gradient[2] *= 1.0f / 6.0f;
+	return volume6;
 }
 
 /* Normal, g and the slots' <n, gradient> of vertex k from its slot gradients. */
@@ -312,8 +323,11 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 			binding->static_count[r] = last - first;
 			continue;
 		}
-		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
-		double volume6 = 0.0;
+		/* The dynamic triangles' rest terms, subtracted from the totals below: in float, like
+		 * the posed terms of the passes, about the rounded origin, then moved to the exact one. */
+		lvp__vec3 o_exact = lvp__rest_origin(binding, r);
+		float o[3] = {(float)o_exact.x, (float)o_exact.y, (float)o_exact.z};
+		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
 		int32_t dynamic = 0;
 		for (int32_t t = first; t < last; ++t) {
 			const int32_t *corners = binding->triangles + 3 * t;
@@ -324,10 +338,14 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 			if (is_static)
 				continue;
 			++dynamic;
-			lvp__vec3 cr;
-			volume6 += lvp__rest_terms(&cr, c->rest, corners, o);
-			area = lvp__add(area, cr);
+			float cr[3];
+			volume6 += lvp__triangle_cross(cr, c->rest, corners, o);
+			ax += cr[0];
+			ay += cr[1];
+			az += cr[2];
 		}
+		lvp__vec3 area = lvp__v(ax, ay, az);
+		volume6 += lvp__dot(lvp__sub(lvp__v(o[0], o[1], o[2]), o_exact), area);
 		binding->region_state[r] = LVP__REGION_MIXED;
 		binding->region_dynamic_offsets[r + 1] = dynamic;
 		/* static = all - dynamic; none static: exactly zero, not the rounding of a difference */

@@ -51,6 +51,43 @@ static bool moves_rigidly(const test_rig *rig, const float *skin, int32_t k)
 	return true;
 }
 
+/* A frame of the giraffe: joint rotations (axis, angle per bone, in its rest frame) in, posed
+ * matrices, skin matrices and skinned positions out, and room for the offsets. */
+typedef struct giraffe_frame {
+	float *rotations, *posed, *skin, *skinned, *offsets;
+} giraffe_frame;
+
+static giraffe_frame giraffe_frame_make(const test_rig *rig)
+{
+	giraffe_frame f;
+	f.rotations = calloc((size_t)rig->bone_count * 4, sizeof(float));
+	f.posed = malloc(sizeof(float) * 16 * (size_t)rig->bone_count);
+	f.skin = malloc(sizeof(float) * 16 * (size_t)rig->bone_count);
+	f.skinned = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	f.offsets = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	return f;
+}
+
+/* Poses the rig by f->rotations and skins it (linear blend). */
+static void giraffe_frame_pose(giraffe_frame *f, const test_rig *rig)
+{
+	test_pose(f->posed, rig, f->rotations);
+	test_skin_matrices(f->skin, rig, f->posed);
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_skin_linear(f->skinned, rig->positions, rig->vertex_count, &weights, f->skin, rig->bone_count, &diag),
+	         diag);
+}
+
+static void giraffe_frame_free(giraffe_frame *f)
+{
+	free(f->rotations);
+	free(f->posed);
+	free(f->skin);
+	free(f->skinned);
+	free(f->offsets);
+}
+
 static void test_giraffe_bend(void)
 {
 	test_rig rig;
@@ -58,8 +95,9 @@ static void test_giraffe_bend(void)
 		CHECK(!"the giraffe loads");
 		return;
 	}
-	int32_t n = rig.vertex_count, b = rig.bone_count;
-	float *rotations = calloc((size_t)b * 4, sizeof(float));
+	int32_t n = rig.vertex_count;
+	giraffe_frame frame = giraffe_frame_make(&rig);
+	float *rotations = frame.rotations, *skin = frame.skin, *posed = frame.posed, *offsets = frame.offsets;
 	for (size_t i = 0; i < sizeof(pose) / sizeof(pose[0]); ++i) {
 		int32_t bone = test_find_bone(&rig, pose[i].bone);
 		CHECK(bone >= 0);
@@ -71,14 +109,11 @@ static void test_giraffe_bend(void)
 			rotations[4 * bone + c] = m[c] * pose[i].axis[0] + m[4 + c] * pose[i].axis[1] + m[8 + c] * pose[i].axis[2];
 		rotations[4 * bone + 3] = (float)(pose[i].degrees * PI / 180);
 	}
-	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	float *skinned = malloc(sizeof(float) * 3 * (size_t)n), *offsets = malloc(sizeof(float) * 3 * (size_t)n);
-	test_pose(posed, &rig, rotations);
-	test_skin_matrices(skin, &rig, posed);
+	giraffe_frame_pose(&frame, &rig);
+	const float *skinned = frame.skinned;
 	lvp_weights weights = test_rig_weights(&rig);
 	lvp_skeleton skeleton = test_rig_skeleton(&rig);
 	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(skinned, rig.positions, n, &weights, skin, b, &diag), diag);
 
 	printf("  giraffe, neck and legs bent: whole-body volume error (holes capped)\n");
 	printf("  map       | plain SSD | one pass | iterated | worst region before -> after | passes\n");
@@ -131,11 +166,7 @@ static void test_giraffe_bend(void)
 		CHECK(far_motion == 0.0);
 		lvp_free(binding);
 	}
-	free(rotations);
-	free(posed);
-	free(skin);
-	free(skinned);
-	free(offsets);
+	giraffe_frame_free(&frame);
 	test_rig_free(&rig);
 }
 
@@ -154,9 +185,7 @@ static void test_single_joints(void)
 	const char *joints[] = {"gi_neckC7", "gi_neckC4", "gi_head",  "gi_L_shoulder", "gi_R_shoulder", "gi_L_elbow",
 	                        "gi_L_hip",  "gi_L_knee", "gi_R_knee", "gi_tailA"};
 	int32_t n = rig.vertex_count, b = rig.bone_count;
-	float *rotations = calloc((size_t)b * 4, sizeof(float));
-	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	float *skinned = malloc(sizeof(float) * 3 * (size_t)n), *offsets = malloc(sizeof(float) * 3 * (size_t)n);
+	giraffe_frame frame = giraffe_frame_make(&rig);
 	lvp_weights weights = test_rig_weights(&rig);
 	lvp_skeleton skeleton = test_rig_skeleton(&rig);
 	lvp_diagnostic diag;
@@ -170,14 +199,14 @@ static void test_single_joints(void)
 		CHECK(bone >= 0);
 		for (int axis = 0; axis < 3 && bone >= 0; ++axis)
 			for (int sign = -1; sign <= 1; sign += 2) {
-				memset(rotations, 0, sizeof(float) * 4 * (size_t)b);
-				rotations[4 * bone + axis] = 1.0f;
-				rotations[4 * bone + 3] = (float)(sign * 60 * PI / 180);
-				test_pose(posed, &rig, rotations);
-				test_skin_matrices(skin, &rig, posed);
-				CHECK_OK(lvp_skin_linear(skinned, rig.positions, n, &weights, skin, b, &diag), diag);
+				memset(frame.rotations, 0, sizeof(float) * 4 * (size_t)b);
+				frame.rotations[4 * bone + axis] = 1.0f;
+				frame.rotations[4 * bone + 3] = (float)(sign * 60 * PI / 180);
+				giraffe_frame_pose(&frame, &rig);
 				lvp_frame_stats stats;
-				CHECK_OK(lvp_correct(NULL, offsets, binding, skinned, posed, NULL, NULL, &stats, &diag), diag);
+				CHECK_OK(lvp_correct(NULL, frame.offsets, binding, frame.skinned, frame.posed, NULL, NULL, &stats,
+				                     &diag),
+				         diag);
 				double before = (stats.volume_before - stats.volume_rest) / stats.volume_rest;
 				double after = (stats.volume_after - stats.volume_rest) / stats.volume_rest;
 				CHECK(fabs(after) < 1e-3);
@@ -196,11 +225,7 @@ static void test_single_joints(void)
 	       largest_offset);
 	CHECK(frames == 60);
 	lvp_free(binding);
-	free(rotations);
-	free(posed);
-	free(skin);
-	free(skinned);
-	free(offsets);
+	giraffe_frame_free(&frame);
 	test_rig_free(&rig);
 }
 

@@ -153,6 +153,7 @@ struct lvp_binding {
 	double *total_gain;      /* region_count: per active region, what its multiplier does to the
 	                            whole mesh's volume (sum_k g_k gamma_k g_k phi_kt) */
 	double frame_rest_volume; /* the whole mesh's volume at this frame's rest */
+	double total_scale;      /* what the whole mesh's change is measured against (correction.c) */
 	bool spread_total;       /* steps also restore the whole mesh's volume (lvp__correct_volumes) */
 	double last_uniform;     /* the uniform multiplier of the last step (0 when not spreading) */
 	lvp__region_sums *frame_totals; /* region_count: rest_totals of the frame's own rest, when given */

@@ -321,8 +321,7 @@ static double lvp__total_change(const lvp_binding *binding)
 static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
-	bool any_off = binding->spread_total &&
-	               fabs(lvp__total_change(binding)) > tolerance * fabs(binding->frame_rest_volume);
+	bool any_off = binding->spread_total && fabs(lvp__total_change(binding)) > tolerance * binding->total_scale;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
@@ -501,8 +500,8 @@ static double lvp__error_norm(const lvp_binding *binding)
 		double off = (binding->change[r] - binding->target[r]) / reference;
 		sum += off * off;
 	}
-	if (binding->spread_total && binding->frame_rest_volume != 0.0) {
-		double off = lvp__total_change(binding) / binding->frame_rest_volume;
+	if (binding->spread_total) {
+		double off = lvp__total_change(binding) / binding->total_scale;
 		sum += off * off;
 	}
 	return sum;
@@ -557,7 +556,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			binding->active[touched++] = r;
 	while (steps < budget && touched > 0) {
 		double change = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
-		if (!(fabs(change) > options->tolerance * fabs(binding->frame_rest_volume)))
+		if (!(fabs(change) > options->tolerance * binding->total_scale))
 			break;
 		lvp__vertex_gradients(binding);
 		double system = 0.0;
@@ -678,6 +677,10 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 
 	int32_t first_active = 0;
 	binding->frame_rest_volume = stats.volume_rest;
+	/* What the whole mesh's change is measured against: its volume, or for an open, flat mesh
+	 * (no volume to speak of) the cube of its size, as the global mode's reference. */
+	double cube = binding->size * binding->size * binding->size;
+	binding->total_scale = fabs(stats.volume_rest) > 1e-6 * cube ? fabs(stats.volume_rest) : cube;
 	binding->spread_total = false; /* until lvp__correct_volumes() */
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);

@@ -221,13 +221,19 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 
 static double lvp__error_norm(const lvp_binding *binding);
 
+/* The whole mesh's change, holes capped, from the last measurement. */
+static double lvp__total_change(const lvp_binding *binding)
+{
+	return lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+}
+
 /* The multiplier added to every active region's, so that the whole mesh's volume, answering
  * with its true gradient (total_gain), is restored to first order after the regions' own step
  * mu. Added this way, the uniform part never goes through the region system, which is badly
  * conditioned where many regions overlap (a shoulder). */
 static double lvp__uniform_multiplier(const lvp_binding *binding, int32_t m)
 {
-	double total = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume, gain = 0.0;
+	double total = lvp__total_change(binding), gain = 0.0;
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = binding->active[i];
 		total += binding->total_gain[t] * binding->mu[t];
@@ -305,12 +311,6 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 		}
 	}
 	lvp__apply_multipliers(binding, active, m);
-}
-
-/* The whole mesh's change, holes capped, from the last measurement. */
-static double lvp__total_change(const lvp_binding *binding)
-{
-	return lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
 }
 
 /* When some region is off its target by more than the tolerance (or, spreading the whole
@@ -555,7 +555,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		if (binding->region_touched[r])
 			binding->active[touched++] = r;
 	while (steps < budget && touched > 0) {
-		double change = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+		double change = lvp__total_change(binding);
 		if (!(fabs(change) > options->tolerance * binding->total_scale))
 			break;
 		lvp__vertex_gradients(binding);
@@ -576,7 +576,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		lvp__apply_multipliers(binding, binding->active, touched);
 		++steps;
 		lvp__remeasure(binding, rest_positions, totals);
-		double after = lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+		double after = lvp__total_change(binding);
 		if (!(fabs(after) < fabs(change))) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
 			lvp__measure(binding, rest_positions, totals);
@@ -681,7 +681,6 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	 * (no volume to speak of) the cube of its size, as the global mode's reference. */
 	double cube = binding->size * binding->size * binding->size;
 	binding->total_scale = fabs(stats.volume_rest) > 1e-6 * cube ? fabs(stats.volume_rest) : cube;
-	binding->spread_total = false; /* until lvp__correct_volumes() */
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);

@@ -57,13 +57,15 @@
  *   5. The local volumes are estimates (paper 5.2): summed over the mesh they differ from its
  *      true change by what each region border sees from two bone frames (second order in the
  *      bend; 0.4 % of the paper's cylinder at 90 degrees, more for narrow weight bands), and
- *      answer a step differently than the whole mesh does. So a corrected region is not
- *      corrected to its rest volume but to its share of what the corrected regions' changes
- *      miss of the whole mesh's change, holes capped (the share: what the region gains when
- *      all multipliers are equal, fixed while the same regions are corrected); the system of
- *      step 3 carries how that target moves with the step. When every region is at its
+ *      regions the map cannot move change too. So each step of 3 also adds one multiplier to
+ *      every corrected region's, chosen so that the whole mesh's volume, holes capped and
+ *      measured with its true gradient, is restored to first order; each region's target
+ *      (zero at first) moves by what that multiplier does to it. When every region is at its
  *      target the whole mesh is at its rest volume: no pass is spent on a separate global
- *      step, and each region is left off its rest volume by its share of the difference.
+ *      step, and each region is left off its rest volume by its part of the difference.
+ *      Where such a step makes things worse (many overlapping regions, most of the whole
+ *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
+ *      two phases: the regions to their targets, then one multiplier for the whole mesh.
  *   6. Fold-over prevention (5.4), when enabled: see FOLD-OVER.
  *
  * CORRECTION MAPS (gamma, where the volume goes; paper sections 4 and 5.3)

@@ -45,18 +45,18 @@ void lvp_free(lvp_binding *binding)
 	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class, binding->triangle_gradient,
 	    binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles, binding->vertex_dirty,
 	    binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma,
-	    binding->distance, binding->region_bone_offsets, binding->region_bones, binding->support_offsets,
-	    binding->support_vertex, binding->support_phi, binding->movable_offsets, binding->movable_vertex,
-	    binding->movable_phi, binding->neighbour_offsets, binding->neighbour_bones, binding->region_vertex_offsets,
-	    binding->region_vertices, binding->work_positions, binding->normals, binding->vertex_g, binding->slot_gradient,
-	    binding->slot_g, binding->rho, binding->frozen, binding->sums, binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
+	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->cap_edges, binding->gamma,
+	    binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets,
+	    binding->region_bones, binding->region_movable, binding->step_mu, binding->neighbour_offsets,
+	    binding->neighbour_bones, binding->region_vertex_offsets, binding->region_vertices, binding->work_positions,
+	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->frozen, binding->sums,
+	    binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
 	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic,
 	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest,
-	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->posed_heads,
-	    binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active, binding->active_index,
-	    binding->system, binding->rhs, binding->pivots, binding->mu, binding->region_corner_offsets,
-	    binding->region_corners, binding->region_state, binding->triangle_static,
+	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
+	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
+	    binding->active_index, binding->system, binding->rhs, binding->pivots, binding->mu,
+	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -188,6 +188,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		binding->posed = lvp__alloc(b, sizeof(lvp__mat4), &ok);
 		binding->posed_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
 		binding->skin = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->skin_displacement = lvp__alloc(b * 12, sizeof(float), &ok);
 		binding->posed_heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
 		binding->posed_tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
 	}
@@ -199,16 +200,13 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->frame_gamma = lvp__alloc(n, sizeof(float), &ok);
 	binding->distance = lvp__alloc(n, sizeof(float), &ok);
 	binding->log_gamma = lvp__alloc(n, sizeof(double), &ok);
-	binding->support_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
-	binding->movable_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
-	binding->movable_vertex = lvp__alloc(n + e, sizeof(int32_t), &ok); /* a support never has more */
-	binding->movable_phi = lvp__alloc(n + e, sizeof(float), &ok);
+	binding->region_movable = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->step_mu = lvp__alloc(s, sizeof(double), &ok);
 	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
 	binding->region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->work_positions = lvp__alloc(n * 3, sizeof(float), &ok);
 	binding->normals = lvp__alloc(n * 3, sizeof(float), &ok);
 	binding->vertex_g = lvp__alloc(n, sizeof(float), &ok);
-	binding->rho = lvp__alloc(n, sizeof(float), &ok);
 	binding->triangle_gradient = lvp__alloc(f * 3, sizeof(float), &ok);
 	binding->triangle_volume6 = lvp__alloc(f, sizeof(double), &ok);
 	binding->triangle_dirty = lvp__alloc(f, sizeof(uint8_t), &ok);
@@ -265,6 +263,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		lvp_free(binding);
 		return result;
 	}
+	binding->thread_count = options->thread_count;
 	if (lvp__pool_create(&binding->pool, options->thread_count) != lvp_success) {
 		lvp_free(binding);
 		return lvp__fail(r_diag, lvp_error_thread, "options.thread_count", -1,

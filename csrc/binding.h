@@ -94,16 +94,13 @@ struct lvp_binding {
 	double *log_gamma;       /* vertex_count: the map before normalization, as a logarithm */
 	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
 	int32_t *region_bones;
-	int32_t *support_offsets; /* region_count+1: vertices that region s can move */
-	int32_t *support_vertex;
-	float *support_phi;       /* phi_ks */
-	int32_t support_capacity;
-	/* This frame's movable part of each support: entries whose vertex the frame map lets move
-	 * (frame_gamma > 0). In a rig bent at a few joints most of the support is rigid, so the
-	 * correction loops visit only these. Capacity: vertex_count + weight entries. */
-	int32_t *movable_offsets; /* region_count+1 */
-	int32_t *movable_vertex;
-	float *movable_phi;
+	/* What reaches a vertex: rho_k = gamma_k g_k sum_t phi_kt mu_t over its support
+	 * (correction.c, lvp__vertex_support): with a soft map the bones of its weights, phi = the
+	 * weight; with the boundary fade, or in global mode, its one region, phi = 1. */
+	bool soft_support;
+	uint8_t *region_movable;  /* region_count: some vertex of its support can move this frame */
+	int32_t movable_entries;  /* this frame's support entries of vertices that can move */
+	int32_t thread_count;
 
 	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
 	int32_t *neighbour_offsets; /* region_count+1 */
@@ -127,7 +124,6 @@ struct lvp_binding {
 	int32_t *moved;           /* vertex_count: vertices moved by the last step */
 	float *step_backup;       /* vertex_count*3: their positions before it, in the same order */
 	int32_t moved_count;
-	float *rho;              /* vertex_count, kept zero between uses */
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */
 	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
 	/* The dynamic set (local_volume.c): what a pass visits. A triangle whose three corners follow
@@ -161,6 +157,7 @@ struct lvp_binding {
 	lvp__mat4 *posed;        /* bone_count */
 	lvp__mat4 *posed_inverse;
 	lvp__mat4 *skin;         /* bone_count: posed * rest^-1 */
+	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
 	lvp__vec3 *posed_heads, *posed_tails;
 	uint8_t *region_skipped; /* region_count */
 	uint8_t *region_touched; /* region_count: corrected at least once this frame */
@@ -170,6 +167,7 @@ struct lvp_binding {
 	double *rhs;             /* LVP__DENSE_MAX */
 	int32_t *pivots;         /* LVP__DENSE_MAX */
 	double *mu;              /* region_count */
+	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
 };
 
 /* segmentation.c */

@@ -144,33 +144,63 @@ static void lvp__undo_step(lvp_binding *binding)
 		memcpy(binding->work_positions + 3 * binding->moved[i], binding->step_backup + 3 * i, sizeof(float) * 3);
 }
 
+/* The support of vertex k (binding.h, soft_support): the regions whose multipliers reach it,
+ * each with its phi_kt. Entries with phi <= 0 are none. Read where it is used, vertex by vertex,
+ * so a step walks the dynamic vertices in order instead of each region's list of them. */
+typedef struct lvp__support {
+	const int32_t *regions;
+	const float *phi;
+	int32_t count;
+} lvp__support;
+
+static inline lvp__support lvp__vertex_support(const lvp_binding *binding, int32_t k)
+{
+	static const int32_t global_region = 0;
+	static const float one = 1.0f;
+	lvp__support support;
+	if (binding->soft_support) {
+		int32_t begin = binding->weight_offsets[k];
+		support.regions = binding->weight_bones + begin;
+		support.phi = binding->weight_values + begin;
+		support.count = binding->weight_offsets[k + 1] - begin;
+	} else {
+		support.regions = binding->mode == LVP_MODE_LOCAL ? binding->vertex_region + k : &global_region;
+		support.phi = &one;
+		support.count = 1;
+	}
+	return support;
+}
+
+/* Whether vertex k can move in a step: the frame's map lets it, and fold-over does not hold it. */
+static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
+{
+	return binding->frame_gamma[k] > 0.0f && !binding->frozen[k];
+}
+
 /* Moves work_positions by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t over the given
- * regions (their multipliers in mu[]), remembering the step (lvp__undo_step). */
+ * regions (their multipliers in mu[]), remembering the step (lvp__undo_step). Only dynamic
+ * vertices can move (their map is zero otherwise). */
 static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
 {
-	float *rho = binding->rho;
-	for (int32_t j = 0; j < count; ++j) {
-		int32_t t = regions[j];
-		double mu = binding->mu[t];
-		if (mu == 0.0)
-			continue;
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (!binding->frozen[k])
-				rho[k] += (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i] * mu);
-		}
-	}
+	double *step_mu = binding->step_mu;
+	for (int32_t j = 0; j < count; ++j)
+		step_mu[regions[j]] = binding->mu[regions[j]];
 	binding->moved_count = 0;
-	for (int32_t j = 0; j < count; ++j) {
-		int32_t t = regions[j];
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (rho[k] == 0.0f)
-				continue;
-			lvp__move_vertex(binding, k, rho[k]);
-			rho[k] = 0.0f;
-		}
+	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
+		if (!lvp__can_move(binding, k))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		double sum = 0.0;
+		for (int32_t i = 0; i < support.count; ++i)
+			if (support.phi[i] > 0.0f)
+				sum += support.phi[i] * step_mu[support.regions[i]];
+		float rho = (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * sum);
+		if (rho != 0.0f)
+			lvp__move_vertex(binding, k, rho);
 	}
+	for (int32_t j = 0; j < count; ++j)
+		step_mu[regions[j]] = 0.0;
 }
 
 typedef struct lvp__assembly_context {
@@ -178,44 +208,58 @@ typedef struct lvp__assembly_context {
 	int32_t m, dense;
 } lvp__assembly_context;
 
-/* Columns [begin, end) of the active regions' system. The regions past the dense block keep
- * only their diagonal (stored in mu temporarily). Each column is summed in a local array, in
- * the same order whatever the threads, and written once. */
+/* Columns [begin, end) of the active regions' system: column j gathers what region active[j]'s
+ * multiplier does to each active region, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt.
+ * The regions past the dense block keep only their diagonal (stored in mu temporarily). Each
+ * worker takes a block of columns and walks all dynamic vertices in order, so every entry is
+ * summed in the same order whatever the threads. */
 static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 {
 	const lvp__assembly_context *c = context;
-	lvp_binding *binding = c->binding;
+	const lvp_binding *binding = c->binding;
 	int32_t dense = c->dense;
-	double column[LVP__DENSE_MAX];
+	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
+	 * change what the binding points to. */
+	double *system = binding->system, *diagonal = binding->mu, *total_gain = binding->total_gain;
+	const int32_t *active = binding->active, *active_index = binding->active_index;
+	const int32_t *dynamic = binding->dynamic_vertices, *slot_offsets = binding->slot_offsets;
+	const int32_t *slot_region = binding->slot_region;
+	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
+	const double *kappa = binding->kappa;
 	for (int32_t j = begin; j < end; ++j) {
-		int32_t t = binding->active[j];
-		double diagonal = 0.0, total = 0.0;
-		for (int32_t row = 0; row < dense; ++row)
-			column[row] = 0.0;
-		for (int32_t i = binding->movable_offsets[t]; i < binding->movable_offsets[t + 1]; ++i) {
-			int32_t k = binding->movable_vertex[i];
-			if (binding->frozen[k])
-				continue;
-			double weight = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->movable_phi[i];
-			total += weight * binding->vertex_g[k];
-			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot) {
-				int32_t s = binding->slot_region[slot];
-				int32_t row = s >= 0 ? binding->active_index[s] : -1;
-				if (row < 0)
-					continue;
-				double value = binding->kappa[s] * binding->slot_g[slot] * weight;
-				if (row < dense && j < dense)
-					column[row] += value;
-				else if (row == j)
-					diagonal += value;
-			}
-		}
 		if (j < dense)
 			for (int32_t row = 0; row < dense; ++row)
-				binding->system[row * dense + j] = column[row];
+				system[row * dense + j] = 0.0;
 		else
-			binding->mu[t] = diagonal;
-		binding->total_gain[t] = total;
+			diagonal[active[j]] = 0.0;
+		total_gain[active[j]] = 0.0;
+	}
+	for (int32_t v = 0, count = binding->dynamic_vertex_count; v < count; ++v) {
+		int32_t k = dynamic[v];
+		if (!lvp__can_move(binding, k))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+		int32_t slot_first = slot_offsets[k], slot_last = slot_offsets[k + 1];
+		for (int32_t i = 0; i < support.count; ++i) {
+			int32_t t = support.regions[i];
+			int32_t j = active_index[t];
+			if (j < begin || j >= end || !(support.phi[i] > 0.0f))
+				continue;
+			double weight = gain * support.phi[i];
+			total_gain[t] += weight * g;
+			for (int32_t slot = slot_first; slot < slot_last; ++slot) {
+				int32_t s = slot_region[slot];
+				int32_t row = s >= 0 ? active_index[s] : -1;
+				if (row < 0)
+					continue;
+				double value = kappa[s] * slot_g[slot] * weight;
+				if (row < dense && j < dense)
+					system[row * dense + j] += value;
+				else if (row == j)
+					diagonal[t] += value;
+			}
+		}
 	}
 }
 
@@ -255,8 +299,9 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
 	 * Columns are independent, so they are split over the worker threads. */
 	lvp__assembly_context context = {binding, m, dense};
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_offsets[binding->region_count]), lvp__assemble_columns,
-	                  &context, m, 1);
+	int32_t columns_per_thread = (m + binding->thread_count - 1) / binding->thread_count;
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_columns, &context, m,
+	                  columns_per_thread);
 	/* What equal multipliers do to each region: its row of the system (past the dense block, its
 	 * diagonal, kept in mu[] by the assembly). */
 	for (int32_t i = 0; i < m; ++i) {
@@ -325,8 +370,7 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
-		if (binding->region_skipped[r] || !(reference > 0.0) ||
-		    binding->movable_offsets[r + 1] == binding->movable_offsets[r])
+		if (binding->region_skipped[r] || !(reference > 0.0) || !binding->region_movable[r])
 			continue;
 		bool off = fabs(binding->change[r] - binding->target[r]) > tolerance * reference;
 		any_off = any_off || off;
@@ -373,42 +417,70 @@ static void lvp__skin_classes(lvp_binding *binding)
 	}
 }
 
-/* The skin class that all bones of vertex k (with weight) share, or -1. */
-static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
+/* Displacement (S_b - I) p of rest point p by bone b's skin matrix, in float (skin_displacement):
+ * small where bones nearly agree, so rounding does not swamp their difference. */
+static inline void lvp__displacement(float r_d[3], const lvp_binding *binding, int32_t bone, const float *p)
 {
-	int32_t shared = -1;
-	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-		if (!(binding->weight_values[e] > 0.0f))
-			continue;
-		int32_t c = binding->skin_class[binding->weight_bones[e]];
-		if (shared >= 0 && c != shared)
-			return -1;
-		shared = c;
-	}
-	return shared;
+	const float *m = binding->skin_displacement + 12 * bone;
+	r_d[0] = m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3];
+	r_d[1] = m[4] * p[0] + m[5] * p[1] + m[6] * p[2] + m[7];
+	r_d[2] = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
 }
 
-/* a_k of lvp.h: how far apart the vertex's bones would carry it (weighted mean distance of
- * each bone's image of the rest point from their blend). */
-static double lvp__spread(const lvp_binding *binding, const float *rest, int32_t k)
+/* a_k of lvp.h for rest point p moved by `count` bones with the given weights: how far apart
+ * they would carry it (the weighted mean distance of each bone's image from their blend). */
+#define LVP__SPREAD_KEPT 16
+static float lvp__spread(const lvp_binding *binding, const float *p, const int32_t *bones, const float *weights,
+                         int32_t count)
 {
-	int32_t begin = binding->weight_offsets[k], end = binding->weight_offsets[k + 1];
-	lvp__vec3 p = lvp__load(rest + 3 * k), blend = lvp__v(0.0, 0.0, 0.0);
-	lvp__vec3 moved[8]; /* the first few bones' images of p, kept for the second loop */
-	for (int32_t e = begin; e < end; ++e) {
-		lvp__vec3 q = lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
-		if (e - begin < 8)
-			moved[e - begin] = q;
-		blend = lvp__add(blend, lvp__scale(q, binding->weight_values[e]));
+	float kept[LVP__SPREAD_KEPT][3]; /* the first bones' displacements, for the second loop */
+	float blend[3] = {0.0f, 0.0f, 0.0f};
+	for (int32_t e = 0; e < count; ++e) {
+		float d[3];
+		lvp__displacement(d, binding, bones[e], p);
+		if (e < LVP__SPREAD_KEPT)
+			memcpy(kept[e], d, sizeof(d));
+		for (int c = 0; c < 3; ++c)
+			blend[c] += weights[e] * d[c];
 	}
-	double spread = 0.0;
-	for (int32_t e = begin; e < end; ++e) {
-		lvp__vec3 q =
-		    e - begin < 8 ? moved[e - begin] : lvp__transform_point(&binding->skin[binding->weight_bones[e]], p);
-		spread += binding->weight_values[e] * lvp__length(lvp__sub(q, blend));
+	float spread = 0.0f;
+	for (int32_t e = 0; e < count; ++e) {
+		float d[3];
+		if (e < LVP__SPREAD_KEPT)
+			memcpy(d, kept[e], sizeof(d));
+		else
+			lvp__displacement(d, binding, bones[e], p);
+		float dx = d[0] - blend[0], dy = d[1] - blend[1], dz = d[2] - blend[2];
+		spread += weights[e] * sqrtf(dx * dx + dy * dy + dz * dz);
 	}
 	/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
-	return spread < 1e-6 * binding->size ? 0.0 : spread;
+	return spread < (float)(1e-6 * binding->size) ? 0.0f : spread;
+}
+
+/* The skin classes of vertex k's bones (with weight), each with the sum of their weights:
+ * bones of one class move it alike, so a_k needs one displacement per class, and a vertex
+ * whose bones share one class moves rigidly. Returns the number of classes, or -1 when there
+ * are more than LVP__SPREAD_KEPT (then taken bone by bone). */
+static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_t r_class[LVP__SPREAD_KEPT],
+                                   float r_weight[LVP__SPREAD_KEPT])
+{
+	int32_t count = 0;
+	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		float w = binding->weight_values[e];
+		if (!(w > 0.0f))
+			continue;
+		int32_t c = binding->skin_class[binding->weight_bones[e]], i = 0;
+		while (i < count && r_class[i] != c)
+			++i;
+		if (i == count) {
+			if (count == LVP__SPREAD_KEPT)
+				return -1;
+			r_class[count] = c;
+			r_weight[count++] = 0.0f;
+		}
+		r_weight[i] += w;
+	}
+	return count;
 }
 
 typedef struct lvp__frame_map_context {
@@ -416,22 +488,32 @@ typedef struct lvp__frame_map_context {
 	const float *rest;
 } lvp__frame_map_context;
 
-/* Per vertex, independent of every other: split over the worker threads. */
+/* Per vertex, independent of every other: split over the worker threads. A class is the index
+ * of its first bone (lvp__skin_classes), so it names that bone's displacement. */
 static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__frame_map_context *c = context;
 	lvp_binding *binding = c->binding;
 	bool weighted = binding->map.deformation_weighted;
 	for (int32_t k = begin; k < end; ++k) {
-		int32_t vertex_class = lvp__vertex_class(binding, k);
+		int32_t classes[LVP__SPREAD_KEPT];
+		float class_weight[LVP__SPREAD_KEPT];
+		int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
+		int32_t vertex_class = class_count == 1 ? classes[0] : -1;
 		binding->vertex_class[k] = vertex_class;
 		float gamma = binding->gamma[k];
 		if (!weighted)
 			binding->frame_gamma[k] = gamma;
 		else if (!(gamma > 0.0f) || vertex_class >= 0)
 			binding->frame_gamma[k] = 0.0f; /* all its bones in one class: it moves rigidly */
-		else
-			binding->frame_gamma[k] = (float)(gamma * lvp__spread(binding, c->rest, k));
+		else if (class_count >= 0)
+			binding->frame_gamma[k] = gamma * lvp__spread(binding, c->rest + 3 * k, classes, class_weight, class_count);
+		else {
+			int32_t first = binding->weight_offsets[k];
+			binding->frame_gamma[k] = gamma * lvp__spread(binding, c->rest + 3 * k, binding->weight_bones + first,
+			                                              binding->weight_values + first,
+			                                              binding->weight_offsets[k + 1] - first);
+		}
 		binding->vertex_dynamic[k] = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
 	}
 }
@@ -447,25 +529,33 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 		return;
 	}
 	lvp__skin_classes(binding);
+	for (int32_t i = 0; i < binding->bone_count; ++i) {
+		const double *m = binding->skin[i].m;
+		float *d = binding->skin_displacement + 12 * i;
+		for (int c = 0; c < 12; ++c)
+			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
+	}
 	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
 	lvp__parallel_for(binding->pool, lvp__frame_map_loop, &context, n, LVP__GRAIN);
 }
 
-/* The movable part of each region's support under this frame's map (binding.h). */
-static void lvp__movable_support(lvp_binding *binding)
+/* Which regions have a vertex in their support that this frame's map lets move (binding.h). */
+static void lvp__movable_regions(lvp_binding *binding)
 {
-	int32_t at = 0;
-	for (int32_t r = 0; r < binding->region_count; ++r) {
-		binding->movable_offsets[r] = at;
-		for (int32_t i = binding->support_offsets[r]; i < binding->support_offsets[r + 1]; ++i) {
-			int32_t k = binding->support_vertex[i];
-			if (binding->frame_gamma[k] > 0.0f && binding->support_phi[i] != 0.0f) {
-				binding->movable_vertex[at] = k;
-				binding->movable_phi[at++] = binding->support_phi[i];
+	memset(binding->region_movable, 0, (size_t)binding->region_count);
+	int32_t entries = 0;
+	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		if (!(binding->frame_gamma[k] > 0.0f))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		for (int32_t i = 0; i < support.count; ++i) {
+			if (support.phi[i] > 0.0f) {
+				binding->region_movable[support.regions[i]] = 1;
+				++entries;
 			}
 		}
 	}
-	binding->movable_offsets[binding->region_count] = at;
+	binding->movable_entries = entries;
 }
 
 /* Measures work_positions (mesh pass and region changes). */
@@ -560,14 +650,15 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			break;
 		lvp__vertex_gradients(binding);
 		double system = 0.0;
-		for (int32_t j = 0; j < touched; ++j) {
-			int32_t r = binding->active[j];
-			for (int32_t i = binding->movable_offsets[r]; i < binding->movable_offsets[r + 1]; ++i) {
-				int32_t k = binding->movable_vertex[i];
-				if (!binding->frozen[k])
-					system += (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k] *
-					          binding->movable_phi[i];
-			}
+		for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+			int32_t k = binding->dynamic_vertices[v];
+			if (!lvp__can_move(binding, k))
+				continue;
+			lvp__support support = lvp__vertex_support(binding, k);
+			double gain = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k];
+			for (int32_t i = 0; i < support.count; ++i)
+				if (support.phi[i] > 0.0f && binding->region_touched[support.regions[i]])
+					system += gain * support.phi[i];
 		}
 		if (!(system > 0.0))
 			break;
@@ -668,7 +759,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__frame_map(binding, rest_positions);
-	lvp__movable_support(binding);
+	lvp__movable_regions(binding);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
@@ -698,7 +789,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		stats.folded_vertices = moved;
 		if (moved > 0) {
 			lvp__fade_map_at_contact(binding);
-			lvp__movable_support(binding);
+			lvp__movable_regions(binding);
 		}
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;

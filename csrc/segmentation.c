@@ -401,7 +401,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	lvp_result result = lvp__check_map_options(binding, map, r_diag);
 	if (result)
 		return result;
-	int32_t n = binding->vertex_count, s = binding->region_count, b = binding->bone_count;
+	int32_t n = binding->vertex_count, b = binding->bone_count;
 	bool local = binding->mode == LVP_MODE_LOCAL;
 
 	/* Keep a copy of the Fig. 11 restriction (the caller's arrays are not kept). */
@@ -451,58 +451,8 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	for (int32_t k = 0; k < n; ++k)
 		binding->gamma[k] = isfinite(largest) ? (float)exp(binding->log_gamma[k] - largest) : 0.0f;
 
-	/* Supports: which vertices each region's multiplier reaches, and with which phi. */
-	bool soft = local && map->map != LVP_MAP_BOUNDARY_FADE;
-	int32_t *offsets = binding->support_offsets;
-	memset(offsets, 0, sizeof(int32_t) * ((size_t)s + 1));
-	for (int pass = 0; pass < 2; ++pass) {
-		for (int32_t k = 0; k < n; ++k) {
-			if (!(binding->gamma[k] > 0.0f))
-				continue;
-			if (soft) {
-				for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-					if (binding->weight_values[e] <= 0.0f)
-						continue;
-					int32_t t = binding->weight_bones[e];
-					if (pass) {
-						int32_t at = offsets[t]++;
-						binding->support_vertex[at] = k;
-						binding->support_phi[at] = binding->weight_values[e];
-					} else {
-						++offsets[t + 1];
-					}
-				}
-			} else {
-				int32_t t = local ? binding->vertex_region[k] : 0;
-				if (pass) {
-					int32_t at = offsets[t]++;
-					binding->support_vertex[at] = k;
-					binding->support_phi[at] = 1.0f;
-				} else {
-					++offsets[t + 1];
-				}
-			}
-		}
-		if (!pass) {
-			for (int32_t r = 0; r < s; ++r)
-				offsets[r + 1] += offsets[r];
-			int32_t total = offsets[s];
-			if (total > binding->support_capacity || !binding->support_vertex) {
-				free(binding->support_vertex);
-				free(binding->support_phi);
-				binding->support_vertex = malloc(sizeof(int32_t) * (size_t)(total > 0 ? total : 1));
-				binding->support_phi = malloc(sizeof(float) * (size_t)(total > 0 ? total : 1));
-				binding->support_capacity = total;
-				if (!binding->support_vertex || !binding->support_phi) {
-					binding->support_capacity = 0;
-					return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
-				}
-			}
-		} else {
-			for (int32_t r = s; r > 0; --r)
-				offsets[r] = offsets[r - 1];
-			offsets[0] = 0;
-		}
-	}
+	/* Which regions' multipliers reach a vertex, and with which phi (correction.c,
+	 * lvp__vertex_support): its bones, by weight, or only its region under the boundary fade. */
+	binding->soft_support = local && map->map != LVP_MAP_BOUNDARY_FADE;
 	return lvp_success;
 }

@@ -136,6 +136,10 @@ struct lvp_binding {
 	uint8_t *triangle_static; /* triangle_count: per triangle of a mixed region */
 	int32_t *dynamic_vertices; /* vertex_count: the dynamic vertices */
 	int32_t dynamic_vertex_count;
+	/* The set above is the bind rest's for the current vertex_dynamic, vertex_class, skin_class
+	 * and region_skipped (kept from frame to frame while they stay; lvp__dynamic_set). */
+	bool dynamic_set_current;
+	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
 	lvp__region_sums *static_rest; /* region_count: rest sums of the static triangles */
 	int32_t *static_count;   /* region_count: how many static triangles */
 	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */

@@ -48,6 +48,8 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 		return result;
 
 	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (binding->region_skipped[r])
+			binding->dynamic_set_current = false; /* the dynamic set depends on it (local_volume.c) */
 		binding->region_skipped[r] = 0;
 		binding->kappa[r] = 1.0;
 	}
@@ -66,6 +68,8 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 				binding->kappa[i] = binding->rest_det[i] / lvp__mat4_det3(&binding->posed[i]);
 			else
 				binding->region_skipped[i] = 1; /* a bone scaled to zero: documented fallback */
+			if (!invertible)
+				binding->dynamic_set_current = false;
 		}
 	}
 	return lvp_success;
@@ -205,62 +209,92 @@ static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions,
 
 typedef struct lvp__assembly_context {
 	lvp_binding *binding;
-	int32_t m, dense;
+	int32_t m, dense, per_block, stride;
 } lvp__assembly_context;
+
+/* Past the dense block: the diagonal of columns [begin, end) (stored in mu temporarily) and
+ * what they do to the whole mesh. Only for rigs bending more than LVP__DENSE_MAX regions. */
+static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, int32_t end)
+{
+	for (int32_t j = begin; j < end; ++j)
+		binding->mu[binding->active[j]] = binding->total_gain[binding->active[j]] = 0.0;
+	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
+		if (!lvp__can_move(binding, k))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		double g = binding->vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+		for (int32_t i = 0; i < support.count; ++i) {
+			int32_t t = support.regions[i];
+			int32_t j = binding->active_index[t];
+			if (j < begin || j >= end)
+				continue;
+			double weight = gain * support.phi[i];
+			binding->total_gain[t] += weight * g;
+			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
+				if (binding->slot_region[slot] == t)
+					binding->mu[t] += binding->kappa[t] * binding->slot_g[slot] * weight;
+		}
+	}
+}
 
 /* Columns [begin, end) of the active regions' system: column j gathers what region active[j]'s
  * multiplier does to each active region, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt.
- * The regions past the dense block keep only their diagonal (stored in mu temporarily). Each
- * worker takes a block of columns and walks all dynamic vertices in order, so every entry is
- * summed in the same order whatever the threads. */
+ * Each worker takes one block of columns and walks all dynamic vertices in order, so every
+ * entry is summed in the same order whatever the threads. The matrix is laid out with `stride`
+ * columns while it is summed: what falls outside the block (an inactive region, another
+ * block's column, a row past the dense block) lands in the block's own spare column
+ * (dense + block) or the spare row (dense), so the loop does not branch on it. */
 static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 {
 	const lvp__assembly_context *c = context;
 	const lvp_binding *binding = c->binding;
-	int32_t dense = c->dense;
+	int32_t dense = c->dense, stride = c->stride;
+	int32_t dense_end = end < dense ? end : dense, width = dense_end > begin ? dense_end - begin : 0;
+	int32_t spare = dense + begin / c->per_block;
 	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
 	 * change what the binding points to. */
-	double *system = binding->system, *diagonal = binding->mu, *total_gain = binding->total_gain;
-	const int32_t *active = binding->active, *active_index = binding->active_index;
-	const int32_t *dynamic = binding->dynamic_vertices, *slot_offsets = binding->slot_offsets;
-	const int32_t *slot_region = binding->slot_region;
+	double *system = binding->system;
+	const int32_t *active_index = binding->active_index, *dynamic = binding->dynamic_vertices;
+	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
 	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
 	const double *kappa = binding->kappa;
-	for (int32_t j = begin; j < end; ++j) {
-		if (j < dense)
-			for (int32_t row = 0; row < dense; ++row)
-				system[row * dense + j] = 0.0;
-		else
-			diagonal[active[j]] = 0.0;
-		total_gain[active[j]] = 0.0;
+	double gains[LVP__DENSE_MAX + 1]; /* total_gain of the block's columns, then the spare */
+	for (int32_t i = 0; i <= width; ++i)
+		gains[i] = 0.0;
+	for (int32_t row = 0; row <= dense; ++row) {
+		for (int32_t j = begin; j < dense_end; ++j)
+			system[row * stride + j] = 0.0;
+		system[row * stride + spare] = 0.0;
 	}
-	for (int32_t v = 0, count = binding->dynamic_vertex_count; v < count; ++v) {
+	for (int32_t v = 0, count = width > 0 ? binding->dynamic_vertex_count : 0; v < count; ++v) {
 		int32_t k = dynamic[v];
 		if (!lvp__can_move(binding, k))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
 		double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
-		int32_t slot_first = slot_offsets[k], slot_last = slot_offsets[k + 1];
-		for (int32_t i = 0; i < support.count; ++i) {
-			int32_t t = support.regions[i];
-			int32_t j = active_index[t];
-			if (j < begin || j >= end || !(support.phi[i] > 0.0f))
-				continue;
-			double weight = gain * support.phi[i];
-			total_gain[t] += weight * g;
-			for (int32_t slot = slot_first; slot < slot_last; ++slot) {
-				int32_t s = slot_region[slot];
-				int32_t row = s >= 0 ? active_index[s] : -1;
-				if (row < 0)
-					continue;
-				double value = kappa[s] * slot_g[slot] * weight;
-				if (row < dense && j < dense)
-					system[row * dense + j] += value;
-				else if (row == j)
-					diagonal[t] += value;
+		for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
+			int32_t s = slot_region[slot];
+			int32_t row = s >= 0 ? active_index[s] : -1;
+			bool first = slot == slot_offsets[k];
+			if (!first && !((uint32_t)row < (uint32_t)dense))
+				continue; /* nothing for this slot; the first one also carries total_gain */
+			double coefficient = (uint32_t)row < (uint32_t)dense ? kappa[s] * slot_g[slot] : 0.0;
+			double *row_sums = system + ((uint32_t)row < (uint32_t)dense ? row : dense) * stride;
+			for (int32_t i = 0; i < support.count; ++i) {
+				int32_t column = active_index[support.regions[i]] - begin;
+				bool inside = (uint32_t)column < (uint32_t)width;
+				double weight = gain * support.phi[i];
+				if (first)
+					gains[inside ? column : width] += weight * g;
+				row_sums[inside ? begin + column : spare] += coefficient * weight;
 			}
 		}
 	}
+	for (int32_t j = begin; j < dense_end; ++j)
+		binding->total_gain[binding->active[j]] = gains[j - begin];
+	if (end > dense)
+		lvp__assemble_diagonals(binding, begin > dense ? begin : dense, end);
 }
 
 static double lvp__error_norm(const lvp_binding *binding);
@@ -298,10 +332,12 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 
 	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
 	 * Columns are independent, so they are split over the worker threads. */
-	lvp__assembly_context context = {binding, m, dense};
-	int32_t columns_per_thread = (m + binding->thread_count - 1) / binding->thread_count;
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_columns, &context, m,
-	                  columns_per_thread);
+	int32_t per_block = (m + binding->thread_count - 1) / binding->thread_count;
+	lvp__assembly_context context = {binding, m, dense, per_block, dense + binding->thread_count};
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_columns, &context, m, per_block);
+	/* Packed to dense columns for the solve (rows move down in memory, in order). */
+	for (int32_t row = 1; row < dense; ++row)
+		memmove(binding->system + row * dense, binding->system + row * context.stride, sizeof(double) * (size_t)dense);
 	/* What equal multipliers do to each region: its row of the system (past the dense block, its
 	 * diagonal, kept in mu[] by the assembly). */
 	for (int32_t i = 0; i < m; ++i) {
@@ -395,14 +431,12 @@ static void lvp__skin_classes(lvp_binding *binding)
 {
 	int32_t b = binding->bone_count;
 	for (int32_t i = 0; i < b; ++i) {
-		binding->skin_class[i] = i;
-		if (b > LVP__CLASS_BONES)
-			continue;
+		int32_t skin_class = i;
 		const double *m = binding->skin[i].m;
 		double scale = 1.0;
 		for (int c = 0; c < 12; ++c)
 			scale = fmax(scale, fabs(m[c]));
-		for (int32_t j = 0; j < i; ++j) {
+		for (int32_t j = 0; j < i && b <= LVP__CLASS_BONES; ++j) {
 			if (binding->skin_class[j] != j)
 				continue;
 			const double *other = binding->skin[j].m;
@@ -410,10 +444,13 @@ static void lvp__skin_classes(lvp_binding *binding)
 			for (int c = 0; c < 12 && same; ++c)
 				same = fabs(m[c] - other[c]) <= 1e-6 * scale;
 			if (same) {
-				binding->skin_class[i] = j;
+				skin_class = j;
 				break;
 			}
 		}
+		if (binding->skin_class[i] != skin_class)
+			binding->dynamic_set_current = false;
+		binding->skin_class[i] = skin_class;
 	}
 }
 
@@ -495,11 +532,13 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 	const lvp__frame_map_context *c = context;
 	lvp_binding *binding = c->binding;
 	bool weighted = binding->map.deformation_weighted;
+	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
 		int32_t classes[LVP__SPREAD_KEPT];
 		float class_weight[LVP__SPREAD_KEPT];
 		int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
 		int32_t vertex_class = class_count == 1 ? classes[0] : -1;
+		changed = changed || binding->vertex_class[k] != vertex_class;
 		binding->vertex_class[k] = vertex_class;
 		float gamma = binding->gamma[k];
 		if (!weighted)
@@ -514,8 +553,11 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 			                                              binding->weight_values + first,
 			                                              binding->weight_offsets[k + 1] - first);
 		}
-		binding->vertex_dynamic[k] = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
+		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
+		changed = changed || binding->vertex_dynamic[k] != dynamic;
+		binding->vertex_dynamic[k] = dynamic;
 	}
+	binding->chunk_changed[begin / LVP__GRAIN] = changed;
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
@@ -536,7 +578,12 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
 	}
 	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
+	memset(binding->chunk_changed, 0, (size_t)chunks);
 	lvp__parallel_for(binding->pool, lvp__frame_map_loop, &context, n, LVP__GRAIN);
+	for (int32_t i = 0; i < chunks; ++i)
+		if (binding->chunk_changed[i])
+			binding->dynamic_set_current = false;
 }
 
 /* Which regions have a vertex in their support that this frame's map lets move (binding.h). */

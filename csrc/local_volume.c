@@ -385,6 +385,13 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 {
 	int32_t s = binding->region_count;
 	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
+	/* From the bind rest, the set depends only on vertex_dynamic, vertex_class, skin_class and
+	 * region_skipped; whatever changes one of them clears dynamic_set_current. In an animation
+	 * the same bones move from frame to frame, so the set is usually last frame's. */
+	bool reusable = local && !rest_positions;
+	if (reusable && binding->dynamic_set_current)
+		return;
+	binding->dynamic_set_current = false;
 	if (!local)
 		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
 	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
@@ -400,6 +407,7 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 		if (binding->vertex_dynamic[k])
 			binding->dynamic_vertices[vertices++] = k;
 	binding->dynamic_vertex_count = vertices;
+	binding->dynamic_set_current = reusable;
 }
 
 /* The static triangles' part of region r's sums this frame (see lvp__dynamic_set). */

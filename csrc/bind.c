@@ -208,7 +208,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->normals = lvp__alloc(n * 3, sizeof(float), &ok);
 	binding->vertex_g = lvp__alloc(n, sizeof(float), &ok);
 	binding->triangle_gradient = lvp__alloc(f * 3, sizeof(float), &ok);
-	binding->triangle_volume6 = lvp__alloc(f, sizeof(double), &ok);
+	binding->triangle_volume6 = lvp__alloc(f, sizeof(float), &ok);
 	binding->triangle_dirty = lvp__alloc(f, sizeof(uint8_t), &ok);
 	binding->dirty_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
 	binding->vertex_dirty = lvp__alloc(n, sizeof(uint8_t), &ok);

@@ -116,7 +116,7 @@ struct lvp_binding {
 	float *slot_g;           /* slot_count: <n_k, part of grad_k V from the slot's region> */
 	bool vertex_terms_current; /* normals, g and slot gradients gathered for the last mesh pass */
 	float *triangle_gradient; /* triangle_count*3: cr / 6 of the last pass */
-	double *triangle_volume6; /* triangle_count: (p0 - o) . cr of the last pass */
+	float *triangle_volume6;  /* triangle_count: (p0 - o) . cr of the last pass (a float product) */
 	uint8_t *triangle_dirty;  /* triangle_count, kept zero between uses */
 	int32_t *dirty_triangles; /* triangle_count */
 	uint8_t *vertex_dirty;    /* vertex_count, kept zero between uses */

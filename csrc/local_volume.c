@@ -430,37 +430,30 @@ static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volu
 }
 
 /* The mesh pass and the vertex gradients run in loops that each write only their own outputs,
- * so they can be split over threads with results independent of the split: triangles (their
- * terms), regions (sums over their triangles, in order), vertices (gradients gathered from
+ * so they can be split over threads with results independent of the split: regions (the terms
+ * of their dynamic triangles and their sums, in order), vertices (gradients gathered from
  * their corners; only when a correction step follows). */
 typedef struct lvp__pass_context {
 	lvp_binding *binding;
 	const float *positions;
 } lvp__pass_context;
 
-static void lvp__triangle_loop(void *context, int32_t begin, int32_t end)
-{
-	lvp__pass_context *c = context;
-	lvp_binding *binding = c->binding;
-	for (int32_t i = begin; i < end; ++i) {
-		int32_t t = binding->dynamic_triangles[i];
-		int32_t r = binding->triangle_region[t];
-		const float *o = binding->origin_float + 3 * (r < 0 ? binding->region_count : r);
-		binding->triangle_volume6[t] =
-		    lvp__triangle_terms(binding->triangle_gradient + 3 * t, c->positions, binding->triangles + 3 * t, o);
-	}
-}
-
 static void lvp__region_loop(void *context, int32_t begin, int32_t end)
 {
-	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
+	const lvp__pass_context *c = context;
+	lvp_binding *binding = c->binding;
 	int32_t s = binding->region_count;
+	const int32_t *dynamic = binding->dynamic_triangles, *triangles = binding->triangles;
+	float *triangle_gradient = binding->triangle_gradient, *triangle_volume6 = binding->triangle_volume6;
 	for (int32_t r = begin; r < end; ++r) {
+		const float *o = binding->origin_float + 3 * r; /* the last: triangles without region, origin 0 */
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
 		for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1]; ++i) {
-			int32_t t = binding->dynamic_triangles[i];
-			const float *g = binding->triangle_gradient + 3 * t;
-			volume6 += binding->triangle_volume6[t];
+			int32_t t = dynamic[i];
+			float *g = triangle_gradient + 3 * t;
+			float v = (float)lvp__triangle_terms(g, c->positions, triangles + 3 * t, o);
+			triangle_volume6[t] = v;
+			volume6 += v;
 			ax += g[0];
 			ay += g[1];
 			az += g[2];
@@ -525,8 +518,6 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 		if (r < binding->region_count)
 			binding->origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
 	}
-	lvp__parallel_for(binding->pool, lvp__triangle_loop, &context,
-	                  binding->region_dynamic_offsets[binding->region_count + 1], LVP__GRAIN);
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->region_dynamic_offsets[binding->region_count + 1]),
 	                  lvp__region_loop, &context, binding->region_count + 1, 1);
 	binding->vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */

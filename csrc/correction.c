@@ -454,6 +454,21 @@ static void lvp__skin_classes(lvp_binding *binding)
 	}
 }
 
+/* The skin class that all bones of vertex k (with weight) share, or -1. */
+static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
+{
+	int32_t shared = -1;
+	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		if (!(binding->weight_values[e] > 0.0f))
+			continue;
+		int32_t c = binding->skin_class[binding->weight_bones[e]];
+		if (shared >= 0 && c != shared)
+			return -1;
+		shared = c;
+	}
+	return shared;
+}
+
 /* Displacement (S_b - I) p of rest point p by bone b's skin matrix, in float (skin_displacement):
  * small where bones nearly agree, so rounding does not swamp their difference. */
 static inline void lvp__displacement(float r_d[3], const lvp_binding *binding, int32_t bone, const float *p)
@@ -495,9 +510,9 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 }
 
 /* The skin classes of vertex k's bones (with weight), each with the sum of their weights:
- * bones of one class move it alike, so a_k needs one displacement per class, and a vertex
- * whose bones share one class moves rigidly. Returns the number of classes, or -1 when there
- * are more than LVP__SPREAD_KEPT (then taken bone by bone). */
+ * bones of one class move it alike, so a_k needs one displacement per class. Returns the
+ * number of classes, or -1 when there are more than LVP__SPREAD_KEPT (then taken bone by
+ * bone). */
 static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_t r_class[LVP__SPREAD_KEPT],
                                    float r_weight[LVP__SPREAD_KEPT])
 {
@@ -520,6 +535,19 @@ static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_
 	return count;
 }
 
+/* a_k of vertex k, its bones in more than one class: one displacement per class. */
+static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int32_t k)
+{
+	int32_t classes[LVP__SPREAD_KEPT];
+	float class_weight[LVP__SPREAD_KEPT];
+	int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
+	if (class_count >= 0)
+		return lvp__spread(binding, p, classes, class_weight, class_count);
+	int32_t first = binding->weight_offsets[k];
+	return lvp__spread(binding, p, binding->weight_bones + first, binding->weight_values + first,
+	                   binding->weight_offsets[k + 1] - first);
+}
+
 typedef struct lvp__frame_map_context {
 	lvp_binding *binding;
 	const float *rest;
@@ -534,10 +562,7 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 	bool weighted = binding->map.deformation_weighted;
 	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
-		int32_t classes[LVP__SPREAD_KEPT];
-		float class_weight[LVP__SPREAD_KEPT];
-		int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
-		int32_t vertex_class = class_count == 1 ? classes[0] : -1;
+		int32_t vertex_class = lvp__vertex_class(binding, k);
 		changed = changed || binding->vertex_class[k] != vertex_class;
 		binding->vertex_class[k] = vertex_class;
 		float gamma = binding->gamma[k];
@@ -545,14 +570,8 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 			binding->frame_gamma[k] = gamma;
 		else if (!(gamma > 0.0f) || vertex_class >= 0)
 			binding->frame_gamma[k] = 0.0f; /* all its bones in one class: it moves rigidly */
-		else if (class_count >= 0)
-			binding->frame_gamma[k] = gamma * lvp__spread(binding, c->rest + 3 * k, classes, class_weight, class_count);
-		else {
-			int32_t first = binding->weight_offsets[k];
-			binding->frame_gamma[k] = gamma * lvp__spread(binding, c->rest + 3 * k, binding->weight_bones + first,
-			                                              binding->weight_values + first,
-			                                              binding->weight_offsets[k + 1] - first);
-		}
+		else
+			binding->frame_gamma[k] = gamma * lvp__vertex_spread(binding, c->rest + 3 * k, k);
 		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
 		changed = changed || binding->vertex_dynamic[k] != dynamic;
 		binding->vertex_dynamic[k] = dynamic;

@@ -169,11 +169,15 @@
  *   pass visits it. The passes visit the dynamic rest: in a pose bent at a few joints, the
  *   skin around those joints. (This is where `positions` being the skinning of the rest, as
  *   lvp_correct() says, is relied on: a vertex weighted to one bone is where that bone puts
- *   it.) Per iteration: one pass over the dynamic triangles (or over the triangles around
- *   the moved vertices, when they are few) and, when a step follows, one over the dynamic
- *   vertices and one over the vertices active regions can move, plus a dense solve of the
- *   active regions' system (m^3/3 for m active regions, negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(),
- *   O(N B) for the normal test or O(N B log F) for the exact test.
+ *   it.) Which triangles are static is kept from one frame to the next while the same bones
+ *   move (the classes of the bones and of every vertex unchanged, no frame rest given, no
+ *   fold-over contact): in an animation it is found again only when other joints start or stop
+ *   bending. Per iteration: one pass over the dynamic triangles, region by region (or over the
+ *   triangles around the moved vertices, when they are few) and, when a step follows, two
+ *   over the dynamic vertices (their gradients, then the active regions' system) and one to
+ *   move them, plus a dense solve of the active regions' system (m^3/3 for m active regions,
+ *   negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B)
+ *   for the normal test or O(N B log F) for the exact test.
  */
 #ifndef LVP_H
 #define LVP_H

@@ -52,10 +52,10 @@ void lvp_free(lvp_binding *binding)
 	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->frozen, binding->sums,
 	    binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
 	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic, binding->chunk_changed,
-	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest,
+	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
-	    binding->active_index, binding->system, binding->rhs, binding->pivots, binding->mu,
+	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->pivots, binding->mu,
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
@@ -235,14 +235,18 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->triangle_static = lvp__alloc(f, sizeof(uint8_t), &ok);
 	binding->dynamic_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->static_rest = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	size_t pieces = f / LVP__GRAIN + s + 2;
+	binding->piece_first = lvp__alloc(pieces + 1, sizeof(int32_t), &ok);
+	binding->piece_region = lvp__alloc(pieces, sizeof(int32_t), &ok);
+	binding->piece_sums = lvp__alloc(pieces, sizeof(lvp__region_sums), &ok);
 	binding->static_count = lvp__alloc(s, sizeof(int32_t), &ok);
 	binding->region_skipped = lvp__alloc(s, sizeof(uint8_t), &ok);
 	binding->region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
 	binding->active = lvp__alloc(s, sizeof(int32_t), &ok);
 	binding->active_index = lvp__alloc(s, sizeof(int32_t), &ok);
 	size_t dense = s < LVP__DENSE_MAX ? s : LVP__DENSE_MAX;
-	/* (dense + 1) x (dense + threads) while it is summed (correction.c, lvp__assemble_columns) */
-	binding->system = lvp__alloc((dense + 1) * (dense + (size_t)options->thread_count), sizeof(double), &ok);
+	binding->system = lvp__alloc(dense * dense, sizeof(double), &ok);
+	binding->assembly = lvp__alloc(LVP__ASSEMBLY_OFFSET(dense, dense, options->thread_count), sizeof(double), &ok);
 	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->pivots = lvp__alloc(dense, sizeof(int32_t), &ok);
 	binding->mu = lvp__alloc(s, sizeof(double), &ok);

@@ -22,6 +22,13 @@
  * next iteration re-measures. Real rigs bend far fewer regions at once. */
 #define LVP__DENSE_MAX 256
 
+/* Where thread block `block` of the region system is summed (correction.c): dense + 1 rows of
+ * its columns (from column `first`, at most dense in all blocks) and a spare, a cache line
+ * apart from the block before. thread_count blocks fit in LVP__ASSEMBLY_OFFSET(dense, dense,
+ * thread_count) doubles. */
+#define LVP__ASSEMBLY_OFFSET(dense, first, block) \
+	((size_t)((dense) + 1) * (size_t)((first) + (block)) + 8 * (size_t)(block))
+
 typedef struct lvp__region_sums {
 	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
 	double area6[3];   /* sum of cr = (p_j - p_i) x (p_k - p_i): twice the area vector */
@@ -140,6 +147,12 @@ struct lvp_binding {
 	 * and region_skipped (kept from frame to frame while they stay; lvp__dynamic_set). */
 	bool dynamic_set_current;
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
+	/* Pieces of the dynamic triangles for the mesh pass (local_volume.c, lvp__piece_loop);
+	 * capacity triangle_count / LVP__GRAIN + region_count + 2. */
+	int32_t *piece_first;    /* piece_count + 1 into dynamic_triangles */
+	int32_t *piece_region;   /* region of each piece (region_count: triangles without region) */
+	lvp__region_sums *piece_sums; /* each piece's sums (area6: the sum of cr / 6) */
+	int32_t piece_count;
 	lvp__region_sums *static_rest; /* region_count: rest sums of the static triangles */
 	int32_t *static_count;   /* region_count: how many static triangles */
 	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */
@@ -167,7 +180,8 @@ struct lvp_binding {
 	uint8_t *region_touched; /* region_count: corrected at least once this frame */
 	int32_t *active;         /* region_count: active region list */
 	int32_t *active_index;   /* region_count: region -> index in the active list, or -1 */
-	double *system;          /* LVP__DENSE_MAX^2 */
+	double *system;          /* dense^2, dense = min(region_count, LVP__DENSE_MAX) */
+	double *assembly;        /* thread_count blocks (LVP__ASSEMBLY_OFFSET) */
 	double *rhs;             /* LVP__DENSE_MAX */
 	int32_t *pivots;         /* LVP__DENSE_MAX */
 	double *mu;              /* region_count */

@@ -209,7 +209,7 @@ static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions,
 
 typedef struct lvp__assembly_context {
 	lvp_binding *binding;
-	int32_t m, dense, per_block, stride;
+	int32_t m, dense, per_block;
 } lvp__assembly_context;
 
 /* Past the dense block: the diagonal of columns [begin, end) (stored in mu temporarily) and
@@ -241,20 +241,21 @@ static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, i
 /* Columns [begin, end) of the active regions' system: column j gathers what region active[j]'s
  * multiplier does to each active region, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt.
  * Each worker takes one block of columns and walks all dynamic vertices in order, so every
- * entry is summed in the same order whatever the threads. The matrix is laid out with `stride`
- * columns while it is summed: what falls outside the block (an inactive region, another
- * block's column, a row past the dense block) lands in the block's own spare column
- * (dense + block) or the spare row (dense), so the loop does not branch on it. */
+ * entry is summed in the same order whatever the threads. A block sums into its own part of
+ * binding->assembly (no cache line shared with another thread's), with a spare column for
+ * what falls outside the block (an inactive region, another block's column) and a spare row
+ * (a row past the dense block), so the loop does not branch on it; the block's columns are
+ * copied into the system at the end. */
 static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 {
 	const lvp__assembly_context *c = context;
 	const lvp_binding *binding = c->binding;
-	int32_t dense = c->dense, stride = c->stride;
+	int32_t dense = c->dense;
 	int32_t dense_end = end < dense ? end : dense, width = dense_end > begin ? dense_end - begin : 0;
-	int32_t spare = dense + begin / c->per_block;
+	int32_t stride = width + 1; /* the block's columns, then the spare */
+	double *sums = binding->assembly + LVP__ASSEMBLY_OFFSET(dense, begin < dense ? begin : dense, begin / c->per_block);
 	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
 	 * change what the binding points to. */
-	double *system = binding->system;
 	const int32_t *active_index = binding->active_index, *dynamic = binding->dynamic_vertices;
 	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
 	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
@@ -262,11 +263,7 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 	double gains[LVP__DENSE_MAX + 1]; /* total_gain of the block's columns, then the spare */
 	for (int32_t i = 0; i <= width; ++i)
 		gains[i] = 0.0;
-	for (int32_t row = 0; row <= dense; ++row) {
-		for (int32_t j = begin; j < dense_end; ++j)
-			system[row * stride + j] = 0.0;
-		system[row * stride + spare] = 0.0;
-	}
+	memset(sums, 0, sizeof(double) * (size_t)(dense + 1) * (size_t)stride);
 	for (int32_t v = 0, count = width > 0 ? binding->dynamic_vertex_count : 0; v < count; ++v) {
 		int32_t k = dynamic[v];
 		if (!lvp__can_move(binding, k))
@@ -280,17 +277,20 @@ static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
 			if (!first && !((uint32_t)row < (uint32_t)dense))
 				continue; /* nothing for this slot; the first one also carries total_gain */
 			double coefficient = (uint32_t)row < (uint32_t)dense ? kappa[s] * slot_g[slot] : 0.0;
-			double *row_sums = system + ((uint32_t)row < (uint32_t)dense ? row : dense) * stride;
+			double *row_sums = sums + ((uint32_t)row < (uint32_t)dense ? row : dense) * stride;
 			for (int32_t i = 0; i < support.count; ++i) {
 				int32_t column = active_index[support.regions[i]] - begin;
-				bool inside = (uint32_t)column < (uint32_t)width;
+				column = (uint32_t)column < (uint32_t)width ? column : width;
 				double weight = gain * support.phi[i];
 				if (first)
-					gains[inside ? column : width] += weight * g;
-				row_sums[inside ? begin + column : spare] += coefficient * weight;
+					gains[column] += weight * g;
+				row_sums[column] += coefficient * weight;
 			}
 		}
 	}
+	for (int32_t row = 0; row < dense; ++row)
+		for (int32_t j = begin; j < dense_end; ++j)
+			binding->system[row * dense + j] = sums[row * stride + j - begin];
 	for (int32_t j = begin; j < dense_end; ++j)
 		binding->total_gain[binding->active[j]] = gains[j - begin];
 	if (end > dense)
@@ -333,11 +333,8 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
 	 * Columns are independent, so they are split over the worker threads. */
 	int32_t per_block = (m + binding->thread_count - 1) / binding->thread_count;
-	lvp__assembly_context context = {binding, m, dense, per_block, dense + binding->thread_count};
+	lvp__assembly_context context = {binding, m, dense, per_block};
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_columns, &context, m, per_block);
-	/* Packed to dense columns for the solve (rows move down in memory, in order). */
-	for (int32_t row = 1; row < dense; ++row)
-		memmove(binding->system + row * dense, binding->system + row * context.stride, sizeof(double) * (size_t)dense);
 	/* What equal multipliers do to each region: its row of the system (past the dense block, its
 	 * diagonal, kept in mu[] by the assembly). */
 	for (int32_t i = 0; i < m; ++i) {

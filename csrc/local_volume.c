@@ -430,25 +430,28 @@ static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volu
 }
 
 /* The mesh pass and the vertex gradients run in loops that each write only their own outputs,
- * so they can be split over threads with results independent of the split: regions (the terms
- * of their dynamic triangles and their sums, in order), vertices (gradients gathered from
- * their corners; only when a correction step follows). */
+ * so they can be split over threads with results independent of the split: pieces of the
+ * dynamic triangles (their terms, and the piece's sums), vertices (gradients gathered from
+ * their corners; only when a correction step follows). A piece is up to LVP__GRAIN consecutive
+ * dynamic triangles of one region, cut at fixed places (every LVP__GRAIN from the region's
+ * first), and each region adds its pieces' sums in order: the same sums for any threads, and
+ * a region larger than the others does not leave a thread idle. */
 typedef struct lvp__pass_context {
 	lvp_binding *binding;
 	const float *positions;
 } lvp__pass_context;
 
-static void lvp__region_loop(void *context, int32_t begin, int32_t end)
+static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__pass_context *c = context;
 	lvp_binding *binding = c->binding;
-	int32_t s = binding->region_count;
 	const int32_t *dynamic = binding->dynamic_triangles, *triangles = binding->triangles;
 	float *triangle_gradient = binding->triangle_gradient, *triangle_volume6 = binding->triangle_volume6;
-	for (int32_t r = begin; r < end; ++r) {
-		const float *o = binding->origin_float + 3 * r; /* the last: triangles without region, origin 0 */
+	for (int32_t piece = begin; piece < end; ++piece) {
+		/* origin_float's last entry: triangles without region, origin 0 */
+		const float *o = binding->origin_float + 3 * binding->piece_region[piece];
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1]; ++i) {
+		for (int32_t i = binding->piece_first[piece]; i < binding->piece_first[piece + 1]; ++i) {
 			int32_t t = dynamic[i];
 			float *g = triangle_gradient + 3 * t;
 			float v = (float)lvp__triangle_terms(g, c->positions, triangles + 3 * t, o);
@@ -457,6 +460,41 @@ static void lvp__region_loop(void *context, int32_t begin, int32_t end)
 			ax += g[0];
 			ay += g[1];
 			az += g[2];
+		}
+		lvp__region_sums *sums = &binding->piece_sums[piece];
+		sums->volume6 = volume6;
+		sums->area6[0] = ax; /* the sums of cr / 6, times 6 per region below */
+		sums->area6[1] = ay;
+		sums->area6[2] = az;
+	}
+}
+
+/* The pieces of this frame's dynamic triangles (see above). */
+static void lvp__cut_pieces(lvp_binding *binding)
+{
+	int32_t count = 0;
+	for (int32_t r = 0; r <= binding->region_count; ++r)
+		for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1];
+		     i += LVP__GRAIN) {
+			binding->piece_first[count] = i;
+			binding->piece_region[count++] = r;
+		}
+	binding->piece_first[count] = binding->region_dynamic_offsets[binding->region_count + 1];
+	binding->piece_count = count;
+}
+
+/* Each region's sums: its pieces' in order, and its static triangles'. */
+static void lvp__region_sums_from_pieces(lvp_binding *binding)
+{
+	int32_t s = binding->region_count, piece = 0;
+	for (int32_t r = 0; r <= s; ++r) {
+		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
+		for (; piece < binding->piece_count && binding->piece_region[piece] == r; ++piece) {
+			const lvp__region_sums *sums = &binding->piece_sums[piece];
+			volume6 += sums->volume6;
+			ax += sums->area6[0];
+			ay += sums->area6[1];
+			az += sums->area6[2];
 		}
 		double area6[3] = {6.0 * ax, 6.0 * ay, 6.0 * az};
 		if (r < s && binding->static_count[r] > 0)
@@ -518,8 +556,10 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 		if (r < binding->region_count)
 			binding->origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
 	}
+	lvp__cut_pieces(binding);
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->region_dynamic_offsets[binding->region_count + 1]),
-	                  lvp__region_loop, &context, binding->region_count + 1, 1);
+	                  lvp__piece_loop, &context, binding->piece_count, 1);
+	lvp__region_sums_from_pieces(binding);
 	binding->vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */
 }
 

@@ -22,21 +22,29 @@ typedef struct posed_cylinder {
 	float *skinned; /* plain linear blend skinning */
 } posed_cylinder;
 
+/* Poses the rig by `rotations` (test_pose) and skins it by linear blend: *r_posed receives the
+ * bone matrices, *r_skinned the positions (both allocated). */
+static void pose_and_skin(const test_rig *rig, const float *rotations, float **r_posed, float **r_skinned)
+{
+	int32_t b = rig->bone_count;
+	*r_posed = malloc(sizeof(float) * 16 * (size_t)b);
+	*r_skinned = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	test_pose(*r_posed, rig, rotations);
+	test_skin_matrices(skin, rig, *r_posed);
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_skin_linear(*r_skinned, rig->positions, rig->vertex_count, &weights, skin, b, &diag), diag);
+	free(skin);
+}
+
 /* The paper's cylinder with bone 1 bent by `degrees` about its local X axis. */
 static posed_cylinder make_bent_cylinder(double degrees)
 {
 	posed_cylinder c;
 	c.rig = test_make_cylinder(16, 16, 0.5f, 4.0f, 2.6f);
 	float rotations[8] = {0, 0, 0, 0, 1, 0, 0, (float)(degrees * PI / 180.0)};
-	c.posed = malloc(sizeof(float) * 16 * 2);
-	float *skin = malloc(sizeof(float) * 16 * 2);
-	c.skinned = malloc(sizeof(float) * 3 * (size_t)c.rig.vertex_count);
-	test_pose(c.posed, &c.rig, rotations);
-	test_skin_matrices(skin, &c.rig, c.posed);
-	lvp_weights weights = test_rig_weights(&c.rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(c.skinned, c.rig.positions, c.rig.vertex_count, &weights, skin, 2, &diag), diag);
-	free(skin);
+	pose_and_skin(&c.rig, rotations, &c.posed, &c.skinned);
 	return c;
 }
 
@@ -291,13 +299,8 @@ static void test_threads_give_identical_results(void)
 		rotations[4 * i] = 1.0f;
 		rotations[4 * i + 3] = 0.4f * (float)((i % 3) - 1) + 0.2f;
 	}
-	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	float *skinned = malloc(sizeof(float) * 3 * (size_t)n);
-	test_pose(posed, &rig, rotations);
-	test_skin_matrices(skin, &rig, posed);
-	lvp_weights weights = test_rig_weights(&rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(skinned, rig.positions, n, &weights, skin, b, &diag), diag);
+	float *posed, *skinned;
+	pose_and_skin(&rig, rotations, &posed, &skinned);
 	float *outputs[3];
 	lvp_binding *bindings[3];
 	for (int i = 0; i < 3; ++i) {
@@ -329,7 +332,6 @@ static void test_threads_give_identical_results(void)
 	}
 	free(rotations);
 	free(posed);
-	free(skin);
 	free(skinned);
 	test_rig_free(&rig);
 }
@@ -346,13 +348,9 @@ static void test_many_regions(void)
 		rotations[4 * i + (i % 2)] = 1.0f; /* about x and y in turn: a coil, not a circle */
 		rotations[4 * i + 3] = 0.15f;
 	}
-	float *posed = malloc(sizeof(float) * 16 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	float *skinned = malloc(sizeof(float) * 3 * (size_t)n);
-	test_pose(posed, &rig, rotations);
-	test_skin_matrices(skin, &rig, posed);
-	lvp_weights weights = test_rig_weights(&rig);
+	float *posed, *skinned;
+	pose_and_skin(&rig, rotations, &posed, &skinned);
 	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(skinned, rig.positions, n, &weights, skin, b, &diag), diag);
 	float *outputs[2];
 	lvp_frame_stats stats[2];
 	for (int i = 0; i < 2; ++i) {
@@ -374,7 +372,6 @@ static void test_many_regions(void)
 		free(outputs[i]);
 	free(rotations);
 	free(posed);
-	free(skin);
 	free(skinned);
 	test_rig_free(&rig);
 }

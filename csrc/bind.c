@@ -52,7 +52,8 @@ void lvp_free(lvp_binding *binding)
 	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->frozen, binding->sums,
 	    binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
 	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic, binding->chunk_changed,
-	    binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices, binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
+	    binding->chunk_moved, binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices,
+	    binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
 	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->pivots, binding->mu,
@@ -229,6 +230,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->vertex_class = lvp__alloc(n, sizeof(int32_t), &ok);
 	binding->vertex_dynamic = lvp__alloc(n, sizeof(uint8_t), &ok);
 	binding->chunk_changed = lvp__alloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
+	binding->chunk_moved = lvp__alloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
 	binding->dynamic_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
 	binding->region_dynamic_offsets = lvp__alloc(s + 2, sizeof(int32_t), &ok);
 	binding->region_state = lvp__alloc(s + 1, sizeof(uint8_t), &ok);
@@ -246,7 +248,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->active_index = lvp__alloc(s, sizeof(int32_t), &ok);
 	size_t dense = s < LVP__DENSE_MAX ? s : LVP__DENSE_MAX;
 	binding->system = lvp__alloc(dense * dense, sizeof(double), &ok);
-	binding->assembly = lvp__alloc(LVP__ASSEMBLY_OFFSET(dense, dense, options->thread_count), sizeof(double), &ok);
+	binding->assembly = lvp__alloc(LVP__ASSEMBLY_CHUNKS * LVP__ASSEMBLY_BLOCK(dense), sizeof(double), &ok);
 	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->pivots = lvp__alloc(dense, sizeof(int32_t), &ok);
 	binding->mu = lvp__alloc(s, sizeof(double), &ok);

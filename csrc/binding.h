@@ -11,7 +11,7 @@
 #include "threads.h"
 
 /* Items per chunk of a parallel loop: large enough that waking a thread is negligible. */
-#define LVP__GRAIN 16384
+#define LVP__GRAIN 4096
 
 /* The pool for a loop over regions that does about `work` items of work: none when that is
  * too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
@@ -22,12 +22,13 @@
  * next iteration re-measures. Real rigs bend far fewer regions at once. */
 #define LVP__DENSE_MAX 256
 
-/* Where thread block `block` of the region system is summed (correction.c): dense + 1 rows of
- * its columns (from column `first`, at most dense in all blocks) and a spare, a cache line
- * apart from the block before. thread_count blocks fit in LVP__ASSEMBLY_OFFSET(dense, dense,
- * thread_count) doubles. */
-#define LVP__ASSEMBLY_OFFSET(dense, first, block) \
-	((size_t)((dense) + 1) * (size_t)((first) + (block)) + 8 * (size_t)(block))
+/* The region system is summed over the dynamic vertices in at most LVP__ASSEMBLY_CHUNKS chunks
+ * of at least LVP__GRAIN vertices, cut where the dynamic vertex count alone says (not the
+ * thread count), each into its own block of binding->assembly: dense + 1 rows of dense + 1
+ * sums (a spare row and column for what falls outside the dense system), then dense + 1
+ * column gains, a cache line apart from the next block. The blocks are added in chunk order. */
+#define LVP__ASSEMBLY_CHUNKS 16
+#define LVP__ASSEMBLY_BLOCK(dense) ((((size_t)(dense) + 1) * ((size_t)(dense) + 2) + 7) / 8 * 8 + 8)
 
 typedef struct lvp__region_sums {
 	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
@@ -131,6 +132,7 @@ struct lvp_binding {
 	int32_t *moved;           /* vertex_count: vertices moved by the last step */
 	float *step_backup;       /* vertex_count*3: their positions before it, in the same order */
 	int32_t moved_count;
+	int32_t *chunk_moved;     /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
 	uint8_t *frozen;         /* vertex_count, kept zero between uses */
 	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
 	/* The dynamic set (local_volume.c): what a pass visits. A triangle whose three corners follow
@@ -181,7 +183,7 @@ struct lvp_binding {
 	int32_t *active;         /* region_count: active region list */
 	int32_t *active_index;   /* region_count: region -> index in the active list, or -1 */
 	double *system;          /* dense^2, dense = min(region_count, LVP__DENSE_MAX) */
-	double *assembly;        /* thread_count blocks (LVP__ASSEMBLY_OFFSET) */
+	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of LVP__ASSEMBLY_BLOCK(dense) */
 	double *rhs;             /* LVP__DENSE_MAX */
 	int32_t *pivots;         /* LVP__DENSE_MAX */
 	double *mu;              /* region_count */

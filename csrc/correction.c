@@ -123,22 +123,22 @@ static bool lvp__lu_solve(double *a, double *rhs, int32_t *pivots, int32_t m)
 	return true;
 }
 
-/* Moves vertex k by rho along its normal, remembering where it was (lvp__undo_step). A single
- * step moves a vertex by at most a quarter of the mesh's size: a pose folded onto itself (a
- * joint bent near 180 degrees) can make the linearization meaningless, and no sane correction
- * needs more in one step. */
-static void lvp__move_vertex(lvp_binding *binding, int32_t k, float rho)
+/* Moves vertex k by rho along its normal, remembering where it was in moved[slot] and
+ * step_backup (lvp__undo_step). A single step moves a vertex by at most a quarter of the mesh's
+ * size: a pose folded onto itself (a joint bent near 180 degrees) can make the linearization
+ * meaningless, and no sane correction needs more in one step. */
+static void lvp__move_vertex(lvp_binding *binding, int32_t k, float rho, int32_t slot)
 {
 	float limit = (float)(0.25 * binding->size);
 	rho = rho > limit ? limit : (rho < -limit ? -limit : rho);
-	float *p = binding->work_positions + 3 * k, *backup = binding->step_backup + 3 * binding->moved_count;
+	float *p = binding->work_positions + 3 * k, *backup = binding->step_backup + 3 * slot;
 	backup[0] = p[0];
 	backup[1] = p[1];
 	backup[2] = p[2];
 	p[0] += rho * binding->normals[3 * k];
 	p[1] += rho * binding->normals[3 * k + 1];
 	p[2] += rho * binding->normals[3 * k + 2];
-	binding->moved[binding->moved_count++] = k;
+	binding->moved[slot] = k;
 }
 
 /* Puts the vertices of the last step back where they were. */
@@ -181,16 +181,15 @@ static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
 	return binding->frame_gamma[k] > 0.0f && !binding->frozen[k];
 }
 
-/* Moves work_positions by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t over the given
- * regions (their multipliers in mu[]), remembering the step (lvp__undo_step). Only dynamic
- * vertices can move (their map is zero otherwise). */
-static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
+/* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t
+ * over their support (the step's multipliers in step_mu), listing the moved ones from
+ * moved[begin] on; chunk_moved of the chunk says how many. */
+static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 {
-	double *step_mu = binding->step_mu;
-	for (int32_t j = 0; j < count; ++j)
-		step_mu[regions[j]] = binding->mu[regions[j]];
-	binding->moved_count = 0;
-	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+	lvp_binding *binding = context;
+	const double *step_mu = binding->step_mu;
+	int32_t written = begin;
+	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic_vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
@@ -201,15 +200,41 @@ static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions,
 				sum += support.phi[i] * step_mu[support.regions[i]];
 		float rho = (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * sum);
 		if (rho != 0.0f)
-			lvp__move_vertex(binding, k, rho);
+			lvp__move_vertex(binding, k, rho, written++);
+	}
+	binding->chunk_moved[begin / LVP__GRAIN] = written - begin;
+}
+
+/* Moves work_positions by the multipliers of the given regions (in mu[]), remembering the step
+ * (lvp__undo_step). Only dynamic vertices can move (their map is zero otherwise). Split over
+ * the threads in chunks of dynamic vertices; the moved list is then closed up in chunk order,
+ * the same for any threads. */
+static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
+{
+	for (int32_t j = 0; j < count; ++j)
+		binding->step_mu[regions[j]] = binding->mu[regions[j]];
+	int32_t dynamic = binding->dynamic_vertex_count, chunks = (dynamic + LVP__GRAIN - 1) / LVP__GRAIN;
+	for (int32_t i = 0; i < chunks; ++i)
+		binding->chunk_moved[i] = -1; /* a serial run is one call over all chunks */
+	lvp__parallel_for(LVP__POOL_FOR(binding, dynamic), lvp__apply_loop, binding, dynamic, LVP__GRAIN);
+	binding->moved_count = 0;
+	for (int32_t i = 0; i < chunks; ++i) {
+		int32_t moved = binding->chunk_moved[i], first = i * LVP__GRAIN, to = binding->moved_count;
+		if (moved <= 0)
+			continue;
+		if (first != to) {
+			memmove(binding->moved + to, binding->moved + first, sizeof(int32_t) * (size_t)moved);
+			memmove(binding->step_backup + 3 * to, binding->step_backup + 3 * first, sizeof(float) * 3 * (size_t)moved);
+		}
+		binding->moved_count += moved;
 	}
 	for (int32_t j = 0; j < count; ++j)
-		step_mu[regions[j]] = 0.0;
+		binding->step_mu[regions[j]] = 0.0;
 }
 
 typedef struct lvp__assembly_context {
 	lvp_binding *binding;
-	int32_t m, dense, per_block;
+	int32_t dense, chunk_size;
 } lvp__assembly_context;
 
 /* Past the dense block: the diagonal of columns [begin, end) (stored in mu temporarily) and
@@ -238,63 +263,54 @@ static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, i
 	}
 }
 
-/* Columns [begin, end) of the active regions' system: column j gathers what region active[j]'s
- * multiplier does to each active region, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt.
- * Each worker takes one block of columns and walks all dynamic vertices in order, so every
- * entry is summed in the same order whatever the threads. A block sums into its own part of
- * binding->assembly (no cache line shared with another thread's), with a spare column for
- * what falls outside the block (an inactive region, another block's column) and a spare row
- * (a row past the dense block), so the loop does not branch on it; the block's columns are
- * copied into the system at the end. */
-static void lvp__assemble_columns(void *context, int32_t begin, int32_t end)
+/* The region system's partial sums over chunks [begin, end) of the dynamic vertices, each in its
+ * block of binding->assembly (binding.h): row s, column t gathers what region t's multiplier does
+ * to region s, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt, for the active regions (by
+ * their index in the active list); the gains, sum_k gamma_k g_k^2 phi_kt, what it does to the
+ * whole mesh. Whatever falls outside the dense system (a region not active, or past the dense
+ * block) goes to the spare row or column, so the loop does not branch on it. */
+static void lvp__assemble_chunks(void *context, int32_t begin, int32_t end)
 {
 	const lvp__assembly_context *c = context;
 	const lvp_binding *binding = c->binding;
-	int32_t dense = c->dense;
-	int32_t dense_end = end < dense ? end : dense, width = dense_end > begin ? dense_end - begin : 0;
-	int32_t stride = width + 1; /* the block's columns, then the spare */
-	double *sums = binding->assembly + LVP__ASSEMBLY_OFFSET(dense, begin < dense ? begin : dense, begin / c->per_block);
+	int32_t dense = c->dense, stride = dense + 1;
 	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
 	 * change what the binding points to. */
 	const int32_t *active_index = binding->active_index, *dynamic = binding->dynamic_vertices;
 	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
 	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
 	const double *kappa = binding->kappa;
-	double gains[LVP__DENSE_MAX + 1]; /* total_gain of the block's columns, then the spare */
-	for (int32_t i = 0; i <= width; ++i)
-		gains[i] = 0.0;
-	memset(sums, 0, sizeof(double) * (size_t)(dense + 1) * (size_t)stride);
-	for (int32_t v = 0, count = width > 0 ? binding->dynamic_vertex_count : 0; v < count; ++v) {
-		int32_t k = dynamic[v];
-		if (!lvp__can_move(binding, k))
-			continue;
-		lvp__support support = lvp__vertex_support(binding, k);
-		double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
-		for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
-			int32_t s = slot_region[slot];
-			int32_t row = s >= 0 ? active_index[s] : -1;
-			bool first = slot == slot_offsets[k];
-			if (!first && !((uint32_t)row < (uint32_t)dense))
-				continue; /* nothing for this slot; the first one also carries total_gain */
-			double coefficient = (uint32_t)row < (uint32_t)dense ? kappa[s] * slot_g[slot] : 0.0;
-			double *row_sums = sums + ((uint32_t)row < (uint32_t)dense ? row : dense) * stride;
-			for (int32_t i = 0; i < support.count; ++i) {
-				int32_t column = active_index[support.regions[i]] - begin;
-				column = (uint32_t)column < (uint32_t)width ? column : width;
-				double weight = gain * support.phi[i];
-				if (first)
-					gains[column] += weight * g;
-				row_sums[column] += coefficient * weight;
+	for (int32_t chunk = begin; chunk < end; ++chunk) {
+		double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
+		double *gains = sums + (size_t)stride * (size_t)stride;
+		memset(sums, 0, sizeof(double) * (size_t)stride * (size_t)(stride + 1));
+		int32_t first = chunk * c->chunk_size, last = first + c->chunk_size;
+		last = last < binding->dynamic_vertex_count ? last : binding->dynamic_vertex_count;
+		for (int32_t v = first; v < last; ++v) {
+			int32_t k = dynamic[v];
+			if (!lvp__can_move(binding, k))
+				continue;
+			lvp__support support = lvp__vertex_support(binding, k);
+			double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+			for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
+				int32_t s = slot_region[slot];
+				int32_t row = s >= 0 ? active_index[s] : -1;
+				bool first_slot = slot == slot_offsets[k], in_system = (uint32_t)row < (uint32_t)dense;
+				if (!first_slot && !in_system)
+					continue; /* nothing for this slot; the first one also carries the gains */
+				double coefficient = in_system ? kappa[s] * slot_g[slot] : 0.0;
+				double *row_sums = sums + (in_system ? row : dense) * stride;
+				for (int32_t i = 0; i < support.count; ++i) {
+					int32_t column = active_index[support.regions[i]];
+					column = (uint32_t)column < (uint32_t)dense ? column : dense;
+					double weight = gain * support.phi[i];
+					if (first_slot)
+						gains[column] += weight * g;
+					row_sums[column] += coefficient * weight;
+				}
 			}
 		}
 	}
-	for (int32_t row = 0; row < dense; ++row)
-		for (int32_t j = begin; j < dense_end; ++j)
-			binding->system[row * dense + j] = sums[row * stride + j - begin];
-	for (int32_t j = begin; j < dense_end; ++j)
-		binding->total_gain[binding->active[j]] = gains[j - begin];
-	if (end > dense)
-		lvp__assemble_diagonals(binding, begin > dense ? begin : dense, end);
 }
 
 static double lvp__error_norm(const lvp_binding *binding);
@@ -330,11 +346,29 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	for (int32_t i = 0; i < m; ++i)
 		binding->region_touched[active[i]] = 1;
 
-	/* Assemble: column j gathers what region active[j]'s multiplier does to each active region.
-	 * Columns are independent, so they are split over the worker threads. */
-	int32_t per_block = (m + binding->thread_count - 1) / binding->thread_count;
-	lvp__assembly_context context = {binding, m, dense, per_block};
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_columns, &context, m, per_block);
+	/* Assemble in chunks of the dynamic vertices (binding.h), split over the worker threads,
+	 * then add the chunks' blocks in order. */
+	int32_t dynamic = binding->dynamic_vertex_count;
+	int32_t chunk_size = (dynamic + LVP__ASSEMBLY_CHUNKS - 1) / LVP__ASSEMBLY_CHUNKS;
+	chunk_size = chunk_size > LVP__GRAIN ? chunk_size : LVP__GRAIN;
+	int32_t chunks = (dynamic + chunk_size - 1) / chunk_size;
+	lvp__assembly_context context = {binding, dense, chunk_size};
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_chunks, &context, chunks, 1);
+	double *system = binding->system, *gains = binding->rhs; /* rhs is free until the solve */
+	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
+	memset(gains, 0, sizeof(double) * (size_t)dense);
+	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
+		const double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
+		for (int32_t row = 0; row < dense; ++row)
+			for (int32_t j = 0; j < dense; ++j)
+				system[row * dense + j] += sums[row * (dense + 1) + j];
+		for (int32_t j = 0; j < dense; ++j)
+			gains[j] += sums[(dense + 1) * (dense + 1) + j];
+	}
+	for (int32_t j = 0; j < dense; ++j)
+		binding->total_gain[active[j]] = gains[j];
+	if (m > dense)
+		lvp__assemble_diagonals(binding, dense, m);
 	/* What equal multipliers do to each region: its row of the system (past the dense block, its
 	 * diagonal, kept in mu[] by the assembly). */
 	for (int32_t i = 0; i < m; ++i) {
@@ -602,12 +636,14 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 			binding->dynamic_set_current = false;
 }
 
-/* Which regions have a vertex in their support that this frame's map lets move (binding.h). */
+/* Which regions have a vertex in their support that this frame's map lets move (binding.h).
+ * Such a vertex is dynamic: the walk is over the dynamic set of the last measurement. */
 static void lvp__movable_regions(lvp_binding *binding)
 {
 	memset(binding->region_movable, 0, (size_t)binding->region_count);
 	int32_t entries = 0;
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
 		if (!(binding->frame_gamma[k] > 0.0f))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
@@ -822,7 +858,6 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__frame_map(binding, rest_positions);
-	lvp__movable_regions(binding);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
@@ -838,6 +873,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);
+	lvp__movable_regions(binding);
 	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
 

@@ -720,13 +720,22 @@ static double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec
 	return lvp__vol6(a, a_rest, m) + lvp__vol6(a_rest, b_rest, m) + lvp__vol6(b_rest, b, m) + lvp__vol6(b, a, m);
 }
 
-void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
-                         const lvp__region_sums *rest_totals, double *r_change)
+typedef struct lvp__change_context {
+	lvp_binding *binding;
+	const float *positions, *rest;
+	const lvp__region_sums *rest_totals;
+	double *r_change;
+} lvp__change_context;
+
+/* Regions [first, last): each writes only its change and its border edges' gradients. */
+static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 {
-	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	for (int32_t r = 0; r < binding->region_count; ++r) {
+	const lvp__change_context *c = context;
+	lvp_binding *binding = c->binding;
+	const float *positions = c->positions, *rest = c->rest;
+	for (int32_t r = first; r < last; ++r) {
 		if (binding->region_skipped[r]) {
-			r_change[r] = 0.0;
+			c->r_change[r] = 0.0;
 			continue;
 		}
 		/* Top part in rest-world units: kappa * sum (p_i - t) . cr / 6, kappa = det(rest)/det(posed). */
@@ -770,8 +779,18 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const flo
 			/* local units -> rest-world units */
 			sides6 *= binding->rest_det[r];
 		}
-		r_change[r] = top + sides6 / 6.0 - rest_totals[r].volume6 / 6.0;
+		c->r_change[r] = top + sides6 / 6.0 - c->rest_totals[r].volume6 / 6.0;
 	}
+}
+
+void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
+                         const lvp__region_sums *rest_totals, double *r_change)
+{
+	lvp__change_context context = {binding, positions, rest_positions ? rest_positions : binding->rest_positions,
+	                               rest_totals, r_change};
+	/* a border edge costs about as much as 8 triangles of the mesh pass */
+	int64_t work = 8 * (int64_t)binding->border_offsets[binding->region_count];
+	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__region_change_loop, &context, binding->region_count, 1);
 }
 
 /* The border terms of the last lvp__region_changes() added to the slots' <n, gradient> of the

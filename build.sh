@@ -24,7 +24,7 @@ PYTHON_INCLUDE="/usr/include/python3.11"
 
 CC="${CC:-gcc}"
 CFLAGS_COMMON=(-std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-function)
-CFLAGS_RELEASE=(-O2 -fPIC -fno-math-errno -fvisibility=hidden)
+CFLAGS_RELEASE=(-O3 -fPIC -fno-math-errno -fvisibility=hidden)
 CFLAGS_SANITIZE=(-O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
 
 log() { printf '\033[1m[build]\033[0m %s\n' "$*" >&2; }
@@ -77,7 +77,7 @@ build_core_library() {
 	local objects=()
 	for src in $(core_sources); do
 		local obj="$BUILD/obj/$(basename "${src%.c}").o"
-		"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_RELEASE[@]}" -O3 -Werror -pthread -c "$src" -o "$obj"
+		"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_RELEASE[@]}" -Werror -pthread -c "$src" -o "$obj"
 		objects+=("$obj")
 	done
 	rm -f "$BUILD/liblvp.a"

@@ -301,6 +301,7 @@ lvp_result lvp_set_map(lvp_binding *binding, const lvp_map_options *map, lvp_dia
 	if (binding->bone_count == 0 && lvp__map_needs_skeleton(map->map))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "map.map", -1,
 		                 "this binding has no skeleton; only UNIFORM and PAINTED maps are possible.");
+	binding->frame_map_current = false; /* the flags depend on the map */
 	return lvp__build_map(binding, map, r_diag);
 }
 

@@ -10,12 +10,12 @@
 #include "lvp_internal.h"
 #include "threads.h"
 
-/* Items per chunk of a parallel loop: large enough that waking a thread is negligible. */
+/* Items per chunk of a parallel loop: small enough that two threads share a loop evenly. */
 #define LVP__GRAIN 4096
 
-/* The pool for a loop over regions that does about `work` items of work: none when that is
- * too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
-#define LVP__POOL_FOR(binding, work) ((work) >= 2 * LVP__GRAIN ? (binding)->pool : NULL)
+/* The pool for a loop that does about `work` items of work (vertices, triangles): none when
+ * that is too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
+#define LVP__POOL_FOR(binding, work) ((work) >= 8 * LVP__GRAIN ? (binding)->pool : NULL)
 
 /* Above this many changed regions in one frame, the coupled region system is no longer
  * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
@@ -149,6 +149,9 @@ struct lvp_binding {
 	 * and region_skipped (kept from frame to frame while they stay; lvp__dynamic_set). */
 	bool dynamic_set_current;
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
+	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map:
+	 * cleared by whatever changes one of them otherwise (correction.c, lvp__frame_map). */
+	bool frame_map_current;
 	/* Pieces of the dynamic triangles for the mesh pass (local_volume.c, lvp__piece_loop);
 	 * capacity triangle_count / LVP__GRAIN + region_count + 2. */
 	int32_t *piece_first;    /* piece_count + 1 into dynamic_triangles */

@@ -480,7 +480,7 @@ static void lvp__skin_classes(lvp_binding *binding)
 			}
 		}
 		if (binding->skin_class[i] != skin_class)
-			binding->dynamic_set_current = false;
+			binding->dynamic_set_current = binding->frame_map_current = false;
 		binding->skin_class[i] = skin_class;
 	}
 }
@@ -584,30 +584,45 @@ typedef struct lvp__frame_map_context {
 	const float *rest;
 } lvp__frame_map_context;
 
+/* This frame's map at vertex k of the given class (lvp__vertex_class). */
+static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
+{
+	float gamma = binding->gamma[k];
+	if (!binding->map.deformation_weighted)
+		return gamma;
+	if (!(gamma > 0.0f) || vertex_class >= 0)
+		return 0.0f; /* all its bones in one class: it moves rigidly */
+	return gamma * lvp__vertex_spread(binding, rest + 3 * k, k);
+}
+
 /* Per vertex, independent of every other: split over the worker threads. A class is the index
  * of its first bone (lvp__skin_classes), so it names that bone's displacement. */
 static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__frame_map_context *c = context;
 	lvp_binding *binding = c->binding;
-	bool weighted = binding->map.deformation_weighted;
 	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
 		int32_t vertex_class = lvp__vertex_class(binding, k);
 		changed = changed || binding->vertex_class[k] != vertex_class;
 		binding->vertex_class[k] = vertex_class;
-		float gamma = binding->gamma[k];
-		if (!weighted)
-			binding->frame_gamma[k] = gamma;
-		else if (!(gamma > 0.0f) || vertex_class >= 0)
-			binding->frame_gamma[k] = 0.0f; /* all its bones in one class: it moves rigidly */
-		else
-			binding->frame_gamma[k] = gamma * lvp__vertex_spread(binding, c->rest + 3 * k, k);
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, vertex_class);
 		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
 		changed = changed || binding->vertex_dynamic[k] != dynamic;
 		binding->vertex_dynamic[k] = dynamic;
 	}
 	binding->chunk_changed[begin / LVP__GRAIN] = changed;
+}
+
+/* The same over the dynamic vertices only, when their classes and flags are known. */
+static void lvp__frame_map_dynamic_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__frame_map_context *c = context;
+	lvp_binding *binding = c->binding;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, binding->vertex_class[k]);
+	}
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
@@ -628,12 +643,22 @@ static void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
 	}
 	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	if (binding->frame_map_current && binding->dynamic_set_current) {
+		/* The bones fall into the same classes as in the frame before and nothing else changed a
+		 * vertex's class or flag (binding.h): only the dynamic vertices' map follows the pose;
+		 * every other vertex is rigid, its map still zero. In an animation this is most frames,
+		 * and the walk over all vertices is skipped. */
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__frame_map_dynamic_loop,
+		                  &context, binding->dynamic_vertex_count, LVP__GRAIN);
+		return;
+	}
 	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
 	memset(binding->chunk_changed, 0, (size_t)chunks);
-	lvp__parallel_for(binding->pool, lvp__frame_map_loop, &context, n, LVP__GRAIN);
+	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
 	for (int32_t i = 0; i < chunks; ++i)
 		if (binding->chunk_changed[i])
 			binding->dynamic_set_current = false;
+	binding->frame_map_current = true;
 }
 
 /* Which regions have a vertex in their support that this frame's map lets move (binding.h).

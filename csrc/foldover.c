@@ -112,7 +112,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				moved += !binding->frozen[k];
 				binding->frozen[k] = 1;
 				binding->vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
-				binding->dynamic_set_current = false;
+				binding->dynamic_set_current = binding->frame_map_current = false;
 			}
 		}
 	}

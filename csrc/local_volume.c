@@ -392,8 +392,10 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 	if (reusable && binding->dynamic_set_current)
 		return;
 	binding->dynamic_set_current = false;
-	if (!local)
+	if (!local) {
 		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
+		binding->frame_map_current = false;
+	}
 	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
 	                                local};
 	lvp__pool *pool = LVP__POOL_FOR(binding, binding->triangle_count);
@@ -836,7 +838,8 @@ void lvp__vertex_gradients(lvp_binding *binding)
 {
 	if (!binding->vertex_terms_current) {
 		lvp__pass_context context = {binding, NULL};
-		lvp__parallel_for(binding->pool, lvp__vertex_loop, &context, binding->dynamic_vertex_count, LVP__GRAIN);
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__vertex_loop, &context,
+		                  binding->dynamic_vertex_count, LVP__GRAIN);
 		binding->vertex_terms_current = true;
 	}
 	lvp__add_border_gradients(binding);

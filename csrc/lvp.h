@@ -172,7 +172,8 @@
  *   it.) Which triangles are static is kept from one frame to the next while the same bones
  *   move (the classes of the bones and of every vertex unchanged, no frame rest given, no
  *   fold-over contact): in an animation it is found again only when other joints start or stop
- *   bending. Per iteration: one pass over the dynamic triangles, region by region (or over the
+ *   bending, and until then the other vertices are only copied from input to output. Per
+ *   iteration: one pass over the dynamic triangles, region by region (or over the
  *   triangles around the moved vertices, when they are few) and, when a step follows, two
  *   over the dynamic vertices (their gradients, then the active regions' system) and one to
  *   move them, plus a dense solve of the active regions' system (m^3/3 for m active regions,

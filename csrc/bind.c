@@ -271,7 +271,6 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		lvp_free(binding);
 		return result;
 	}
-	binding->thread_count = options->thread_count;
 	if (lvp__pool_create(&binding->pool, options->thread_count) != lvp_success) {
 		lvp_free(binding);
 		return lvp__fail(r_diag, lvp_error_thread, "options.thread_count", -1,

@@ -108,7 +108,6 @@ struct lvp_binding {
 	bool soft_support;
 	uint8_t *region_movable;  /* region_count: some vertex of its support can move this frame */
 	int32_t movable_entries;  /* this frame's support entries of vertices that can move */
-	int32_t thread_count;
 
 	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
 	int32_t *neighbour_offsets; /* region_count+1 */

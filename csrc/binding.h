@@ -112,6 +112,7 @@ struct lvp_binding {
 	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
 	int32_t *neighbour_offsets; /* region_count+1 */
 	int32_t *neighbour_bones;
+	uint8_t *neighbour_contact; /* per neighbour entry, this frame: LVP__CONTACT_* (foldover.c) */
 	int32_t *region_vertex_offsets; /* region_count+1 */
 	int32_t *region_vertices;
 
@@ -233,7 +234,13 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
                               const float *rest_positions, lvp_diagnostic *r_diag);
 
 /* foldover.c */
+/* Moves the vertices that crossed into a neighbouring bone's flesh back to the contact surface
+ * and holds them (frozen); marks the neighbour pairs where that happened. Returns how many
+ * vertices it held that were not held yet. */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
+/* Fades frame_gamma near the contact surfaces of the pairs marked since the last call. */
 void lvp__fade_map_at_contact(lvp_binding *binding);
+/* Forgets this frame's contacts (before the first lvp__fold_over of a frame). */
+void lvp__clear_contacts(lvp_binding *binding);
 
 #endif /* LVP_BINDING_H */

@@ -909,14 +909,13 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
 		 * contact surface (which turns the compression into a bulge); the bulge may push other
 		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
+		lvp__clear_contacts(binding);
 		int32_t moved = lvp__fold_over(binding, rest_positions);
 		stats.folded_vertices = moved;
-		if (moved > 0) {
-			lvp__fade_map_at_contact(binding);
-			lvp__movable_regions(binding);
-		}
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
+			lvp__fade_map_at_contact(binding); /* at the contacts found since the last round */
+			lvp__movable_regions(binding);
 			lvp__measure(binding, rest_positions, totals);
 			stats.iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
 			moved = lvp__fold_over(binding, rest_positions);

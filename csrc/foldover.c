@@ -9,6 +9,13 @@
  */
 #include "binding.h"
 
+/* binding->neighbour_contact, per neighbour entry (s, j) of this frame: */
+enum {
+	LVP__CONTACT_NONE = 0, /* no skin crossed between s and j */
+	LVP__CONTACT_FOUND,    /* skin crossed (of s into j, or of j into s); the map not faded yet */
+	LVP__CONTACT_FADED,    /* and the map was faded there (lvp__fade_map_at_contact) */
+};
+
 /* f > 0: closer (relative to bone length) to bone j than to bone s. */
 static inline double lvp__side(lvp__vec3 p, lvp__vec3 s_head, lvp__vec3 s_tail, double s_length, lvp__vec3 j_head,
                                lvp__vec3 j_tail, double j_length)
@@ -77,6 +84,22 @@ static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 	return false;
 }
 
+void lvp__clear_contacts(lvp_binding *binding)
+{
+	memset(binding->neighbour_contact, 0, (size_t)binding->neighbour_offsets[binding->region_count]);
+}
+
+/* Marks the contact of entry n of region s's neighbours, bone j, for both sides: the flesh of s
+ * and of j is pressed together, whichever crossed. */
+static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_t j)
+{
+	if (binding->neighbour_contact[n] == LVP__CONTACT_NONE)
+		binding->neighbour_contact[n] = LVP__CONTACT_FOUND;
+	for (int32_t m = binding->neighbour_offsets[j]; m < binding->neighbour_offsets[j + 1]; ++m)
+		if (binding->neighbour_bones[m] == s && binding->neighbour_contact[m] == LVP__CONTACT_NONE)
+			binding->neighbour_contact[m] = LVP__CONTACT_FOUND;
+}
+
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
@@ -109,6 +132,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				work[3 * k] = (float)q.x;
 				work[3 * k + 1] = (float)q.y;
 				work[3 * k + 2] = (float)q.z;
+				lvp__mark_contact(binding, s, n, j);
 				moved += !binding->frozen[k];
 				binding->frozen[k] = 1;
 				binding->vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
@@ -119,31 +143,78 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 	return moved;
 }
 
-/* After a contact was found: flesh pressed against the contact surface does not bulge into it;
- * the map is faded to zero there, over half the vertex's rest distance to its bone, so the
- * extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of pushing
- * skin back across. */
+static inline double lvp__smoothstep(double x)
+{
+	x = x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
+	return x * x * (3.0 - 2.0 * x);
+}
+
+/* The concave side of the bend between two posed bones: from the joint (the middle of their
+ * nearest ends), the unit direction between the two bones. False when they are (nearly)
+ * straight. */
+static bool lvp__concave_side(lvp__vec3 *r_joint, lvp__vec3 *r_direction, lvp__vec3 sh, lvp__vec3 st, lvp__vec3 jh,
+                              lvp__vec3 jt)
+{
+	lvp__vec3 s_ends[2] = {sh, st}, j_ends[2] = {jh, jt};
+	int best_s = 0, best_j = 0;
+	double best = INFINITY;
+	for (int a = 0; a < 2; ++a)
+		for (int b = 0; b < 2; ++b) {
+			double d = lvp__length(lvp__sub(s_ends[a], j_ends[b]));
+			if (d < best) {
+				best = d;
+				best_s = a;
+				best_j = b;
+			}
+		}
+	lvp__vec3 joint = lvp__scale(lvp__add(s_ends[best_s], j_ends[best_j]), 0.5);
+	lvp__vec3 us = lvp__sub(s_ends[1 - best_s], joint), uj = lvp__sub(j_ends[1 - best_j], joint);
+	double ls = lvp__length(us), lj = lvp__length(uj);
+	if (!(ls > 0.0) || !(lj > 0.0))
+		return false;
+	lvp__vec3 c = lvp__add(lvp__scale(us, 1.0 / ls), lvp__scale(uj, 1.0 / lj));
+	double length = lvp__length(c);
+	if (!(length > 1e-3))
+		return false;
+	*r_joint = joint;
+	*r_direction = lvp__scale(c, 1.0 / length);
+	return true;
+}
+
+/* Where skin crossed between two bones: the flesh pressed against their contact surface does not
+ * bulge into it. The map is faded to zero there, over half the vertex's rest distance to its
+ * bone, so the extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of
+ * pushing skin back across. Only on the concave side of the bend, faded in over the same width
+ * from the joint: the contact surface also runs through the convex side and the flanks of the
+ * joint, where nothing presses the skin, and holding it there left a ridge between held and
+ * bulging skin. Only for pairs where skin crossed (a joint bent without contact keeps its
+ * bulge), each once a frame. */
 void lvp__fade_map_at_contact(lvp_binding *binding)
 {
-	float *work = binding->work_positions;
+	const float *work = binding->work_positions;
 	for (int32_t s = 0; s < binding->region_count; ++s) {
 		if (binding->region_skipped[s] || !(binding->bone_length[s] > 0.0))
 			continue;
 		for (int32_t n = binding->neighbour_offsets[s]; n < binding->neighbour_offsets[s + 1]; ++n) {
-			int32_t j = binding->neighbour_bones[n];
-			if (!(binding->bone_length[j] > 0.0) || !lvp__bends(binding, s, j))
+			if (binding->neighbour_contact[n] != LVP__CONTACT_FOUND)
 				continue;
+			binding->neighbour_contact[n] = LVP__CONTACT_FADED;
+			int32_t j = binding->neighbour_bones[n];
 			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
 			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
+			lvp__vec3 joint, concave;
+			bool has_side = lvp__concave_side(&joint, &concave, sh, st, jh, jt);
 			for (int32_t i = binding->region_vertex_offsets[s]; i < binding->region_vertex_offsets[s + 1]; ++i) {
 				int32_t k = binding->region_vertices[i];
 				if (!(binding->frame_gamma[k] > 0.0f))
 					continue;
 				double width = 0.5 * binding->distance[k];
-				double margin = -lvp__side(lvp__load(work + 3 * k), sh, st, 1.0, jh, jt, 1.0);
-				double fade = width > 0.0 ? margin / width : 1.0;
-				fade = fade < 0.0 ? 0.0 : (fade > 1.0 ? 1.0 : fade);
-				binding->frame_gamma[k] *= (float)(fade * fade * (3.0 - 2.0 * fade));
+				if (!(width > 0.0))
+					continue; /* on the bone itself (where the map is zero anyway) */
+				lvp__vec3 p = lvp__load(work + 3 * k);
+				double fade = lvp__smoothstep(-lvp__side(p, sh, st, 1.0, jh, jt, 1.0) / width);
+				double pressed = has_side ? lvp__smoothstep(lvp__dot(lvp__sub(p, joint), concave) / width) : 1.0;
+				binding->frame_gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
 			}
 		}
 	}

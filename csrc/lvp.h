@@ -124,9 +124,12 @@
  *   bisection to float precision, plus a gap of 1e-4 of the two bone lengths. The step adapts
  *   to the flesh: there is no fixed step to tune and no flesh width it must stay below. Then
  *   the extra volume step runs with the moved vertices held and the map faded to zero within
- *   half the flesh depth of the contact surface, so the extra volume becomes a bulge beside the
- *   contact (paper Fig. 10d) rather than pushing skin back across; contact test and volume step
- *   alternate up to 4 more rounds. Limits: two parts of one bone's flesh, and bones that are
+ *   half the flesh depth of the contact surface, on the concave side of the bend of each pair
+ *   of bones where skin crossed (the contact surface also runs through the convex side and the
+ *   flanks of the joint, where nothing presses the skin: holding it there would leave a ridge
+ *   between held and bulging skin), so the extra volume becomes a bulge beside the contact
+ *   (paper Fig. 10d) rather than pushing skin back across; contact test and volume step
+ *   alternate up to 4 more rounds, the map faded at each new contact. Limits: two parts of one bone's flesh, and bones that are
  *   not neighbours (a fingertip folded onto the palm), are not separated, and moving skin back
  *   towards its own bone there can add crossings; a crease pressed flatter than the bisector
  *   plane can hold (a finger folded past about 100 degrees with a 0.2-wide weight band) may

@@ -208,8 +208,10 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 		free(marker);
 		free(directed_offsets);
 		binding->neighbour_bones = malloc(sizeof(int32_t));
-		return binding->neighbour_bones ? lvp_success
-		                                : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
+		binding->neighbour_contact = calloc(1, 1);
+		return binding->neighbour_bones && binding->neighbour_contact
+		           ? lvp_success
+		           : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
 
 	/* Directed lists D(r) = bones influencing some vertex of region r, found with a marker. */
@@ -293,6 +295,10 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 	}
 	free(marker);
 	free(directed_offsets);
+	int32_t entries = binding->neighbour_offsets[s];
+	binding->neighbour_contact = calloc((size_t)(entries > 0 ? entries : 1), 1);
+	if (!binding->neighbour_contact)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	return lvp_success;
 }
 

@@ -129,14 +129,14 @@
  *   flanks of the joint, where nothing presses the skin: holding it there would leave a ridge
  *   between held and bulging skin), so the extra volume becomes a bulge beside the contact
  *   (paper Fig. 10d) rather than pushing skin back across; contact test and volume step
- *   alternate up to 4 more rounds, the map faded at each new contact. Limits: two parts of one bone's flesh, and bones that are
- *   not neighbours (a fingertip folded onto the palm), are not separated, and moving skin back
- *   towards its own bone there can add crossings; a crease pressed flatter than the bisector
- *   plane can hold (a finger folded past about 100 degrees with a 0.2-wide weight band) may
- *   still fold after projection. Where two bones lie on top of each other (a joint folded to
- *   180 degrees) there is no contact surface, and a vertex whose contact surface is further
- *   than a quarter of the rest mesh's size (bones posed far from their skin) is not moved:
- *   such vertices are left where they are.
+ *   alternate up to 4 more rounds, the map faded at each new contact. Limits: two parts of one
+ *   bone's flesh, and bones that are not neighbours (a fingertip folded onto the palm), are not
+ *   separated, and moving skin back towards its own bone there can add crossings; a crease
+ *   pressed flatter than the bisector plane can hold (a finger folded past about 100 degrees
+ *   with a 0.2-wide weight band) may still fold after projection. Where two bones lie on top
+ *   of each other (a joint folded to 180 degrees) there is no contact surface, and a vertex
+ *   whose contact surface is further than a quarter of the rest mesh's size (bones posed far
+ *   from their skin) is not moved: such vertices are left where they are.
  *
  * FALLBACKS (defined outcomes for awkward input; everything else is an error)
  *

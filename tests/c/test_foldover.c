@@ -9,7 +9,6 @@
 #include "support/test_meshes.h"
 
 #include <math.h>
-#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 

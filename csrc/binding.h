@@ -238,8 +238,9 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
  * and holds them (frozen); marks the neighbour pairs where that happened. Returns how many
  * vertices it held that were not held yet. */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
-/* Fades frame_gamma near the contact surfaces of the pairs marked since the last call. */
-void lvp__fade_map_at_contact(lvp_binding *binding);
+/* Fades frame_gamma near the contact surfaces of the pairs marked since the last call; returns
+ * whether there was any. */
+bool lvp__fade_map_at_contact(lvp_binding *binding);
 /* Forgets this frame's contacts (before the first lvp__fold_over of a frame). */
 void lvp__clear_contacts(lvp_binding *binding);
 

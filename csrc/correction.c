@@ -914,8 +914,9 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		stats.folded_vertices = moved;
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
-			lvp__fade_map_at_contact(binding); /* at the contacts found since the last round */
-			lvp__movable_regions(binding);
+			/* At the contacts found since the last round; only the fade changes what can move. */
+			if (lvp__fade_map_at_contact(binding))
+				lvp__movable_regions(binding);
 			lvp__measure(binding, rest_positions, totals);
 			stats.iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
 			moved = lvp__fold_over(binding, rest_positions);

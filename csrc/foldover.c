@@ -189,9 +189,10 @@ static bool lvp__concave_side(lvp__vec3 *r_joint, lvp__vec3 *r_direction, lvp__v
  * joint, where nothing presses the skin, and holding it there left a ridge between held and
  * bulging skin. Only for pairs where skin crossed (a joint bent without contact keeps its
  * bulge), each once a frame. */
-void lvp__fade_map_at_contact(lvp_binding *binding)
+bool lvp__fade_map_at_contact(lvp_binding *binding)
 {
 	const float *work = binding->work_positions;
+	bool faded = false;
 	for (int32_t s = 0; s < binding->region_count; ++s) {
 		if (binding->region_skipped[s] || !(binding->bone_length[s] > 0.0))
 			continue;
@@ -199,6 +200,7 @@ void lvp__fade_map_at_contact(lvp_binding *binding)
 			if (binding->neighbour_contact[n] != LVP__CONTACT_FOUND)
 				continue;
 			binding->neighbour_contact[n] = LVP__CONTACT_FADED;
+			faded = true;
 			int32_t j = binding->neighbour_bones[n];
 			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
 			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
@@ -218,4 +220,5 @@ void lvp__fade_map_at_contact(lvp_binding *binding)
 			}
 		}
 	}
+	return faded;
 }

@@ -16,7 +16,6 @@ others hidden, while the joint bends from 0 to 90 degrees and back:
     Armature + Volume Preservation's node group with the correction off (the add-on's handlers
     unregistered): what one evaluation of the stack costs, before any correction
 
-
 A frame time is the wall time of scene.frame_set(frame), which is what playback pays: animation,
 the modifier stack, and for Volume Preservation its handler and Blender's second evaluation. The
 setups take turns every few frames (so that other load on the machine affects them alike) and the

@@ -20,6 +20,8 @@ why. With GPU subdivision in the viewport, the CPU mesh is not subdivided at all
 import threading
 from array import array
 
+import bpy
+
 from . import bindings
 from . import display
 from . import mesh_data
@@ -155,6 +157,17 @@ def _shape_key_rest(obj, bound, mesh_changed):
     return bound.rest_positions if bound.rest_in_use else None
 
 
+def other_corrected_users(obj):
+    """Other objects that use obj's mesh and carry Volume Preservation too (linked duplicates). The
+    correction lives in the mesh, so it can be right for one of them only. Cheap when the mesh has a
+    single user, which is the usual case."""
+    mesh = obj.data
+    if mesh.users < 2:
+        return []
+    return [other for other in bpy.data.objects
+            if other.users and other.data == mesh and other != obj and node_group.find_modifier(other) is not None]
+
+
 def is_main_thread():
     return threading.current_thread() is threading.main_thread()
 
@@ -172,6 +185,14 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'WARNING', "The mesh is linked from a library: its volume cannot be corrected "
                                             "here (make it local)")
         return False
+    sharing = other_corrected_users(obj)
+    if sharing:
+        bindings.set_status(obj, 'ERROR', "Passing the mesh through: its mesh %r is also used by %s, which has Volume "
+                                          "Preservation too (a linked duplicate). The correction is stored in the "
+                                          "mesh, so each object needs its own: select them and use Object > "
+                                          "Relations > Make Single User > Object & Data"
+                            % (mesh.name, ", ".join(sorted(other.name for other in sharing))))
+        return write_zero_offsets(mesh, bindings.entry(obj))
     if obj.mode in {'EDIT', 'SCULPT'}:
         # Those modes own the mesh data while they run; writing it from a handler would fight them.
         bindings.set_status(obj, 'INFO', "Paused in %s Mode" % obj.mode.title())

@@ -335,6 +335,38 @@ class TestSharedArmature(CylinderTestCase):
         self.assertCorrected(second, message="second")
 
 
+class TestLinkedDuplicates(CylinderTestCase):
+    """Objects sharing one mesh (Alt+D), each with the modifier and its own rig: the correction is
+    stored in the mesh, so it cannot be right for both. Both pass the mesh through and say how to fix
+    it, rather than one showing the other's correction."""
+
+    def test_shared_mesh_passes_through_until_made_single_user(self):
+        helpers.select_only(self.obj)
+        bpy.ops.object.duplicate(linked=True)
+        duplicate = bpy.context.selected_objects[0]
+        self.assertIsNot(duplicate, self.obj)
+        self.assertEqual(duplicate.data, self.obj.data)
+        own_rig = helpers.two_bone_armature("DuplicateRig")  # at rest: its skinned shape is the rest mesh
+        duplicate.parent = own_rig
+        for modifier in duplicate.modifiers:
+            if modifier.type == 'ARMATURE':
+                modifier.object = own_rig
+        self.scene.frame_set(10)
+        for obj in (self.obj, duplicate):
+            self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(obj),
+                                                        helpers.uncorrected_positions(obj)), 1e-6,
+                                   "%s shows a correction computed for a mesh it shares" % obj.name)
+            self.assertStatusContains(obj, "Make Single User")
+        helpers.select_only(duplicate)
+        bpy.ops.object.make_single_user(object=True, obdata=True)
+        self.assertNotEqual(duplicate.data, self.obj.data)
+        self.scene.frame_set(9)
+        self.assertCorrected(self.obj, message="the original after Make Single User")
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(duplicate)), 1e-6,
+                               "the duplicate's rig is at rest: it needs no correction")
+        self.assertEqual(self.status_of(duplicate)[0], 'INFO')
+
+
 class TestShapeKeys(CylinderTestCase):
 
     def test_shape_keys_are_kept_and_corrected_against(self):

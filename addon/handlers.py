@@ -13,6 +13,12 @@
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
   lazily by the next correction, with no user action. load_post also replaces node groups of an
   older layout (or edited by hand) with the current one: the group is the add-on's code.
+- save_pre, save_post (and save_post_fail on 4.1+): files are saved without the correction, so a
+  file opened where the add-on does not run (a farm machine, a colleague's Blender) shows plain
+  skinning at every frame, rather than the correction of the frame it was saved at applied to other
+  poses. The offsets are zeroed in the original meshes just before writing and put back right
+  after, without tagging anything, so the session never shows the difference. Opened again with the
+  add-on, load_post corrects the frame the file opens on, with no user action.
 - render_init: renders started from the interface run in a thread; handlers that write data then
   need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
   data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
@@ -119,8 +125,18 @@ def load_post(*_arguments):
     bindings.clear()
     render_without_lock = False
     node_group.repair_modifiers(bpy.data.objects)
-    if bpy.app.background:
+    if not any(obj.type == 'MESH' and node_group.find_modifier(obj) is not None for obj in bpy.data.objects):
         return
+    # The file holds no correction (save_pre): correct the frame it opens on, with no user action. Without
+    # an interface, now (a script that reads the file's meshes comes next); with one, once the window
+    # manager runs again, with a window to evaluate for.
+    if bpy.app.background:
+        try:
+            _correct_view_layer(bpy.context)
+        except Exception:
+            traceback.print_exc()
+        return
+    bpy.app.timers.register(_correct_windows_after_load, first_interval=0.0, persistent=True)
     # F12 renders from the interface need Lock Interface for the correction to reach them.
     for scene in bpy.data.scenes:
         if not scene.render.use_lock_interface and any(
@@ -130,10 +146,53 @@ def load_post(*_arguments):
                   "show the volume correction" % scene.name)
 
 
+def _correct_view_layer(context):
+    if context.scene is None or context.view_layer is None:
+        return
+    depsgraph = context.evaluated_depsgraph_get()
+    _correct(_objects_with_modifier(depsgraph), depsgraph)
+
+
+def _correct_windows_after_load():
+    try:
+        for window in bpy.context.window_manager.windows:
+            with bpy.context.temp_override(window=window):
+                _correct_view_layer(bpy.context)
+    except Exception:
+        traceback.print_exc()
+    return None  # once
+
+
 @persistent
 def undo_post(*_arguments):
     bindings.prune(bpy.data.objects)
     bindings.forget_written()
+
+
+# Offsets taken out of the meshes for saving: mesh name -> offsets, until save_post puts them back.
+_offsets_while_saving = {}
+
+
+@persistent
+def save_pre(*_arguments):
+    _offsets_while_saving.clear()
+    for mesh in bpy.data.meshes:
+        if mesh.library is None:
+            offsets = live.swap_offsets_untagged(mesh)
+            if offsets is not None:
+                _offsets_while_saving[mesh.name_full] = offsets
+    # Should save_post never come (a failed save on Blender < 4.1), the next correction reads the
+    # meshes again instead of trusting what it wrote last.
+    bindings.forget_written()
+
+
+@persistent
+def save_post(*_arguments):
+    for name, offsets in _offsets_while_saving.items():
+        mesh = bpy.data.meshes.get(name)
+        if mesh is not None:
+            live.swap_offsets_untagged(mesh, offsets)
+    _offsets_while_saving.clear()
 
 
 @persistent
@@ -149,12 +208,17 @@ HANDLERS = (
     ("undo_post", undo_post),
     ("redo_post", undo_post),
     ("render_init", render_init),
+    ("save_pre", save_pre),
+    ("save_post", save_post),
+    ("save_post_fail", save_post),  # Blender 4.1+
 )
 
 
 def register():
     for name, function in HANDLERS:
-        handler_list = getattr(bpy.app.handlers, name)
+        handler_list = getattr(bpy.app.handlers, name, None)
+        if handler_list is None:
+            continue
         # Reloading the add-on must not leave two copies behind.
         for existing in [item for item in handler_list if getattr(item, "__name__", "") == function.__name__
                          and getattr(item, "__module__", "") == function.__module__]:
@@ -164,6 +228,6 @@ def register():
 
 def unregister():
     for name, function in HANDLERS:
-        handler_list = getattr(bpy.app.handlers, name)
-        if function in handler_list:
+        handler_list = getattr(bpy.app.handlers, name, None)
+        if handler_list is not None and function in handler_list:
             handler_list.remove(function)

@@ -138,6 +138,25 @@ def write_zero_offsets(mesh, bound=None):
     return write_offsets(mesh, zeros, bound)
 
 
+def swap_offsets_untagged(mesh, offsets=None):
+    """Replaces the original mesh's offsets with offsets (zeros when None) WITHOUT tagging the mesh:
+    what Blender shows stays as it is, only what is saved changes. Returns the previous offsets, or
+    None when nothing was replaced (no offsets, another vertex count, or the same values)."""
+    attribute = _offset_attribute(mesh, create=False)
+    if attribute is None:
+        return None
+    previous = array('f', bytes(12 * len(attribute.data)))
+    if offsets is None:
+        offsets = array('f', bytes(4 * len(previous)))
+    if len(offsets) != len(previous):
+        return None
+    attribute.data.foreach_get("vector", previous)
+    if same_values(previous, offsets):
+        return None
+    attribute.data.foreach_set("vector", offsets)
+    return previous
+
+
 def _shape_key_rest(obj, bound, mesh_changed):
     """This frame's un-skinned positions with shape keys (None when they change nothing), cached
     while the key values stay the same and nobody edited the mesh."""

@@ -395,14 +395,18 @@ def enable_script_path():
     return path
 
 
-def run_blender(arguments, timeout=300):
-    """Runs a fresh background Blender with the add-on enabled before ARGUMENTS are processed.
+def run_blender(arguments, timeout=300, with_addon=True):
+    """Runs a fresh background Blender with the add-on enabled (unless with_addon is false) before
+    ARGUMENTS are processed.
 
     Returns the CompletedProcess (stdout and stderr as text). Its environment tells the child where
     the add-on is, and gives it its own extension directory."""
     environment = dict(os.environ)
     environment["LVP_TEST_TMP"] = tempfile.mkdtemp(prefix="child-", dir=test_tmp())
-    command = blender_command() + ["--python-exit-code", "1", "--python", enable_script_path()] + list(arguments)
+    command = blender_command() + ["--python-exit-code", "1"]
+    if with_addon:
+        command += ["--python", enable_script_path()]
+    command += list(arguments)
     return subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True,
                           timeout=timeout, env=environment)
 

@@ -42,6 +42,25 @@ with open(out, "w") as file:
     json.dump(result, file)
 """
 
+# A Blender WITHOUT the add-on opens the file: what it shows at each frame.
+CHILD_DUMP_WITHOUT_ADDON = """
+import bpy, json
+from array import array
+obj = bpy.data.objects[{name!r}]
+mesh = obj.data
+offsets = array('f', bytes(12 * len(mesh.vertices)))
+mesh.attributes[{attribute!r}].data.foreach_get("vector", offsets)
+result = {{"addon_registered": hasattr(bpy.types.Object, "lvp"), "largest_offset": max(map(abs, offsets))}}
+for frame in {frames!r}:
+    bpy.context.scene.frame_set(frame)
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+    positions = array('f', bytes(12 * len(evaluated.vertices)))
+    evaluated.vertices.foreach_get("co", positions)
+    result["frame%d" % frame] = list(positions)
+with open({out!r}, "w") as file:
+    json.dump(result, file)
+"""
+
 
 def alpha_of(path):
     image = bpy.data.images.load(path, check_existing=False)
@@ -72,8 +91,8 @@ class FileTestCase(helpers.AddonTestCase):
         bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
         return path
 
-    def run_child(self, arguments, what):
-        completed = helpers.run_blender(arguments)
+    def run_child(self, arguments, what, with_addon=True):
+        completed = helpers.run_blender(arguments, with_addon=with_addon)
         if completed.returncode != 0:
             self.fail("%s: the second Blender failed (exit %d):\n%s" % (what, completed.returncode,
                                                                        completed.stdout[-4000:]))
@@ -105,6 +124,39 @@ class TestSaveAndReopen(FileTestCase):
             self.assertSmallerThan(helpers.max_distance(array('f', result["frame%d" % frame]), expected[frame]),
                                    1e-5, "frame %d in the fresh Blender" % frame)
             self.assertEqual(result["frame%d_status" % frame][0], 'INFO', result["frame%d_status" % frame])
+
+    def test_saved_file_carries_no_correction(self):
+        # Opened where the add-on does not run (a farm machine without it), the file must show plain
+        # skinning at every frame, not the correction of the frame it was saved at on other poses.
+        scene = bpy.context.scene
+        plain = {}
+        for frame in (4, 10):
+            scene.frame_set(frame)
+            plain[frame] = helpers.uncorrected_positions(self.obj)
+        shown = helpers.evaluated_positions(self.obj)
+        offsets = helpers.offsets_of(self.obj)
+        self.assertGreater(helpers.max_abs(offsets), 0.01, "frame 10 is bent: it needs a correction")
+        path = self.save("without_addon.blend")
+        # This session goes on showing and holding its correction.
+        self.assertEqual(helpers.offsets_of(self.obj), offsets, "the offsets were not put back after saving")
+        self.assertEqual(helpers.evaluated_positions(self.obj), shown, "saving changed what is shown")
+        scene.frame_set(9)
+        scene.frame_set(10)
+        self.assertEqual(helpers.evaluated_positions(self.obj), shown, "the next frames are corrected as before")
+
+        out = os.path.join(self.directory, "without_addon.json")
+        script = os.path.join(self.directory, "dump_without_addon.py")
+        with open(script, "w") as file:
+            file.write(CHILD_DUMP_WITHOUT_ADDON.format(name=self.obj.name, attribute="lvp_offset", out=out,
+                                                       frames=[10, 4]))
+        self.run_child([path, "--python", script], "open without the add-on", with_addon=False)
+        with open(out) as file:
+            result = json.load(file)
+        self.assertFalse(result["addon_registered"], "the second Blender was meant to run without the add-on")
+        self.assertEqual(result["largest_offset"], 0.0, "the saved file holds a correction")
+        for frame in (10, 4):
+            self.assertSmallerThan(helpers.max_distance(array('f', result["frame%d" % frame]), plain[frame]), 1e-6,
+                                   "frame %d without the add-on is plain skinning" % frame)
 
     def test_topology_changed_before_saving_needs_rebind(self):
         import bmesh

@@ -801,6 +801,19 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	return steps;
 }
 
+/* Whether some bone's posed frame changes volume against its rest frame by more than 1e-4
+ * (squash and stretch, an inflated limb). Each region's local volume takes its bone's scale
+ * out (kappa), so the region keeps the volume its bone gives it; but the whole mesh then has
+ * no rest volume to go back to, and restoring it would squeeze the scaled volume out through
+ * the joints. Such frames correct the regions only. */
+static bool lvp__bones_scale(const lvp_binding *binding)
+{
+	for (int32_t r = 0; r < binding->region_count; ++r)
+		if (!binding->region_skipped[r] && fabs(binding->kappa[r] - 1.0) > 1e-4)
+			return true;
+	return false;
+}
+
 /* The volume correction, from a measured state. The local volumes are estimates (5.2): summed
  * over a closed surface they differ from the true change by what each region border sees from
  * two bone frames (second order in the bend, 0.4 % of the cylinder at 90 degrees), and regions
@@ -818,12 +831,12 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
                                     const float *rest_positions, const lvp__region_sums *totals,
                                     int32_t *r_first_active)
 {
-	bool failed;
-	binding->spread_total = binding->mode == LVP_MODE_LOCAL;
+	bool failed, whole_mesh = binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding);
+	binding->spread_total = whole_mesh;
 	int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations,
 	                                       r_first_active, &failed);
 	binding->spread_total = false;
-	if (!failed || binding->mode != LVP_MODE_LOCAL)
+	if (!failed || !whole_mesh)
 		return steps;
 	int32_t ignored;
 	steps += lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations - steps,

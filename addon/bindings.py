@@ -56,7 +56,7 @@ class BoundObject:
         self.expected_indices = None        # array('i', range(vertex_count))
         self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
         self.scratch_positions = None       # evaluated "lvp_position" when the final mesh has more vertices
-        self.mapping_checked_count = -1     # final vertex count whose index range was checked
+        self.mapping_checked = None         # (final vertex count, stack signature) whose index range was checked
         self.stats = None                   # the last frame's statistics (dict from Binding.correct)
         self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
 

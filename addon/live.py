@@ -50,8 +50,9 @@ def _scratch(bound, name, kind, count):
     return buffer
 
 
-def _evaluated_positions(mesh_eval, bound):
-    """Fills bound.positions from the evaluated mesh. Returns None on success, else the reason."""
+def _evaluated_positions(mesh_eval, bound, stack):
+    """Fills bound.positions from the evaluated mesh. Returns None on success, else the reason.
+    stack: the modifier stack's signature (node_group.stack_signature)."""
     attributes = mesh_eval.attributes
     position_attribute = attributes.get(names.CAPTURED_POSITION_ATTRIBUTE)
     if position_attribute is None or position_attribute.domain != 'POINT':
@@ -74,12 +75,14 @@ def _evaluated_positions(mesh_eval, bound):
         if not same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
             return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
                     "the Armature modifier changes them, or one after Volume Preservation reorders them)")
-        if evaluated_count != vertex_count and bound.mapping_checked_count != evaluated_count:
-            # Once per topology of the final mesh: every vertex comes from the bound ones.
+        if evaluated_count != vertex_count and bound.mapping_checked != (evaluated_count, stack):
+            # Once per topology of the final mesh and layout of the stack (a Subdivision Surface moved
+            # from after ours to before the Armature modifier keeps the vertex count): every vertex
+            # comes from the bound ones.
             if max(indices) >= vertex_count or min(indices) < 0:
                 return ("the mesh entering Volume Preservation has more vertices than were bound: a modifier "
                         "before the Armature modifier adds vertices")
-            bound.mapping_checked_count = evaluated_count
+            bound.mapping_checked = (evaluated_count, stack)
     if evaluated_count == vertex_count:
         position_attribute.data.foreach_get("vector", bound.positions)
     else:
@@ -87,6 +90,12 @@ def _evaluated_positions(mesh_eval, bound):
         position_attribute.data.foreach_get("vector", captured)
         bound.positions[:] = captured[:3 * vertex_count]
     return None
+
+
+def evaluated_problem(obj, depsgraph, bound):
+    """Why obj's evaluated mesh cannot be corrected with bound (a modifier before the Armature modifier
+    that adds vertices, one after ours that changes the topology...), or None when it can."""
+    return _evaluated_positions(obj.evaluated_get(depsgraph).data, bound, node_group.stack_signature(obj))
 
 
 def _offset_attribute(mesh, create):
@@ -237,17 +246,26 @@ def correct_object(obj, depsgraph, check_topology=False):
     if bound.map_key != previous_map and obj.lvp.display == 'CORRECTION_MAP' and is_main_thread():
         display.update_display(obj)  # the colours follow alpha, beta and the effect
 
+    if node_group.count_modifiers(obj) > 1:
+        # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
+        bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has more than one Volume Preservation "
+                                          "modifier; remove the copies" % obj.name)
+        return write_zero_offsets(mesh, bound)
     armature_modifier = node_group.find_armature_modifier(obj)
-    armature_object = armature_modifier.object if armature_modifier is not None else None
+    if armature_modifier is None:
+        bindings.set_status(obj, 'ERROR', "No Armature modifier before Volume Preservation: move Volume Preservation "
+                                          "right after the Armature modifier, or remove it")
+        return write_zero_offsets(mesh, bound)
+    armature_object = armature_modifier.object
     if armature_object is None or armature_object.type != 'ARMATURE':
-        bindings.set_status(obj, 'ERROR', "No Armature modifier with an armature before Volume Preservation: "
-                                          "move it right after the Armature modifier, or remove it")
+        bindings.set_status(obj, 'ERROR', "The Armature modifier %r has no armature object: set its Object field"
+                            % armature_modifier.name)
         return write_zero_offsets(mesh, bound)
 
     obj_eval = obj.evaluated_get(depsgraph)
     armature_eval = armature_object.evaluated_get(depsgraph)
     mesh_eval = obj_eval.data
-    problem = _evaluated_positions(mesh_eval, bound)
+    problem = _evaluated_positions(mesh_eval, bound, node_group.stack_signature(obj))
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
         return write_zero_offsets(mesh, bound)
@@ -278,5 +296,12 @@ def correct_object(obj, depsgraph, check_topology=False):
                                             "a quarter of the mesh size): showing plain skinning for this frame"
                             % (displacement, bound.displacement_limit))
         return write_zero_offsets(mesh, bound)
-    bindings.set_status(obj, 'INFO', "Correcting")
+    unseen = node_group.modifiers_before(obj, armature_modifier, depsgraph.mode)
+    if unseen:
+        bindings.set_status(obj, 'WARNING', "Correcting, but the bind does not see %s before the Armature modifier: "
+                                            "the volume aimed at is the mesh's without it (apply it, or move it "
+                                            "after Volume Preservation)"
+                            % ", ".join("%r" % modifier.name for modifier in unseen))
+    else:
+        bindings.set_status(obj, 'INFO', "Correcting")
     return write_offsets(mesh, bound.offsets, bound)

@@ -27,5 +27,7 @@ CAPTURED_INDEX_ATTRIBUTE = "lvp_index"
 SEGMENTATION_ATTRIBUTE = "lvp_segmentation"
 CORRECTION_MAP_ATTRIBUTE = "lvp_correction_map"
 
-# Every attribute the add-on may create on the original mesh (removed by object.lvp_remove).
-ORIGINAL_MESH_ATTRIBUTES = (OFFSET_ATTRIBUTE, SEGMENTATION_ATTRIBUTE, CORRECTION_MAP_ATTRIBUTE)
+# Every attribute the add-on may leave on the original mesh (removed by object.lvp_remove); the
+# captured ones only when the modifier was applied (Ctrl A), which makes them real.
+ORIGINAL_MESH_ATTRIBUTES = (OFFSET_ATTRIBUTE, SEGMENTATION_ATTRIBUTE, CORRECTION_MAP_ATTRIBUTE,
+                            CAPTURED_POSITION_ATTRIBUTE, CAPTURED_INDEX_ATTRIBUTE)

@@ -156,6 +156,28 @@ def find_modifier(obj):
     return None
 
 
+def count_modifiers(obj):
+    """How many Volume Preservation modifiers obj has (a copy made with Duplicate Modifier counts)."""
+    return sum(1 for modifier in obj.modifiers if is_our_modifier(modifier))
+
+
+def modifiers_before(obj, armature_modifier, mode):
+    """The modifiers enabled in mode ('VIEWPORT' or 'RENDER') that come before armature_modifier."""
+    found = []
+    for modifier in obj.modifiers:
+        if modifier == armature_modifier:
+            break
+        if modifier_enabled(modifier, mode):
+            found.append(modifier)
+    return found
+
+
+def stack_signature(obj):
+    """What the modifier stack looks like: changes when a modifier is added, removed, moved or toggled."""
+    return tuple((modifier.name, modifier.type, modifier.show_viewport, modifier.show_render)
+                 for modifier in obj.modifiers)
+
+
 def find_armature_modifier(obj):
     """The Armature modifier that Volume Preservation follows: the last one before our modifier, or
     the first one in the stack when our modifier is not there yet. None when there is none."""

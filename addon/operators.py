@@ -119,17 +119,34 @@ modifier, so they keep their volume when joints bend"""
             return {'CANCELLED'}
 
         added = []
-        try:
-            for obj, armature_modifier, bound in plans:
-                node_group.add_modifier(context, obj, armature_modifier)
-                added.append(obj)
-        except Exception as error:
+
+        def undo_adding():
             for obj in added:
                 node_group.remove_modifier(obj)
             node_group.remove_unused_node_groups()
             for _obj, _modifier, bound in plans:
                 bound.close()
+
+        try:
+            for obj, armature_modifier, bound in plans:
+                node_group.add_modifier(context, obj, armature_modifier)
+                added.append(obj)
+        except Exception as error:
+            undo_adding()
             self.report({'ERROR'}, "Could not add the modifier (%s). Nothing was changed." % error)
+            return {'CANCELLED'}
+        # What reaches the modifier must be the bound vertices, in order: a modifier before the
+        # Armature modifier that adds vertices (Mirror, Subdivision Surface) or one after ours that
+        # changes the topology would only make it pass the mesh through.
+        depsgraph = context.evaluated_depsgraph_get()
+        problems = []
+        for obj, _armature_modifier, bound in plans:
+            problem = live.evaluated_problem(obj, depsgraph, bound)
+            if problem is not None:
+                problems.append("%s cannot be corrected: %s" % (obj.name, problem))
+        if problems:
+            undo_adding()
+            _report_errors(self, problems)
             return {'CANCELLED'}
 
         for obj, _armature_modifier, bound in plans:

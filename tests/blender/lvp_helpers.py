@@ -248,6 +248,12 @@ def keyframe_bend(rig, frame_degrees, bone="Upper", axis=(1.0, 0.0, 0.0)):
         rig.pose.bones[bone].keyframe_insert("rotation_quaternion", frame=frame)
 
 
+def modifier_operator(obj, name, **arguments):
+    """Runs bpy.ops.object.<name> (modifier_move_to_index, modifier_copy, modifier_apply...) on obj."""
+    with bpy.context.temp_override(object=obj, active_object=obj):
+        return getattr(bpy.ops.object, name)(**arguments)
+
+
 def add_volume_preservation(*objects):
     """Runs object.lvp_add on the objects; returns the operator's result."""
     select_only(*objects)

@@ -452,6 +452,51 @@ class TestSubdivisionAfter(CylinderTestCase):
         self.assertEqual(self.status_of(self.obj)[0], 'INFO')
         self.assertCorrected(message="after removing Decimate")
 
+    def test_subdivision_moved_before_the_armature_passes_through(self):
+        # Added after ours (supported), then moved to the top of the stack: the same final vertex count.
+        subdivision = self.obj.modifiers.new("Subdivision", 'SUBSURF')
+        subdivision.levels = 1
+        self.scene.frame_set(10)
+        self.assertEqual(self.status_of(self.obj)[0], 'INFO')
+        helpers.modifier_operator(self.obj, "modifier_move_to_index", modifier="Subdivision", index=0)
+        self.scene.frame_set(9)
+        self.assertEqual(self.status_of(self.obj)[0], 'ERROR', self.status_of(self.obj))
+        self.assertStatusContains(self.obj, "before the Armature modifier adds vertices")
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-9, "zero offsets")
+
+
+class TestStackMistakes(CylinderTestCase):
+    """Modifier stacks the correction cannot follow: each one says so; none is corrected wrongly."""
+
+    def test_duplicated_modifier_passes_through(self):
+        modifier = self.addon.node_group.find_modifier(self.obj)
+        helpers.modifier_operator(self.obj, "modifier_copy", modifier=modifier.name)
+        self.assertEqual(self.addon.node_group.count_modifiers(self.obj), 2)
+        self.scene.frame_set(10)
+        self.assertStatusContains(self.obj, "more than one Volume Preservation modifier")
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-9, "zero offsets")
+        self.obj.modifiers.remove(self.obj.modifiers[-1])
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertCorrected(message="after removing the copy")
+
+    def test_modifier_before_the_armature_is_named(self):
+        displace = self.obj.modifiers.new("Displace", 'DISPLACE')
+        displace.strength = 0.05
+        helpers.modifier_operator(self.obj, "modifier_move_to_index", modifier="Displace", index=0)
+        self.scene.frame_set(10)
+        status = self.status_of(self.obj)
+        self.assertEqual(status[0], 'WARNING', status)
+        self.assertIn("'Displace' before the Armature modifier", status[1])
+        displace.show_viewport = False
+        self.scene.frame_set(9)
+        self.assertEqual(self.status_of(self.obj)[0], 'INFO', self.status_of(self.obj))
+
+    def test_armature_object_cleared(self):
+        self.obj.modifiers["Armature"].object = None
+        self.scene.frame_set(10)
+        self.assertStatusContains(self.obj, "has no armature object: set its Object field")
+
 
 if __name__ == "__main__":
     unittest.main()

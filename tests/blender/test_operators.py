@@ -74,6 +74,16 @@ class TestAddErrors(helpers.AddonTestCase):
         self.assertEqual(helpers.object_snapshot(obj), before)
         self.assertEqual(obj.lvp.bind_id, bind_id)
 
+    def test_modifier_before_armature_adds_vertices(self):
+        # Mirror before the Armature modifier: what reaches Volume Preservation is not the bound mesh.
+        obj, rig = helpers.make_cylinder_character()
+        mirror = obj.modifiers.new("Mirror", 'MIRROR')
+        mirror.use_mirror_merge = False
+        helpers.modifier_operator(obj, "modifier_move_to_index", modifier="Mirror", index=0)
+        self.assertEqual([modifier.type for modifier in obj.modifiers], ['MIRROR', 'ARMATURE'])
+        message = self.assertAddFails([obj], "Cylinder cannot be corrected", [obj])
+        self.assertIn("before the Armature modifier adds vertices", message)
+
     def test_one_bad_object_changes_nothing_on_the_good_one(self):
         good, rig = helpers.make_cylinder_character("Good")
         bad = helpers.link(bpy.data.objects.new("Bad", helpers.cylinder_mesh("Bad")))
@@ -129,6 +139,18 @@ class TestBindAndRemove(helpers.AddonTestCase):
         self.assertEqual(self.obj.lvp.bind_id, "")
         bpy.context.scene.frame_set(9)
         self.assertEqual(helpers.object_snapshot(self.obj), before)
+
+    def test_remove_after_applying_the_modifier(self):
+        # Applying Volume Preservation (Ctrl A) bakes this frame's shape and makes the captured
+        # attributes real; Remove then takes those away too.
+        self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
+        bpy.context.scene.frame_set(10)
+        helpers.modifier_operator(self.obj, "modifier_apply", modifier="Volume Preservation")
+        self.assertIsNotNone(self.obj.data.attributes.get("lvp_position"))
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_remove(), {'FINISHED'})
+        left = [attribute.name for attribute in self.obj.data.attributes if attribute.name.startswith("lvp_")]
+        self.assertEqual(left, [])
 
     def test_remove_keeps_the_node_group_while_used(self):
         second, _rig = helpers.make_cylinder_character("Second", rig=self.rig, location=(2.0, 0.0, 0.0))

@@ -296,12 +296,18 @@ def correct_object(obj, depsgraph, check_topology=False):
                                             "a quarter of the mesh size): showing plain skinning for this frame"
                             % (displacement, bound.displacement_limit))
         return write_zero_offsets(mesh, bound)
+    warnings = []
     unseen = node_group.modifiers_before(obj, armature_modifier, depsgraph.mode)
     if unseen:
-        bindings.set_status(obj, 'WARNING', "Correcting, but the bind does not see %s before the Armature modifier: "
-                                            "the volume aimed at is the mesh's without it (apply it, or move it "
-                                            "after Volume Preservation)"
-                            % ", ".join("%r" % modifier.name for modifier in unseen))
+        warnings.append("the bind does not see %s before the Armature modifier: the volume aimed at is the mesh's "
+                        "without it (apply it, or move it after Volume Preservation)"
+                        % ", ".join("%r" % modifier.name for modifier in unseen))
+    flipped = bound.binding.flipped_edge_count
+    if flipped:
+        warnings.append("%d edges join faces whose normals point opposite ways, where the correction is weak or "
+                        "missing (Edit Mode > Mesh > Normals > Recalculate Outside, then Bind)" % flipped)
+    if warnings:
+        bindings.set_status(obj, 'WARNING', "Correcting, but " + "; and ".join(warnings))
     else:
         bindings.set_status(obj, 'INFO', "Correcting")
     return write_offsets(mesh, bound.offsets, bound)

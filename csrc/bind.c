@@ -322,6 +322,11 @@ int32_t lvp_region_count(const lvp_binding *binding)
 	return binding ? binding->region_count : 0;
 }
 
+int32_t lvp_flipped_edge_count(const lvp_binding *binding)
+{
+	return binding ? binding->flipped_edge_count : 0;
+}
+
 void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions, int32_t *r_triangle_regions)
 {
 	if (!binding)

@@ -93,6 +93,7 @@ struct lvp_binding {
 	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
 	int32_t *cap_edges;      /* 2 per half-edge */
 	int32_t cap_edge_count;
+	int32_t flipped_edge_count; /* edges of two triangles wound against each other */
 
 	/* ---- correction map and how region multipliers reach vertices ---- */
 	lvp_map_options map;     /* map kind, alpha, beta (pointers cleared after copy) */

@@ -41,9 +41,11 @@ static inline uint64_t lvp__edge_key(int32_t a, int32_t b)
 /* The half-edges of triangles [begin, end) whose side quads do not cancel: equal numbers of
  * opposite half-edges between two vertices cancel pairwise, the surplus keeps its quads. Writes
  * them (a, b per half-edge) to r_edges and returns their number; *r_unpaired receives one edge
- * that is not exactly one half-edge each way (a hole or a non-manifold edge), or -1s. */
-static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], const int32_t *triangles,
-                                       int32_t begin, int32_t end, uint64_t *keys)
+ * that is not exactly one half-edge each way (a hole or a non-manifold edge), or -1s; *r_flipped
+ * (when not NULL) the number of edges with two half-edges the same way (two triangles wound
+ * against each other: their normals disagree). */
+static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], int32_t *r_flipped,
+                                       const int32_t *triangles, int32_t begin, int32_t end, uint64_t *keys)
 {
 	int32_t count = 0, written = 0;
 	r_unpaired[0] = r_unpaired[1] = -1;
@@ -64,6 +66,8 @@ static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], 
 			r_unpaired[0] = lo;
 			r_unpaired[1] = hi;
 		}
+		if (r_flipped && forward + backward == 2 && forward != backward)
+			++*r_flipped;
 		int32_t surplus = forward > backward ? forward - backward : backward - forward;
 		for (int32_t m = 0; m < surplus; ++m) {
 			r_edges[2 * written] = forward > backward ? lo : hi;
@@ -99,7 +103,9 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	}
 	/* The mesh's own holes, capped for the volume statistics and the final global step. */
 	int32_t unpaired[2];
-	binding->cap_edge_count = lvp__surplus_half_edges(binding->cap_edges, unpaired, binding->triangles, 0, f, keys);
+	binding->flipped_edge_count = 0;
+	binding->cap_edge_count = lvp__surplus_half_edges(binding->cap_edges, unpaired, &binding->flipped_edge_count,
+	                                                  binding->triangles, 0, f, keys);
 	if (binding->mode == LVP_MODE_GLOBAL && unpaired[0] >= 0) {
 		free(keys);
 		return lvp__fail(r_diag, lvp_error_mesh_not_closed, "triangles", -1,
@@ -111,7 +117,7 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t written = 0;
 	for (int32_t r = 0; r < s; ++r) {
 		binding->border_offsets[r] = written;
-		written += lvp__surplus_half_edges(binding->border_edges + 2 * written, unpaired, binding->triangles,
+		written += lvp__surplus_half_edges(binding->border_edges + 2 * written, unpaired, NULL, binding->triangles,
 		                                   binding->region_triangle_offsets[r], binding->region_triangle_offsets[r + 1],
 		                                   keys);
 	}

@@ -397,6 +397,10 @@ int32_t lvp_vertex_count(const lvp_binding *binding);
 int32_t lvp_triangle_count(const lvp_binding *binding);
 int32_t lvp_bone_count(const lvp_binding *binding);
 int32_t lvp_region_count(const lvp_binding *binding); /* bone_count in local mode, 1 in global */
+/* Edges shared by two triangles wound the same way: their faces' normals point opposite ways, and
+ * local volumes across them are wrong (the correction there is weak or missing). 0 for a
+ * consistently oriented mesh; recalculate the normals (outside) when it is not. */
+int32_t lvp_flipped_edge_count(const lvp_binding *binding);
 
 /* The segmentation: r_vertex_regions (vertex_count) and/or r_triangle_regions (triangle_count)
  * receive region indices, -1 for "no region". Either may be NULL. */

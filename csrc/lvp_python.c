@@ -1174,7 +1174,8 @@ static PyObject *lvp_py__binding_correction_map(PyObject *object, PyObject *args
 
 /* Which count a getter returns: the closure of lvp_py__binding_getset (ISO C has no function pointer in a
  * void *). */
-enum { LVP_PY__VERTEX_COUNT, LVP_PY__TRIANGLE_COUNT, LVP_PY__BONE_COUNT, LVP_PY__REGION_COUNT };
+enum { LVP_PY__VERTEX_COUNT, LVP_PY__TRIANGLE_COUNT, LVP_PY__BONE_COUNT, LVP_PY__REGION_COUNT,
+       LVP_PY__FLIPPED_EDGE_COUNT };
 
 /* The counts never change after bind, so reading them needs no claim on a busy binding. */
 static PyObject *lvp_py__binding_count(PyObject *object, void *closure)
@@ -1189,6 +1190,8 @@ static PyObject *lvp_py__binding_count(PyObject *object, void *closure)
 		return PyLong_FromLong(lvp_triangle_count(self->binding));
 	case LVP_PY__BONE_COUNT:
 		return PyLong_FromLong(lvp_bone_count(self->binding));
+	case LVP_PY__FLIPPED_EDGE_COUNT:
+		return PyLong_FromLong(lvp_flipped_edge_count(self->binding));
 	default:
 		return PyLong_FromLong(lvp_region_count(self->binding));
 	}
@@ -1234,6 +1237,10 @@ static PyGetSetDef lvp_py__binding_getset[] = {
      (void *)LVP_PY__BONE_COUNT},
     {"region_count", lvp_py__binding_count, NULL, "Number of regions: bone_count in LOCAL mode, 1 in GLOBAL.",
      (void *)LVP_PY__REGION_COUNT},
+    {"flipped_edge_count", lvp_py__binding_count, NULL,
+     "Edges shared by two triangles wound the same way (their normals point opposite ways): the local volumes "
+     "there are wrong. 0 for a consistently oriented mesh.",
+     (void *)LVP_PY__FLIPPED_EDGE_COUNT},
     {NULL, NULL, NULL, NULL, NULL},
 };
 

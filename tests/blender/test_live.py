@@ -492,6 +492,20 @@ class TestStackMistakes(CylinderTestCase):
         self.scene.frame_set(9)
         self.assertEqual(self.status_of(self.obj)[0], 'INFO', self.status_of(self.obj))
 
+    def test_flipped_faces_are_named(self):
+        # Half of the side faces flipped (normals inconsistent), then bound again: still corrected where
+        # it can be, with a warning that says how to fix the normals.
+        for polygon in self.obj.data.polygons:
+            if polygon.center.x > 0.0 and len(polygon.vertices) == 4:
+                polygon.flip()
+        self.obj.data.update()
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_bind(), {'FINISHED'})
+        self.scene.frame_set(10)
+        status = self.status_of(self.obj)
+        self.assertEqual(status[0], 'WARNING', status)
+        self.assertIn("Recalculate Outside", status[1])
+
     def test_armature_object_cleared(self):
         self.obj.modifiers["Armature"].object = None
         self.scene.frame_set(10)

@@ -269,6 +269,40 @@ static void test_awkward_meshes_have_defined_outcomes(void)
 	free_scene(&s);
 }
 
+/* Triangles wound against their neighbours (faces whose normals were flipped) are counted, so
+ * that the caller can say so: the local volumes across them are wrong. A mesh wound the other way
+ * everywhere is consistent. */
+static void test_flipped_triangles_are_counted(void)
+{
+	scene s = bent_cylinder(0);
+	test_rig *rig = &s.rig;
+	lvp_binding *binding = NULL;
+	lvp_diagnostic diag;
+	CHECK_OK(bind(&binding, rig, NULL, &diag), diag);
+	CHECK(lvp_flipped_edge_count(binding) == 0);
+	lvp_free(binding);
+	/* One side triangle flipped: its three edges each join it to an unflipped neighbour. */
+	int32_t t = rig->triangle_count / 2, swap = rig->triangles[3 * t + 1];
+	rig->triangles[3 * t + 1] = rig->triangles[3 * t + 2];
+	rig->triangles[3 * t + 2] = swap;
+	CHECK_OK(bind(&binding, rig, NULL, &diag), diag);
+	CHECK(lvp_flipped_edge_count(binding) == 3);
+	lvp_free(binding);
+	/* All flipped (wound inward): consistent again. */
+	for (int32_t k = 0; k < rig->triangle_count; ++k) {
+		if (k == t)
+			continue;
+		swap = rig->triangles[3 * k + 1];
+		rig->triangles[3 * k + 1] = rig->triangles[3 * k + 2];
+		rig->triangles[3 * k + 2] = swap;
+	}
+	CHECK_OK(bind(&binding, rig, NULL, &diag), diag);
+	CHECK(lvp_flipped_edge_count(binding) == 0);
+	lvp_free(binding);
+	CHECK(lvp_flipped_edge_count(NULL) == 0);
+	free_scene(&s);
+}
+
 /* The painted map moves only what is painted; the Fig. 11 restriction changes the organic map. */
 static void test_painted_map_and_region_restriction(void)
 {
@@ -336,5 +370,6 @@ int main(void)
 	RUN(test_singular_posed_bone_skips_its_region);
 	RUN(test_awkward_meshes_have_defined_outcomes);
 	RUN(test_painted_map_and_region_restriction);
+	RUN(test_flipped_triangles_are_counted);
 	return check_failures() != 0;
 }

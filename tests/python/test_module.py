@@ -296,6 +296,7 @@ class TestBinding(unittest.TestCase):
         self.assertEqual(binding.triangle_count, tube.triangle_count)
         self.assertEqual(binding.bone_count, 2)
         self.assertEqual(binding.region_count, 2)
+        self.assertEqual(binding.flipped_edge_count, 0)
         with self.assertRaises(AttributeError):
             binding.vertex_count = 3
         self.assertIn('Binding', repr(binding))

@@ -64,10 +64,10 @@ def _meshes_to_process(objects):
     return meshes, errors
 
 
-def _editable_error(obj):
+def _editable_error(obj, modes=('OBJECT',)):
     if obj.library is not None or obj.data.library is not None:
         return "%s or its mesh is linked from a library: make it local first" % obj.name
-    if obj.mode != 'OBJECT':
+    if obj.mode not in modes:
         return "%s is in %s: go back to Object Mode first" % (obj.name, obj.mode.replace("_", " ").title())
     return None
 
@@ -171,13 +171,14 @@ class OBJECT_OT_lvp_bind(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.mode == 'OBJECT' and bool(_target_objects(context))
+        # Also in Weight Paint Mode, where rebinding after painting is most needed.
+        return context.mode in {'OBJECT', 'PAINT_WEIGHT'} and bool(_target_objects(context))
 
     def execute(self, context):
         meshes, errors = _meshes_to_process(_target_objects(context))
         plans = []
         for obj in meshes:
-            problem = _editable_error(obj)
+            problem = _editable_error(obj, modes=('OBJECT', 'WEIGHT_PAINT'))
             if problem is None and node_group.find_modifier(obj) is None:
                 problem = "%s has no Volume Preservation modifier: use Add Volume Preservation first" % obj.name
             if problem is None:

@@ -173,6 +173,19 @@ class TestBindAndRemove(helpers.AddonTestCase):
             bpy.ops.object.lvp_bind()
         self.assertIn("Add Volume Preservation first", str(raised.exception))
 
+    def test_bind_in_weight_paint_mode(self):
+        # Rebinding right after painting weights, without leaving Weight Paint Mode.
+        helpers.add_volume_preservation(self.obj)
+        bind_id = self.obj.lvp.bind_id
+        bpy.context.view_layer.objects.active = self.obj
+        bpy.ops.object.mode_set(mode='WEIGHT_PAINT')
+        try:
+            self.obj.vertex_groups["Upper"].add([0], 0.5, 'REPLACE')
+            self.assertEqual(bpy.ops.object.lvp_bind(), {'FINISHED'})
+            self.assertNotEqual(self.obj.lvp.bind_id, bind_id)
+        finally:
+            bpy.ops.object.mode_set(mode='OBJECT')
+
     def test_topology_changed_after_bind_passes_through(self):
         helpers.add_volume_preservation(self.obj)
         bpy.context.scene.frame_set(10)

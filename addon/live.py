@@ -264,8 +264,7 @@ def correct_object(obj, depsgraph, check_topology=False):
 
     obj_eval = obj.evaluated_get(depsgraph)
     armature_eval = armature_object.evaluated_get(depsgraph)
-    mesh_eval = obj_eval.data
-    problem = _evaluated_positions(mesh_eval, bound, node_group.stack_signature(obj))
+    problem = evaluated_problem(obj, depsgraph, bound)
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
         return write_zero_offsets(mesh, bound)

@@ -22,20 +22,26 @@ typedef struct posed_cylinder {
 	float *skinned; /* plain linear blend skinning */
 } posed_cylinder;
 
+/* Skins the rig by linear blend for the posed bone matrices into r_skinned (vertex_count*3). */
+static void skin_linear(float *r_skinned, const test_rig *rig, const float *posed)
+{
+	int32_t b = rig->bone_count;
+	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	test_skin_matrices(skin, rig, posed);
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_skin_linear(r_skinned, rig->positions, rig->vertex_count, &weights, skin, b, &diag), diag);
+	free(skin);
+}
+
 /* Poses the rig by `rotations` (test_pose) and skins it by linear blend: *r_posed receives the
  * bone matrices, *r_skinned the positions (both allocated). */
 static void pose_and_skin(const test_rig *rig, const float *rotations, float **r_posed, float **r_skinned)
 {
-	int32_t b = rig->bone_count;
-	*r_posed = malloc(sizeof(float) * 16 * (size_t)b);
+	*r_posed = malloc(sizeof(float) * 16 * (size_t)rig->bone_count);
 	*r_skinned = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
-	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
 	test_pose(*r_posed, rig, rotations);
-	test_skin_matrices(skin, rig, *r_posed);
-	lvp_weights weights = test_rig_weights(rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(*r_skinned, rig->positions, rig->vertex_count, &weights, skin, b, &diag), diag);
-	free(skin);
+	skin_linear(*r_skinned, rig, *r_posed);
 }
 
 /* The paper's cylinder with bone 1 bent by `degrees` about its local X axis. */
@@ -412,12 +418,9 @@ static void test_scaled_bone_is_not_undone(void)
 		for (int row = 0; row < 3; ++row)
 			for (int col = 0; col < 3; ++col)
 				m[4 * row + col] *= (float)s;
-		int32_t n = c.rig.vertex_count, b = c.rig.bone_count;
-		float *skin = malloc(sizeof(float) * 16 * (size_t)b);
-		test_skin_matrices(skin, &c.rig, c.posed);
-		lvp_weights weights = test_rig_weights(&c.rig);
+		int32_t n = c.rig.vertex_count;
+		skin_linear(c.skinned, &c.rig, c.posed);
 		lvp_diagnostic diag;
-		CHECK_OK(lvp_skin_linear(c.skinned, c.rig.positions, n, &weights, skin, b, &diag), diag);
 		lvp_binding *binding = bind_rig(&c.rig, lvp_bind_default_options());
 		float *offsets = malloc(sizeof(float) * 3 * (size_t)n);
 		lvp_frame_stats stats;
@@ -439,7 +442,6 @@ static void test_scaled_bone_is_not_undone(void)
 		if (fabs(s - 1.0) <= 0.1 + 1e-9)
 			CHECK(largest < 0.06 * 0.5);
 		free(offsets);
-		free(skin);
 		lvp_free(binding);
 		free_cylinder(&c);
 	}

@@ -59,6 +59,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
 	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->pivots, binding->mu,
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
+	    binding->bone_source,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -93,7 +94,8 @@ static bool lvp__map_needs_skeleton(lvp_map map)
 	return map == LVP_MAP_ORGANIC || map == LVP_MAP_RUBBER || map == LVP_MAP_BOUNDARY_FADE;
 }
 
-/* Copies the weights, normalized by their sum (as Blender's Armature modifier normalizes). */
+/* Copies the weights, normalized by their sum (as Blender's Armature modifier normalizes); the
+ * bones are already in weight_bones (lvp__split_parts). */
 static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 {
 	int32_t n = binding->vertex_count;
@@ -103,21 +105,21 @@ static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 		double sum = 0.0;
 		for (int32_t e = begin; e < end; ++e)
 			sum += weights->values[e];
-		for (int32_t e = begin; e < end; ++e) {
-			binding->weight_bones[e] = weights->bones[e];
+		for (int32_t e = begin; e < end; ++e)
 			binding->weight_values[e] = sum > 0.0 ? (float)(weights->values[e] / sum) : 0.0f;
-		}
 	}
 }
 
+/* The internal bones: each a copy of its caller's bone (binding.h). */
 static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
 {
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
-		binding->rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * i);
+		int32_t source = lvp__caller_bone(binding, i);
+		binding->rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
 		lvp__mat4_invert_affine(&binding->rest_inverse[i], &binding->rest_matrices[i]); /* checked before */
 		binding->rest_det[i] = lvp__mat4_det3(&binding->rest_matrices[i]);
-		binding->heads[i] = lvp__load(skeleton->heads + 3 * i);
-		binding->tails[i] = lvp__load(skeleton->tails + 3 * i);
+		binding->heads[i] = lvp__load(skeleton->heads + 3 * source);
+		binding->tails[i] = lvp__load(skeleton->tails + 3 * source);
 		binding->bone_length[i] = lvp__length(lvp__sub(binding->tails[i], binding->heads[i]));
 	}
 }
@@ -156,14 +158,27 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 			return result;
 	}
 
+	/* Separate parts that bend get their own bones, so their own regions (parts.c). */
+	int32_t *weight_bones = NULL, *bone_source = NULL, internal_bones = 0;
+	if (has_skeleton &&
+	    (result = lvp__split_parts(&weight_bones, &bone_source, &internal_bones, weights, vertex_count, triangles,
+	                               triangle_count, skeleton->bone_count, options->mode == LVP_MODE_LOCAL, r_diag)))
+		return result;
+
 	bool ok = true;
 	lvp_binding *binding = lvp__alloc(1, sizeof(lvp_binding), &ok);
-	if (!binding)
+	if (!binding) {
+		free(weight_bones);
+		free(bone_source);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
+	}
 	binding->mode = options->mode;
 	binding->vertex_count = vertex_count;
 	binding->triangle_count = triangle_count;
-	binding->bone_count = has_skeleton ? skeleton->bone_count : 0;
+	binding->weight_bones = weight_bones;
+	binding->bone_source = bone_source;
+	binding->caller_bone_count = has_skeleton ? skeleton->bone_count : 0;
+	binding->bone_count = internal_bones;
 	binding->region_count = options->mode == LVP_MODE_LOCAL ? binding->bone_count : 1;
 
 	size_t n = (size_t)vertex_count, f = (size_t)triangle_count, b = (size_t)binding->bone_count;
@@ -179,7 +194,6 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->vertex_region = lvp__alloc(n, sizeof(int32_t), &ok);
 	if (has_skeleton) {
 		binding->weight_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
-		binding->weight_bones = lvp__alloc(e, sizeof(int32_t), &ok);
 		binding->weight_values = lvp__alloc(e, sizeof(float), &ok);
 		binding->rest_matrices = lvp__alloc(b, sizeof(lvp__mat4), &ok);
 		binding->rest_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
@@ -315,11 +329,13 @@ int32_t lvp_triangle_count(const lvp_binding *binding)
 }
 int32_t lvp_bone_count(const lvp_binding *binding)
 {
-	return binding ? binding->bone_count : 0;
+	return binding ? binding->caller_bone_count : 0;
 }
 int32_t lvp_region_count(const lvp_binding *binding)
 {
-	return binding ? binding->region_count : 0;
+	if (!binding)
+		return 0;
+	return binding->mode == LVP_MODE_LOCAL ? binding->caller_bone_count : binding->region_count;
 }
 
 int32_t lvp_flipped_edge_count(const lvp_binding *binding)
@@ -331,11 +347,13 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
 {
 	if (!binding)
 		return;
+	/* Regions are internal bones in local mode: answered as the caller's bones (binding.h). */
 	if (r_vertex_regions)
-		memcpy(r_vertex_regions, binding->vertex_region, sizeof(int32_t) * (size_t)binding->vertex_count);
+		for (int32_t k = 0; k < binding->vertex_count; ++k)
+			r_vertex_regions[k] = lvp__caller_bone(binding, binding->vertex_region[k]);
 	if (r_triangle_regions)
 		for (int32_t t = 0; t < binding->triangle_count; ++t)
-			r_triangle_regions[binding->triangle_original[t]] = binding->triangle_region[t];
+			r_triangle_regions[binding->triangle_original[t]] = lvp__caller_bone(binding, binding->triangle_region[t]);
 }
 
 void lvp_get_correction_map(const lvp_binding *binding, float *r_map)

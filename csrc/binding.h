@@ -38,7 +38,13 @@ typedef struct lvp__region_sums {
 struct lvp_binding {
 	lvp_mode mode;
 	lvp__pool *pool; /* worker threads, NULL for one thread */
+	/* bone_count counts the internal bones (parts.c): the caller's, then, when several separate
+	 * parts of the mesh bend, a copy of each bone for every part after the first that uses it.
+	 * Every array below indexed by bone or region is over the internal bones; the public API
+	 * answers in the caller's bones (bind.c, correction.c). */
 	int32_t vertex_count, triangle_count, bone_count, region_count;
+	int32_t caller_bone_count;
+	int32_t *bone_source;    /* bone_count: the caller's bone of each internal bone; NULL when none is a copy */
 
 	/* ---- rest mesh (copied) ---- */
 	float *rest_positions;  /* vertex_count*3 */
@@ -193,6 +199,22 @@ struct lvp_binding {
 	double *mu;              /* region_count */
 	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
 };
+
+/* parts.c */
+/* The internal bones of a mesh whose separate parts bend (binding.h): *r_weight_bones receives a
+ * malloc'ed copy of weights->bones naming internal bones, *r_bone_count their number, and
+ * *r_bone_source a malloc'ed map from internal to caller bone, or NULL when no part is split
+ * (then the internal bones are the caller's), as always without `split` (the global mode, one
+ * region). Inputs are validated. */
+lvp_result lvp__split_parts(int32_t **r_weight_bones, int32_t **r_bone_source, int32_t *r_bone_count,
+                            const lvp_weights *weights, int32_t vertex_count, const int32_t *triangles,
+                            int32_t triangle_count, int32_t bone_count, bool split, lvp_diagnostic *r_diag);
+
+/* The caller's bone (or region, in local mode) of internal bone i. */
+static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
+{
+	return binding->bone_source && i >= 0 ? binding->bone_source[i] : i;
+}
 
 /* segmentation.c */
 lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag);

@@ -219,3 +219,9 @@ bool lvp__mat4_invert_affine(lvp__mat4 *r_inverse, const lvp__mat4 *a)
 	r[15] = 1.0;
 	return true;
 }
+
+int lvp__compare_u64(const void *a, const void *b)
+{
+	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+	return (x > y) - (x < y);
+}

@@ -33,7 +33,7 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
                               const float *rest_positions, lvp_diagnostic *r_diag)
 {
-	int32_t n = binding->vertex_count, b = binding->bone_count;
+	int32_t n = binding->vertex_count, b = binding->caller_bone_count;
 	lvp_result result = lvp__check_float_array(positions, (int64_t)n * 3, "positions", r_diag);
 	if (result)
 		return result;
@@ -54,8 +54,10 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 		binding->kappa[r] = 1.0;
 	}
 	if (bone_matrices && b > 0) {
-		for (int32_t i = 0; i < b; ++i) {
-			binding->posed[i] = lvp__mat4_load(bone_matrices + 16 * i);
+		/* The internal bones past the caller's are copies (binding.h): the same matrices. */
+		for (int32_t i = 0; i < binding->bone_count; ++i) {
+			int32_t source = lvp__caller_bone(binding, i);
+			binding->posed[i] = lvp__mat4_load(bone_matrices + 16 * source);
 			binding->skin[i] = lvp__mat4_mul(&binding->posed[i], &binding->rest_inverse[i]);
 			binding->posed_heads[i] = lvp__transform_point(&binding->skin[i], binding->heads[i]);
 			binding->posed_tails[i] = lvp__transform_point(&binding->skin[i], binding->tails[i]);
@@ -460,7 +462,7 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 #define LVP__CLASS_BONES 512
 static void lvp__skin_classes(lvp_binding *binding)
 {
-	int32_t b = binding->bone_count;
+	int32_t b = binding->caller_bone_count;
 	for (int32_t i = 0; i < b; ++i) {
 		int32_t skin_class = i;
 		const double *m = binding->skin[i].m;
@@ -483,6 +485,9 @@ static void lvp__skin_classes(lvp_binding *binding)
 			binding->dynamic_set_current = binding->frame_map_current = false;
 		binding->skin_class[i] = skin_class;
 	}
+	/* A copy of a caller's bone for a separate part (binding.h) is in its bone's class. */
+	for (int32_t i = b; i < binding->bone_count; ++i)
+		binding->skin_class[i] = binding->skin_class[lvp__caller_bone(binding, i)];
 }
 
 /* The skin class that all bones of vertex k (with weight) share, or -1. */
@@ -950,9 +955,11 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		}
 	}
 	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
-	if (stats.worst_region >= 0)
+	if (stats.worst_region >= 0) {
 		stats.worst_region_change_after =
 		    binding->change[stats.worst_region] / binding->reference_volume[stats.worst_region];
+		stats.worst_region = lvp__caller_bone(binding, stats.worst_region); /* its bone, in local mode */
+	}
 	stats.skipped_regions = lvp__count_skipped(binding);
 
 	if (r_offsets)
@@ -1000,8 +1007,16 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 	}
 	lvp__dynamic_set(binding, rest_positions, totals, true);
 	lvp__mesh_pass(binding, positions);
-	lvp__region_changes(binding, positions, rest_positions, totals, r_changes);
+	lvp__region_changes(binding, positions, rest_positions, totals, binding->change);
+	/* Per caller's region: the sum over the separate parts of its bone (binding.h). */
+	int32_t regions = lvp_region_count(binding);
+	memset(r_changes, 0, sizeof(double) * (size_t)regions);
 	if (r_references)
-		memcpy(r_references, binding->reference_volume, sizeof(double) * (size_t)binding->region_count);
+		memset(r_references, 0, sizeof(double) * (size_t)regions);
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		r_changes[lvp__caller_bone(binding, r)] += binding->change[r];
+		if (r_references)
+			r_references[lvp__caller_bone(binding, r)] += binding->reference_volume[r];
+	}
 	return lvp_success;
 }

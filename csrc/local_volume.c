@@ -25,12 +25,6 @@ static inline double lvp__vol6(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
 
 /* ---- region borders --------------------------------------------------------------------- */
 
-static int lvp__compare_u64(const void *a, const void *b)
-{
-	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-	return (x > y) - (x < y);
-}
-
 /* Half-edge key: (lo, hi, direction), direction 1 when the half-edge runs hi -> lo. */
 static inline uint64_t lvp__edge_key(int32_t a, int32_t b)
 {

@@ -123,4 +123,7 @@ static inline bool lvp__finite(float v)
 	return isfinite(v) != 0;
 }
 
+/* qsort comparison of two uint64_t. */
+int lvp__compare_u64(const void *a, const void *b);
+
 #endif /* LVP_INTERNAL_H */

@@ -348,7 +348,7 @@ lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_opti
 		                 "map.region_bone_offsets and map.region_bones go together: pass both or neither.");
 	if (map->region_bone_offsets) {
 		const int32_t *offsets = map->region_bone_offsets;
-		int32_t b = binding->bone_count;
+		int32_t b = binding->caller_bone_count;
 		if (offsets[0] != 0)
 			return lvp__fail(r_diag, lvp_error_invalid_size, "map.region_bone_offsets", 0,
 			                 "map.region_bone_offsets[0] is %d; compressed rows start at 0.", (int)offsets[0]);
@@ -407,7 +407,9 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	lvp_result result = lvp__check_map_options(binding, map, r_diag);
 	if (result)
 		return result;
-	int32_t n = binding->vertex_count, b = binding->bone_count;
+	/* The restriction and the distances are in the caller's bones: copies of them for separate
+	 * parts (binding.h) have the same segments. */
+	int32_t n = binding->vertex_count, b = binding->caller_bone_count;
 	bool local = binding->mode == LVP_MODE_LOCAL;
 
 	/* Keep a copy of the Fig. 11 restriction (the caller's arrays are not kept). */
@@ -434,7 +436,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	 * overflow a float (or a double) for large coordinates or exponents. */
 	double largest = -INFINITY;
 	for (int32_t k = 0; k < n; ++k) {
-		int32_t region = binding->vertex_region[k];
+		int32_t region = lvp__caller_bone(binding, binding->vertex_region[k]);
 		double distance = 0.0;
 		if (b > 0) {
 			const int32_t *bones = NULL;

@@ -1,0 +1,173 @@
+/*
+ * parts.c - separate parts of one mesh (a body and its clothes, limbs modelled apart, in one
+ * object): regions are one per bone, so a bone's region would span every part it weights, and
+ * the region's multiplier would keep the parts' summed volume while one part swells and the
+ * other shrinks (the part further from the bone gets more of the organic map). Instead, every
+ * connected part that bends gets its own copy of each bone it uses: an internal bone, whose
+ * region is that bone's skin in that part alone (lvp.h, SEGMENTATION).
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+static int32_t lvp__find_root(int32_t *parent, int32_t k)
+{
+	while (parent[k] != k) {
+		parent[k] = parent[parent[k]]; /* path halving */
+		k = parent[k];
+	}
+	return k;
+}
+
+/* part[k]: the smallest vertex index of k's connected part (vertices joined by triangles), or -1
+ * for a vertex in no triangle. Union by smaller index, so the root of a part is its first vertex.
+ * used: vertex_count bytes of scratch, left zero. */
+static void lvp__connected_parts(int32_t *part, uint8_t *used, const int32_t *triangles, int32_t vertex_count,
+                                 int32_t triangle_count)
+{
+	for (int32_t k = 0; k < vertex_count; ++k)
+		part[k] = k;
+	for (int32_t t = 0; t < triangle_count; ++t)
+		for (int c = 1; c < 3; ++c) {
+			int32_t a = lvp__find_root(part, triangles[3 * t]), b = lvp__find_root(part, triangles[3 * t + c]);
+			if (a < b)
+				part[b] = a;
+			else if (b < a)
+				part[a] = b;
+		}
+	for (int32_t k = 0; k < vertex_count; ++k)
+		part[k] = lvp__find_root(part, k);
+	/* Vertices in no triangle are their own root and no other vertex points at them. */
+	for (int32_t i = 0; i < 3 * triangle_count; ++i)
+		used[triangles[i]] = 1;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		if (!used[k])
+			part[k] = -1;
+		used[k] = 0;
+	}
+}
+
+static uint64_t lvp__part_bone_key(int32_t part, int32_t bone)
+{
+	return (uint64_t)(uint32_t)part << 32 | (uint32_t)bone;
+}
+
+/* Index of key in the sorted keys[0..count), or -1. */
+static int32_t lvp__find_key(const uint64_t *keys, int32_t count, uint64_t key)
+{
+	int32_t lo = 0, hi = count;
+	while (lo < hi) {
+		int32_t mid = lo + (hi - lo) / 2;
+		if (keys[mid] < key)
+			lo = mid + 1;
+		else
+			hi = mid;
+	}
+	return lo < count && keys[lo] == key ? lo : -1;
+}
+
+lvp_result lvp__split_parts(int32_t **r_weight_bones, int32_t **r_bone_source, int32_t *r_bone_count,
+                            const lvp_weights *weights, int32_t vertex_count, const int32_t *triangles,
+                            int32_t triangle_count, int32_t bone_count, bool split, lvp_diagnostic *r_diag)
+{
+	int32_t entries = weights->offsets[vertex_count];
+	*r_bone_source = NULL;
+	*r_bone_count = bone_count;
+	*r_weight_bones = malloc(sizeof(int32_t) * (size_t)(entries > 0 ? entries : 1));
+	int32_t *part = malloc(sizeof(int32_t) * (size_t)vertex_count);
+	int32_t *first_bone = malloc(sizeof(int32_t) * (size_t)vertex_count);
+	uint8_t *bends = calloc((size_t)vertex_count, 1);
+	uint64_t *keys = malloc(sizeof(uint64_t) * (size_t)(entries > 0 ? entries : 1));
+	lvp_result result = lvp_success;
+	if (!*r_weight_bones || !part || !first_bone || !bends || !keys) {
+		result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+		goto done;
+	}
+	if (entries > 0)
+		memcpy(*r_weight_bones, weights->bones, sizeof(int32_t) * (size_t)entries);
+	if (!split)
+		goto done;
+	lvp__connected_parts(part, bends, triangles, vertex_count, triangle_count);
+
+	/* A part bends when its vertices have weight on two bones or more; a part that one bone
+	 * carries rigidly (an eye, a tooth) keeps no volume change to correct and is left alone. */
+	for (int32_t k = 0; k < vertex_count; ++k)
+		first_bone[k] = -1;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t p = part[k];
+		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1] && p >= 0; ++e) {
+			if (!(weights->values[e] > 0.0f))
+				continue;
+			if (first_bone[p] < 0)
+				first_bone[p] = weights->bones[e];
+			else if (first_bone[p] != weights->bones[e])
+				bends[p] = 1;
+		}
+	}
+	int32_t first_bending = -1, bending = 0;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		if (bends[k] && bending++ == 0)
+			first_bending = k;
+	if (bending < 2)
+		goto done; /* one body: the internal bones are the caller's */
+
+	/* The first part that bends keeps the caller's bones; every other one gets a new bone per
+	 * bone it uses, numbered after the caller's in the order (part, bone), so that ties between
+	 * bones still go to the lower caller index within a part (lvp.h, SEGMENTATION). */
+	int32_t count = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t p = part[k];
+		if (p < 0 || !bends[p] || p == first_bending)
+			continue;
+		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e)
+			if (weights->values[e] > 0.0f)
+				keys[count++] = lvp__part_bone_key(p, weights->bones[e]);
+	}
+	qsort(keys, (size_t)count, sizeof(uint64_t), lvp__compare_u64);
+	int32_t unique = 0;
+	for (int32_t i = 0; i < count; ++i)
+		if (unique == 0 || keys[i] != keys[unique - 1])
+			keys[unique++] = keys[i];
+	/* Internal bones are bones to the rest of the core: at most LVP_MAX_BONES. Parts past that
+	 * (thousands of bent hair cards) stay with the caller's bones, whole parts at a time. */
+	if (bone_count + unique > LVP_MAX_BONES) {
+		int32_t keep = LVP_MAX_BONES - bone_count;
+		while (keep > 0 && keys[keep] >> 32 == keys[keep - 1] >> 32)
+			--keep;
+		unique = keep;
+	}
+	if (unique == 0)
+		goto done;
+	*r_bone_source = malloc(sizeof(int32_t) * ((size_t)bone_count + (size_t)unique));
+	if (!*r_bone_source) {
+		result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+		goto done;
+	}
+	for (int32_t i = 0; i < bone_count; ++i)
+		(*r_bone_source)[i] = i;
+	for (int32_t i = 0; i < unique; ++i)
+		(*r_bone_source)[bone_count + i] = (int32_t)(keys[i] & 0xffffffffu);
+	*r_bone_count = bone_count + unique;
+	/* Every entry of a split part, zero weights included, names its part's copy of the bone. */
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t p = part[k];
+		if (p < 0 || !bends[p] || p == first_bending)
+			continue;
+		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e) {
+			int32_t i = lvp__find_key(keys, unique, lvp__part_bone_key(p, weights->bones[e]));
+			if (i >= 0)
+				(*r_weight_bones)[e] = bone_count + i;
+		}
+	}
+
+done:
+	free(part);
+	free(first_bone);
+	free(bends);
+	free(keys);
+	if (result) {
+		free(*r_weight_bones);
+		*r_weight_bones = NULL;
+	}
+	return result;
+}

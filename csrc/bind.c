@@ -59,7 +59,9 @@ void lvp_free(lvp_binding *binding)
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
 	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->pivots, binding->mu,
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
-	    binding->bone_source,
+	    binding->bone_source, binding->region_part, binding->vertex_part, binding->cap_part_offsets,
+	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
+	    binding->part_uniform, binding->part_sum, binding->part_gain,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -159,26 +161,33 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 
 	/* Separate parts that bend get their own bones, so their own regions (parts.c). */
-	int32_t *weight_bones = NULL, *bone_source = NULL, internal_bones = 0;
+	lvp__parts parts;
+	memset(&parts, 0, sizeof(parts));
+	parts.part_count = 1;
 	if (has_skeleton &&
-	    (result = lvp__split_parts(&weight_bones, &bone_source, &internal_bones, weights, vertex_count, triangles,
-	                               triangle_count, skeleton->bone_count, options->mode == LVP_MODE_LOCAL, r_diag)))
+	    (result = lvp__split_parts(&parts, weights, vertex_count, triangles, triangle_count, skeleton->bone_count,
+	                               options->mode == LVP_MODE_LOCAL, r_diag)))
 		return result;
 
 	bool ok = true;
 	lvp_binding *binding = lvp__alloc(1, sizeof(lvp_binding), &ok);
 	if (!binding) {
-		free(weight_bones);
-		free(bone_source);
+		free(parts.weight_bones);
+		free(parts.bone_source);
+		free(parts.bone_part);
+		free(parts.vertex_part);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
 	binding->mode = options->mode;
 	binding->vertex_count = vertex_count;
 	binding->triangle_count = triangle_count;
-	binding->weight_bones = weight_bones;
-	binding->bone_source = bone_source;
+	binding->weight_bones = parts.weight_bones;
+	binding->bone_source = parts.bone_source;
+	binding->region_part = parts.bone_part; /* regions are internal bones in local mode */
+	binding->vertex_part = parts.vertex_part;
+	binding->part_count = parts.part_count;
 	binding->caller_bone_count = has_skeleton ? skeleton->bone_count : 0;
-	binding->bone_count = internal_bones;
+	binding->bone_count = has_skeleton ? parts.bone_count : 0;
 	binding->region_count = options->mode == LVP_MODE_LOCAL ? binding->bone_count : 1;
 
 	size_t n = (size_t)vertex_count, f = (size_t)triangle_count, b = (size_t)binding->bone_count;
@@ -267,6 +276,15 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->pivots = lvp__alloc(dense, sizeof(int32_t), &ok);
 	binding->mu = lvp__alloc(s, sizeof(double), &ok);
+	size_t parts_count = (size_t)binding->part_count;
+	binding->cap_part_offsets = lvp__alloc(parts_count + 1, sizeof(int32_t), &ok);
+	binding->part_bind_volume = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_rest_volume = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_scale = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_change = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_uniform = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_sum = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->part_gain = lvp__alloc(parts_count, sizeof(double), &ok);
 	if (!ok) {
 		lvp_free(binding);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
@@ -294,6 +312,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 	lvp__reference_volumes(binding);
 	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);
+	lvp__part_volumes(binding, binding->rest_positions, binding->part_bind_volume);
 	lvp__vec3 lo = lvp__load(rest_positions), hi = lo;
 	for (int32_t k = 1; k < vertex_count; ++k) {
 		lvp__vec3 p = lvp__load(rest_positions + 3 * k);

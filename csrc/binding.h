@@ -45,6 +45,13 @@ struct lvp_binding {
 	int32_t vertex_count, triangle_count, bone_count, region_count;
 	int32_t caller_bone_count;
 	int32_t *bone_source;    /* bone_count: the caller's bone of each internal bone; NULL when none is a copy */
+	/* Separate parts: the whole-mesh step of lvp.h (ALGORITHM, 5) restores each part's volume
+	 * (correction.c). Part 0: all that is on the caller's bones (the first part that bends, parts
+	 * one bone carries, triangles without region); then each split part. */
+	int32_t part_count;      /* 1 when nothing is split */
+	int32_t *region_part;    /* region_count: the part of each region, or NULL (all part 0) */
+	int32_t *vertex_part;    /* vertex_count, or NULL */
+	int32_t *cap_part_offsets; /* part_count+1 into cap_edges, which are sorted by the part of their hole */
 
 	/* ---- rest mesh (copied) ---- */
 	float *rest_positions;  /* vertex_count*3 */
@@ -177,10 +184,14 @@ struct lvp_binding {
 	                            active regions do to its volume (its row of the system) */
 	double *total_gain;      /* region_count: per active region, what its multiplier does to the
 	                            whole mesh's volume (sum_k g_k gamma_k g_k phi_kt) */
-	double frame_rest_volume; /* the whole mesh's volume at this frame's rest */
-	double total_scale;      /* what the whole mesh's change is measured against (correction.c) */
-	bool spread_total;       /* steps also restore the whole mesh's volume (lvp__correct_volumes) */
-	double last_uniform;     /* the uniform multiplier of the last step (0 when not spreading) */
+	/* Per part (part_count each; correction.c): */
+	double *part_bind_volume; /* its volume, holes capped, at the bind rest */
+	double *part_rest_volume; /* the same at this frame's rest */
+	double *part_scale;      /* what its change is measured against */
+	double *part_change;     /* its change at the last measurement (lvp__part_changes) */
+	double *part_uniform;    /* the uniform multiplier of the last step (0 when not spreading) */
+	double *part_sum, *part_gain; /* scratch */
+	bool spread_total;       /* steps also restore each part's volume (lvp__correct_volumes) */
 	lvp__region_sums *frame_totals; /* region_count: rest_totals of the frame's own rest, when given */
 	double *kappa;           /* region_count: det(rest)/det(posed) */
 	lvp__mat4 *posed;        /* bone_count */
@@ -201,19 +212,32 @@ struct lvp_binding {
 };
 
 /* parts.c */
-/* The internal bones of a mesh whose separate parts bend (binding.h): *r_weight_bones receives a
- * malloc'ed copy of weights->bones naming internal bones, *r_bone_count their number, and
- * *r_bone_source a malloc'ed map from internal to caller bone, or NULL when no part is split
- * (then the internal bones are the caller's), as always without `split` (the global mode, one
- * region). Inputs are validated. */
-lvp_result lvp__split_parts(int32_t **r_weight_bones, int32_t **r_bone_source, int32_t *r_bone_count,
-                            const lvp_weights *weights, int32_t vertex_count, const int32_t *triangles,
-                            int32_t triangle_count, int32_t bone_count, bool split, lvp_diagnostic *r_diag);
+/* The internal bones of a mesh whose separate parts bend (binding.h). Arrays are malloc'ed; the
+ * NULL ones mean "nothing split". */
+typedef struct lvp__parts {
+	int32_t *weight_bones; /* weights->offsets[vertex_count]: the weights' bones, as internal bones */
+	int32_t *bone_source;  /* bone_count: internal bone -> caller's bone, or NULL */
+	int32_t *bone_part;    /* bone_count: internal bone -> part, or NULL */
+	int32_t *vertex_part;  /* vertex_count: vertex -> part, or NULL */
+	int32_t bone_count;    /* internal bones */
+	int32_t part_count;    /* 1 when nothing is split */
+} lvp__parts;
+/* Finds the parts; without `split` (the global mode, one region) only copies the bones.
+ * Inputs are validated. On failure *r_parts is all NULL. */
+lvp_result lvp__split_parts(lvp__parts *r_parts, const lvp_weights *weights, int32_t vertex_count,
+                            const int32_t *triangles, int32_t triangle_count, int32_t bone_count, bool split,
+                            lvp_diagnostic *r_diag);
 
 /* The caller's bone (or region, in local mode) of internal bone i. */
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {
 	return binding->bone_source && i >= 0 ? binding->bone_source[i] : i;
+}
+
+/* The part of region r (-1: the triangles without region, which count in part 0). */
+static inline int32_t lvp__region_part(const lvp_binding *binding, int32_t r)
+{
+	return binding->region_part && r >= 0 ? binding->region_part[r] : 0;
 }
 
 /* segmentation.c */
@@ -251,6 +275,10 @@ double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
 double lvp__volume_of(const lvp_binding *binding, const float *positions);
 /* Signed mesh volume, holes capped, from the last mesh pass over `positions`. */
 double lvp__pass_volume(const lvp_binding *binding, const float *positions);
+/* The same two per part (binding.h): r_volumes has part_count entries. Each part's holes are
+ * capped from their own apex; the triangles without region count in part 0. */
+void lvp__part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
+void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
 
 /* correction.c */
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,

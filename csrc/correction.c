@@ -315,28 +315,59 @@ static void lvp__assemble_chunks(void *context, int32_t begin, int32_t end)
 	}
 }
 
-static double lvp__error_norm(const lvp_binding *binding);
+static double lvp__error_norm(lvp_binding *binding);
 
-/* The whole mesh's change, holes capped, from the last measurement. */
-static double lvp__total_change(const lvp_binding *binding)
+/* The change of the whole mesh, or of each of its separate parts (binding.h), holes capped, from
+ * the last measurement: part_change. */
+static void lvp__part_changes(lvp_binding *binding)
 {
-	return lvp__pass_volume(binding, binding->work_positions) - binding->frame_rest_volume;
+	lvp__pass_part_volumes(binding, binding->work_positions, binding->part_change);
+	for (int32_t p = 0; p < binding->part_count; ++p)
+		binding->part_change[p] -= binding->part_rest_volume[p];
 }
 
-/* The multiplier added to every active region's, so that the whole mesh's volume, answering
- * with its true gradient (total_gain), is restored to first order after the regions' own step
- * mu. Added this way, the uniform part never goes through the region system, which is badly
- * conditioned where many regions overlap (a shoulder). */
-static double lvp__uniform_multiplier(const lvp_binding *binding, int32_t m)
+/* Whether some part is off its rest volume by more than the tolerance (after lvp__part_changes). */
+static bool lvp__parts_off(const lvp_binding *binding, double tolerance)
 {
-	double total = lvp__total_change(binding), gain = 0.0;
-	for (int32_t i = 0; i < m; ++i) {
-		int32_t t = binding->active[i];
-		total += binding->total_gain[t] * binding->mu[t];
-		gain += binding->total_gain[t];
+	for (int32_t p = 0; p < binding->part_count; ++p)
+		if (fabs(binding->part_change[p]) > tolerance * binding->part_scale[p])
+			return true;
+	return false;
+}
+
+/* Sum of the parts' squared relative changes (after lvp__part_changes). */
+static double lvp__parts_error(const lvp_binding *binding)
+{
+	double sum = 0.0;
+	for (int32_t p = 0; p < binding->part_count; ++p) {
+		double off = binding->part_change[p] / binding->part_scale[p];
+		sum += off * off;
 	}
-	double mu = gain > 0.0 ? -total / gain : 0.0;
-	return isfinite(mu) ? mu : 0.0;
+	return sum;
+}
+
+/* The multiplier added to every active region's of a part (one for the whole mesh when nothing is
+ * split), so that the part's volume, answering with its true gradient (total_gain), is restored
+ * to first order after the regions' own step mu: part_uniform. Added this way, the uniform part
+ * never goes through the region system, which is badly conditioned where many regions overlap
+ * (a shoulder). */
+static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
+{
+	lvp__part_changes(binding);
+	double *total = binding->part_sum, *gain = binding->part_gain;
+	for (int32_t p = 0; p < binding->part_count; ++p) {
+		total[p] = binding->part_change[p];
+		gain[p] = 0.0;
+	}
+	for (int32_t i = 0; i < m; ++i) {
+		int32_t t = binding->active[i], p = lvp__region_part(binding, t);
+		total[p] += binding->total_gain[t] * binding->mu[t];
+		gain[p] += binding->total_gain[t];
+	}
+	for (int32_t p = 0; p < binding->part_count; ++p) {
+		double mu = gain[p] > 0.0 ? -total[p] / gain[p] : 0.0;
+		binding->part_uniform[p] = isfinite(mu) ? mu : 0.0;
+	}
 }
 
 /* The system of a correction step over the active regions (active[0..m)), and what equal
@@ -414,12 +445,14 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 			mu = diagonal > 1e-12 * largest_diagonal ? (binding->target[t] - binding->change[t]) / diagonal : 0.0;
 		binding->mu[t] = isfinite(mu) ? mu : 0.0;
 	}
-	binding->last_uniform = 0.0;
+	memset(binding->part_uniform, 0, sizeof(double) * (size_t)binding->part_count);
 	if (binding->spread_total) {
-		/* Each region's target moves by what the uniform part does to it (uniform_gain). */
-		double uniform = binding->last_uniform = lvp__uniform_multiplier(binding, m);
+		/* Each region's target moves by what the uniform part does to it (uniform_gain: its row
+		 * of the system, which has no term from another part's regions). */
+		lvp__uniform_multipliers(binding, m);
 		for (int32_t i = 0; i < m; ++i) {
 			int32_t t = active[i];
+			double uniform = binding->part_uniform[lvp__region_part(binding, t)];
 			binding->mu[t] += uniform;
 			binding->target[t] += binding->uniform_gain[t] * uniform;
 		}
@@ -428,14 +461,18 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 }
 
 /* When some region is off its target by more than the tolerance (or, spreading the whole
- * mesh's change, the whole mesh is off its rest volume): that region, and every region already
+ * mesh's change, the whole mesh or one of its parts is off its rest volume): that region, and every region already
  * corrected this frame (so that a corrected region is held at its volume while its neighbours
  * are fixed, instead of being let go and disturbed again). Regions the map cannot move are
  * left out. Returns the number of active regions, 0 when all are within tolerance. */
 static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
-	bool any_off = binding->spread_total && fabs(lvp__total_change(binding)) > tolerance * binding->total_scale;
+	bool any_off = false;
+	if (binding->spread_total) {
+		lvp__part_changes(binding);
+		any_off = lvp__parts_off(binding, tolerance);
+	}
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		binding->active_index[r] = -1;
 		double reference = binding->reference_volume[r];
@@ -707,9 +744,9 @@ static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, co
 }
 
 /* Sum over the regions of their squared relative distance to their targets, and, spreading
- * the whole mesh's change, the whole mesh's squared relative change: what the iterations
- * decrease. */
-static double lvp__error_norm(const lvp_binding *binding)
+ * the whole mesh's change, the whole mesh's (or each part's) squared relative change: what the
+ * iterations decrease. */
+static double lvp__error_norm(lvp_binding *binding)
 {
 	double sum = 0.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
@@ -720,8 +757,8 @@ static double lvp__error_norm(const lvp_binding *binding)
 		sum += off * off;
 	}
 	if (binding->spread_total) {
-		double off = lvp__total_change(binding) / binding->total_scale;
-		sum += off * off;
+		lvp__part_changes(binding);
+		sum += lvp__parts_error(binding);
 	}
 	return sum;
 }
@@ -750,8 +787,10 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		lvp__remeasure(binding, rest_positions, totals);
 		if (!(lvp__error_norm(binding) < before)) {
 			lvp__undo_step(binding);
-			for (int32_t i = 0; i < m; ++i) /* and the targets it moved */
-				binding->target[binding->active[i]] -= binding->uniform_gain[binding->active[i]] * binding->last_uniform;
+			for (int32_t i = 0; i < m; ++i) { /* and the targets it moved */
+				int32_t t = binding->active[i];
+				binding->target[t] -= binding->uniform_gain[t] * binding->part_uniform[lvp__region_part(binding, t)];
+			}
 			lvp__measure(binding, rest_positions, totals);
 			*r_failed = true;
 			break;
@@ -763,9 +802,9 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 }
 
 /* The second phase of the fallback of lvp__correct_volumes(): once every region is within
- * tolerance of its rest volume, one multiplier spread over the regions corrected this frame
- * (eq. 5 with the sum of their maps) removes what is left of the whole mesh's change, holes
- * capped. */
+ * tolerance of its rest volume, one multiplier per part (one for the whole mesh when nothing is
+ * split) spread over the regions corrected this frame (eq. 5 with the sum of their maps) removes
+ * what is left of its change, holes capped. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
                                  const float *rest_positions, const lvp__region_sums *totals)
 {
@@ -773,12 +812,14 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		if (binding->region_touched[r])
 			binding->active[touched++] = r;
+	double *system = binding->part_gain;
 	while (steps < budget && touched > 0) {
-		double change = lvp__total_change(binding);
-		if (!(fabs(change) > options->tolerance * binding->total_scale))
+		lvp__part_changes(binding);
+		if (!lvp__parts_off(binding, options->tolerance))
 			break;
+		double before = lvp__parts_error(binding);
 		lvp__vertex_gradients(binding);
-		double system = 0.0;
+		memset(system, 0, sizeof(double) * (size_t)binding->part_count);
 		for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
 			int32_t k = binding->dynamic_vertices[v];
 			if (!lvp__can_move(binding, k))
@@ -787,17 +828,21 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			double gain = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k];
 			for (int32_t i = 0; i < support.count; ++i)
 				if (support.phi[i] > 0.0f && binding->region_touched[support.regions[i]])
-					system += gain * support.phi[i];
+					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
 		}
-		if (!(system > 0.0))
+		bool any = false;
+		for (int32_t j = 0; j < touched; ++j) {
+			int32_t t = binding->active[j], p = lvp__region_part(binding, t);
+			binding->mu[t] = system[p] > 0.0 ? -binding->part_change[p] / system[p] : 0.0;
+			any = any || system[p] > 0.0;
+		}
+		if (!any)
 			break;
-		for (int32_t j = 0; j < touched; ++j)
-			binding->mu[binding->active[j]] = -change / system;
 		lvp__apply_multipliers(binding, binding->active, touched);
 		++steps;
 		lvp__remeasure(binding, rest_positions, totals);
-		double after = lvp__total_change(binding);
-		if (!(fabs(after) < fabs(change))) { /* no better: the step is undone, and that is all */
+		lvp__part_changes(binding);
+		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
 			lvp__measure(binding, rest_positions, totals);
 			break;
@@ -908,11 +953,20 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 
 	int32_t first_active = 0;
-	binding->frame_rest_volume = stats.volume_rest;
-	/* What the whole mesh's change is measured against: its volume, or for an open, flat mesh
-	 * (no volume to speak of) the cube of its size, as the global mode's reference. */
+	/* The whole mesh's volume at this frame's rest, or each separate part's (binding.h). */
+	if (binding->part_count == 1)
+		binding->part_rest_volume[0] = stats.volume_rest;
+	else if (rest_positions)
+		lvp__part_volumes(binding, rest_positions, binding->part_rest_volume);
+	else
+		memcpy(binding->part_rest_volume, binding->part_bind_volume, sizeof(double) * (size_t)binding->part_count);
+	/* What a part's change is measured against: its volume, or for an open, flat part (no
+	 * volume to speak of) the cube of the mesh's size, as the global mode's reference. */
 	double cube = binding->size * binding->size * binding->size;
-	binding->total_scale = fabs(stats.volume_rest) > 1e-6 * cube ? fabs(stats.volume_rest) : cube;
+	for (int32_t p = 0; p < binding->part_count; ++p) {
+		double volume = fabs(binding->part_rest_volume[p]);
+		binding->part_scale[p] = volume > 1e-6 * cube ? volume : cube;
+	}
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);

@@ -82,6 +82,37 @@ static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
 	return -1;
 }
 
+/* Sorts the cap edges by the part of their hole (binding.h, cap_part_offsets): a stable
+ * counting sort by the part of their first vertex. */
+static lvp_result lvp__sort_caps_by_part(lvp_binding *binding)
+{
+	int32_t parts = binding->part_count, count = binding->cap_edge_count;
+	int32_t *offsets = binding->cap_part_offsets;
+	memset(offsets, 0, sizeof(int32_t) * ((size_t)parts + 1));
+	if (!binding->vertex_part) {
+		offsets[parts] = count;
+		return lvp_success;
+	}
+	int32_t *sorted = malloc(sizeof(int32_t) * 2 * (size_t)(count > 0 ? count : 1));
+	if (!sorted)
+		return lvp_error_out_of_memory;
+	for (int32_t i = 0; i < count; ++i)
+		++offsets[binding->vertex_part[binding->cap_edges[2 * i]] + 1];
+	for (int32_t p = 0; p < parts; ++p)
+		offsets[p + 1] += offsets[p];
+	for (int32_t i = 0; i < count; ++i) {
+		int32_t at = offsets[binding->vertex_part[binding->cap_edges[2 * i]]]++;
+		sorted[2 * at] = binding->cap_edges[2 * i];
+		sorted[2 * at + 1] = binding->cap_edges[2 * i + 1];
+	}
+	for (int32_t p = parts; p > 0; --p)
+		offsets[p] = offsets[p - 1];
+	offsets[0] = 0;
+	free(binding->cap_edges);
+	binding->cap_edges = sorted;
+	return lvp_success;
+}
+
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count, f = binding->triangle_count;
@@ -123,6 +154,8 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	shrunk = realloc(binding->cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->cap_edge_count > 0 ? binding->cap_edge_count : 1));
 	if (shrunk)
 		binding->cap_edges = shrunk;
+	if (lvp__sort_caps_by_part(binding) != lvp_success)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
 	binding->border_slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
 	binding->border_gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
@@ -174,22 +207,27 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
 /* 6 times the volume of the cones from the mesh's holes to one apex (the mean of the hole
  * vertices): added to the divergence sum, it closes the surface, so the volume of an open
  * mesh no longer depends on the origin. Zero for closed meshes. */
-double lvp__cap_volume6(const lvp_binding *binding, const float *positions)
+/* 6 x the volume of the cones from the mean of their first vertices to cap edges [begin, end). */
+static double lvp__cap_range_volume6(const lvp_binding *binding, const float *positions, int32_t begin, int32_t end)
 {
-	int32_t count = binding->cap_edge_count;
-	if (count == 0)
+	if (end <= begin)
 		return 0.0;
 	lvp__vec3 apex = lvp__v(0.0, 0.0, 0.0);
-	for (int32_t i = 0; i < count; ++i)
+	for (int32_t i = begin; i < end; ++i)
 		apex = lvp__add(apex, lvp__load(positions + 3 * binding->cap_edges[2 * i]));
-	apex = lvp__scale(apex, 1.0 / count);
+	apex = lvp__scale(apex, 1.0 / (end - begin));
 	double volume6 = 0.0;
-	for (int32_t i = 0; i < count; ++i) {
+	for (int32_t i = begin; i < end; ++i) {
 		lvp__vec3 a = lvp__load(positions + 3 * binding->cap_edges[2 * i]);
 		lvp__vec3 b = lvp__load(positions + 3 * binding->cap_edges[2 * i + 1]);
 		volume6 += lvp__vol6(b, a, apex);
 	}
 	return volume6;
+}
+
+double lvp__cap_volume6(const lvp_binding *binding, const float *positions)
+{
+	return lvp__cap_range_volume6(binding, positions, 0, binding->cap_edge_count);
 }
 
 /* ---- the mesh pass ------------------------------------------------------------------------ */
@@ -641,6 +679,43 @@ double lvp__volume_of(const lvp_binding *binding, const float *positions)
 		volume6 += lvp__vol6(p0, p1, p2);
 	}
 	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
+}
+
+void lvp__part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes)
+{
+	if (binding->part_count == 1) {
+		r_volumes[0] = lvp__volume_of(binding, positions);
+		return;
+	}
+	memset(r_volumes, 0, sizeof(double) * (size_t)binding->part_count);
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		lvp__vec3 p0 = lvp__load(positions + 3 * binding->triangles[3 * t]);
+		lvp__vec3 p1 = lvp__load(positions + 3 * binding->triangles[3 * t + 1]);
+		lvp__vec3 p2 = lvp__load(positions + 3 * binding->triangles[3 * t + 2]);
+		r_volumes[lvp__region_part(binding, binding->triangle_region[t])] += lvp__vol6(p0, p1, p2);
+	}
+	const int32_t *caps = binding->cap_part_offsets;
+	for (int32_t p = 0; p < binding->part_count; ++p)
+		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
+}
+
+void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes)
+{
+	if (binding->part_count == 1) {
+		r_volumes[0] = lvp__pass_volume(binding, positions);
+		return;
+	}
+	memset(r_volumes, 0, sizeof(double) * (size_t)binding->part_count);
+	for (int32_t r = 0; r <= binding->region_count; ++r) {
+		int32_t region = r < binding->region_count ? r : -1;
+		lvp__vec3 o = lvp__region_origin(binding, region);
+		const lvp__region_sums *sums = &binding->sums[r];
+		r_volumes[lvp__region_part(binding, region)] +=
+		    sums->volume6 + o.x * sums->area6[0] + o.y * sums->area6[1] + o.z * sums->area6[2];
+	}
+	const int32_t *caps = binding->cap_part_offsets;
+	for (int32_t p = 0; p < binding->part_count; ++p)
+		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
 }
 
 /* ---- rest side and region changes ----------------------------------------------------------- */

@@ -63,6 +63,8 @@
  *      (zero at first) moves by what that multiplier does to it. When every region is at its
  *      target the whole mesh is at its rest volume: no pass is spent on a separate global
  *      step, and each region is left off its rest volume by its part of the difference.
+ *      A mesh made of separate parts that bend (see SEGMENTATION) gets one such multiplier per
+ *      part: each part is restored to its own rest volume, as it would be alone.
  *      Where such a step makes things worse (many overlapping regions, most of the whole
  *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
  *      two phases: the regions to their targets, then one multiplier for the whole mesh.
@@ -116,6 +118,18 @@
  *   the corners, gives every triangle exactly one region, and agrees with the vertex regions
  *   whenever two corners agree. Vertices without any weight belong to no region (-1): they
  *   never move; a triangle whose three corners have no weight belongs to no region.
+ *   Separate parts (a body and its clothes, two limbs modelled apart, in one mesh): a connected
+ *   part of the triangles bends when its vertices have weight on two bones or more. When two
+ *   parts or more bend, each bone's region is split by part: the first part that bends (by
+ *   vertex order) keeps the bones' own regions, and every other one gets its own region for
+ *   each bone it uses, so that one part cannot keep a region's volume at the expense of
+ *   another (measured together, of two limbs side by side bent 90 degrees, the one further from
+ *   the bones took more of the organic map: +7 % and -7 %). Parts one bone carries rigidly (an
+ *   eye, a tooth) stay in their bone's region: they keep no volume change to correct. The
+ *   public API still speaks of one region per bone: lvp_get_segmentation() gives a vertex its
+ *   bone, lvp_region_volume_changes() sums a bone's parts, and worst_region names the bone of
+ *   the worst part. Past LVP_MAX_BONES regions in all (thousands of bent hair cards), the
+ *   remaining parts stay in their bones' regions. Bind: O(E log E) for E weight entries.
  *   In LVP_MODE_GLOBAL there is one region: the whole mesh, measured with the plain
  *   divergence formula (paper eq. 1/4), which needs a closed mesh.
  *
@@ -425,11 +439,13 @@ typedef struct lvp_frame_stats {
 	double volume_rest;       /* signed mesh volume at rest (divergence formula) */
 	double volume_before;     /* of the input positions */
 	double volume_after;      /* of the corrected positions */
-	int32_t worst_region;     /* region with the largest relative change before correction, -1 if none */
+	int32_t worst_region;     /* region with the largest relative change before correction, -1 if none
+	                             (of separate parts, the part's bone: SEGMENTATION) */
 	double worst_region_change_before; /* its (V - V_rest) / V_ref, signed */
 	double worst_region_change_after;
 	int32_t iterations;       /* correction steps done, fold-over rounds included */
-	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass */
+	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's
+	                             region in each separate part counts once */
 	int32_t skipped_regions;  /* regions left as they were: singular posed bone, or map all zero */
 	int32_t folded_vertices;  /* vertices moved back to a contact surface */
 	double max_displacement;  /* largest |offset| written */
@@ -452,7 +468,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 
 /* Local volume changes of every region for given positions, without correcting anything:
  * r_changes (region_count doubles) receives V_s - V_s,rest by the prism sum of 5.2 (in the
- * global mode: V - V_rest). r_references (region_count, may be NULL) receives the reference
+ * global mode: V - V_rest; a bone's region in separate parts: the sum over the parts). r_references (region_count, may be NULL) receives the reference
  * volumes used by the tolerance. Same inputs as lvp_correct(). */
 lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lvp_binding *binding,
                                      const float *positions, const float *bone_matrices,

@@ -66,41 +66,42 @@ static int32_t lvp__find_key(const uint64_t *keys, int32_t count, uint64_t key)
 	return lo < count && keys[lo] == key ? lo : -1;
 }
 
-lvp_result lvp__split_parts(int32_t **r_weight_bones, int32_t **r_bone_source, int32_t *r_bone_count,
-                            const lvp_weights *weights, int32_t vertex_count, const int32_t *triangles,
-                            int32_t triangle_count, int32_t bone_count, bool split, lvp_diagnostic *r_diag)
+lvp_result lvp__split_parts(lvp__parts *r_parts, const lvp_weights *weights, int32_t vertex_count,
+                            const int32_t *triangles, int32_t triangle_count, int32_t bone_count, bool split,
+                            lvp_diagnostic *r_diag)
 {
 	int32_t entries = weights->offsets[vertex_count];
-	*r_bone_source = NULL;
-	*r_bone_count = bone_count;
-	*r_weight_bones = malloc(sizeof(int32_t) * (size_t)(entries > 0 ? entries : 1));
+	lvp__parts parts;
+	memset(&parts, 0, sizeof(parts));
+	parts.bone_count = bone_count;
+	parts.part_count = 1;
+	parts.weight_bones = malloc(sizeof(int32_t) * (size_t)(entries > 0 ? entries : 1));
 	int32_t *part = malloc(sizeof(int32_t) * (size_t)vertex_count);
-	int32_t *first_bone = malloc(sizeof(int32_t) * (size_t)vertex_count);
+	int32_t *root_scratch = malloc(sizeof(int32_t) * (size_t)vertex_count); /* indexed by a part's root */
 	uint8_t *bends = calloc((size_t)vertex_count, 1);
 	uint64_t *keys = malloc(sizeof(uint64_t) * (size_t)(entries > 0 ? entries : 1));
 	lvp_result result = lvp_success;
-	if (!*r_weight_bones || !part || !first_bone || !bends || !keys) {
-		result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-		goto done;
-	}
+	if (!parts.weight_bones || !part || !root_scratch || !bends || !keys)
+		goto out_of_memory;
 	if (entries > 0)
-		memcpy(*r_weight_bones, weights->bones, sizeof(int32_t) * (size_t)entries);
+		memcpy(parts.weight_bones, weights->bones, sizeof(int32_t) * (size_t)entries);
 	if (!split)
 		goto done;
 	lvp__connected_parts(part, bends, triangles, vertex_count, triangle_count);
 
 	/* A part bends when its vertices have weight on two bones or more; a part that one bone
-	 * carries rigidly (an eye, a tooth) keeps no volume change to correct and is left alone. */
+	 * carries rigidly (an eye, a tooth) keeps no volume change to correct and is left alone.
+	 * root_scratch: the first bone seen in each part. */
 	for (int32_t k = 0; k < vertex_count; ++k)
-		first_bone[k] = -1;
+		root_scratch[k] = -1;
 	for (int32_t k = 0; k < vertex_count; ++k) {
 		int32_t p = part[k];
 		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1] && p >= 0; ++e) {
 			if (!(weights->values[e] > 0.0f))
 				continue;
-			if (first_bone[p] < 0)
-				first_bone[p] = weights->bones[e];
-			else if (first_bone[p] != weights->bones[e])
+			if (root_scratch[p] < 0)
+				root_scratch[p] = weights->bones[e];
+			else if (root_scratch[p] != weights->bones[e])
 				bends[p] = 1;
 		}
 	}
@@ -138,36 +139,52 @@ lvp_result lvp__split_parts(int32_t **r_weight_bones, int32_t **r_bone_source, i
 	}
 	if (unique == 0)
 		goto done;
-	*r_bone_source = malloc(sizeof(int32_t) * ((size_t)bone_count + (size_t)unique));
-	if (!*r_bone_source) {
-		result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-		goto done;
+	size_t internal = (size_t)bone_count + (size_t)unique;
+	parts.bone_source = malloc(sizeof(int32_t) * internal);
+	parts.bone_part = calloc(internal, sizeof(int32_t));
+	parts.vertex_part = calloc((size_t)vertex_count, sizeof(int32_t));
+	if (!parts.bone_source || !parts.bone_part || !parts.vertex_part)
+		goto out_of_memory;
+	/* Numbered parts: 0 for everything on the caller's bones, then the split parts in order.
+	 * root_scratch: each split part's number (by its root), -1 elsewhere. */
+	for (int32_t k = 0; k < vertex_count; ++k)
+		root_scratch[k] = -1;
+	for (int32_t i = 0; i < unique; ++i) {
+		int32_t root = (int32_t)(keys[i] >> 32);
+		if (root_scratch[root] < 0)
+			root_scratch[root] = parts.part_count++;
+		parts.bone_part[bone_count + i] = root_scratch[root];
+		parts.bone_source[bone_count + i] = (int32_t)(keys[i] & 0xffffffffu);
 	}
 	for (int32_t i = 0; i < bone_count; ++i)
-		(*r_bone_source)[i] = i;
-	for (int32_t i = 0; i < unique; ++i)
-		(*r_bone_source)[bone_count + i] = (int32_t)(keys[i] & 0xffffffffu);
-	*r_bone_count = bone_count + unique;
+		parts.bone_source[i] = i;
+	parts.bone_count = (int32_t)internal;
 	/* Every entry of a split part, zero weights included, names its part's copy of the bone. */
 	for (int32_t k = 0; k < vertex_count; ++k) {
 		int32_t p = part[k];
-		if (p < 0 || !bends[p] || p == first_bending)
+		if (p < 0 || root_scratch[p] < 0)
 			continue;
+		parts.vertex_part[k] = root_scratch[p];
 		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e) {
 			int32_t i = lvp__find_key(keys, unique, lvp__part_bone_key(p, weights->bones[e]));
 			if (i >= 0)
-				(*r_weight_bones)[e] = bone_count + i;
+				parts.weight_bones[e] = bone_count + i;
 		}
 	}
+	goto done;
 
+out_of_memory:
+	result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	free(parts.weight_bones);
+	free(parts.bone_source);
+	free(parts.bone_part);
+	free(parts.vertex_part);
+	memset(&parts, 0, sizeof(parts));
 done:
 	free(part);
-	free(first_bone);
+	free(root_scratch);
 	free(bends);
 	free(keys);
-	if (result) {
-		free(*r_weight_bones);
-		*r_weight_bones = NULL;
-	}
+	*r_parts = parts;
 	return result;
 }

@@ -7,6 +7,7 @@ skinning loses about 11 % of its volume (paper Table 2). Every assertion is on t
 """
 
 import unittest
+from array import array
 
 import bpy
 from mathutils import Matrix
@@ -333,6 +334,46 @@ class TestSharedArmature(CylinderTestCase):
         self.scene.frame_set(10)
         self.assertCorrected(self.obj, message="first")
         self.assertCorrected(second, message="second")
+
+
+class TestSeparateParts(helpers.AddonTestCase):
+    """One object made of two separate cylinders side by side, weighted alike to one rig's two bones
+    (two limbs, or a body and its clothes, modelled apart): each part gets its own volume back. Before
+    the core split regions by part, the one beside the bones took more of the organic map and ended
+    7 % above its rest volume, the one on them 7 % below."""
+
+    def test_each_part_keeps_its_own_volume(self):
+        single = helpers.cylinder_mesh("Single")
+        vertices = [tuple(vertex.co) for vertex in single.vertices]
+        faces = [tuple(polygon.vertices) for polygon in single.polygons]
+        bpy.data.meshes.remove(single)
+        count = len(vertices)
+        vertices += [(x + 2.0, y, z) for x, y, z in vertices]
+        faces += [tuple(index + count for index in face) for face in faces]
+        mesh = bpy.data.meshes.new("Parts")
+        mesh.from_pydata(vertices, [], faces)
+        mesh.update()
+        rig = helpers.two_bone_armature("PartsRig")
+        obj = helpers.link(bpy.data.objects.new("Parts", mesh))
+        helpers.weight_linear_band(obj)
+        helpers.add_armature_modifier(obj, rig)
+        obj.parent = rig
+        helpers.keyframe_bend(rig, {1: 0.0, 10: 90.0})
+        scene = bpy.context.scene
+        scene.frame_set(1)
+        self.assertEqual(helpers.add_volume_preservation(obj), {'FINISHED'})
+        scene.frame_set(10)
+        triangles = helpers.mesh_triangles(mesh)
+        rest = helpers.mesh_positions(mesh)
+        plain, corrected = helpers.uncorrected_positions(obj), helpers.evaluated_positions(obj)
+        for part, name in ((0, "on the bones"), (1, "beside them")):
+            part_triangles = array('i', [index for corner in range(0, len(triangles), 3)
+                                         for index in triangles[corner:corner + 3]
+                                         if (triangles[corner] >= count) == part])
+            rest_volume = helpers.volume(rest, part_triangles)
+            self.assertGreater(helpers.relative_volume_error(plain, part_triangles, rest_volume), 0.1, name)
+            self.assertSmallerThan(helpers.relative_volume_error(corrected, part_triangles, rest_volume), 1e-3,
+                                   "the part %s" % name)
 
 
 class TestLinkedDuplicates(CylinderTestCase):

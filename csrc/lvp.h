@@ -468,8 +468,9 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 
 /* Local volume changes of every region for given positions, without correcting anything:
  * r_changes (region_count doubles) receives V_s - V_s,rest by the prism sum of 5.2 (in the
- * global mode: V - V_rest; a bone's region in separate parts: the sum over the parts). r_references (region_count, may be NULL) receives the reference
- * volumes used by the tolerance. Same inputs as lvp_correct(). */
+ * global mode: V - V_rest; a bone's region in separate parts: the sum over the parts).
+ * r_references (region_count, may be NULL) receives the reference volumes used by the
+ * tolerance (summed the same way). Same inputs as lvp_correct(). */
 lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lvp_binding *binding,
                                      const float *positions, const float *bone_matrices,
                                      const float *rest_positions, lvp_diagnostic *r_diag);

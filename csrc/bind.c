@@ -172,10 +172,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	bool ok = true;
 	lvp_binding *binding = lvp__alloc(1, sizeof(lvp_binding), &ok);
 	if (!binding) {
-		free(parts.weight_bones);
-		free(parts.bone_source);
-		free(parts.bone_part);
-		free(parts.vertex_part);
+		lvp__parts_free(&parts);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
 	binding->mode = options->mode;

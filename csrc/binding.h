@@ -228,6 +228,9 @@ lvp_result lvp__split_parts(lvp__parts *r_parts, const lvp_weights *weights, int
                             const int32_t *triangles, int32_t triangle_count, int32_t bone_count, bool split,
                             lvp_diagnostic *r_diag);
 
+/* Frees the arrays of parts (when they were not handed to a binding) and clears it. */
+void lvp__parts_free(lvp__parts *parts);
+
 /* The caller's bone (or region, in local mode) of internal bone i. */
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {

@@ -66,6 +66,15 @@ static int32_t lvp__find_key(const uint64_t *keys, int32_t count, uint64_t key)
 	return lo < count && keys[lo] == key ? lo : -1;
 }
 
+void lvp__parts_free(lvp__parts *parts)
+{
+	free(parts->weight_bones);
+	free(parts->bone_source);
+	free(parts->bone_part);
+	free(parts->vertex_part);
+	memset(parts, 0, sizeof(*parts));
+}
+
 lvp_result lvp__split_parts(lvp__parts *r_parts, const lvp_weights *weights, int32_t vertex_count,
                             const int32_t *triangles, int32_t triangle_count, int32_t bone_count, bool split,
                             lvp_diagnostic *r_diag)
@@ -175,11 +184,7 @@ lvp_result lvp__split_parts(lvp__parts *r_parts, const lvp_weights *weights, int
 
 out_of_memory:
 	result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-	free(parts.weight_bones);
-	free(parts.bone_source);
-	free(parts.bone_part);
-	free(parts.vertex_part);
-	memset(&parts, 0, sizeof(parts));
+	lvp__parts_free(&parts);
 done:
 	free(part);
 	free(root_scratch);

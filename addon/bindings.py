@@ -22,6 +22,7 @@ import bpy
 from . import _lvp
 from . import mesh_data
 from . import node_group
+from . import skeleton
 
 
 # A frame whose largest offset exceeds this fraction of the rest mesh's bounding box diagonal is
@@ -36,23 +37,21 @@ class BindError(Exception):
 class BoundObject:
     """An object's binding and everything needed to correct a frame with it (runtime only)."""
 
-    def __init__(self, binding, bone_names, rest_frames, vertex_count, topology, bind_id, map_key, mode):
+    def __init__(self, binding, core_skeleton, vertex_count, topology, bind_id, map_key, mode):
         self.binding = binding
-        self.bone_names = bone_names
-        self.rest_frames = rest_frames
+        self.skeleton = core_skeleton       # skeleton.CoreSkeleton: the bones given to the core
         self.vertex_count = vertex_count
         self.topology = topology
         self.bind_id = bind_id
         self.map_key = map_key
         self.mode = mode
-        bone_count = len(bone_names)
         self.positions = mesh_data.float_array(3 * vertex_count)
         self.offsets = mesh_data.float_array(3 * vertex_count)
         self.written = None                 # the offsets last written to the mesh, when known
         self.rest_positions = None          # allocated when shape keys are used
         self.rest_in_use = False            # whether rest_positions differs from the bind rest
         self.rest_state = None              # the shape key values rest_positions was mixed for
-        self.bone_matrices = mesh_data.float_array(16 * bone_count)
+        self.bone_matrices = mesh_data.float_array(16 * core_skeleton.core_bone_count)
         self.expected_indices = None        # array('i', range(vertex_count))
         self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
         self.scratch_positions = None       # evaluated "lvp_position" when the final mesh has more vertices
@@ -156,7 +155,7 @@ def mode_of(settings):
     return 'GLOBAL' if settings.effect == 'GLOBAL' else 'LOCAL'
 
 
-def map_arguments(obj, settings, bone_names):
+def map_arguments(obj, settings, core_skeleton):
     """Keyword arguments of Binding() / Binding.set_map() for the object's settings.
 
     Raises BindError when the settings cannot be used (a missing painted vertex group).
@@ -174,24 +173,25 @@ def map_arguments(obj, settings, bone_names):
     else:  # ORGANIC, and GLOBAL, which uses the organic map over one region
         arguments["map"] = 'ORGANIC'
     restrictions = [item for item in settings.region_restrictions if item.region.strip()]
-    if restrictions and bone_names:
-        index_of = {name: index for index, name in enumerate(bone_names)}
-        per_region = [[] for _ in bone_names]
+    if restrictions and core_skeleton.bone_names:
+        # Restrictions name bones; a B-Bone is several core bones (its joints), all restricted alike.
+        per_region = [[] for _ in range(core_skeleton.core_bone_count)]
         for item in restrictions:
-            region = index_of.get(item.region.strip())
-            if region is None:
+            regions = core_skeleton.core_bones_of(item.region.strip())
+            if not regions:
                 raise BindError("Region restriction: %r is not a deforming bone with a vertex group on %s"
                                 % (item.region, obj.name))
             for name in item.bones.split(","):
                 name = name.strip()
                 if not name:
                     continue
-                if name not in index_of:
+                allowed = core_skeleton.core_bones_of(name)
+                if not allowed:
                     raise BindError("Region restriction of %r: %r is not a deforming bone with a vertex group "
                                     "on %s" % (item.region, name, obj.name))
-                if index_of[name] not in per_region[region]:
-                    per_region[region].append(index_of[name])
-        offsets = mesh_data.int_array(len(bone_names) + 1)
+                for region in regions:
+                    per_region[region].extend(bone for bone in allowed if bone not in per_region[region])
+        offsets = mesh_data.int_array(len(per_region) + 1)
         bones = mesh_data.int_array(0)
         for region, region_bones in enumerate(per_region):
             bones.extend(region_bones)
@@ -201,14 +201,34 @@ def map_arguments(obj, settings, bone_names):
     return arguments
 
 
-def bind(obj):
+def _core_skeleton(obj, armature_object, bone_names, depsgraph, positions, weights):
+    """(CoreSkeleton of obj's bound bones, weights split over its core bones). B-Bone joints are read
+    from the armature's pose, which Blender fills when it evaluates the armature: from the evaluated
+    armature of depsgraph when given (a render's depsgraph), else from the original, which the
+    viewport's evaluation fills."""
+    poses = []
+    if depsgraph is not None:
+        poses.append(armature_object.evaluated_get(depsgraph).pose)
+    poses.append(armature_object.pose)
+    for pose in poses:
+        try:
+            core_skeleton = skeleton.CoreSkeleton(obj, armature_object, bone_names, pose)
+            return core_skeleton, core_skeleton.split_weights(pose, positions, *weights)
+        except RuntimeError:
+            continue
+    raise BindError("The B-Bone segments of %s have not been evaluated yet: change frame or pose a bone, then "
+                    "Bind again" % armature_object.name)
+
+
+def bind(obj, depsgraph=None):
     """Builds a BoundObject from the object's current mesh, weights, armature rest pose and settings.
 
     Changes no Blender data. Raises BindError (with what to fix) when the object cannot be bound.
+    depsgraph: the one being evaluated, when binding from a handler.
     """
     settings = obj.lvp
     _armature_modifier, armature_object = armature_of(obj)
-    bone_names = mesh_data.deforming_bone_names(obj, armature_object)
+    bone_names = skeleton.deforming_bone_names(obj, armature_object)
     if not bone_names:
         raise BindError("No vertex group of %s matches a deforming bone of %s: weight the mesh (Ctrl+P > With "
                         "Automatic Weights, or Local Volume Preservation's Auto Weights) first"
@@ -222,11 +242,13 @@ def bind(obj):
     if len(values) == 0:
         raise BindError("The vertex groups of %s that match deforming bones of %s are empty: weight the mesh "
                         "first" % (obj.name, armature_object.name))
-    rest_matrices, heads, tails = mesh_data.rest_skeleton_arrays(obj, armature_object, bone_names)
+    core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_object, bone_names, depsgraph, positions,
+                                                            (offsets, bones, values))
+    rest_matrices, heads, tails = core_skeleton.rest_arrays()
     mode = mode_of(settings)
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
-                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, bone_names))
+                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton))
     except ValueError as error:
         message = str(error)
         if "closed" in message:
@@ -235,8 +257,7 @@ def bind(obj):
         raise BindError("Cannot bind %s: %s" % (obj.name, message)) from None
     except MemoryError:
         raise BindError("Not enough memory to bind %s" % obj.name) from None
-    rest_frames = mesh_data.rest_bone_frames(obj, armature_object, bone_names)
-    bound = BoundObject(binding, bone_names, rest_frames, len(mesh.vertices), mesh_data.topology_signature(mesh),
+    bound = BoundObject(binding, core_skeleton, len(mesh.vertices), mesh_data.topology_signature(mesh),
                         settings.bind_id, map_key(settings), mode)
     bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
     return bound
@@ -251,8 +272,9 @@ def new_bind_record(obj, bound):
     _entries[(obj.name_full, bound.bind_id)] = bound
 
 
-def ensure(obj):
+def ensure(obj, depsgraph=None):
     """The object's BoundObject, rebuilt lazily when missing (after a file load, undo, rename).
+    depsgraph: the one being evaluated, when called from a handler.
 
     Returns None and sets the status when that is not possible: no bind record, the topology
     changed since the bind ("rebind needed"), or the object can no longer be bound.
@@ -273,7 +295,7 @@ def ensure(obj):
         set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
         return None
     try:
-        bound = bind(obj)
+        bound = bind(obj, depsgraph)
     except BindError as error:
         set_status(obj, 'ERROR', str(error))
         return None
@@ -287,7 +309,7 @@ def ensure(obj):
     return bound
 
 
-def refresh_map(obj, bound):
+def refresh_map(obj, bound, depsgraph=None):
     """Applies changed map settings to the binding. Returns the BoundObject to use (a new one when the
     effect switched between local and global), or None with the status set when it cannot be done."""
     settings = obj.lvp
@@ -296,7 +318,7 @@ def refresh_map(obj, bound):
         return bound
     if mode_of(settings) != bound.mode:
         try:
-            rebound = bind(obj)
+            rebound = bind(obj, depsgraph)
         except BindError as error:
             set_status(obj, 'ERROR', str(error))
             return None
@@ -306,7 +328,7 @@ def refresh_map(obj, bound):
         _entries[(obj.name_full, rebound.bind_id)] = rebound
         return rebound
     try:
-        bound.binding.set_map(**map_arguments(obj, settings, bound.bone_names))
+        bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton))
     except (BindError, ValueError) as error:
         set_status(obj, 'ERROR', str(error))
         return None

@@ -13,17 +13,22 @@ import bpy
 from . import bindings
 from . import mesh_data
 from . import names
+from . import skeleton
 
 NO_REGION_COLOR = (0.5, 0.5, 0.5, 1.0)
 
 
-def region_color(region):
-    """A distinct, stable colour per region index (golden-ratio hues)."""
+def region_color(region, core_skeleton):
+    """A distinct, stable colour per bone (golden-ratio hues). The joints of a B-Bone, one region
+    each, share their bone's colour, every other one darker, so that its segments show as bands."""
     if region < 0:
         return NO_REGION_COLOR
-    hue = (region * 0.618033988749895) % 1.0
-    saturation = 0.55 + 0.35 * ((region * 7) % 3) / 2.0
-    red, green, blue = colorsys.hsv_to_rgb(hue, saturation, 0.95)
+    bone = core_skeleton.bone_index(region)
+    joint = core_skeleton.bones[region][1]
+    value = 0.6 if joint != skeleton.PLAIN and joint % 2 == 1 else 0.95
+    hue = (bone * 0.618033988749895) % 1.0
+    saturation = 0.55 + 0.35 * ((bone * 7) % 3) / 2.0
+    red, green, blue = colorsys.hsv_to_rgb(hue, saturation, value)
     return (red, green, blue, 1.0)
 
 
@@ -122,7 +127,7 @@ def update_display(obj, context=None):
         for vertex, region in enumerate(regions):
             color = palette.get(region)
             if color is None:
-                color = palette[region] = region_color(region)
+                color = palette[region] = region_color(region, bound.skeleton)
             colors[4 * vertex:4 * vertex + 4] = mesh_data.array('f', color)
         shown, hidden = names.SEGMENTATION_ATTRIBUTE, names.CORRECTION_MAP_ATTRIBUTE
     else:

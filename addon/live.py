@@ -3,6 +3,7 @@
 
     evaluated mesh of the depsgraph --(captured positions, original indices)--> positions[N]
     evaluated armature and objects --(posed bone frames in mesh space)------> bone_matrices[B]
+                                     (a B-Bone: one per segment joint, skeleton.py)
     Binding.correct(positions, bone_matrices) -------------------------------> offsets[N]
     offsets --> the "lvp_offset" attribute of the ORIGINAL mesh, then the mesh is tagged, so
     Blender evaluates the object once more and the same frame shows the corrected shape.
@@ -230,7 +231,7 @@ def correct_object(obj, depsgraph, check_topology=False):
                             ("render" if depsgraph.mode == 'RENDER' else "viewport"))
         return False
 
-    bound = bindings.ensure(obj)
+    bound = bindings.ensure(obj, depsgraph)
     if bound is None:
         return write_zero_offsets(mesh)
     if mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0] or (
@@ -240,7 +241,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     if check_topology:
         bound.written = None  # the mesh was changed by someone else: read the attribute back once
     previous_map = bound.map_key
-    bound = bindings.refresh_map(obj, bound)
+    bound = bindings.refresh_map(obj, bound, depsgraph)
     if bound is None:
         return write_zero_offsets(mesh)
     if bound.map_key != previous_map and obj.lvp.display == 'CORRECTION_MAP' and is_main_thread():
@@ -268,9 +269,9 @@ def correct_object(obj, depsgraph, check_topology=False):
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
         return write_zero_offsets(mesh, bound)
-    if not mesh_data.posed_bone_matrices(bound.bone_matrices, obj_eval, armature_eval, bound.bone_names,
-                                         bound.rest_frames):
-        bindings.set_status(obj, 'ERROR', "Rebind needed: a bound bone is missing from %s" % armature_object.name)
+    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
+    if skeleton_problem is not None:
+        bindings.set_status(obj, 'ERROR', "Rebind needed: %s (press Bind)" % skeleton_problem)
         return write_zero_offsets(mesh, bound)
 
     rest_positions = None
@@ -285,7 +286,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)
         return write_zero_offsets(mesh, bound)
-    stats["bone_names"] = bound.bone_names
+    stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     bound.stats = stats
     displacement = stats["max_displacement"]

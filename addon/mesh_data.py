@@ -1,27 +1,13 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Reading Blender data into the flat arrays the C core takes (see docs/python_module.md).
-
-Everything is expressed in the MESH OBJECT's local space, exactly as Blender's Armature modifier
-sees it. The modifier maps a vertex into armature space with premat^-1, deforms it there with
-pose_bone.matrix @ bone.matrix_local^-1 and maps it back with premat, where
-
-    premat = mesh_world^-1 @ armature_world
-
-so in mesh space a bone's rest frame is premat @ bone.matrix_local and its posed frame is
-premat @ pose_bone.matrix. Object and armature transforms, scale and parenting cancel out.
-
-The binding keeps the rest frames it was bound with. When an object moves relative to its armature
-after the bind, premat changes and so does the skinning transform S = premat @ P @ R^-1 @ premat^-1;
-the posed frame handed to the core is then S @ rest_frame_at_bind, which is what the bone frame
-became under the deformation that Blender actually applied.
+"""Reading a mesh's data into the flat arrays the C core takes (see docs/python_module.md): positions,
+triangles, topology, weights, shape keys, in the mesh object's local space. The skeleton is read by
+skeleton.py.
 
 No numpy (Debian's Blender 3.4 has none): array.array buffers with foreach_get / foreach_set.
 """
 
 import zlib
 from array import array
-
-from mathutils import Vector
 
 
 def flatten_matrix(matrix, out, offset):
@@ -85,67 +71,6 @@ def topology_signature(mesh):
 def quick_topology_counts(mesh):
     """The element counts of topology_signature(), cheap enough to compare every frame."""
     return "v%d e%d f%d l%d" % (len(mesh.vertices), len(mesh.edges), len(mesh.polygons), len(mesh.loops))
-
-
-# ---- skeleton ------------------------------------------------------------------------------
-
-
-def armature_space_to_mesh_space(mesh_object, armature_object):
-    """premat = mesh_world^-1 @ armature_world (see the top of this file)."""
-    return mesh_object.matrix_world.inverted_safe() @ armature_object.matrix_world
-
-
-def deforming_bone_names(mesh_object, armature_object):
-    """Names of the armature's deforming bones that have a vertex group on the mesh object, in the
-    armature's bone order. These are the bones the core binds to."""
-    group_names = {group.name for group in mesh_object.vertex_groups}
-    return [bone.name for bone in armature_object.data.bones if bone.use_deform and bone.name in group_names]
-
-
-def rest_bone_frames(mesh_object, armature_object, bone_names):
-    """Rest frames premat @ bone.matrix_local as mathutils matrices, in bone_names order."""
-    premat = armature_space_to_mesh_space(mesh_object, armature_object)
-    bones = armature_object.data.bones
-    return [premat @ bones[name].matrix_local for name in bone_names]
-
-
-def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
-    """(rest_matrices float32[16B], heads float32[3B], tails float32[3B]) in mesh space."""
-    premat = armature_space_to_mesh_space(mesh_object, armature_object)
-    bones = armature_object.data.bones
-    count = len(bone_names)
-    rest_matrices = float_array(16 * count)
-    heads = float_array(3 * count)
-    tails = float_array(3 * count)
-    for index, name in enumerate(bone_names):
-        bone = bones[name]
-        flatten_matrix(premat @ bone.matrix_local, rest_matrices, 16 * index)
-        head = premat @ Vector(bone.head_local)
-        tail = premat @ Vector(bone.tail_local)
-        heads[3 * index:3 * index + 3] = array('f', head)
-        tails[3 * index:3 * index + 3] = array('f', tail)
-    return rest_matrices, heads, tails
-
-
-def posed_bone_matrices(out, mesh_object, armature_object, bone_names, rest_frames):
-    """Writes the posed bone frames (float32[16B]) into out.
-
-    mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
-    corrected (their matrices and pose are those of the frame being evaluated). rest_frames are the
-    binding's rest frames (rest_bone_frames() at bind time). Returns False when a bone is missing.
-    """
-    premat = armature_space_to_mesh_space(mesh_object, armature_object)
-    premat_inverse = premat.inverted_safe()
-    pose_bones = armature_object.pose.bones
-    data_bones = armature_object.data.bones
-    for index, name in enumerate(bone_names):
-        pose_bone = pose_bones.get(name)
-        bone = data_bones.get(name)
-        if pose_bone is None or bone is None:
-            return False
-        skinning = premat @ pose_bone.matrix @ bone.matrix_local.inverted_safe() @ premat_inverse
-        flatten_matrix(skinning @ rest_frames[index], out, 16 * index)
-    return True
 
 
 # ---- weights -------------------------------------------------------------------------------

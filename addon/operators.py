@@ -20,6 +20,7 @@ from . import live
 from . import mesh_data
 from . import names
 from . import node_group
+from . import skeleton
 
 
 def _target_objects(context):
@@ -309,7 +310,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
                     problem = "%s has no faces: automatic weights need a surface mesh" % obj.name
             if problem is None:
                 mesh = obj.data
-                rest_matrices, heads, tails = mesh_data.rest_skeleton_arrays(obj, armature_object, bone_names)
+                rest_matrices, heads, tails = skeleton.rest_skeleton_arrays(obj, armature_object, bone_names)
                 try:
                     weights = _lvp.auto_weights(
                         mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads,

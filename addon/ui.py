@@ -116,9 +116,7 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
                                  _percent((stats["volume_after"] - rest) / rest)))
         worst = stats["worst_region"]
         if worst >= 0:
-            bone_names = stats.get("bone_names", [])
-            name = "whole mesh" if stats.get("mode") == 'GLOBAL' else (
-                bone_names[worst] if worst < len(bone_names) else str(worst))
+            name = "whole mesh" if stats.get("mode") == 'GLOBAL' else stats["worst_region_name"]
             box.label(text="Worst region %s: %s before, %s after"
                            % (name, _percent(stats["worst_region_change_before"]),
                               _percent(stats["worst_region_change_after"])))

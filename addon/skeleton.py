@@ -1,0 +1,269 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The skeleton the C core binds to, read from an armature: rest frames, weights and posed frames.
+
+Everything is expressed in the MESH OBJECT's local space, exactly as Blender's Armature modifier
+sees it. The modifier maps a vertex into armature space with premat^-1, deforms it there with
+pose_bone.matrix @ bone.matrix_local^-1 and maps it back with premat, where
+
+    premat = mesh_world^-1 @ armature_world
+
+so in mesh space a bone's rest frame is premat @ bone.matrix_local and its posed frame is
+premat @ pose_bone.matrix. Object and armature transforms, scale and parenting cancel out.
+
+The binding keeps the rest frames it was bound with. When an object moves relative to its armature
+after the bind, premat changes and so does the skinning transform S = premat @ P @ R^-1 @ premat^-1;
+the posed frame handed to the core is then S @ rest_frame_at_bind, which is what the bone frame
+became under the deformation that Blender actually applied.
+
+B-Bones. A bone with n > 1 B-Bone segments does not move its vertices with one matrix. The Armature
+modifier finds where a vertex lies along the bone (its rest position in armature space, projected on
+the bone's axis, or with the Curved mapping of Blender 4.2+ on the rest curve), that is a segment
+index i and a blend factor t, and moves it with the matrices of the segment joints i and i + 1,
+weighted (1 - t) and t (blenkernel's b_bone_deform). So the core is given one bone per joint,
+n + 1 for such a bone, with the vertex's weight on the bone split the same way: plain linear (or
+dual quaternion) skinning of those joints is then exactly Blender's deformation, which is what the
+core's contract asks for (lvp.h, lvp_correct). Each joint is a region, measured in its own frame,
+so a curved B-Bone is measured along its curve. A joint's frame is pose_bone.matrix @
+bbone_segment_matrix(i) (rest: bone.matrix_local @ bbone_segment_matrix(i, rest=True)); its
+segment for the organic map's distances is the whole bone, from head to tail.
+
+The split uses the base mesh, as bound. Shape keys or modifiers before the Armature modifier that
+slide a vertex along a B-Bone change Blender's split slightly, which the binding does not follow.
+"""
+
+import math
+from array import array
+
+from mathutils import Vector
+
+from . import mesh_data
+
+PLAIN = -1  # the joint of a core bone that is a whole bone (no B-Bone segments)
+
+
+def armature_space_to_mesh_space(mesh_object, armature_object):
+    """premat = mesh_world^-1 @ armature_world (see the top of this file)."""
+    return mesh_object.matrix_world.inverted_safe() @ armature_object.matrix_world
+
+
+def deforming_bone_names(mesh_object, armature_object):
+    """Names of the armature's deforming bones that have a vertex group on the mesh object, in the
+    armature's bone order. These are the bones that are bound."""
+    group_names = {group.name for group in mesh_object.vertex_groups}
+    return [bone.name for bone in armature_object.data.bones if bone.use_deform and bone.name in group_names]
+
+
+def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
+    """(rest_matrices float32[16B], heads float32[3B], tails float32[3B]) of whole bones, in mesh space."""
+    premat = armature_space_to_mesh_space(mesh_object, armature_object)
+    bones = armature_object.data.bones
+    rest_matrices = mesh_data.float_array(16 * len(bone_names))
+    heads = mesh_data.float_array(3 * len(bone_names))
+    tails = mesh_data.float_array(3 * len(bone_names))
+    for index, name in enumerate(bone_names):
+        bone = bones[name]
+        mesh_data.flatten_matrix(premat @ bone.matrix_local, rest_matrices, 16 * index)
+        heads[3 * index:3 * index + 3] = array('f', premat @ Vector(bone.head_local))
+        tails[3 * index:3 * index + 3] = array('f', premat @ Vector(bone.tail_local))
+    return rest_matrices, heads, tails
+
+
+def _segments(bone):
+    """B-Bone segments the Armature modifier deforms with (1: the bone moves as one)."""
+    return max(1, bone.bbone_segments)
+
+
+def _mapping(bone):
+    """'STRAIGHT' or 'CURVED' (Blender 4.2+): how a vertex is placed along a B-Bone."""
+    return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
+
+
+def _segment_matrix(pose_bone, joint, rest):
+    """A B-Bone joint's matrix in the bone's space (RuntimeError when the pose's B-Bone segments were
+    not evaluated since the segment count changed)."""
+    return pose_bone.bbone_segment_matrix(joint, rest=rest)
+
+
+def straight_segment(head_tail, segments):
+    """(index, blend) of a point at head_tail along a B-Bone (0 at the head, 1 at the tail), as
+    blenkernel's BKE_pchan_bbone_deform_clamp_segment_index computes it."""
+    head_tail = min(max(head_tail, 0.0), 1.0)
+    position = head_tail * segments
+    index = min(max(int(math.floor(position)), 0), segments - 1)
+    blend = min(max(position - index, 0.0), 1.0)
+    return index, blend
+
+
+class CoreSkeleton:
+    """The bones given to the core for one binding, read at bind time.
+
+    bone_names are the bound bones (deforming, with a vertex group). bones has one (name, joint)
+    per core bone: joint is PLAIN for a whole bone, 0..n for the joints of a B-Bone of n segments.
+    Raises RuntimeError when a B-Bone's segments have not been evaluated yet.
+    """
+
+    def __init__(self, mesh_object, armature_object, bone_names, pose=None):
+        """pose: the pose to read the B-Bones' rest joints from (the evaluated armature's, when the
+        original's has not been evaluated); the armature object's own by default."""
+        self.bone_names = list(bone_names)
+        data_bones = armature_object.data.bones
+        pose_bones = (pose or armature_object.pose).bones
+        premat = armature_space_to_mesh_space(mesh_object, armature_object)
+        self.segments = {name: _segments(data_bones[name]) for name in bone_names}
+        self.mappings = {name: _mapping(data_bones[name]) for name in bone_names}
+        self.bones = []
+        self.first_core_bone = {}
+        # Per core bone: the rest frame in armature space (R, or R @ joint rest) and its inverse.
+        self._rest_armature = []
+        for name in bone_names:
+            self.first_core_bone[name] = len(self.bones)
+            bone = data_bones[name]
+            segments = self.segments[name]
+            if segments == 1:
+                self.bones.append((name, PLAIN))
+                self._rest_armature.append(bone.matrix_local.copy())
+                continue
+            for joint in range(segments + 1):
+                self.bones.append((name, joint))
+                self._rest_armature.append(bone.matrix_local @ _segment_matrix(pose_bones[name], joint, True))
+        self._rest_armature_inverse = [matrix.inverted_safe() for matrix in self._rest_armature]
+        # Rest frames in mesh space at bind (see the top of this file).
+        self.rest_frames = [premat @ matrix for matrix in self._rest_armature]
+        self._bound_premat_inverse = premat.inverted_safe()
+        self._head_tail = {}
+        for name in bone_names:
+            bone = data_bones[name]
+            self._head_tail[name] = (premat @ Vector(bone.head_local), premat @ Vector(bone.tail_local))
+
+    @property
+    def core_bone_count(self):
+        return len(self.bones)
+
+    @property
+    def has_bbones(self):
+        return len(self.bones) != len(self.bone_names)
+
+    def region_name(self, region):
+        """How the panel names a core bone's region."""
+        if not 0 <= region < len(self.bones):
+            return str(region)
+        name, joint = self.bones[region]
+        if joint == PLAIN:
+            return name
+        return "%s (B-Bone joint %d of %d)" % (name, joint, self.segments[name])
+
+    def core_bones_of(self, name):
+        """Indices of the core bones that stand for the bone called name (empty when not bound)."""
+        first = self.first_core_bone.get(name)
+        if first is None:
+            return []
+        count = 1 if self.segments[name] == 1 else self.segments[name] + 1
+        return list(range(first, first + count))
+
+    def bone_index(self, region):
+        """Index in bone_names of the bone a core bone belongs to."""
+        return self.bone_names.index(self.bones[region][0])
+
+    def rest_arrays(self):
+        """(rest_matrices float32[16C], heads float32[3C], tails float32[3C]) of the core bones, in mesh
+        space. A B-Bone's joints all have the whole bone as their segment."""
+        count = len(self.bones)
+        rest_matrices = mesh_data.float_array(16 * count)
+        heads = mesh_data.float_array(3 * count)
+        tails = mesh_data.float_array(3 * count)
+        for index, (name, _joint) in enumerate(self.bones):
+            mesh_data.flatten_matrix(self.rest_frames[index], rest_matrices, 16 * index)
+            head, tail = self._head_tail[name]
+            heads[3 * index:3 * index + 3] = array('f', head)
+            tails[3 * index:3 * index + 3] = array('f', tail)
+        return rest_matrices, heads, tails
+
+    def split_weights(self, pose, positions, offsets, bones, values):
+        """Weights over bone_names (compressed rows, see mesh_data.weights_csr) -> weights over the core
+        bones: a B-Bone's weight split over the two joints Blender blends for the vertex at positions
+        (the bound rest, mesh space). pose: as for __init__."""
+        if not self.has_bbones:
+            return offsets, bones, values
+        pose_bones = pose.bones
+        bound_premat_inverse = self._bound_premat_inverse
+        # Per bone index: None for a whole bone; else (first core bone, segments, the row of the
+        # mesh-to-bone-rest transform that gives the distance along the bone, its length, pose bone
+        # when the mapping is curved).
+        plans = []
+        for name in self.bone_names:
+            segments = self.segments[name]
+            if segments == 1:
+                plans.append((self.first_core_bone[name], None))
+                continue
+            bone = pose_bones[name].bone
+            to_bone = bone.matrix_local.inverted_safe() @ bound_premat_inverse
+            curved = pose_bones[name] if self.mappings[name] == 'CURVED' else None
+            plans.append((self.first_core_bone[name], (segments, to_bone[1], bone.length, curved)))
+        new_offsets = mesh_data.int_array(len(offsets))
+        new_bones = array('i')
+        new_values = array('f')
+        for vertex in range(len(offsets) - 1):
+            x, y, z = positions[3 * vertex], positions[3 * vertex + 1], positions[3 * vertex + 2]
+            for entry in range(offsets[vertex], offsets[vertex + 1]):
+                first, bbone = plans[bones[entry]]
+                weight = values[entry]
+                if bbone is None:
+                    new_bones.append(first)
+                    new_values.append(weight)
+                    continue
+                segments, row, length, curved = bbone
+                if curved is not None:
+                    point = bound_premat_inverse @ Vector((x, y, z))
+                    index, blend = curved.bbone_segment_index(point)
+                else:
+                    along = row[0] * x + row[1] * y + row[2] * z + row[3]
+                    index, blend = straight_segment(along / length if length > 0.0 else 0.0, segments)
+                if blend < 1.0:
+                    new_bones.append(first + index)
+                    new_values.append(weight * (1.0 - blend))
+                if blend > 0.0:
+                    new_bones.append(first + index + 1)
+                    new_values.append(weight * blend)
+            new_offsets[vertex + 1] = len(new_bones)
+        return new_offsets, new_bones, new_values
+
+    def changed(self, armature_object):
+        """Why the armature no longer matches this skeleton (a bound bone gone, its B-Bone segments or
+        mapping changed), or None."""
+        data_bones = armature_object.data.bones
+        for name in self.bone_names:
+            bone = data_bones.get(name)
+            if bone is None:
+                return "the bound bone %r is missing from %s" % (name, armature_object.name)
+            if _segments(bone) != self.segments[name]:
+                return "the B-Bone segments of %r changed since the bind" % name
+            if _mapping(bone) != self.mappings[name]:
+                return "the B-Bone vertex mapping of %r changed since the bind" % name
+        return None
+
+    def posed_matrices(self, out, mesh_object, armature_object):
+        """Writes the posed core bone frames (float32[16C]) into out.
+
+        mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
+        corrected (their matrices and pose are those of the frame being evaluated). Returns None, or
+        why the frames cannot be given (then "Rebind needed" is what the user should do).
+        """
+        reason = self.changed(armature_object)
+        if reason is not None:
+            return reason
+        premat = armature_space_to_mesh_space(mesh_object, armature_object)
+        premat_inverse = premat.inverted_safe()
+        pose_bones = armature_object.pose.bones
+        for index, (name, joint) in enumerate(self.bones):
+            pose_bone = pose_bones.get(name)
+            if pose_bone is None:
+                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
+            posed = pose_bone.matrix
+            if joint != PLAIN:
+                try:
+                    posed = posed @ _segment_matrix(pose_bone, joint, False)
+                except RuntimeError:
+                    return "the B-Bone segments of %r are not evaluated" % name
+            skinning = premat @ posed @ self._rest_armature_inverse[index] @ premat_inverse
+            mesh_data.flatten_matrix(skinning @ self.rest_frames[index], out, 16 * index)
+        return None

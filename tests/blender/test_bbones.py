@@ -12,6 +12,8 @@ curve both bones into the bend, under an armature and a mesh object that are mov
 scaled.
 """
 
+import json
+import os
 from array import array
 
 import bpy
@@ -20,6 +22,34 @@ from mathutils import Euler, Matrix
 import lvp_helpers as helpers
 
 SEGMENTS = 4
+
+# A fresh Blender opens the file saved at rest, renders frame 10 (the add-on binds from the render's
+# depsgraph), then shows frame 10 in the viewport's.
+CHILD_RENDER_THEN_SHOW = """
+import bpy, json, sys
+sys.path.insert(0, {here!r})
+import lvp_helpers
+addon = lvp_helpers.enable_addon()
+obj = bpy.data.objects[{name!r}]
+result = {{}}
+def after_render(*_arguments):
+    bound = addon.bindings.entry(obj)
+    result["render_stats"] = dict(bound.stats) if bound is not None and bound.stats else None
+    result["render_status"] = list(addon.bindings.status(obj) or [])
+bpy.app.handlers.render_post.append(after_render)
+scene = bpy.context.scene
+scene.render.engine = 'CYCLES'
+scene.cycles.samples = 1
+scene.cycles.device = 'CPU'
+scene.cycles.use_denoising = False
+scene.render.resolution_x = scene.render.resolution_y = 8
+scene.frame_current = 10
+bpy.ops.render.render()
+scene.frame_set(10)
+result["shown"] = list(lvp_helpers.evaluated_positions(obj))
+with open({out!r}, "w") as file:
+    json.dump(result, file)
+"""
 
 
 class BBoneTestCase(helpers.AddonTestCase):
@@ -126,6 +156,36 @@ class TestBBones(BBoneTestCase):
         corrected = helpers.relative_volume_error(helpers.evaluated_positions(self.obj), self.triangles,
                                                   self.rest_volume)
         self.assertSmallerThan(corrected, 1e-3, "corrected volume error after Bind")
+
+    def test_render_and_reopen_in_a_fresh_blender(self):
+        """A farm machine: the file saved at rest, rendered at the bent frame by another Blender."""
+        directory = helpers.fresh_directory("bbones")
+        path = os.path.join(directory, "bbones.blend")
+        camera = helpers.link(bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera")))
+        camera.location = (10.0, 0.0, 2.0)
+        self.scene.camera = camera
+        self.scene.frame_set(10)
+        shown = helpers.evaluated_positions(self.obj)
+        plain_volume = helpers.volume(helpers.uncorrected_positions(self.obj), self.triangles)
+        self.scene.frame_set(1)
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+        out = os.path.join(directory, "result.json")
+        script = os.path.join(directory, "child.py")
+        with open(script, "w") as file:
+            file.write(CHILD_RENDER_THEN_SHOW.format(here=helpers.HERE, name=self.obj.name, out=out))
+        completed = helpers.run_blender([path, "--python", script])
+        self.assertEqual(completed.returncode, 0, completed.stdout[-4000:])
+        with open(out) as file:
+            result = json.load(file)
+        stats = result["render_stats"]
+        self.assertIsNotNone(stats, "no correction in the render (status %r)" % result["render_status"])
+        self.assertEqual(result["render_status"][0], 'INFO', result["render_status"])
+        self.assertSmallerThan(abs(stats["volume_before"] - plain_volume) / plain_volume, 1e-6,
+                               "the render's volume before correction against Blender's plain skinning")
+        self.assertSmallerThan(abs(stats["volume_after"] - self.rest_volume) / self.rest_volume, 1e-3,
+                               "the render's corrected volume")
+        self.assertSmallerThan(helpers.max_distance(array('f', result["shown"]), shown), 1e-5,
+                               "frame 10 in the fresh Blender against this one")
 
     def test_segmentation_display_shows_the_joints(self):
         self.obj.lvp.display = 'SEGMENTATION'

@@ -130,6 +130,8 @@ class CoreSkeleton:
         # Rest frames in mesh space at bind (see the top of this file).
         self.rest_frames = [premat @ matrix for matrix in self._rest_armature]
         self._bound_premat_inverse = premat.inverted_safe()
+        self._to_bind_premat = None  # see _posed_to_bind_frames
+        self._to_bind = None
         self._head_tail = {}
         for name in bone_names:
             bone = data_bones[name]
@@ -252,18 +254,34 @@ class CoreSkeleton:
         if reason is not None:
             return reason
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
-        premat_inverse = premat.inverted_safe()
+        to_bind = self._posed_to_bind_frames(premat)
         pose_bones = armature_object.pose.bones
+        pose_bone, posed_bone = None, None
+        values = []
         for index, (name, joint) in enumerate(self.bones):
-            pose_bone = pose_bones.get(name)
-            if pose_bone is None:
-                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
-            posed = pose_bone.matrix
+            if pose_bone is None or pose_bone.name != name:
+                pose_bone = pose_bones.get(name)
+                if pose_bone is None:
+                    return "the bound bone %r has no pose in %s" % (name, armature_object.name)
+                posed_bone = premat @ pose_bone.matrix
+            posed = posed_bone
             if joint != PLAIN:
                 try:
                     posed = posed @ _segment_matrix(pose_bone, joint, False)
                 except RuntimeError:
                     return "the B-Bone segments of %r are not evaluated" % name
-            skinning = premat @ posed @ self._rest_armature_inverse[index] @ premat_inverse
-            mesh_data.flatten_matrix(skinning @ self.rest_frames[index], out, 16 * index)
+            for row in posed @ to_bind[index]:
+                values.extend(row)
+        out[:] = array('f', values)
         return None
+
+    def _posed_to_bind_frames(self, premat):
+        """Per core bone, F^-1 @ premat^-1 @ rest_frame_at_bind, with F its rest frame in armature space:
+        premat @ posed @ this is the posed frame S @ rest_frame_at_bind (the top of this file). The
+        identity while the object has not moved against its armature since the bind; cached per premat."""
+        if self._to_bind_premat != premat:
+            premat_inverse = premat.inverted_safe()
+            self._to_bind = [inverse @ premat_inverse @ rest for inverse, rest in
+                             zip(self._rest_armature_inverse, self.rest_frames)]
+            self._to_bind_premat = premat.copy()
+        return self._to_bind

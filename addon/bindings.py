@@ -173,7 +173,7 @@ def map_arguments(obj, settings, core_skeleton):
     else:  # ORGANIC, and GLOBAL, which uses the organic map over one region
         arguments["map"] = 'ORGANIC'
     restrictions = [item for item in settings.region_restrictions if item.region.strip()]
-    if restrictions and core_skeleton.bone_names:
+    if (restrictions or core_skeleton.still_bone is not None) and core_skeleton.bone_names:
         # Restrictions name bones; a B-Bone is several core bones (its joints), all restricted alike.
         per_region = [[] for _ in range(core_skeleton.core_bone_count)]
         for item in restrictions:
@@ -191,6 +191,11 @@ def map_arguments(obj, settings, core_skeleton):
                                     "on %s" % (item.region, name, obj.name))
                 for region in regions:
                     per_region[region].extend(bone for bone in allowed if bone not in per_region[region])
+        if core_skeleton.still_bone is not None:
+            # The still bone is no bone: distances go to the real ones only (skeleton.py).
+            for region_bones in per_region:
+                if not region_bones:
+                    region_bones.extend(core_skeleton.real_core_bones)
         offsets = mesh_data.int_array(len(per_region) + 1)
         bones = mesh_data.int_array(0)
         for region, region_bones in enumerate(per_region):
@@ -201,19 +206,22 @@ def map_arguments(obj, settings, core_skeleton):
     return arguments
 
 
-def _core_skeleton(obj, armature_object, bone_names, depsgraph, positions, weights):
-    """(CoreSkeleton of obj's bound bones, weights split over its core bones). B-Bone joints are read
-    from the armature's pose, which Blender fills when it evaluates the armature: from the evaluated
-    armature of depsgraph when given (a render's depsgraph), else from the original, which the
-    viewport's evaluation fills."""
+def _core_skeleton(obj, armature_modifier, armature_object, bone_names, depsgraph, positions, weights):
+    """(CoreSkeleton of obj's bound bones, weights over its core bones: B-Bone weights split over
+    their joints, the Armature modifier's mask applied). B-Bone joints are read from the armature's
+    pose, which Blender fills when it evaluates the armature: from the evaluated armature of depsgraph
+    when given (a render's depsgraph), else from the original, which the viewport's evaluation fills."""
+    mask = skeleton.armature_mask(obj, armature_modifier)
+    mask_values = mesh_data.vertex_group_values(obj, mask[0]) if mask is not None else None
     poses = []
     if depsgraph is not None:
         poses.append(armature_object.evaluated_get(depsgraph).pose)
     poses.append(armature_object.pose)
     for pose in poses:
         try:
-            core_skeleton = skeleton.CoreSkeleton(obj, armature_object, bone_names, pose)
-            return core_skeleton, core_skeleton.split_weights(pose, positions, *weights)
+            core_skeleton = skeleton.CoreSkeleton(obj, armature_object, bone_names, pose, mask)
+            split = core_skeleton.split_weights(pose, positions, *weights)
+            return core_skeleton, core_skeleton.apply_mask(mask_values, *split)
         except RuntimeError:
             continue
     raise BindError("The B-Bone segments of %s have not been evaluated yet: change frame or pose a bone, then "
@@ -227,7 +235,7 @@ def bind(obj, depsgraph=None):
     depsgraph: the one being evaluated, when binding from a handler.
     """
     settings = obj.lvp
-    _armature_modifier, armature_object = armature_of(obj)
+    armature_modifier, armature_object = armature_of(obj)
     bone_names = skeleton.deforming_bone_names(obj, armature_object)
     if not bone_names:
         raise BindError("No vertex group of %s matches a deforming bone of %s: weight the mesh (Ctrl+P > With "
@@ -242,8 +250,8 @@ def bind(obj, depsgraph=None):
     if len(values) == 0:
         raise BindError("The vertex groups of %s that match deforming bones of %s are empty: weight the mesh "
                         "first" % (obj.name, armature_object.name))
-    core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_object, bone_names, depsgraph, positions,
-                                                            (offsets, bones, values))
+    core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_modifier, armature_object, bone_names,
+                                                            depsgraph, positions, (offsets, bones, values))
     rest_matrices, heads, tails = core_skeleton.rest_arrays()
     mode = mode_of(settings)
     try:

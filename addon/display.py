@@ -24,6 +24,8 @@ def region_color(region, core_skeleton):
     if region < 0:
         return NO_REGION_COLOR
     bone = core_skeleton.bone_index(region)
+    if bone < 0:  # the still bone: what the Armature modifier does not move
+        return NO_REGION_COLOR
     joint = core_skeleton.bones[region][1]
     value = 0.6 if joint != skeleton.PLAIN and joint % 2 == 1 else 0.95
     hue = (bone * 0.618033988749895) % 1.0

@@ -28,6 +28,7 @@ from . import display
 from . import mesh_data
 from . import names
 from . import node_group
+from . import skeleton
 
 
 def same_values(first, second):
@@ -263,6 +264,10 @@ def correct_object(obj, depsgraph, check_topology=False):
                             % armature_modifier.name)
         return write_zero_offsets(mesh, bound)
 
+    if skeleton.armature_mask(obj, armature_modifier) != bound.skeleton.mask:
+        bindings.set_status(obj, 'ERROR', "Rebind needed: the vertex group of the Armature modifier %r changed since "
+                                          "the bind (press Bind)" % armature_modifier.name)
+        return write_zero_offsets(mesh, bound)
     obj_eval = obj.evaluated_get(depsgraph)
     armature_eval = armature_object.evaluated_get(depsgraph)
     problem = evaluated_problem(obj, depsgraph, bound)

@@ -29,6 +29,13 @@ segment for the organic map's distances is the whole bone, from head to tail.
 
 The split uses the base mesh, as bound. Shape keys or modifiers before the Armature modifier that
 slide a vertex along a B-Bone change Blender's split slightly, which the binding does not follow.
+
+The Armature modifier's Vertex Group (a mask). With one, the modifier moves a vertex only by its
+mask weight m (1 - m when inverted): co + m * (skinned - co), and not at all where m is 0. That is
+skinning with one more bone that never moves, weighted 1 - m, the bones' normalized weights scaled
+by m. The core is given that bone (the "still" bone, last, its frame the identity in mesh space),
+so that its input is still plain skinning of its bones. It is a point at the origin and takes no
+part in the organic map's distances (every region's distance term is restricted to the real bones).
 """
 
 import math
@@ -39,6 +46,16 @@ from mathutils import Vector
 from . import mesh_data
 
 PLAIN = -1  # the joint of a core bone that is a whole bone (no B-Bone segments)
+STILL = -2  # the joint of the still bone (the Armature modifier's vertex group, see above)
+
+
+def armature_mask(mesh_object, armature_modifier):
+    """(vertex group name, inverted) when the Armature modifier limits itself to a vertex group of
+    the mesh object, else None (a name that is not a group of the object limits nothing)."""
+    name = armature_modifier.vertex_group
+    if not name or mesh_object.vertex_groups.get(name) is None:
+        return None
+    return (name, bool(armature_modifier.invert_vertex_group))
 
 
 def armature_space_to_mesh_space(mesh_object, armature_object):
@@ -66,6 +83,9 @@ def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
         heads[3 * index:3 * index + 3] = array('f', premat @ Vector(bone.head_local))
         tails[3 * index:3 * index + 3] = array('f', premat @ Vector(bone.tail_local))
     return rest_matrices, heads, tails
+
+
+_IDENTITY = array('f', (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0))
 
 
 def _segments(bone):
@@ -98,14 +118,17 @@ class CoreSkeleton:
     """The bones given to the core for one binding, read at bind time.
 
     bone_names are the bound bones (deforming, with a vertex group). bones has one (name, joint)
-    per core bone: joint is PLAIN for a whole bone, 0..n for the joints of a B-Bone of n segments.
+    per core bone: joint is PLAIN for a whole bone, 0..n for the joints of a B-Bone of n segments,
+    and STILL (name None) for the still bone, last, when the Armature modifier has a mask.
     Raises RuntimeError when a B-Bone's segments have not been evaluated yet.
     """
 
-    def __init__(self, mesh_object, armature_object, bone_names, pose=None):
+    def __init__(self, mesh_object, armature_object, bone_names, pose=None, mask=None):
         """pose: the pose to read the B-Bones' rest joints from (the evaluated armature's, when the
-        original's has not been evaluated); the armature object's own by default."""
+        original's has not been evaluated); the armature object's own by default. mask: the Armature
+        modifier's (armature_mask())."""
         self.bone_names = list(bone_names)
+        self.mask = mask
         data_bones = armature_object.data.bones
         pose_bones = (pose or armature_object.pose).bones
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
@@ -129,6 +152,10 @@ class CoreSkeleton:
         self._rest_armature_inverse = [matrix.inverted_safe() for matrix in self._rest_armature]
         # Rest frames in mesh space at bind (see the top of this file).
         self.rest_frames = [premat @ matrix for matrix in self._rest_armature]
+        self.still_bone = None
+        if mask is not None:
+            self.still_bone = len(self.bones)
+            self.bones.append((None, STILL))
         self._bound_premat_inverse = premat.inverted_safe()
         self._to_bind_premat = None  # see _posed_to_bind_frames
         self._to_bind = None
@@ -143,13 +170,20 @@ class CoreSkeleton:
 
     @property
     def has_bbones(self):
-        return len(self.bones) != len(self.bone_names)
+        return any(segments > 1 for segments in self.segments.values())
+
+    @property
+    def real_core_bones(self):
+        """Indices of the core bones that are bones (all but the still bone)."""
+        return list(range(len(self.bones) if self.still_bone is None else self.still_bone))
 
     def region_name(self, region):
         """How the panel names a core bone's region."""
         if not 0 <= region < len(self.bones):
             return str(region)
         name, joint = self.bones[region]
+        if joint == STILL:
+            return "kept still by the Armature modifier's vertex group %r" % self.mask[0]
         if joint == PLAIN:
             return name
         return "%s (B-Bone joint %d of %d)" % (name, joint, self.segments[name])
@@ -163,8 +197,9 @@ class CoreSkeleton:
         return list(range(first, first + count))
 
     def bone_index(self, region):
-        """Index in bone_names of the bone a core bone belongs to."""
-        return self.bone_names.index(self.bones[region][0])
+        """Index in bone_names of the bone a core bone belongs to (-1 for the still bone)."""
+        name = self.bones[region][0]
+        return -1 if name is None else self.bone_names.index(name)
 
     def rest_arrays(self):
         """(rest_matrices float32[16C], heads float32[3C], tails float32[3C]) of the core bones, in mesh
@@ -173,7 +208,10 @@ class CoreSkeleton:
         rest_matrices = mesh_data.float_array(16 * count)
         heads = mesh_data.float_array(3 * count)
         tails = mesh_data.float_array(3 * count)
-        for index, (name, _joint) in enumerate(self.bones):
+        for index, (name, joint) in enumerate(self.bones):
+            if joint == STILL:  # the identity, a point at the origin
+                rest_matrices[16 * index:16 * index + 16] = _IDENTITY
+                continue
             mesh_data.flatten_matrix(self.rest_frames[index], rest_matrices, 16 * index)
             head, tail = self._head_tail[name]
             heads[3 * index:3 * index + 3] = array('f', head)
@@ -229,6 +267,33 @@ class CoreSkeleton:
             new_offsets[vertex + 1] = len(new_bones)
         return new_offsets, new_bones, new_values
 
+    def apply_mask(self, mask_values, offsets, bones, values):
+        """Weights over the core bones -> the same with the Armature modifier's mask: per vertex, the
+        weights normalized and scaled by the mask weight m, and 1 - m on the still bone. mask_values:
+        the mask group's weight per vertex (0 outside it), not yet inverted."""
+        if self.still_bone is None:
+            return offsets, bones, values
+        inverted = self.mask[1]
+        still = self.still_bone
+        new_offsets = mesh_data.int_array(len(offsets))
+        new_bones = array('i')
+        new_values = array('f')
+        for vertex in range(len(offsets) - 1):
+            mask = mask_values[vertex]
+            mask = min(max(1.0 - mask if inverted else mask, 0.0), 1.0)
+            begin, end = offsets[vertex], offsets[vertex + 1]
+            total = sum(values[begin:end])
+            if total > 0.0 and mask > 0.0:
+                scale = mask / total
+                new_bones.extend(bones[begin:end])
+                new_values.extend(value * scale for value in values[begin:end])
+            if mask < 1.0 or total <= 0.0:
+                # Where nothing moves it (no weight, or m = 0), Blender leaves the vertex as it is.
+                new_bones.append(still)
+                new_values.append(1.0 - mask if total > 0.0 else 1.0)
+            new_offsets[vertex + 1] = len(new_bones)
+        return new_offsets, new_bones, new_values
+
     def changed(self, armature_object):
         """Why the armature no longer matches this skeleton (a bound bone gone, its B-Bone segments or
         mapping changed), or None."""
@@ -259,6 +324,9 @@ class CoreSkeleton:
         pose_bone, posed_bone = None, None
         values = []
         for index, (name, joint) in enumerate(self.bones):
+            if joint == STILL:
+                values.extend(_IDENTITY)
+                continue
             if pose_bone is None or pose_bone.name != name:
                 pose_bone = pose_bones.get(name)
                 if pose_bone is None:

@@ -15,7 +15,7 @@ import unittest
 from array import array
 
 import bpy
-from mathutils import Quaternion, Vector
+from mathutils import Matrix, Quaternion, Vector
 
 ADDON_ID = "local_volume_preservation"
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -328,6 +328,31 @@ def max_distance(a, b):
 def vertex_distances(a, b):
     return [math.sqrt((a[i] - b[i]) ** 2 + (a[i + 1] - b[i + 1]) ** 2 + (a[i + 2] - b[i + 2]) ** 2)
             for i in range(0, len(a), 3)]
+
+
+def core_skinned_positions(obj, rig, dual_quaternion=False):
+    """The object's rest mesh skinned by the core (lvp_skin_linear or _dual_quaternion) with what the
+    add-on gave it at the last frame it corrected: its bones (B-Bone joints, the still bone of the
+    Armature modifier's mask) and their weights. lvp_correct() requires this to be what the Armature
+    modifier made (lvp.h), float32[3N]."""
+    addon = enable_addon()
+    bound = addon.bindings.entry(obj)
+    core_skeleton = bound.skeleton
+    mesh_data = addon.mesh_data
+    rest = mesh_data.vertex_positions(obj.data)
+    weights = core_skeleton.split_weights(rig.pose, rest, *mesh_data.weights_csr(obj, core_skeleton.bone_names))
+    if core_skeleton.mask is not None:
+        weights = core_skeleton.apply_mask(mesh_data.vertex_group_values(obj, core_skeleton.mask[0]), *weights)
+    rest_matrices, _heads, _tails = core_skeleton.rest_arrays()
+    skin_matrices = array('f', bytes(64 * core_skeleton.core_bone_count))
+    for index in range(core_skeleton.core_bone_count):
+        posed = Matrix([bound.bone_matrices[16 * index + 4 * row:16 * index + 4 * row + 4] for row in range(4)])
+        resting = Matrix([rest_matrices[16 * index + 4 * row:16 * index + 4 * row + 4] for row in range(4)])
+        mesh_data.flatten_matrix(posed @ resting.inverted(), skin_matrices, 16 * index)
+    skinned = array('f', bytes(4 * len(rest)))
+    skinning = lvp().skin_dual_quaternion if dual_quaternion else lvp().skin_linear
+    skinning(skinned, rest, *weights, skin_matrices)
+    return skinned
 
 
 def uncorrected_positions(obj, depsgraph=None):

@@ -92,22 +92,8 @@ class BBoneTestCase(helpers.AddonTestCase):
         gave: the input lvp_correct() requires (lvp.h)."""
         self.scene.frame_set(10)
         bound = self.bound()
-        core_skeleton = bound.skeleton
-        self.assertEqual(core_skeleton.core_bone_count, 2 * (SEGMENTS + 1))
-        mesh_data = self.addon.mesh_data
-        rest = mesh_data.vertex_positions(self.obj.data)
-        weights = core_skeleton.split_weights(self.rig.pose, rest,
-                                              *mesh_data.weights_csr(self.obj, core_skeleton.bone_names))
-        rest_matrices, _heads, _tails = core_skeleton.rest_arrays()
-        skin_matrices = array('f', bytes(64 * core_skeleton.core_bone_count))
-        for index in range(core_skeleton.core_bone_count):
-            posed = Matrix([bound.bone_matrices[16 * index + 4 * row:16 * index + 4 * row + 4] for row in range(4)])
-            resting = Matrix([rest_matrices[16 * index + 4 * row:16 * index + 4 * row + 4] for row in range(4)])
-            mesh_data.flatten_matrix(posed @ resting.inverted(), skin_matrices, 16 * index)
-        skinned = array('f', bytes(4 * len(rest)))
-        lvp = helpers.lvp()
-        skinning = lvp.skin_dual_quaternion if self.preserve_volume else lvp.skin_linear
-        skinning(skinned, rest, *weights, skin_matrices)
+        self.assertEqual(bound.skeleton.core_bone_count, 2 * (SEGMENTS + 1))
+        skinned = helpers.core_skinned_positions(self.obj, self.rig, dual_quaternion=self.preserve_volume)
         plain = helpers.uncorrected_positions(self.obj)
         self.assertSmallerThan(helpers.max_distance(skinned, plain), 1e-5, "core skinning vs the Armature modifier")
         # And the core measured the volume Blender shows.

@@ -58,6 +58,7 @@ class BoundObject:
         self.mapping_checked = None         # (final vertex count, stack signature) whose index range was checked
         self.stats = None                   # the last frame's statistics (dict from Binding.correct)
         self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
+        self.unweighted_vertices = 0        # vertices without weight on a bound bone
 
     def close(self):
         if self.binding is not None:
@@ -236,6 +237,9 @@ def bind(obj, depsgraph=None):
     """
     settings = obj.lvp
     armature_modifier, armature_object = armature_of(obj)
+    unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
+    if unfollowed is not None:
+        raise BindError("Cannot bind %s: %s" % (obj.name, unfollowed))
     bone_names = skeleton.deforming_bone_names(obj, armature_object)
     if not bone_names:
         raise BindError("No vertex group of %s matches a deforming bone of %s: weight the mesh (Ctrl+P > With "
@@ -250,6 +254,7 @@ def bind(obj, depsgraph=None):
     if len(values) == 0:
         raise BindError("The vertex groups of %s that match deforming bones of %s are empty: weight the mesh "
                         "first" % (obj.name, armature_object.name))
+    unweighted = sum(1 for vertex in range(len(offsets) - 1) if offsets[vertex] == offsets[vertex + 1])
     core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_modifier, armature_object, bone_names,
                                                             depsgraph, positions, (offsets, bones, values))
     rest_matrices, heads, tails = core_skeleton.rest_arrays()
@@ -268,6 +273,7 @@ def bind(obj, depsgraph=None):
     bound = BoundObject(binding, core_skeleton, len(mesh.vertices), mesh_data.topology_signature(mesh),
                         settings.bind_id, map_key(settings), mode)
     bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
+    bound.unweighted_vertices = unweighted
     return bound
 
 

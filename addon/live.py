@@ -264,6 +264,10 @@ def correct_object(obj, depsgraph, check_topology=False):
                             % armature_modifier.name)
         return write_zero_offsets(mesh, bound)
 
+    unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
+    if unfollowed is not None:
+        bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
+        return write_zero_offsets(mesh, bound)
     if skeleton.armature_mask(obj, armature_modifier) != bound.skeleton.mask:
         bindings.set_status(obj, 'ERROR', "Rebind needed: the vertex group of the Armature modifier %r changed since "
                                           "the bind (press Bind)" % armature_modifier.name)
@@ -307,6 +311,11 @@ def correct_object(obj, depsgraph, check_topology=False):
         warnings.append("the bind does not see %s before the Armature modifier: the volume aimed at is the mesh's "
                         "without it (apply it, or move it after Volume Preservation)"
                         % ", ".join("%r" % modifier.name for modifier in unseen))
+    if armature_modifier.use_bone_envelopes and bound.unweighted_vertices:
+        # Blender moves vertices without vertex group weight by the bones' envelopes; the core does
+        # not correct them (they are in no region), but measures them where Blender put them.
+        warnings.append("%d vertices without weights move by bone envelopes, which the correction leaves alone "
+                        "(weight them, or turn off Bind To: Bone Envelopes)" % bound.unweighted_vertices)
     flipped = bound.binding.flipped_edge_count
     if flipped:
         warnings.append("%d edges join faces whose normals point opposite ways, where the correction is weak or "

@@ -49,6 +49,14 @@ PLAIN = -1  # the joint of a core bone that is a whole bone (no B-Bone segments)
 STILL = -2  # the joint of the still bone (the Armature modifier's vertex group, see above)
 
 
+def unfollowed_armature_setting(armature_modifier):
+    """Why the Armature modifier's settings keep Volume Preservation from following it, or None."""
+    if not armature_modifier.use_vertex_groups:
+        return ("the Armature modifier %r does not bind to vertex groups (Bind To: Vertex Groups is off), and Volume "
+                "Preservation follows their weights: turn it on" % armature_modifier.name)
+    return None
+
+
 def armature_mask(mesh_object, armature_modifier):
     """(vertex group name, inverted) when the Armature modifier limits itself to a vertex group of
     the mesh object, else None (a name that is not a group of the object limits nothing)."""

@@ -20,6 +20,7 @@ import bpy
 from mathutils import Euler, Matrix
 
 import lvp_helpers as helpers
+from test_live import CylinderTestCase
 
 SEGMENTS = 4
 
@@ -52,15 +53,12 @@ with open({out!r}, "w") as file:
 """
 
 
-class BBoneTestCase(helpers.AddonTestCase):
+class BBoneTestCase(CylinderTestCase):
     """The tube at rest at frame 1, bent 90 degrees at frame 10, with Volume Preservation."""
 
-    preserve_volume = False
     curved_rest = False
 
-    def setUp(self):
-        super().setUp()
-        self.obj, self.rig = helpers.make_cylinder_character("Tube", preserve_volume=self.preserve_volume)
+    def prepare_character(self):
         self.rig.location = (1.0, 2.0, 3.0)
         self.rig.rotation_euler = Euler((0.3, 0.2, 0.1))
         self.rig.scale = (1.5, 1.5, 1.5)
@@ -75,12 +73,6 @@ class BBoneTestCase(helpers.AddonTestCase):
         if self.curved_rest:
             for bone in self.rig.data.bones:
                 bone.bbone_mapping_mode = 'CURVED'
-        helpers.keyframe_bend(self.rig, {1: 0.0, 10: 90.0})
-        self.scene = bpy.context.scene
-        self.scene.frame_set(1)
-        self.triangles = helpers.mesh_triangles(self.obj.data)
-        self.rest_volume = helpers.volume(helpers.mesh_positions(self.obj.data), self.triangles)
-        self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
 
     def bound(self):
         bound = self.addon.bindings.entry(self.obj)

@@ -26,12 +26,16 @@ class CylinderTestCase(helpers.AddonTestCase):
     def setUp(self):
         super().setUp()
         self.obj, self.rig = helpers.make_cylinder_character(preserve_volume=self.preserve_volume)
+        self.prepare_character()
         helpers.keyframe_bend(self.rig, {1: 0.0, 10: 90.0})
         self.scene = bpy.context.scene
         self.scene.frame_set(1)
         self.triangles = helpers.mesh_triangles(self.obj.data)
         self.rest_volume = helpers.volume(helpers.mesh_positions(self.obj.data), self.triangles)
         self.assertEqual(helpers.add_volume_preservation(self.obj), {'FINISHED'})
+
+    def prepare_character(self):
+        """Changes a subclass makes to the cylinder or its rig before they are animated and bound."""
 
     def errors_at_current_frame(self, obj=None):
         """(corrected, plain) relative volume errors of the evaluated mesh."""

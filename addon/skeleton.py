@@ -194,7 +194,7 @@ class CoreSkeleton:
             return "kept still by the Armature modifier's vertex group %r" % self.mask[0]
         if joint == PLAIN:
             return name
-        return "%s (B-Bone joint %d of %d)" % (name, joint, self.segments[name])
+        return "%s (B-Bone joint %d of 0-%d)" % (name, joint, self.segments[name])
 
     def core_bones_of(self, name):
         """Indices of the core bones that stand for the bone called name (empty when not bound)."""

@@ -116,7 +116,7 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
                                  _percent((stats["volume_after"] - rest) / rest)))
         worst = stats["worst_region"]
         if worst >= 0:
-            name = "whole mesh" if stats.get("mode") == 'GLOBAL' else stats["worst_region_name"]
+            name = "whole mesh" if stats.get("mode") == 'GLOBAL' else stats.get("worst_region_name", str(worst))
             box.label(text="Worst region %s: %s before, %s after"
                            % (name, _percent(stats["worst_region_change_before"]),
                               _percent(stats["worst_region_change_after"])))

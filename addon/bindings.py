@@ -213,7 +213,6 @@ def _core_skeleton(obj, armature_modifier, armature_object, bone_names, depsgrap
     pose, which Blender fills when it evaluates the armature: from the evaluated armature of depsgraph
     when given (a render's depsgraph), else from the original, which the viewport's evaluation fills."""
     mask = skeleton.armature_mask(obj, armature_modifier)
-    mask_values = mesh_data.vertex_group_values(obj, mask[0]) if mask is not None else None
     poses = []
     if depsgraph is not None:
         poses.append(armature_object.evaluated_get(depsgraph).pose)
@@ -221,8 +220,7 @@ def _core_skeleton(obj, armature_modifier, armature_object, bone_names, depsgrap
     for pose in poses:
         try:
             core_skeleton = skeleton.CoreSkeleton(obj, armature_object, bone_names, pose, mask)
-            split = core_skeleton.split_weights(pose, positions, *weights)
-            return core_skeleton, core_skeleton.apply_mask(mask_values, *split)
+            return core_skeleton, core_skeleton.core_weights(obj, pose, positions, *weights)
         except RuntimeError:
             continue
     raise BindError("The B-Bone segments of %s have not been evaluated yet: change frame or pose a bone, then "

@@ -275,6 +275,15 @@ class CoreSkeleton:
             new_offsets[vertex + 1] = len(new_bones)
         return new_offsets, new_bones, new_values
 
+    def core_weights(self, mesh_object, pose, positions, offsets, bones, values):
+        """Weights over bone_names (mesh_data.weights_csr) -> the weights the core is given: B-Bone
+        weights split over their joints (split_weights), then the Armature modifier's mask applied
+        (apply_mask, with the mask group's weights read from mesh_object)."""
+        offsets, bones, values = self.split_weights(pose, positions, offsets, bones, values)
+        if self.mask is None:
+            return offsets, bones, values
+        return self.apply_mask(mesh_data.vertex_group_values(mesh_object, self.mask[0]), offsets, bones, values)
+
     def apply_mask(self, mask_values, offsets, bones, values):
         """Weights over the core bones -> the same with the Armature modifier's mask: per vertex, the
         weights normalized and scaled by the mask weight m, and 1 - m on the still bone. mask_values:

@@ -340,9 +340,7 @@ def core_skinned_positions(obj, rig, dual_quaternion=False):
     core_skeleton = bound.skeleton
     mesh_data = addon.mesh_data
     rest = mesh_data.vertex_positions(obj.data)
-    weights = core_skeleton.split_weights(rig.pose, rest, *mesh_data.weights_csr(obj, core_skeleton.bone_names))
-    if core_skeleton.mask is not None:
-        weights = core_skeleton.apply_mask(mesh_data.vertex_group_values(obj, core_skeleton.mask[0]), *weights)
+    weights = core_skeleton.core_weights(obj, rig.pose, rest, *mesh_data.weights_csr(obj, core_skeleton.bone_names))
     rest_matrices, _heads, _tails = core_skeleton.rest_arrays()
     skin_matrices = array('f', bytes(64 * core_skeleton.core_bone_count))
     for index in range(core_skeleton.core_bone_count):

@@ -6,15 +6,20 @@ be saved in a .blend file, so the file keeps only a bind record on the object (O
 and Object.lvp.topology_signature), and the Binding is rebuilt from the mesh, its weights and the
 armature the first time the handlers need it after a file load or an undo: no user action.
 
-When the mesh's topology no longer matches the record (vertices added or removed after the bind,
-or reconnected), nothing is rebuilt: the modifier passes the mesh through and the panel says
-"rebind needed". The Bind operator makes a new record.
+The binding follows what it was made of, as a reopened file or a render farm would bind it: when the
+weights, the rest mesh, the Armature modifier's mask, the bound bones or their rest pose change, the
+object is bound again under the same record (live.py, _follow_changes; in the interface once the
+changes pause). When the mesh's topology no longer matches the record (vertices added or removed
+after the bind, or reconnected), nothing is rebuilt: the modifier passes the mesh through and the
+panel says "rebind needed". The Bind operator makes a new record.
 
 Entries are keyed by (object name, bind id): renaming an object or duplicating it gives a new key,
 and the new key gets its own binding the next time it is needed.
 """
 
+import hashlib
 import os
+import time
 import uuid
 
 import bpy
@@ -59,6 +64,9 @@ class BoundObject:
         self.stats = None                   # the last frame's statistics (dict from Binding.correct)
         self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
         self.unweighted_vertices = 0        # vertices without weight on a bound bone
+        self.digests = {}                   # BindInputs.digests of what this binding was made of
+        self.inputs_changed_at = None       # time.monotonic() of a change to the mesh not yet checked
+        self.rebound_because = None         # why this binding replaced an earlier one of the same record
 
     def close(self):
         if self.binding is not None:
@@ -112,6 +120,21 @@ def forget_written():
         bound.rest_state = None
 
 
+def note_mesh_changed(obj, at_once=False):
+    """Someone else changed obj's mesh (an edit, a weight stroke, a script, undo): a correction reads
+    its weights and rest mesh again (live.py, _follow_changes), once the changes paused, or the next
+    one when at_once."""
+    bound = entry(obj)
+    if bound is not None:
+        bound.inputs_changed_at = float("-inf") if at_once else time.monotonic()
+
+
+def unchecked_mesh_changes():
+    """(object name, time.monotonic() of the change) of the bindings with a mesh change not yet checked."""
+    return [(key[0], bound.inputs_changed_at) for key, bound in _entries.items()
+            if bound.inputs_changed_at is not None]
+
+
 def prune(objects):
     """Drops cached bindings whose object is gone or has been bound again (after undo, delete...)."""
     live = set()
@@ -145,6 +168,47 @@ def armature_of(obj):
     return armature_modifier, armature_object
 
 
+def _digest(*parts):
+    hasher = hashlib.blake2b(digest_size=16)
+    for part in parts:
+        hasher.update(part if isinstance(part, bytes) else part.tobytes())
+    return hasher.digest()
+
+
+class BindInputs:
+    """What a binding is made of, read from the object as it is now: the rest mesh, the bound bones
+    (deforming, with a vertex group) and their weights, the Armature modifier's mask weights, the
+    painted map. The weights are read by a Python loop over the vertices (about 70 ms for 100k
+    vertices with two weights each), so this is read when binding and when someone else changed the
+    mesh, never per frame.
+
+    digests: a hash per part ("rest mesh", "weights", "painted map"), to tell whether a binding is
+    still made of the object's data (changed_parts)."""
+
+    def __init__(self, obj, armature_modifier, armature_object):
+        mesh = obj.data
+        self.bone_names = skeleton.deforming_bone_names(obj, armature_object)
+        self.positions = mesh_data.vertex_positions(mesh)
+        self.weights = mesh_data.weights_csr(obj, self.bone_names)
+        self.mask = skeleton.armature_mask(obj, armature_modifier)
+        self.mask_values = mesh_data.vertex_group_values(obj, self.mask[0]) if self.mask is not None else None
+        settings = obj.lvp
+        self.painted_values = None
+        if settings.effect == 'PAINTED':
+            self.painted_values = mesh_data.vertex_group_values(obj, settings.painted_vertex_group)
+        self.digests = {
+            "rest mesh": _digest(self.positions),
+            "weights": _digest("\n".join(self.bone_names).encode(), *self.weights,
+                               self.mask_values if self.mask_values is not None else b""),
+            "painted map": _digest(self.painted_values if self.painted_values is not None else b""),
+        }
+
+    def changed_parts(self, bound):
+        """The parts whose digest differs from the ones bound was made of, in a fixed order."""
+        return [part for part in ("weights", "rest mesh", "painted map")
+                if bound.digests.get(part) != self.digests[part]]
+
+
 def map_key(settings):
     """Everything in the settings that the binding's map depends on."""
     restrictions = tuple((item.region, item.bones) for item in settings.region_restrictions)
@@ -156,14 +220,18 @@ def mode_of(settings):
     return 'GLOBAL' if settings.effect == 'GLOBAL' else 'LOCAL'
 
 
-def map_arguments(obj, settings, core_skeleton):
-    """Keyword arguments of Binding() / Binding.set_map() for the object's settings.
+def map_arguments(obj, settings, core_skeleton, inputs=None):
+    """Keyword arguments of Binding() / Binding.set_map() for the object's settings. inputs: a
+    BindInputs just read (its painted map is used), else the painted map is read from obj.
 
     Raises BindError when the settings cannot be used (a missing painted vertex group).
     """
     arguments = {"alpha": float(settings.alpha), "beta": float(settings.beta)}
     if settings.effect == 'PAINTED':
-        values = mesh_data.vertex_group_values(obj, settings.painted_vertex_group)
+        if inputs is not None:
+            values = inputs.painted_values
+        else:
+            values = mesh_data.vertex_group_values(obj, settings.painted_vertex_group)
         if values is None:
             raise BindError("The Painted effect needs a vertex group: pick one in Painted Map (object %s has "
                             "no vertex group %r)" % (obj.name, settings.painted_vertex_group))
@@ -207,38 +275,41 @@ def map_arguments(obj, settings, core_skeleton):
     return arguments
 
 
-def _core_skeleton(obj, armature_modifier, armature_object, bone_names, depsgraph, positions, weights):
+def _core_skeleton(obj, armature_object, depsgraph, inputs):
     """(CoreSkeleton of obj's bound bones, weights over its core bones: B-Bone weights split over
     their joints, the Armature modifier's mask applied). B-Bone joints are read from the armature's
     pose, which Blender fills when it evaluates the armature: from the evaluated armature of depsgraph
     when given (a render's depsgraph), else from the original, which the viewport's evaluation fills."""
-    mask = skeleton.armature_mask(obj, armature_modifier)
     poses = []
     if depsgraph is not None:
         poses.append(armature_object.evaluated_get(depsgraph).pose)
     poses.append(armature_object.pose)
     for pose in poses:
         try:
-            core_skeleton = skeleton.CoreSkeleton(obj, armature_object, bone_names, pose, mask)
-            return core_skeleton, core_skeleton.core_weights(obj, pose, positions, *weights)
+            core_skeleton = skeleton.CoreSkeleton(obj, armature_object, inputs.bone_names, pose, inputs.mask)
+            return core_skeleton, core_skeleton.core_weights(obj, pose, inputs.positions, *inputs.weights,
+                                                             mask_values=inputs.mask_values)
         except RuntimeError:
             continue
     raise BindError("The B-Bone segments of %s have not been evaluated yet: change frame or pose a bone, then "
                     "Bind again" % armature_object.name)
 
 
-def bind(obj, depsgraph=None):
+def bind(obj, depsgraph=None, inputs=None):
     """Builds a BoundObject from the object's current mesh, weights, armature rest pose and settings.
 
     Changes no Blender data. Raises BindError (with what to fix) when the object cannot be bound.
-    depsgraph: the one being evaluated, when binding from a handler.
+    depsgraph: the one being evaluated, when binding from a handler. inputs: a BindInputs of obj
+    just read (else it is read here).
     """
     settings = obj.lvp
     armature_modifier, armature_object = armature_of(obj)
     unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
     if unfollowed is not None:
         raise BindError("Cannot bind %s: %s" % (obj.name, unfollowed))
-    bone_names = skeleton.deforming_bone_names(obj, armature_object)
+    if inputs is None:
+        inputs = BindInputs(obj, armature_modifier, armature_object)
+    bone_names = inputs.bone_names
     if not bone_names:
         raise BindError("No vertex group of %s matches a deforming bone of %s: weight the mesh (Ctrl+P > With "
                         "Automatic Weights, or Local Volume Preservation's Auto Weights) first"
@@ -246,20 +317,19 @@ def bind(obj, depsgraph=None):
     mesh = obj.data
     if len(mesh.vertices) == 0 or len(mesh.polygons) == 0:
         raise BindError("%s has no faces: Volume Preservation needs a surface mesh" % obj.name)
-    positions = mesh_data.vertex_positions(mesh)
+    positions = inputs.positions
     triangles = mesh_data.loop_triangles(mesh)
-    offsets, bones, values = mesh_data.weights_csr(obj, bone_names)
+    offsets, bones, values = inputs.weights
     if len(values) == 0:
         raise BindError("The vertex groups of %s that match deforming bones of %s are empty: weight the mesh "
                         "first" % (obj.name, armature_object.name))
     unweighted = sum(1 for vertex in range(len(offsets) - 1) if offsets[vertex] == offsets[vertex + 1])
-    core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_modifier, armature_object, bone_names,
-                                                            depsgraph, positions, (offsets, bones, values))
+    core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_object, depsgraph, inputs)
     rest_matrices, heads, tails = core_skeleton.rest_arrays()
     mode = mode_of(settings)
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
-                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton))
+                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton, inputs))
     except ValueError as error:
         message = str(error)
         if "closed" in message:
@@ -272,6 +342,7 @@ def bind(obj, depsgraph=None):
                         settings.bind_id, map_key(settings), mode)
     bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
     bound.unweighted_vertices = unweighted
+    bound.digests = inputs.digests
     return bound
 
 
@@ -329,16 +400,7 @@ def refresh_map(obj, bound, depsgraph=None):
     if key == bound.map_key:
         return bound
     if mode_of(settings) != bound.mode:
-        try:
-            rebound = bind(obj, depsgraph)
-        except BindError as error:
-            set_status(obj, 'ERROR', str(error))
-            return None
-        rebound.bind_id = bound.bind_id
-        _entries.pop((obj.name_full, bound.bind_id), None)
-        bound.close()
-        _entries[(obj.name_full, rebound.bind_id)] = rebound
-        return rebound
+        return rebind(obj, bound, depsgraph)
     try:
         bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton))
     except (BindError, ValueError) as error:
@@ -346,3 +408,21 @@ def refresh_map(obj, bound, depsgraph=None):
         return None
     bound.map_key = key
     return bound
+
+
+def rebind(obj, bound, depsgraph=None, reason=None, inputs=None):
+    """Replaces bound by a new binding of obj's current data under the same bind record: what a
+    reopened file would bind. reason: why (kept as rebound_because, which the panel shows); inputs:
+    a BindInputs of obj just read. Returns the new BoundObject, or None with the status set when
+    obj cannot be bound any more (the old binding is dropped either way)."""
+    _entries.pop((obj.name_full, bound.bind_id), None)
+    bound.close()
+    try:
+        rebound = bind(obj, depsgraph, inputs)
+    except BindError as error:
+        set_status(obj, 'ERROR', str(error))
+        return None
+    rebound.bind_id = bound.bind_id
+    rebound.rebound_because = reason
+    _entries[(obj.name_full, rebound.bind_id)] = rebound
+    return rebound

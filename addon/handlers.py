@@ -19,6 +19,9 @@
   poses. The offsets are zeroed in the original meshes just before writing and put back right
   after, without tagging anything, so the session never shows the difference. Opened again with the
   add-on, load_post corrects the frame the file opens on, with no user action.
+- a timer for changes to meshes: the correction reads the weights and the rest mesh again (binding
+  the object again when they changed) once the changes paused (live.CHECK_PAUSE: in the interface,
+  and during the strokes of Weight Paint Mode); the timer then has those objects corrected again.
 - render_init: renders started from the interface run in a thread; handlers that write data then
   need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
   data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
@@ -27,6 +30,7 @@
 Every handler is guarded against re-entrancy and never lets an exception escape into Blender.
 """
 
+import time
 import traceback
 
 import bpy
@@ -37,6 +41,8 @@ from . import live
 from . import node_group
 
 _busy = False
+# object name -> the mesh change after which after_mesh_changes() tagged it (once per change).
+_tagged_after_changes = {}
 # Set when a render from the interface started without Lock Interface (shown by the panel).
 render_without_lock = False
 
@@ -80,6 +86,40 @@ def _correct(objects, depsgraph, check_topology=()):
                                                   "through")
     finally:
         _busy = False
+    if any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
+            not bpy.app.timers.is_registered(after_mesh_changes):
+        bpy.app.timers.register(after_mesh_changes, first_interval=live.CHECK_PAUSE)
+
+
+def _unchecked_changes():
+    """(object, time of the change, seconds left until the changes count as paused) for the objects
+    whose mesh changed since their weights and rest mesh were last read (bindings.note_mesh_changed)."""
+    now = time.monotonic()
+    found = []
+    for name, changed_at in bindings.unchecked_mesh_changes():
+        obj = bpy.data.objects.get(name)
+        if obj is not None:
+            found.append((obj, changed_at, live.CHECK_PAUSE - (now - changed_at)))
+    return found
+
+
+def after_mesh_changes():
+    """Timer: once the changes to a mesh paused for live.CHECK_PAUSE, its object is corrected again,
+    which reads the weights and the rest mesh and binds again when they changed. Returns when to
+    come back, or None. Each change is tagged once: an object whose correction does not run (in
+    Edit Mode, its modifier hidden) is not tagged again and again. The tag is the object's
+    transform's, which brings the handlers without evaluating its modifiers again."""
+    waits = []
+    try:
+        for obj, changed_at, left in _unchecked_changes():
+            if left > 0.0:
+                waits.append(left)
+            elif _tagged_after_changes.get(obj.name_full) != changed_at:
+                _tagged_after_changes[obj.name_full] = changed_at
+                obj.update_tag(refresh={'OBJECT'})
+    except Exception:
+        traceback.print_exc()
+    return max(min(waits), 0.05) if waits else None
 
 
 @persistent
@@ -123,6 +163,7 @@ def depsgraph_update_post(scene, depsgraph=None):
 def load_post(*_arguments):
     global render_without_lock
     bindings.clear()
+    _tagged_after_changes.clear()
     render_without_lock = False
     node_group.repair_modifiers(bpy.data.objects)
     if not any(obj.type == 'MESH' and node_group.find_modifier(obj) is not None for obj in bpy.data.objects):
@@ -199,6 +240,11 @@ def save_post(*_arguments):
 def render_init(scene, *_arguments):
     global render_without_lock
     render_without_lock = not bpy.app.background and not scene.render.use_lock_interface
+    # A script may have changed weights or the rest mesh without any update since (the interface
+    # always makes one): the first frame rendered reads them again (once, not per frame).
+    for obj in scene.objects:
+        if obj.type == 'MESH':
+            bindings.note_mesh_changed(obj, at_once=True)
 
 
 HANDLERS = (
@@ -227,6 +273,8 @@ def register():
 
 
 def unregister():
+    if bpy.app.timers.is_registered(after_mesh_changes):
+        bpy.app.timers.unregister(after_mesh_changes)
     for name, function in HANDLERS:
         handler_list = getattr(bpy.app.handlers, name, None)
         if handler_list is not None and function in handler_list:

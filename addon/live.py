@@ -19,6 +19,7 @@ why. With GPU subdivision in the viewport, the CPU mesh is not subdivided at all
 """
 
 import threading
+import time
 from array import array
 
 import bpy
@@ -198,6 +199,49 @@ def other_corrected_users(obj):
             if other.users and other.data == mesh and other != obj and node_group.find_modifier(other) is not None]
 
 
+# Blender reports the mesh as changed for much more than new weights or a new rest mesh (a selection,
+# a shape key's value, a modifier shown or hidden), and reading the weights takes a Python loop over the
+# vertices (75-100 ms for 100k). So in the interface, and in Weight Paint Mode, where every stroke
+# changes the mesh, they are read again only once the changes paused for this long (handlers.py's
+# timer then has the object corrected again); in background Blender, where scripts expect each update
+# to be complete, at once.
+CHECK_PAUSE = 0.4
+
+
+def _check_waits(obj, changed_at):
+    """Whether reading obj's weights and rest mesh again waits for changes to pause (CHECK_PAUSE)."""
+    interactive = obj.mode == 'WEIGHT_PAINT' or not bpy.app.background
+    return interactive and time.monotonic() - changed_at < CHECK_PAUSE
+
+
+def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):
+    """bound, or a new binding of obj when what bound was made of changed since: what a reopened file
+    or a render farm would bind, so that the viewport shows what they will. None when obj cannot be
+    bound any more (the status says why).
+
+    Checked every frame (cheap): the armature, the Armature modifier's mask group, the bound bones
+    and their rest pose and B-Bone settings. Checked when someone else changed the mesh
+    (bindings.note_mesh_changed), once the changes paused (CHECK_PAUSE): the weights, the rest mesh,
+    the painted map. A changed painted map alone only refreshes the map.
+    """
+    reason = bound.skeleton.changed(obj, armature_object, skeleton.armature_mask(obj, armature_modifier))
+    inputs = None
+    if reason is None and bound.inputs_changed_at is not None:
+        if _check_waits(obj, bound.inputs_changed_at):
+            return bound
+        bound.inputs_changed_at = None
+        inputs = bindings.BindInputs(obj, armature_modifier, armature_object)
+        parts = inputs.changed_parts(bound)
+        if parts == ["painted map"]:
+            bound.map_key = None  # refresh_map sets the map again
+            bound.digests = inputs.digests
+        elif parts:
+            reason = "the %s changed" % " and the ".join(parts)
+    if reason is None:
+        return bound
+    return bindings.rebind(obj, bound, depsgraph, reason, inputs)
+
+
 def is_main_thread():
     return threading.current_thread() is threading.main_thread()
 
@@ -210,6 +254,9 @@ def correct_object(obj, depsgraph, check_topology=False):
     modifier = node_group.find_modifier(obj)
     if modifier is None:
         return False
+    if check_topology:
+        # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
+        bindings.note_mesh_changed(obj)
     mesh = obj.data
     if mesh.library is not None or getattr(mesh, "override_library", None) is not None:
         bindings.set_status(obj, 'WARNING', "The mesh is linked from a library: its volume cannot be corrected "
@@ -241,13 +288,6 @@ def correct_object(obj, depsgraph, check_topology=False):
         return write_zero_offsets(mesh)
     if check_topology:
         bound.written = None  # the mesh was changed by someone else: read the attribute back once
-    previous_map = bound.map_key
-    bound = bindings.refresh_map(obj, bound, depsgraph)
-    if bound is None:
-        return write_zero_offsets(mesh)
-    if bound.map_key != previous_map and obj.lvp.display == 'CORRECTION_MAP' and is_main_thread():
-        display.update_display(obj)  # the colours follow alpha, beta and the effect
-
     if node_group.count_modifiers(obj) > 1:
         # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has more than one Volume Preservation "
@@ -268,10 +308,17 @@ def correct_object(obj, depsgraph, check_topology=False):
     if unfollowed is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
         return write_zero_offsets(mesh, bound)
-    if skeleton.armature_mask(obj, armature_modifier) != bound.skeleton.mask:
-        bindings.set_status(obj, 'ERROR', "Rebind needed: the vertex group of the Armature modifier %r changed since "
-                                          "the bind (press Bind)" % armature_modifier.name)
-        return write_zero_offsets(mesh, bound)
+    previous_bound, previous_map = bound, bound.map_key
+    bound = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+    if bound is None:
+        return write_zero_offsets(mesh)
+    bound = bindings.refresh_map(obj, bound, depsgraph)
+    if bound is None:
+        return write_zero_offsets(mesh)
+    if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
+                             obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
+        display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
+
     obj_eval = obj.evaluated_get(depsgraph)
     armature_eval = armature_object.evaluated_get(depsgraph)
     problem = evaluated_problem(obj, depsgraph, bound)
@@ -280,7 +327,7 @@ def correct_object(obj, depsgraph, check_topology=False):
         return write_zero_offsets(mesh, bound)
     skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
     if skeleton_problem is not None:
-        bindings.set_status(obj, 'ERROR', "Rebind needed: %s (press Bind)" % skeleton_problem)
+        bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
         return write_zero_offsets(mesh, bound)
 
     rest_positions = None
@@ -322,6 +369,11 @@ def correct_object(obj, depsgraph, check_topology=False):
                         "missing (Edit Mode > Mesh > Normals > Recalculate Outside, then Bind)" % flipped)
     if warnings:
         bindings.set_status(obj, 'WARNING', "Correcting, but " + "; and ".join(warnings))
+    elif bound.inputs_changed_at is not None:
+        bindings.set_status(obj, 'INFO', "Correcting (the weights and the rest mesh are read again when the changes "
+                                         "pause)")
+    elif bound.rebound_because is not None:
+        bindings.set_status(obj, 'INFO', "Correcting (bound again by itself: %s)" % bound.rebound_because)
     else:
         bindings.set_status(obj, 'INFO', "Correcting")
     return write_offsets(mesh, bound.offsets, bound)

@@ -13,7 +13,9 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 def _settings_changed(settings, context):
     obj = settings.id_data
     if isinstance(obj, bpy.types.Object):
-        obj.update_tag()
+        # The transform's tag brings the handlers without evaluating the modifiers again, and does
+        # not report the mesh as changed (which would have its weights read again, live.py).
+        obj.update_tag(refresh={'OBJECT'})
 
 
 def _display_changed(settings, context):

@@ -137,7 +137,11 @@ class CoreSkeleton:
         modifier's (armature_mask())."""
         self.bone_names = list(bone_names)
         self.mask = mask
+        self.armature_name = armature_object.name_full
         data_bones = armature_object.data.bones
+        # The rest pose as bound (armature space), to tell when it is edited.
+        self._rest_bones = {name: (data_bones[name].matrix_local.copy(), data_bones[name].tail_local.copy())
+                            for name in bone_names}
         pose_bones = (pose or armature_object.pose).bones
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         self.segments = {name: _segments(data_bones[name]) for name in bone_names}
@@ -275,14 +279,16 @@ class CoreSkeleton:
             new_offsets[vertex + 1] = len(new_bones)
         return new_offsets, new_bones, new_values
 
-    def core_weights(self, mesh_object, pose, positions, offsets, bones, values):
+    def core_weights(self, mesh_object, pose, positions, offsets, bones, values, mask_values=None):
         """Weights over bone_names (mesh_data.weights_csr) -> the weights the core is given: B-Bone
         weights split over their joints (split_weights), then the Armature modifier's mask applied
-        (apply_mask, with the mask group's weights read from mesh_object)."""
+        (apply_mask, with the mask group's weights mask_values, read from mesh_object when None)."""
         offsets, bones, values = self.split_weights(pose, positions, offsets, bones, values)
         if self.mask is None:
             return offsets, bones, values
-        return self.apply_mask(mesh_data.vertex_group_values(mesh_object, self.mask[0]), offsets, bones, values)
+        if mask_values is None:
+            mask_values = mesh_data.vertex_group_values(mesh_object, self.mask[0])
+        return self.apply_mask(mask_values, offsets, bones, values)
 
     def apply_mask(self, mask_values, offsets, bones, values):
         """Weights over the core bones -> the same with the Armature modifier's mask: per vertex, the
@@ -311,30 +317,36 @@ class CoreSkeleton:
             new_offsets[vertex + 1] = len(new_bones)
         return new_offsets, new_bones, new_values
 
-    def changed(self, armature_object):
-        """Why the armature no longer matches this skeleton (a bound bone gone, its B-Bone segments or
-        mapping changed), or None."""
+    def changed(self, mesh_object, armature_object, mask):
+        """Why mesh_object's Armature modifier, following armature_object with mask (armature_mask()),
+        no longer deforms with this skeleton, or None. Cheap enough for every frame (a walk over the
+        armature's bones): the armature, the mask group, the bound bones (deforming, with a vertex
+        group), their rest pose and B-Bone segments and mapping."""
+        if armature_object.name_full != self.armature_name:
+            return "the Armature modifier follows %s instead of %s" % (armature_object.name, self.armature_name)
+        if mask != self.mask:
+            return "the vertex group of the Armature modifier changed"
+        if deforming_bone_names(mesh_object, armature_object) != self.bone_names:
+            return "the deforming bones with a vertex group changed"
         data_bones = armature_object.data.bones
         for name in self.bone_names:
-            bone = data_bones.get(name)
-            if bone is None:
-                return "the bound bone %r is missing from %s" % (name, armature_object.name)
+            bone = data_bones[name]
             if _segments(bone) != self.segments[name]:
-                return "the B-Bone segments of %r changed since the bind" % name
+                return "the B-Bone segments of %r changed" % name
             if _mapping(bone) != self.mappings[name]:
-                return "the B-Bone vertex mapping of %r changed since the bind" % name
+                return "the B-Bone vertex mapping of %r changed" % name
+            matrix_local, tail_local = self._rest_bones[name]
+            if bone.matrix_local != matrix_local or bone.tail_local != tail_local:
+                return "the rest pose of %r changed" % name
         return None
 
     def posed_matrices(self, out, mesh_object, armature_object):
         """Writes the posed core bone frames (float32[16C]) into out.
 
         mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
-        corrected (their matrices and pose are those of the frame being evaluated). Returns None, or
-        why the frames cannot be given (then "Rebind needed" is what the user should do).
+        corrected (their matrices and pose are those of the frame being evaluated), after changed()
+        found nothing. Returns None, or why the frames cannot be given.
         """
-        reason = self.changed(armature_object)
-        if reason is not None:
-            return reason
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         to_bind = self._posed_to_bind_frames(premat)
         pose_bones = armature_object.pose.bones

@@ -22,6 +22,7 @@ import time
 
 import bpy
 
+from .. import bindings
 from . import capture
 from . import pc2
 from .capture import BakeError
@@ -154,6 +155,10 @@ class Bake:
     def start(self):
         self._frame_before = (self.scene.frame_current, self.scene.frame_subframe)
         self.started = time.monotonic()
+        for target in self.targets:
+            # A script may have changed weights or the rest mesh without an update since: the first
+            # frame baked reads them again.
+            bindings.note_mesh_changed(target.reader.obj, at_once=True)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         capture.check_evaluated([target.reader.obj for target in self.targets], depsgraph)
 

@@ -79,14 +79,22 @@ class TestArmatureMask(MaskTestCase):
         self.scene.frame_set(10)
         self.obj.modifiers["Armature"].vertex_group = ""
         self.scene.frame_set(9)
-        self.assertStatusContains(self.obj, "Rebind needed: the vertex group of the Armature modifier")
-        self.assertEqual(helpers.max_abs(helpers.offsets_of(self.obj)), 0.0, "offsets while unbound")
-        helpers.select_only(self.obj)
-        self.assertEqual(bpy.ops.object.lvp_bind(), {'FINISHED'})
         self.scene.frame_set(10)
-        self.assertStatusContains(self.obj, "Correcting")
+        self.assertStatusContains(self.obj, "bound again by itself: the vertex group of the Armature modifier changed")
         self.assertIsNone(self.addon.bindings.entry(self.obj).skeleton.still_bone)
         self.assertCorrected(message="without the mask, bound again")
+
+    def test_mask_weights_painted_after_bind(self):
+        """The mask group is weights too: painted anew, the binding follows them."""
+        self.scene.frame_set(10)
+        group = self.obj.vertex_groups[MASK]
+        group.add([vertex.index for vertex in self.obj.data.vertices], 1.0, 'REPLACE')  # no vertex held still
+        bpy.context.view_layer.update()
+        self.assertStatusContains(self.obj, "bound again by itself: the weights changed")
+        self.assertSmallerThan(helpers.max_distance(helpers.core_skinned_positions(self.obj, self.rig),
+                                                    helpers.uncorrected_positions(self.obj)), 1e-5,
+                               "core skinning vs the Armature modifier")
+        self.assertCorrected(message="mask weights all 1, bound again")
 
 
 class TestInvertedArmatureMask(MaskTestCase):

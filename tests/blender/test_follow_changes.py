@@ -65,6 +65,24 @@ class TestFollowChanges(FollowTestCase):
         self.assertNotEqual(colors_before, colors_after, "the segmentation display follows")
         self.assertSameAsBindButton("followed vs Bind")
 
+    def test_undo_of_painted_weights(self):
+        self.scene.frame_set(10)
+        first = helpers.offsets_of(self.obj)
+        bpy.ops.ed.undo_push(message="before painting")
+        self.repaint_weights()
+        bpy.context.view_layer.update()
+        self.assertStatusContains(self.obj, "bound again by itself: the weights changed")
+        self.assertGreater(helpers.max_distance(first, helpers.offsets_of(self.obj)), 1e-3)
+        bpy.ops.ed.undo_push(message="painted")
+        bpy.ops.ed.undo()
+        bpy.context.view_layer.update()
+        self.obj = bpy.data.objects["Cylinder"]  # undo replaced the Python objects
+        self.rig = bpy.data.objects["CylinderRig"]
+        self.assertStatusContains(self.obj, "bound again by itself: the weights changed")
+        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier after undo")
+        self.assertSmallerThan(helpers.max_distance(first, helpers.offsets_of(self.obj)), 1e-6,
+                               "the correction of the weights before painting")
+
     def test_rest_mesh_edited(self):
         self.scene.frame_set(10)
         mesh = self.obj.data

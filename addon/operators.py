@@ -2,7 +2,8 @@
 """The add-on's operators. Scripts call these ids; keep them:
 
     object.lvp_add            bind the selected skinned meshes and add the modifier after Armature
-    object.lvp_bind           bind again after the weights or the rest mesh changed
+    object.lvp_bind           bind again after the topology changed (other changes are followed by
+                              themselves, live.py; the button does the same at once)
     object.lvp_remove         remove the modifier, its node group when unused, and its attributes
     object.lvp_auto_weights   skinning weights by the paper's method (5.1) into the bones' groups
 
@@ -164,7 +165,7 @@ modifier, so they keep their volume when joints bend"""
 
 
 class OBJECT_OT_lvp_bind(bpy.types.Operator):
-    """Bind the selected meshes again, after their weights, rest mesh, topology or rest pose changed"""
+    """Bind the selected meshes again, as needed after a topology change (others are followed by themselves)"""
 
     bl_idname = "object.lvp_bind"
     bl_label = "Bind"
@@ -172,7 +173,7 @@ class OBJECT_OT_lvp_bind(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        # Also in Weight Paint Mode, where rebinding after painting is most needed.
+        # Also in Weight Paint Mode, to bind the strokes at once rather than when painting pauses.
         return context.mode in {'OBJECT', 'PAINT_WEIGHT'} and bool(_target_objects(context))
 
     def execute(self, context):

@@ -6,8 +6,9 @@ by the bound bones and weights. An artist who paints weights, edits the rest mes
 pose breaks it until the object is bound again; a file reopened elsewhere binds the new data. So the
 add-on binds again by itself (live.py, _follow_changes): the armature's side is checked every
 frame, the weights and the rest mesh when someone else changed the mesh: at once in background
-Blender (these tests), once the changes pause in the interface and in Weight Paint Mode. Each test checks the contract against Blender's Armature modifier afterwards
-(helpers.core_skinned_positions), and that the result is the one the Bind button gives.
+Blender (these tests), once the changes pause in the interface and in Weight Paint Mode. Each test
+checks the contract against Blender's Armature modifier afterwards (helpers.core_skinned_positions),
+and that the result is the one the Bind button gives.
 """
 
 import time

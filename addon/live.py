@@ -188,6 +188,12 @@ def _shape_key_rest(obj, bound, mesh_changed):
     return bound.rest_positions if bound.rest_in_use else None
 
 
+def mesh_from_library(mesh):
+    """Whether mesh comes from a library (linked, or a library override): Blender ignores what add-ons
+    write into such a mesh, where the offsets live (object.lvp_make_mesh_local gives a local copy)."""
+    return mesh is not None and (mesh.library is not None or getattr(mesh, "override_library", None) is not None)
+
+
 def other_corrected_users(obj):
     """Other objects that use obj's mesh and carry Volume Preservation too (linked duplicates). The
     correction lives in the mesh, so it can be right for one of them only. Cheap when the mesh has a
@@ -258,9 +264,10 @@ def correct_object(obj, depsgraph, check_topology=False):
         # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
         bindings.note_mesh_changed(obj)
     mesh = obj.data
-    if mesh.library is not None or getattr(mesh, "override_library", None) is not None:
-        bindings.set_status(obj, 'WARNING', "The mesh is linked from a library: its volume cannot be corrected "
-                                            "here (make it local)")
+    if mesh_from_library(mesh):
+        bindings.set_status(obj, 'WARNING', "The mesh %r comes from a library (a library override keeps meshes "
+                                            "linked), and Blender ignores what add-ons write into it: press Make "
+                                            "Mesh Local to correct it here" % mesh.name)
         return False
     sharing = other_corrected_users(obj)
     if sharing:

@@ -6,6 +6,7 @@
                               themselves, live.py; the button does the same at once)
     object.lvp_remove         remove the modifier, its node group when unused, and its attributes
     object.lvp_auto_weights   skinning weights by the paper's method (5.1) into the bones' groups
+    object.lvp_make_mesh_local  a local copy of a linked mesh (characters brought in by library override)
 
 Every operator checks every selected object first and changes nothing when one of them is wrong:
 it reports an ERROR that says what is wrong and how to fix it.
@@ -68,7 +69,8 @@ def _meshes_to_process(objects):
 
 def _editable_error(obj, modes=('OBJECT',)):
     if obj.library is not None or obj.data.library is not None:
-        return "%s or its mesh is linked from a library: make it local first" % obj.name
+        return ("%s or its mesh is linked from a library: make it local first (for the mesh of a library override: "
+                "Make Mesh Local, in the Volume Preservation panel)" % obj.name)
     if obj.mode not in modes:
         return "%s is in %s: go back to Object Mode first" % (obj.name, obj.mode.replace("_", " ").title())
     return None
@@ -346,6 +348,42 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         return context.window_manager.invoke_props_dialog(self)
 
 
+class OBJECT_OT_lvp_make_mesh_local(bpy.types.Operator):
+    """Give each selected mesh object a local copy of its linked mesh, so that Volume Preservation can be \
+added and can correct it here. A library override keeps the character's meshes linked; the copy no longer \
+follows edits of the library's mesh"""
+
+    bl_idname = "object.lvp_make_mesh_local"
+    bl_label = "Make Mesh Local"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == 'OBJECT' and any(obj.type == 'MESH' and live.mesh_from_library(obj.data)
+                                                for obj in _target_objects(context))
+
+    def execute(self, context):
+        objects = [obj for obj in _target_objects(context) if obj.type == 'MESH' and live.mesh_from_library(obj.data)]
+        errors = []
+        if not objects:
+            errors.append("No selected mesh object has a linked mesh")
+        for obj in objects:
+            if obj.library is not None:
+                errors.append("%s itself is linked: make a library override of it first (Object > Library Override "
+                              "> Make)" % obj.name)
+        if errors:
+            _report_errors(self, errors)
+            return {'CANCELLED'}
+        for obj in objects:
+            # One copy per object: two instances of a character share the linked mesh, and each
+            # needs its own correction.
+            obj.data = obj.data.copy()
+            bindings.forget(obj)
+            _tag(obj)
+        self.report({'INFO'}, "Local meshes for %s" % ", ".join(obj.name for obj in objects))
+        return {'FINISHED'}
+
+
 class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):
     """Restrict the flesh of one region to chosen bones (e.g. the belly measured from the spine only)"""
 
@@ -393,6 +431,7 @@ classes = (
     OBJECT_OT_lvp_auto_weights,
     OBJECT_OT_lvp_region_restriction_add,
     OBJECT_OT_lvp_region_restriction_remove,
+    OBJECT_OT_lvp_make_mesh_local,
 )
 
 

@@ -12,8 +12,12 @@ import bpy
 import lvp_helpers as helpers
 
 
+ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
+
+
 class RecordingLayout:
-    """Stands in for bpy.types.UILayout: records labels, properties and operators."""
+    """Stands in for bpy.types.UILayout: records labels, properties and operators, and checks that
+    they and the icons exist in this Blender."""
 
     def __init__(self, test, record=None):
         self.test = test
@@ -28,14 +32,19 @@ class RecordingLayout:
 
     row = column = box = split = column_flow = _child
 
+    def _check_icon(self, icon):
+        self.test.assertIn(icon, ICONS, "no icon %r in this Blender" % icon)
+
     def label(self, text="", icon='NONE', **_keywords):
+        self._check_icon(icon)
         self.record["labels"].append(text)
 
     def _check_property(self, data, name):
         self.test.assertIn(name, data.bl_rna.properties.keys(), "%s has no property %r" % (data, name))
         self.record["props"].append(name)
 
-    def prop(self, data, name, **_keywords):
+    def prop(self, data, name, icon='NONE', **_keywords):
+        self._check_icon(icon)
         self._check_property(data, name)
         if not self.active:
             self.record["inactive"].append(name)  # drawn greyed out
@@ -44,7 +53,8 @@ class RecordingLayout:
         self._check_property(data, name)
         self.test.assertTrue(hasattr(search_data, search_name), search_name)
 
-    def operator(self, idname, **_keywords):
+    def operator(self, idname, icon='NONE', **_keywords):
+        self._check_icon(icon)
         category, name = idname.split(".")
         self.test.assertIn(name, dir(getattr(bpy.ops, category)), idname)
         self.record["operators"].append(idname)
@@ -56,17 +66,22 @@ class RecordingLayout:
         self._check_property(active_data, active_name)
 
 
+def draw_panel(test, obj):
+    """What the Volume Preservation panel draws for obj: {"labels", "props", "inactive", "operators"}."""
+    panel_type = bpy.types.LVP_PT_volume_preservation
+    context = types.SimpleNamespace(object=obj, scene=bpy.context.scene, screen=None)
+    test.assertTrue(panel_type.poll(context))
+    layout = RecordingLayout(test)
+    panel = types.SimpleNamespace(layout=layout, draw_statistics=None)
+    panel.draw_statistics = lambda *arguments: panel_type.draw_statistics(panel, *arguments)
+    panel_type.draw(panel, context)
+    return layout.record
+
+
 class TestPanel(helpers.AddonTestCase):
 
     def draw(self, obj):
-        panel_type = bpy.types.LVP_PT_volume_preservation
-        context = types.SimpleNamespace(object=obj, scene=bpy.context.scene, screen=None)
-        self.assertTrue(panel_type.poll(context))
-        layout = RecordingLayout(self)
-        panel = types.SimpleNamespace(layout=layout, draw_statistics=None)
-        panel.draw_statistics = lambda *arguments: panel_type.draw_statistics(panel, *arguments)
-        panel_type.draw(panel, context)
-        return layout.record
+        return draw_panel(self, obj)
 
     def test_without_modifier(self):
         obj, rig = helpers.make_cylinder_character()

@@ -41,6 +41,14 @@ class FollowTestCase(CylinderTestCase):
         self.scene.frame_set(self.scene.frame_current + 1)
         self.assertSmallerThan(helpers.max_distance(followed, helpers.offsets_of(self.obj)), 1e-6, message)
 
+    def assertFollowedNewWeights(self, before, message):
+        """Bound again by itself (no longer the binding before), nothing left to check, corrected."""
+        self.assertIsNot(self.bound(), before)
+        self.assertIsNone(self.addon.handlers.after_mesh_changes(), "nothing left to check")
+        self.assertStatusContains(self.obj, "Correcting (bound again by itself: the weights changed)")
+        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier, %s" % message)
+        self.assertCorrected(message=message)
+
     def repaint_weights(self):
         """Narrower weight bands, centred higher: another skinning, same groups."""
         for name in ("Lower", "Upper"):
@@ -57,11 +65,7 @@ class TestFollowChanges(FollowTestCase):
         colors_before = helpers._foreach(self.obj.data.attributes["lvp_segmentation"].data, "color", 4, 'f')
         self.repaint_weights()
         bpy.context.view_layer.update()
-        self.assertIsNot(self.bound(), before)
-        self.assertIsNone(self.addon.handlers.after_mesh_changes(), "nothing left to check")
-        self.assertStatusContains(self.obj, "Correcting (bound again by itself: the weights changed)")
-        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier, new weights")
-        self.assertCorrected(message="new weights")
+        self.assertFollowedNewWeights(before, "new weights")
         colors_after = helpers._foreach(self.obj.data.attributes["lvp_segmentation"].data, "color", 4, 'f')
         self.assertNotEqual(colors_before, colors_after, "the segmentation display follows")
         self.assertSameAsBindButton("followed vs Bind")
@@ -175,8 +179,4 @@ class TestWeightPaintMode(FollowTestCase):
         time.sleep(self.addon.live.CHECK_PAUSE)
         self.assertIsNone(self.addon.handlers.after_mesh_changes(), "the timer tagged the object and stops")
         bpy.context.view_layer.update()
-        self.assertIsNot(self.bound(), before)
-        self.assertIsNone(self.addon.handlers.after_mesh_changes(), "nothing left to check")
-        self.assertStatusContains(self.obj, "bound again by itself: the weights changed")
-        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier after painting")
-        self.assertCorrected(message="after painting")
+        self.assertFollowedNewWeights(before, "after painting")

@@ -86,7 +86,7 @@ def _correct(objects, depsgraph, check_topology=()):
                                                   "through")
     finally:
         _busy = False
-    if any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
+    if live.is_main_thread() and any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
             not bpy.app.timers.is_registered(after_mesh_changes):
         bpy.app.timers.register(after_mesh_changes, first_interval=live.CHECK_PAUSE)
 

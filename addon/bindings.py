@@ -392,17 +392,18 @@ def ensure(obj, depsgraph=None):
     return bound
 
 
-def refresh_map(obj, bound, depsgraph=None):
+def refresh_map(obj, bound, depsgraph=None, inputs=None):
     """Applies changed map settings to the binding. Returns the BoundObject to use (a new one when the
-    effect switched between local and global), or None with the status set when it cannot be done."""
+    effect switched between local and global), or None with the status set when it cannot be done.
+    inputs: a BindInputs of obj just read (its painted map is used), or None."""
     settings = obj.lvp
     key = map_key(settings)
     if key == bound.map_key:
         return bound
     if mode_of(settings) != bound.mode:
-        return rebind(obj, bound, depsgraph)
+        return rebind(obj, bound, depsgraph, inputs=inputs)
     try:
-        bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton))
+        bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton, inputs))
     except (BindError, ValueError) as error:
         set_status(obj, 'ERROR', str(error))
         return None

@@ -228,24 +228,26 @@ def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):
     Checked every frame (cheap): the armature, the Armature modifier's mask group, the bound bones
     and their rest pose and B-Bone settings. Checked when someone else changed the mesh
     (bindings.note_mesh_changed), once the changes paused (CHECK_PAUSE): the weights, the rest mesh,
-    the painted map. A changed painted map alone only refreshes the map.
+    the painted map. A changed painted map alone only has the map set again (by refresh_map).
+
+    Returns (the BoundObject to use or None, the bindings.BindInputs read, or None).
     """
     reason = bound.skeleton.changed(obj, armature_object, skeleton.armature_mask(obj, armature_modifier))
     inputs = None
     if reason is None and bound.inputs_changed_at is not None:
         if _check_waits(obj, bound.inputs_changed_at):
-            return bound
+            return bound, None
         bound.inputs_changed_at = None
         inputs = bindings.BindInputs(obj, armature_modifier, armature_object)
         parts = inputs.changed_parts(bound)
         if parts == ["painted map"]:
-            bound.map_key = None  # refresh_map sets the map again
+            bound.map_key = None  # refresh_map sets the map again, from inputs
             bound.digests = inputs.digests
         elif parts:
             reason = "the %s changed" % " and the ".join(parts)
     if reason is None:
-        return bound
-    return bindings.rebind(obj, bound, depsgraph, reason, inputs)
+        return bound, inputs
+    return bindings.rebind(obj, bound, depsgraph, reason, inputs), inputs
 
 
 def is_main_thread():
@@ -316,10 +318,10 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
         return write_zero_offsets(mesh, bound)
     previous_bound, previous_map = bound, bound.map_key
-    bound = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+    bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
     if bound is None:
         return write_zero_offsets(mesh)
-    bound = bindings.refresh_map(obj, bound, depsgraph)
+    bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
     if bound is None:
         return write_zero_offsets(mesh)
     if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or

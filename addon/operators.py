@@ -357,13 +357,16 @@ follows edits of the library's mesh"""
     bl_label = "Make Mesh Local"
     bl_options = {'REGISTER', 'UNDO'}
 
+    @staticmethod
+    def _objects(context):
+        return [obj for obj in _target_objects(context) if obj.type == 'MESH' and live.mesh_from_library(obj.data)]
+
     @classmethod
     def poll(cls, context):
-        return context.mode == 'OBJECT' and any(obj.type == 'MESH' and live.mesh_from_library(obj.data)
-                                                for obj in _target_objects(context))
+        return context.mode == 'OBJECT' and bool(cls._objects(context))
 
     def execute(self, context):
-        objects = [obj for obj in _target_objects(context) if obj.type == 'MESH' and live.mesh_from_library(obj.data)]
+        objects = self._objects(context)
         errors = []
         if not objects:
             errors.append("No selected mesh object has a linked mesh")

@@ -52,15 +52,10 @@ class MaskTestCase(CylinderTestCase):
 
     def check_masked_bend(self):
         self.scene.frame_set(10)
-        bound = self.addon.bindings.entry(self.obj)
-        self.assertIsNotNone(bound.skeleton.still_bone)
-        plain = helpers.uncorrected_positions(self.obj)
+        self.assertIsNotNone(self.bound().skeleton.still_bone)
         # The core's input is plain skinning of its bones, the still one included.
-        self.assertSmallerThan(helpers.max_distance(helpers.core_skinned_positions(self.obj, self.rig), plain), 1e-5,
-                               "core skinning vs the Armature modifier")
-        plain_volume = helpers.volume(plain, self.triangles)
-        self.assertSmallerThan(abs(bound.stats["volume_before"] - plain_volume) / plain_volume, 1e-6,
-                               "the volume the core corrected from")
+        plain = self.assertSkinningMatchesBlender()
+        self.assertCoreMeasuredFrom(plain)
         self.assertCorrected(message="masked cylinder at 90 degrees")
         offsets = helpers.offsets_of(self.obj)
         still = self.still_vertices()
@@ -91,9 +86,7 @@ class TestArmatureMask(MaskTestCase):
         group.add([vertex.index for vertex in self.obj.data.vertices], 1.0, 'REPLACE')  # no vertex held still
         bpy.context.view_layer.update()
         self.assertStatusContains(self.obj, "bound again by itself: the weights changed")
-        self.assertSmallerThan(helpers.max_distance(helpers.core_skinned_positions(self.obj, self.rig),
-                                                    helpers.uncorrected_positions(self.obj)), 1e-5,
-                               "core skinning vs the Armature modifier")
+        self.assertSkinningMatchesBlender()
         self.assertCorrected(message="mask weights all 1, bound again")
 
 

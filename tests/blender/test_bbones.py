@@ -74,24 +74,14 @@ class BBoneTestCase(CylinderTestCase):
             for bone in self.rig.data.bones:
                 bone.bbone_mapping_mode = 'CURVED'
 
-    def bound(self):
-        bound = self.addon.bindings.entry(self.obj)
-        self.assertIsNotNone(bound)
-        return bound
-
     def assertCoreSkinningIsBlenders(self):
         """Skinning the rest mesh with the core's bones and weights gives what the Armature modifier
         gave: the input lvp_correct() requires (lvp.h)."""
         self.scene.frame_set(10)
         bound = self.bound()
         self.assertEqual(bound.skeleton.core_bone_count, 2 * (SEGMENTS + 1))
-        skinned = helpers.core_skinned_positions(self.obj, self.rig, dual_quaternion=self.preserve_volume)
-        plain = helpers.uncorrected_positions(self.obj)
-        self.assertSmallerThan(helpers.max_distance(skinned, plain), 1e-5, "core skinning vs the Armature modifier")
-        # And the core measured the volume Blender shows.
-        plain_volume = helpers.volume(plain, self.triangles)
-        self.assertSmallerThan(abs(bound.stats["volume_before"] - plain_volume) / plain_volume, 1e-6,
-                               "the volume the core corrected from")
+        plain = self.assertSkinningMatchesBlender()
+        self.assertCoreMeasuredFrom(plain)  # the core measured the volume Blender shows
 
 
 class TestBBones(BBoneTestCase):
@@ -129,9 +119,7 @@ class TestBBones(BBoneTestCase):
         self.scene.frame_set(10)
         self.assertStatusContains(self.obj, "bound again by itself: the B-Bone segments of 'Upper' changed")
         self.assertEqual(self.bound().skeleton.core_bone_count, 2 * SEGMENTS + 4)
-        self.assertSmallerThan(helpers.max_distance(helpers.core_skinned_positions(self.obj, self.rig),
-                                                    helpers.uncorrected_positions(self.obj)), 1e-5,
-                               "core skinning vs the Armature modifier")
+        self.assertSkinningMatchesBlender()
         corrected = helpers.relative_volume_error(helpers.evaluated_positions(self.obj), self.triangles,
                                                   self.rest_volume)
         self.assertSmallerThan(corrected, 1e-3, "corrected volume error with the new segments")

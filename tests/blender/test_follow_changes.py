@@ -21,17 +21,6 @@ from test_live import CylinderTestCase
 
 class FollowTestCase(CylinderTestCase):
 
-    def bound(self):
-        bound = self.addon.bindings.entry(self.obj)
-        self.assertIsNotNone(bound)
-        return bound
-
-    def assertSkinningMatchesBlender(self, message):
-        """lvp_correct's contract: what Blender's Armature modifier made is plain skinning by the
-        bones and weights of the binding."""
-        self.assertSmallerThan(helpers.max_distance(helpers.core_skinned_positions(self.obj, self.rig),
-                                                    helpers.uncorrected_positions(self.obj)), 1e-5, message)
-
     def assertSameAsBindButton(self, message):
         """The offsets equal those of pressing Bind now."""
         followed = helpers.offsets_of(self.obj)

@@ -51,6 +51,26 @@ class CylinderTestCase(helpers.AddonTestCase):
         self.assertSmallerThan(corrected, ratio * plain, "%s: corrected volume error vs plain %g" % (message, plain))
         return corrected, plain
 
+    def bound(self):
+        bound = self.addon.bindings.entry(self.obj)
+        self.assertIsNotNone(bound)
+        return bound
+
+    def assertSkinningMatchesBlender(self, message="core skinning vs the Armature modifier"):
+        """lvp_correct()'s contract (lvp.h): what the Armature modifier made at the current frame is
+        plain skinning of the rest mesh by the binding's bones and weights (B-Bone joints, the still
+        bone of a mask). Returns the Armature modifier's positions."""
+        plain = helpers.uncorrected_positions(self.obj)
+        skinned = helpers.core_skinned_positions(self.obj, self.rig, dual_quaternion=self.preserve_volume)
+        self.assertSmallerThan(helpers.max_distance(skinned, plain), 1e-5, message)
+        return plain
+
+    def assertCoreMeasuredFrom(self, plain):
+        """The core's volume before correction is the volume of the Armature modifier's positions."""
+        plain_volume = helpers.volume(plain, self.triangles)
+        self.assertSmallerThan(abs(self.bound().stats["volume_before"] - plain_volume) / plain_volume, 1e-6,
+                               "the volume the core corrected from")
+
     def rigid_vertices(self, obj=None):
         obj = obj or self.obj
         return [vertex.index for vertex in obj.data.vertices

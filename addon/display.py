@@ -70,6 +70,8 @@ def _set_active_color(mesh, name):
 def remove_display_attributes(obj):
     """Removes the display attributes and restores the previously active colour attribute."""
     mesh = obj.data
+    if mesh_data.is_linked(mesh):
+        return
     removed = False
     for name in (names.SEGMENTATION_ATTRIBUTE, names.CORRECTION_MAP_ATTRIBUTE):
         attribute = mesh.attributes.get(name)
@@ -115,6 +117,10 @@ def update_display(obj, context=None):
         remove_display_attributes(obj)
         mesh.update_tag()
         return None
+    if mesh_data.is_linked(mesh):
+        return ("The mesh %r comes from a library, and the display's colours are written into the mesh, which "
+                "Blender does not let add-ons change here (the correction itself works): show them in the "
+                "library's file" % mesh.name)
     bound = bindings.ensure(obj)
     if bound is None:
         return "Bind first: the display shows the binding's segmentation and correction map"

@@ -8,7 +8,7 @@
   used and never the context's.
 - depsgraph_update_post: after an interactive change (posing a bone, moving an object, changing
   a setting, undo), correct the objects whose geometry was re-evaluated. Writing the offsets tags
-  the mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
+  the offsets object's mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
   offsets and writes nothing, so there is no loop.
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
   lazily by the next correction, with no user action. load_post also replaces node groups of an
@@ -16,8 +16,8 @@
 - save_pre, save_post (and save_post_fail on 4.1+): files are saved without the correction, so a
   file opened where the add-on does not run (a farm machine, a colleague's Blender) shows plain
   skinning at every frame, rather than the correction of the frame it was saved at applied to other
-  poses. The offsets are zeroed in the original meshes just before writing and put back right
-  after, without tagging anything, so the session never shows the difference. Opened again with the
+  poses. The offsets objects (offsets.py) are zeroed just before writing and put back right after,
+  without tagging anything, so the session never shows the difference. Opened again with the
   add-on, load_post corrects the frame the file opens on, with no user action.
 - a timer for changes to meshes: the correction reads the weights and the rest mesh again (binding
   the object again when they changed) once the changes paused (live.CHECK_PAUSE: in the interface,
@@ -39,6 +39,7 @@ from bpy.app.handlers import persistent
 from . import bindings
 from . import live
 from . import node_group
+from . import offsets
 
 _busy = False
 # object name -> the mesh change after which after_mesh_changes() tagged it (once per change).
@@ -210,18 +211,18 @@ def undo_post(*_arguments):
     bindings.forget_written()
 
 
-# Offsets taken out of the meshes for saving: mesh name -> offsets, until save_post puts them back.
+# Offsets taken out of the offsets objects for saving: object name -> offsets, until save_post puts
+# them back.
 _offsets_while_saving = {}
 
 
 @persistent
 def save_pre(*_arguments):
     _offsets_while_saving.clear()
-    for mesh in bpy.data.meshes:
-        if mesh.library is None:
-            offsets = live.swap_offsets_untagged(mesh)
-            if offsets is not None:
-                _offsets_while_saving[mesh.name_full] = offsets
+    for holder in offsets.all_writable_offsets_objects():
+        previous = offsets.swap_untagged(holder)
+        if previous is not None:
+            _offsets_while_saving[holder.name_full] = previous
     # Should save_post never come (a failed save on Blender < 4.1), the next correction reads the
     # meshes again instead of trusting what it wrote last.
     bindings.forget_written()
@@ -229,10 +230,10 @@ def save_pre(*_arguments):
 
 @persistent
 def save_post(*_arguments):
-    for name, offsets in _offsets_while_saving.items():
-        mesh = bpy.data.meshes.get(name)
-        if mesh is not None:
-            live.swap_offsets_untagged(mesh, offsets)
+    for name, previous in _offsets_while_saving.items():
+        holder = bpy.data.objects.get(name)
+        if holder is not None and offsets.is_offsets_object(holder):
+            offsets.swap_untagged(holder, previous)
     _offsets_while_saving.clear()
 
 

@@ -5,8 +5,8 @@
     evaluated armature and objects --(posed bone frames in mesh space)------> bone_matrices[B]
                                      (a B-Bone: one per segment joint, skeleton.py)
     Binding.correct(positions, bone_matrices) -------------------------------> offsets[N]
-    offsets --> the "lvp_offset" attribute of the ORIGINAL mesh, then the mesh is tagged, so
-    Blender evaluates the object once more and the same frame shows the corrected shape.
+    offsets --> the object's offsets object (offsets.py), whose mesh is then tagged, so Blender
+    evaluates the object once more and the same frame shows the corrected shape.
 
 Reading the positions back. Without a topology-changing modifier after ours, the evaluated mesh
 has the original N vertices in their order. With a Subdivision Surface modifier after ours, the
@@ -29,13 +29,8 @@ from . import display
 from . import mesh_data
 from . import names
 from . import node_group
+from . import offsets
 from . import skeleton
-
-
-def same_values(first, second):
-    """Bitwise equality of two arrays, at memcmp speed (array.__eq__ compares item by item in Python
-    objects, which costs milliseconds per frame on large meshes)."""
-    return len(first) == len(second) and first.tobytes() == second.tobytes()
 
 
 def _expected_indices(bound):
@@ -75,7 +70,7 @@ def _evaluated_positions(mesh_eval, bound, stack):
         indices = _scratch(bound, "scratch_indices", 'i', evaluated_count)
         index_attribute.data.foreach_get("value", indices)
         expected = _expected_indices(bound)
-        if not same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
+        if not offsets.same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
             return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
                     "the Armature modifier changes them, or one after Volume Preservation reorders them)")
         if evaluated_count != vertex_count and bound.mapping_checked != (evaluated_count, stack):
@@ -101,74 +96,6 @@ def evaluated_problem(obj, depsgraph, bound):
     return _evaluated_positions(obj.evaluated_get(depsgraph).data, bound, node_group.stack_signature(obj))
 
 
-def _offset_attribute(mesh, create):
-    attribute = mesh.attributes.get(names.OFFSET_ATTRIBUTE)
-    if attribute is not None and (attribute.domain != 'POINT' or attribute.data_type != 'FLOAT_VECTOR'):
-        if not create:
-            return None
-        mesh.attributes.remove(attribute)
-        attribute = None
-    if attribute is None and create:
-        attribute = mesh.attributes.new(names.OFFSET_ATTRIBUTE, 'FLOAT_VECTOR', 'POINT')
-    return attribute
-
-
-def write_offsets(mesh, offsets, bound=None):
-    """Writes offsets into the original mesh's offset attribute when they differ from what it holds,
-    and tags the mesh for a new evaluation. Returns whether anything was written.
-
-    bound.written remembers what was last written, which saves reading the attribute back every
-    frame; it is forgotten (None) whenever something else may have changed the mesh (undo, edits).
-    """
-    if bound is not None and bound.written is not None and same_values(bound.written, offsets):
-        return False
-    attribute = _offset_attribute(mesh, create=True)
-    if len(attribute.data) * 3 != len(offsets):
-        return False
-    if bound is None or bound.written is None:
-        current = array('f', bytes(4 * len(offsets)))
-        attribute.data.foreach_get("vector", current)
-        if same_values(current, offsets):
-            if bound is not None:
-                bound.written = current
-            return False
-    attribute.data.foreach_set("vector", offsets)
-    mesh.update_tag()
-    if bound is not None:
-        bound.written = array('f', offsets)
-    return True
-
-
-def write_zero_offsets(mesh, bound=None):
-    """Pass-through: the modifier then adds nothing. Returns whether anything was written."""
-    attribute = _offset_attribute(mesh, create=False)
-    if attribute is None:
-        return False
-    zeros = array('f', bytes(12 * len(mesh.vertices)))
-    if bound is not None and len(zeros) != 3 * bound.vertex_count:
-        bound = None
-    return write_offsets(mesh, zeros, bound)
-
-
-def swap_offsets_untagged(mesh, offsets=None):
-    """Replaces the original mesh's offsets with offsets (zeros when None) WITHOUT tagging the mesh:
-    what Blender shows stays as it is, only what is saved changes. Returns the previous offsets, or
-    None when nothing was replaced (no offsets, another vertex count, or the same values)."""
-    attribute = _offset_attribute(mesh, create=False)
-    if attribute is None:
-        return None
-    previous = array('f', bytes(12 * len(attribute.data)))
-    if offsets is None:
-        offsets = array('f', bytes(4 * len(previous)))
-    if len(offsets) != len(previous):
-        return None
-    attribute.data.foreach_get("vector", previous)
-    if same_values(previous, offsets):
-        return None
-    attribute.data.foreach_set("vector", offsets)
-    return previous
-
-
 def _shape_key_rest(obj, bound, mesh_changed):
     """This frame's un-skinned positions with shape keys (None when they change nothing), cached
     while the key values stay the same and nobody edited the mesh."""
@@ -186,23 +113,6 @@ def _shape_key_rest(obj, bound, mesh_changed):
     bound.rest_in_use = mesh_data.shape_key_rest_positions(obj, base, bound.rest_positions)
     bound.rest_state = state
     return bound.rest_positions if bound.rest_in_use else None
-
-
-def mesh_from_library(mesh):
-    """Whether mesh comes from a library (linked, or a library override): Blender ignores what add-ons
-    write into such a mesh, where the offsets live (object.lvp_make_mesh_local gives a local copy)."""
-    return mesh is not None and (mesh.library is not None or getattr(mesh, "override_library", None) is not None)
-
-
-def other_corrected_users(obj):
-    """Other objects that use obj's mesh and carry Volume Preservation too (linked duplicates). The
-    correction lives in the mesh, so it can be right for one of them only. Cheap when the mesh has a
-    single user, which is the usual case."""
-    mesh = obj.data
-    if mesh.users < 2:
-        return []
-    return [other for other in bpy.data.objects
-            if other.users and other.data == mesh and other != obj and node_group.find_modifier(other) is not None]
 
 
 # Blender reports the mesh as changed for much more than new weights or a new rest mesh (a selection,
@@ -255,7 +165,7 @@ def is_main_thread():
 
 
 def correct_object(obj, depsgraph, check_topology=False):
-    """Corrects obj as evaluated in depsgraph. Returns whether the original mesh was written.
+    """Corrects obj as evaluated in depsgraph. Returns whether its offsets object was written.
 
     Never raises for bad input: every problem becomes the object's status and a pass-through.
     """
@@ -266,19 +176,6 @@ def correct_object(obj, depsgraph, check_topology=False):
         # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
         bindings.note_mesh_changed(obj)
     mesh = obj.data
-    if mesh_from_library(mesh):
-        bindings.set_status(obj, 'WARNING', "The mesh %r comes from a library (a library override keeps meshes "
-                                            "linked), and Blender ignores what add-ons write into it: press Make "
-                                            "Mesh Local to correct it here" % mesh.name)
-        return False
-    sharing = other_corrected_users(obj)
-    if sharing:
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: its mesh %r is also used by %s, which has Volume "
-                                          "Preservation too (a linked duplicate). The correction is stored in the "
-                                          "mesh, so each object needs its own: select them and use Object > "
-                                          "Relations > Make Single User > Object & Data"
-                            % (mesh.name, ", ".join(sorted(other.name for other in sharing))))
-        return write_zero_offsets(mesh, bindings.entry(obj))
     if obj.mode in {'EDIT', 'SCULPT'}:
         # Those modes own the mesh data while they run; writing it from a handler would fight them.
         bindings.set_status(obj, 'INFO', "Paused in %s Mode" % obj.mode.title())
@@ -290,40 +187,51 @@ def correct_object(obj, depsgraph, check_topology=False):
 
     bound = bindings.ensure(obj, depsgraph)
     if bound is None:
-        return write_zero_offsets(mesh)
+        return offsets.write_zeros(modifier)
     if mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0] or (
             check_topology and mesh_data.topology_signature(mesh) != bound.topology):
         bindings.set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
-        return write_zero_offsets(mesh)
-    if check_topology:
-        bound.written = None  # the mesh was changed by someone else: read the attribute back once
+        return offsets.write_zeros(modifier)
+    holder = offsets.usable_offsets_object(obj, modifier, bound.vertex_count)
+    if holder is None:
+        if not is_main_thread():
+            bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has no offsets object of its own, which "
+                                              "is made on the main thread (render once from the viewport, or "
+                                              "press Bind)" % obj.name)
+            return offsets.write_zeros(modifier, bound)
+        if not node_group.is_current(modifier.node_group):
+            # Appended from a file of an older version, or its group edited by hand.
+            node_group.repair_modifiers([obj])
+            modifier = node_group.find_modifier(obj)
+        holder = offsets.new_offsets_object(obj, modifier, bound.vertex_count)
+        bound.written = None
     if node_group.count_modifiers(obj) > 1:
         # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has more than one Volume Preservation "
                                           "modifier; remove the copies" % obj.name)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     armature_modifier = node_group.find_armature_modifier(obj)
     if armature_modifier is None:
         bindings.set_status(obj, 'ERROR', "No Armature modifier before Volume Preservation: move Volume Preservation "
                                           "right after the Armature modifier, or remove it")
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     armature_object = armature_modifier.object
     if armature_object is None or armature_object.type != 'ARMATURE':
         bindings.set_status(obj, 'ERROR', "The Armature modifier %r has no armature object: set its Object field"
                             % armature_modifier.name)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
 
     unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
     if unfollowed is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     previous_bound, previous_map = bound, bound.map_key
     bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
     if bound is None:
-        return write_zero_offsets(mesh)
+        return offsets.write_zeros(modifier)
     bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
     if bound is None:
-        return write_zero_offsets(mesh)
+        return offsets.write_zeros(modifier)
     if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
                              obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
         display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
@@ -333,11 +241,11 @@ def correct_object(obj, depsgraph, check_topology=False):
     problem = evaluated_problem(obj, depsgraph, bound)
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
     if skeleton_problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
 
     rest_positions = None
     if mesh.shape_keys is not None:
@@ -350,7 +258,7 @@ def correct_object(obj, depsgraph, check_topology=False):
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     bound.stats = stats
@@ -360,7 +268,7 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'WARNING', "The correction diverged at this pose (largest offset %.3g, above %.3g, "
                                             "a quarter of the mesh size): showing plain skinning for this frame"
                             % (displacement, bound.displacement_limit))
-        return write_zero_offsets(mesh, bound)
+        return offsets.write_zeros(modifier, bound)
     warnings = []
     unseen = node_group.modifiers_before(obj, armature_modifier, depsgraph.mode)
     if unseen:
@@ -385,4 +293,4 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'INFO', "Correcting (bound again by itself: %s)" % bound.rebound_because)
     else:
         bindings.set_status(obj, 'INFO', "Correcting")
-    return write_offsets(mesh, bound.offsets, bound)
+    return offsets.write(holder, bound.offsets, bound)

@@ -28,6 +28,12 @@ def int_array(count):
 # ---- mesh ----------------------------------------------------------------------------------
 
 
+def is_linked(mesh):
+    """Whether mesh comes from a library (linked, or kept linked by a library override): Blender
+    ignores what add-ons write into such a mesh (its weights, its attributes)."""
+    return mesh.library is not None or getattr(mesh, "override_library", None) is not None
+
+
 def vertex_positions(mesh):
     """The mesh's vertex coordinates (its base shape, without shape keys), float32[3N]."""
     positions = float_array(3 * len(mesh.vertices))

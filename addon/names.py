@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Names shared by the add-on's modules: the modifier, its node group and the mesh attributes.
+"""Names shared by the add-on's modules: the modifier, its node group, the offsets object and the
+mesh attributes.
 
-The attribute names are a contract between the node group (which writes and reads them inside
-Blender's modifier evaluation) and the handlers (which read them from the evaluated mesh and write
-the offsets on the original mesh). Changing one means changing files saved with the add-on.
+The names are a contract between the node group (which writes and reads them inside Blender's
+modifier evaluation) and the handlers (which read them from the evaluated mesh and write the
+offsets into the object that holds them). Changing one means changing files saved with the add-on.
 """
 
 # The Geometry Nodes modifier placed right after the Armature modifier.
@@ -12,10 +13,20 @@ MODIFIER_NAME = "Volume Preservation"
 NODE_GROUP_NAME = "Volume Preservation"
 # Custom property on the node group that marks it as ours, with the version of its layout.
 NODE_GROUP_TAG = "lvp_node_group_version"
-NODE_GROUP_VERSION = 1
+NODE_GROUP_VERSION = 2
+# The node group's Object input: the object whose mesh holds the correction (offsets.py).
+OFFSETS_SOCKET_NAME = "Offsets"
 
-# Point attribute on the ORIGINAL mesh: the per-vertex correction, added to the positions that
-# leave the Armature modifier. Written by the handlers every frame; zero means pass-through.
+# The object that holds one object's correction: a mesh of loose vertices, one per vertex of the
+# corrected mesh, whose positions are the per-vertex offsets added to what leaves the Armature
+# modifier. Written by the handlers every frame; zero means pass-through. Not in any collection: it
+# is kept (and saved) because the modifier uses it. Its custom property OFFSETS_OWNER_TAG names the
+# object it was made for.
+OFFSETS_OBJECT_PREFIX = "Volume Preservation offsets: "
+OFFSETS_OWNER_TAG = "lvp_offsets_of"
+
+# Point attribute on the ORIGINAL mesh where version 1 of the node group read the offsets; files
+# saved with it still have it (zero), and object.lvp_remove removes it.
 OFFSET_ATTRIBUTE = "lvp_offset"
 # Point attributes that exist only on the EVALUATED mesh, written by the node group: the positions
 # that enter the modifier (what the Armature modifier produced) and the original vertex index,

@@ -7,12 +7,16 @@ the Armature modifier. Its node group does three things, in this order:
     Group Input -> Store Named Attribute "lvp_position" = Position   (what the Armature modifier made)
                 -> Store Named Attribute "lvp_index"    = Index      (to find these vertices again
                                                                       after a Subdivision Surface)
-                -> Set Position, Offset = Named Attribute "lvp_offset" (the correction)
-                -> Group Output
+                -> Set Position, Offset = Sample Index(Object Info(Offsets).Geometry, Position, Index)
+                -> Group Output                                      (the correction)
 
-The handlers read the two captured attributes from the evaluated mesh, compute the correction with
-the C core and write "lvp_offset" on the original mesh. When "lvp_offset" is missing the Named
-Attribute node reads zero, so the modifier passes the mesh through unchanged.
+"Offsets" is an Object input of the group, so each modifier names its own object: the offsets
+object (offsets.py), whose vertex i sits at the offset of vertex i. The handlers read the two
+captured attributes from the evaluated mesh, compute the correction with the C core and write it
+into that object's mesh, never into the character's own mesh: a character linked from a library
+(whose mesh cannot be written) and objects that share one mesh are corrected too, and on Blender 3.4
+the second evaluation does not copy the character's mesh. With no offsets object, or one with fewer
+vertices, Sample Index reads zero and the modifier passes the mesh through unchanged.
 
 The node group is never loaded from a file: it is rebuilt when missing or outdated. It works on
 Blender 3.4 (node_group.inputs / outputs, one "Value" socket per data type) and on 4.x
@@ -39,10 +43,13 @@ def _socket(sockets, name, socket_type=None):
 def _new_group_sockets(group):
     if hasattr(group, "interface"):  # Blender 4.0+
         group.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+        offsets = group.interface.new_socket(names.OFFSETS_SOCKET_NAME, in_out='INPUT', socket_type='NodeSocketObject')
         group.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
     else:  # Blender 3.x
         group.inputs.new('NodeSocketGeometry', "Geometry")
+        offsets = group.inputs.new('NodeSocketObject', names.OFFSETS_SOCKET_NAME)
         group.outputs.new('NodeSocketGeometry', "Geometry")
+    offsets.description = "The object that holds this object's correction (made and written by Volume Preservation)"
     if hasattr(group, "is_modifier"):  # Blender 4.1+: offered in the modifier's group list
         group.is_modifier = True
 
@@ -76,10 +83,16 @@ def build_node_group():
     index.location = (-550, -250)
     store_index = _new_store_node(nodes, names.CAPTURED_INDEX_ATTRIBUTE, 'INT', (-300, 0))
 
-    offset = nodes.new('GeometryNodeInputNamedAttribute')
-    offset.data_type = 'FLOAT_VECTOR'
-    offset.location = (-50, -250)
-    _socket(offset.inputs, "Name").default_value = names.OFFSET_ATTRIBUTE
+    # ORIGINAL: the offsets object's vertices as written, whatever its transform.
+    offsets_object = nodes.new('GeometryNodeObjectInfo')
+    offsets_object.transform_space = 'ORIGINAL'
+    offsets_object.location = (-550, -450)
+    offset = nodes.new('GeometryNodeInputPosition')  # evaluated on the offsets object's mesh
+    offset.location = (-300, -550)
+    sample = nodes.new('GeometryNodeSampleIndex')
+    sample.data_type = 'FLOAT_VECTOR'
+    sample.domain = 'POINT'
+    sample.location = (-50, -400)
     set_position = nodes.new('GeometryNodeSetPosition')
     set_position.location = (250, 0)
 
@@ -88,7 +101,11 @@ def build_node_group():
     links.new(_socket(store_position.outputs, "Geometry"), _socket(store_index.inputs, "Geometry"))
     links.new(_socket(index.outputs, "Index"), _socket(store_index.inputs, "Value", 'INT'))
     links.new(_socket(store_index.outputs, "Geometry"), _socket(set_position.inputs, "Geometry"))
-    links.new(_socket(offset.outputs, "Attribute", 'VECTOR'), _socket(set_position.inputs, "Offset"))
+    links.new(_socket(group_input.outputs, names.OFFSETS_SOCKET_NAME), _socket(offsets_object.inputs, "Object"))
+    links.new(_socket(offsets_object.outputs, "Geometry"), _socket(sample.inputs, "Geometry"))
+    links.new(_socket(offset.outputs, "Position"), _socket(sample.inputs, "Value", 'VECTOR'))
+    links.new(_socket(index.outputs, "Index"), _socket(sample.inputs, "Index"))
+    links.new(_socket(sample.outputs, "Value", 'VECTOR'), _socket(set_position.inputs, "Offset"))
     links.new(_socket(set_position.outputs, "Geometry"), group_output.inputs[0])
 
     group[names.NODE_GROUP_TAG] = names.NODE_GROUP_VERSION
@@ -101,22 +118,37 @@ def is_our_node_group(group):
 
 EXPECTED_NODES = sorted((
     'NodeGroupInput', 'NodeGroupOutput', 'GeometryNodeInputPosition', 'GeometryNodeInputIndex',
-    'GeometryNodeStoreNamedAttribute', 'GeometryNodeStoreNamedAttribute', 'GeometryNodeInputNamedAttribute',
-    'GeometryNodeSetPosition'))
-EXPECTED_NAMES = sorted((names.CAPTURED_POSITION_ATTRIBUTE, names.CAPTURED_INDEX_ATTRIBUTE, names.OFFSET_ATTRIBUTE))
+    'GeometryNodeStoreNamedAttribute', 'GeometryNodeStoreNamedAttribute', 'GeometryNodeObjectInfo',
+    'GeometryNodeInputPosition', 'GeometryNodeSampleIndex', 'GeometryNodeSetPosition'))
+EXPECTED_LINKS = 11
+EXPECTED_NAMES = sorted((names.CAPTURED_POSITION_ATTRIBUTE, names.CAPTURED_INDEX_ATTRIBUTE))
 
 
 def is_current(group):
     """Whether group is ours, of the current layout, and was not edited by hand."""
     if group is None or group.get(names.NODE_GROUP_TAG) != names.NODE_GROUP_VERSION:
         return False
-    if sorted(node.bl_idname for node in group.nodes) != EXPECTED_NODES or len(group.links) != 7:
+    if sorted(node.bl_idname for node in group.nodes) != EXPECTED_NODES or len(group.links) != EXPECTED_LINKS:
         return False
     attribute_names = []
     for node in group.nodes:
-        if node.bl_idname in ('GeometryNodeStoreNamedAttribute', 'GeometryNodeInputNamedAttribute'):
+        if node.bl_idname == 'GeometryNodeStoreNamedAttribute':
             attribute_names.append(_socket(node.inputs, "Name").default_value)
-    return sorted(attribute_names) == EXPECTED_NAMES
+    return sorted(attribute_names) == EXPECTED_NAMES and offsets_socket_identifier(group) is not None
+
+
+def offsets_socket_identifier(group):
+    """The key of the modifier's custom property that holds the offsets object ("Input_1" on 3.x,
+    "Socket_1" on 4.x), or None when group has no such input."""
+    if hasattr(group, "interface"):  # Blender 4.0+
+        sockets = [item for item in group.interface.items_tree
+                   if item.item_type == 'SOCKET' and item.in_out == 'INPUT']
+    else:
+        sockets = list(group.inputs)
+    for socket in sockets:
+        if socket.name == names.OFFSETS_SOCKET_NAME and socket.bl_socket_idname == 'NodeSocketObject':
+            return socket.identifier
+    return None
 
 
 def ensure_node_group():

@@ -6,7 +6,6 @@
                               themselves, live.py; the button does the same at once)
     object.lvp_remove         remove the modifier, its node group when unused, and its attributes
     object.lvp_auto_weights   skinning weights by the paper's method (5.1) into the bones' groups
-    object.lvp_make_mesh_local  a local copy of a linked mesh (characters brought in by library override)
 
 Every operator checks every selected object first and changes nothing when one of them is wrong:
 it reports an ERROR that says what is wrong and how to fix it.
@@ -22,6 +21,7 @@ from . import live
 from . import mesh_data
 from . import names
 from . import node_group
+from . import offsets
 from . import skeleton
 
 
@@ -67,10 +67,16 @@ def _meshes_to_process(objects):
     return meshes, errors
 
 
-def _editable_error(obj, modes=('OBJECT',)):
-    if obj.library is not None or obj.data.library is not None:
-        return ("%s or its mesh is linked from a library: make it local first (for the mesh of a library override: "
-                "Make Mesh Local, in the Volume Preservation panel)" % obj.name)
+def _editable_error(obj, modes=('OBJECT',), mesh_too=False):
+    """Why obj cannot be changed by an operator, or None. The correction lives in an offsets object of
+    its own (offsets.py), so a library override whose mesh stays linked can be corrected; only
+    writing weights needs the mesh itself (mesh_too)."""
+    if obj.library is not None:
+        return ("%s is linked from a library: make a library override of it first (Object > Library Override > "
+                "Make)" % obj.name)
+    if mesh_too and mesh_data.is_linked(obj.data):
+        return ("The mesh of %s is linked from a library, where its weights are made: change them in the library's "
+                "file, or make the mesh local (Object > Relations > Make Local)" % obj.name)
     if obj.mode not in modes:
         return "%s is in %s: go back to Object Mode first" % (obj.name, obj.mode.replace("_", " ").title())
     return None
@@ -105,9 +111,6 @@ modifier, so they keep their volume when joints bend"""
             if problem is None and node_group.find_modifier(obj) is not None:
                 problem = ("%s already has a Volume Preservation modifier: use Bind to bind it again, or Remove"
                            % obj.name)
-            if problem is None and obj.data.users > 1:
-                problem = ("The mesh of %s is shared by %d users: make it single-user (Object > Relations > Make "
-                           "Single User > Object & Data)" % (obj.name, obj.data.users))
             if problem is None:
                 try:
                     armature_modifier, _armature_object = bindings.armature_of(obj)
@@ -155,7 +158,7 @@ modifier, so they keep their volume when joints bend"""
 
         for obj, _armature_modifier, bound in plans:
             bindings.new_bind_record(obj, bound)
-            live.write_offsets(obj.data, mesh_data.float_array(3 * len(obj.data.vertices)))
+            offsets.new_offsets_object(obj, node_group.find_modifier(obj), bound.vertex_count)
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)
         scene = context.scene
@@ -207,14 +210,19 @@ class OBJECT_OT_lvp_bind(bpy.types.Operator):
 
 
 def remove_from_object(obj):
-    """Removes the modifier, the add-on's attributes and the bind record of obj (not its settings)."""
+    """Removes the modifier, its offsets object, the add-on's attributes and the bind record of obj (not
+    its settings)."""
+    for modifier in obj.modifiers:
+        if node_group.is_our_modifier(modifier):
+            offsets.delete_offsets_object(modifier)
     node_group.remove_modifier(obj)
-    display.remove_display_attributes(obj)
-    mesh = obj.data
-    for name in names.ORIGINAL_MESH_ATTRIBUTES:
-        attribute = mesh.attributes.get(name)
-        if attribute is not None:
-            mesh.attributes.remove(attribute)
+    if not mesh_data.is_linked(obj.data):
+        display.remove_display_attributes(obj)
+        mesh = obj.data
+        for name in names.ORIGINAL_MESH_ATTRIBUTES:
+            attribute = mesh.attributes.get(name)
+            if attribute is not None:
+                mesh.attributes.remove(attribute)
     bindings.forget(obj)
     settings = obj.lvp
     settings.bind_id = ""
@@ -299,7 +307,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         meshes, errors = _meshes_to_process(_target_objects(context))
         plans = []
         for obj in meshes:
-            problem = _editable_error(obj)
+            problem = _editable_error(obj, mesh_too=True)
             if problem is None:
                 try:
                     _armature_modifier, armature_object = bindings.armature_of(obj)
@@ -329,8 +337,8 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             _report_errors(self, errors)
             return {'CANCELLED'}
         rebound = []
-        for obj, bone_names, (offsets, bones, values) in plans:
-            mesh_data.replace_vertex_group_weights(obj, bone_names, offsets, bones, values)
+        for obj, bone_names, (starts, bones, values) in plans:
+            mesh_data.replace_vertex_group_weights(obj, bone_names, starts, bones, values)
             if node_group.find_modifier(obj) is not None:
                 try:
                     bindings.new_bind_record(obj, bindings.bind(obj))
@@ -346,45 +354,6 @@ write them into the deforming bones' vertex groups, replacing their weights"""
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self)
-
-
-class OBJECT_OT_lvp_make_mesh_local(bpy.types.Operator):
-    """Give each selected mesh object a local copy of its linked mesh, so that Volume Preservation can be \
-added and can correct it here. A library override keeps the character's meshes linked; the copy no longer \
-follows edits of the library's mesh"""
-
-    bl_idname = "object.lvp_make_mesh_local"
-    bl_label = "Make Mesh Local"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    @staticmethod
-    def _objects(context):
-        return [obj for obj in _target_objects(context) if obj.type == 'MESH' and live.mesh_from_library(obj.data)]
-
-    @classmethod
-    def poll(cls, context):
-        return context.mode == 'OBJECT' and bool(cls._objects(context))
-
-    def execute(self, context):
-        objects = self._objects(context)
-        errors = []
-        if not objects:
-            errors.append("No selected mesh object has a linked mesh")
-        for obj in objects:
-            if obj.library is not None:
-                errors.append("%s itself is linked: make a library override of it first (Object > Library Override "
-                              "> Make)" % obj.name)
-        if errors:
-            _report_errors(self, errors)
-            return {'CANCELLED'}
-        for obj in objects:
-            # One copy per object: two instances of a character share the linked mesh, and each
-            # needs its own correction.
-            obj.data = obj.data.copy()
-            bindings.forget(obj)
-            _tag(obj)
-        self.report({'INFO'}, "Local meshes for %s" % ", ".join(obj.name for obj in objects))
-        return {'FINISHED'}
 
 
 class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):
@@ -434,7 +403,6 @@ classes = (
     OBJECT_OT_lvp_auto_weights,
     OBJECT_OT_lvp_region_restriction_add,
     OBJECT_OT_lvp_region_restriction_remove,
-    OBJECT_OT_lvp_make_mesh_local,
 )
 
 

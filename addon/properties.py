@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Per-object settings, Object.lvp: what the artist chooses, and the bind record saved in the file.
+All of them can be overridden on a character linked into a shot (library override).
 
 Changing a setting tags the object, so the handlers correct it again with the new setting (the map
 is replaced in place, or the object is rebound when the effect switches between local and global).
@@ -8,6 +9,10 @@ is replaced in place, or the object is rebound when the effect switches between 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
                        PointerProperty, StringProperty)
+
+# Every setting can be changed on a library override (a character linked into a shot) and is kept
+# in the shot's file; otherwise Blender would give it back the character file's value on reopening.
+OVERRIDABLE = {'LIBRARY_OVERRIDABLE'}
 
 
 def _settings_changed(settings, context):
@@ -48,11 +53,13 @@ class LVP_PG_region_restriction(bpy.types.PropertyGroup):
     """Restricts the distance term of one region's map to chosen bones (paper Fig. 11)."""
 
     region: StringProperty(
+        override=OVERRIDABLE,
         name="Region",
         description="Deforming bone whose region is restricted",
         update=_settings_changed,
     )
     bones: StringProperty(
+        override=OVERRIDABLE,
         name="Bones",
         description="Comma-separated bone names: the region's flesh is measured from these bones only "
                     "(e.g. the belly from the spine)",
@@ -64,6 +71,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
     """Local Volume Preservation settings of one object."""
 
     effect: EnumProperty(
+        override=OVERRIDABLE,
         name="Effect",
         description="How the lost volume is put back",
         items=EFFECT_ITEMS,
@@ -71,6 +79,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         update=_settings_changed,
     )
     alpha: FloatProperty(
+        override=OVERRIDABLE,
         name="Alpha",
         description="Concentration at the joints: higher keeps the correction closer to where no bone "
                     "dominates",
@@ -78,6 +87,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         update=_settings_changed,
     )
     beta: FloatProperty(
+        override=OVERRIDABLE,
         name="Beta",
         description="Dependence on the distance to the bones: higher moves flesh far from the bone more "
                     "than flesh over it",
@@ -85,6 +95,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         update=_settings_changed,
     )
     iterations: IntProperty(
+        override=OVERRIDABLE,
         name="Iterations",
         description="Correction passes per frame; 1 is the paper's single pass, more removes its "
                     "linearization error",
@@ -92,6 +103,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         update=_settings_changed,
     )
     fold_over: BoolProperty(
+        override=OVERRIDABLE,
         name="Fold-Over Prevention",
         description="Keep the skin of a bending joint from folding through itself; squeezed flesh bulges "
                     "instead (paper 5.4)",
@@ -99,17 +111,20 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         update=_settings_changed,
     )
     painted_vertex_group: StringProperty(
+        override=OVERRIDABLE,
         name="Painted Map",
         description="Vertex group whose weights say where the volume goes (Painted effect)",
         update=_settings_changed,
     )
     region_restrictions: CollectionProperty(
+        override={'LIBRARY_OVERRIDABLE', 'USE_INSERTION'},
         type=LVP_PG_region_restriction,
         name="Region Restrictions",
         description="Regions whose flesh is measured from chosen bones only",
     )
-    active_region_restriction: IntProperty(name="Active Region Restriction", default=0, min=0)
+    active_region_restriction: IntProperty(name="Active Region Restriction", default=0, min=0, override=OVERRIDABLE)
     display: EnumProperty(
+        override=OVERRIDABLE,
         name="Display",
         description="Show the segmentation or the correction map as a colour attribute in the viewport "
                     "(Solid shading, Color: Attribute)",
@@ -121,10 +136,13 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
     # The bind record, written by the operators and saved with the file. The binding itself lives in
     # memory and is rebuilt from the mesh after a file load; the signature tells whether that is
     # still possible (same topology) or whether the artist must bind again.
-    bind_id: StringProperty(name="Bind Id", description="Identifies the last bind", options={'HIDDEN'})
+    bind_id: StringProperty(name="Bind Id", description="Identifies the last bind", options={'HIDDEN'},
+                            override=OVERRIDABLE)
     topology_signature: StringProperty(
+        override=OVERRIDABLE,
         name="Topology Signature", description="Topology of the mesh at the last bind", options={'HIDDEN'})
     previous_color_attribute: StringProperty(
+        override=OVERRIDABLE,
         name="Previous Colour Attribute",
         description="Active colour attribute before the display was turned on (restored when it is turned off)",
         options={'HIDDEN'})
@@ -139,7 +157,8 @@ classes = (
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
-    bpy.types.Object.lvp = PointerProperty(type=LVP_PG_settings, name="Local Volume Preservation")
+    bpy.types.Object.lvp = PointerProperty(type=LVP_PG_settings, name="Local Volume Preservation",
+                                           override=OVERRIDABLE)
 
 
 def unregister():

@@ -6,7 +6,6 @@ import bpy
 
 from . import bindings
 from . import handlers
-from . import live
 from . import node_group
 
 STATUS_ICONS = {'INFO': 'CHECKMARK', 'WARNING': 'ERROR', 'ERROR': 'CANCEL'}
@@ -51,8 +50,6 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         obj = context.object
         settings = obj.lvp
         modifier = node_group.find_modifier(obj)
-        if live.mesh_from_library(obj.data):
-            layout.operator("object.lvp_make_mesh_local", icon='LIBRARY_DATA_OVERRIDE')
         if modifier is None:
             layout.label(text="Keeps the volume of a skinned mesh at bending joints")
             layout.operator("object.lvp_add", icon='MOD_ARMATURE')

@@ -22,6 +22,7 @@ import bpy
 from .. import bindings
 from .. import names
 from .. import node_group
+from .. import offsets
 
 
 class BakeError(Exception):
@@ -106,7 +107,6 @@ class ObjectReader:
         self.vertex_count = len(obj.data.vertices)
         self.positions = array('f', bytes(12 * self.vertex_count))
         self._captured = None
-        self._offsets = None
 
     def read(self, depsgraph, frame):
         """Fills self.positions for the frame the depsgraph was evaluated at. Raises BakeError."""
@@ -131,16 +131,12 @@ class ObjectReader:
         if self._captured is None or len(self._captured) != 3 * count:
             self._captured = array('f', bytes(12 * count))
         captured.data.foreach_get("vector", self._captured)
-        offsets = obj.data.attributes.get(names.OFFSET_ATTRIBUTE)
         positions = self.positions
-        if offsets is None or offsets.domain != 'POINT' or len(offsets.data) != self.vertex_count:
+        offset_values = offsets.read(obj)
+        if offset_values is None:
             positions[:] = self._captured[:3 * self.vertex_count]
             return positions
-        if self._offsets is None:
-            self._offsets = array('f', bytes(12 * self.vertex_count))
-        offsets.data.foreach_get("vector", self._offsets)
         captured_values = self._captured
-        offset_values = self._offsets
         # float32 + float32 rounded to float32, as the node group's Set Position does.
         positions[:] = array('f', [captured_values[i] + offset_values[i] for i in range(3 * self.vertex_count)])
         return positions

@@ -296,13 +296,9 @@ def mesh_triangles(mesh):
 
 
 def offsets_of(obj):
-    """The original mesh's offset attribute, float32[3N] (None when missing)."""
-    attribute = obj.data.attributes.get("lvp_offset")
-    if attribute is None:
-        return None
-    values = array('f', bytes(12 * len(obj.data.vertices)))
-    attribute.data.foreach_get("vector", values)
-    return values
+    """The offsets obj's Volume Preservation modifier adds, float32[3N], read from its offsets object
+    (None when obj has no such modifier)."""
+    return enable_addon().offsets.read(obj)
 
 
 def volume(positions, triangles):

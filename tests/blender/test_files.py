@@ -47,9 +47,15 @@ CHILD_DUMP_WITHOUT_ADDON = """
 import bpy, json
 from array import array
 obj = bpy.data.objects[{name!r}]
-mesh = obj.data
-offsets = array('f', bytes(12 * len(mesh.vertices)))
-mesh.attributes[{attribute!r}].data.foreach_get("vector", offsets)
+modifier = obj.modifiers["Volume Preservation"]  # the correction is in the object its Offsets input names
+group = modifier.node_group
+if hasattr(group, "interface"):
+    key = next(item.identifier for item in group.interface.items_tree if getattr(item, "name", "") == "Offsets")
+else:
+    key = group.inputs["Offsets"].identifier
+holder = modifier[key].data
+offsets = array('f', bytes(12 * len(holder.vertices)))
+holder.vertices.foreach_get("co", offsets)
 result = {{"addon_registered": hasattr(bpy.types.Object, "lvp"), "largest_offset": max(map(abs, offsets))}}
 for frame in {frames!r}:
     bpy.context.scene.frame_set(frame)
@@ -147,7 +153,7 @@ class TestSaveAndReopen(FileTestCase):
         out = os.path.join(self.directory, "without_addon.json")
         script = os.path.join(self.directory, "dump_without_addon.py")
         with open(script, "w") as file:
-            file.write(CHILD_DUMP_WITHOUT_ADDON.format(name=self.obj.name, attribute="lvp_offset", out=out,
+            file.write(CHILD_DUMP_WITHOUT_ADDON.format(name=self.obj.name, out=out,
                                                        frames=[10, 4]))
         self.run_child([path, "--python", script], "open without the add-on", with_addon=False)
         with open(out) as file:
@@ -181,6 +187,81 @@ class TestSaveAndReopen(FileTestCase):
         self.assertIn("rebind needed", result["frame10_status"][1].lower())
         self.assertSmallerThan(helpers.max_distance(array('f', result["frame10"]), plain), 1e-6,
                                "passes the mesh through")
+
+
+class TestFilesOfVersionOne(FileTestCase):
+    """Files saved by version 1 of the add-on, whose node group read the offsets from an attribute of
+    the character's own mesh: opening one gives the modifier the current node group and an offsets
+    object, with no user action."""
+
+    @staticmethod
+    def version_one_node_group():
+        """The node group of version 1, as it built it: the offsets from the mesh's "lvp_offset"."""
+        group = bpy.data.node_groups.new("Volume Preservation", 'GeometryNodeTree')
+        if hasattr(group, "interface"):
+            group.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+            group.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+        else:
+            group.inputs.new('NodeSocketGeometry', "Geometry")
+            group.outputs.new('NodeSocketGeometry', "Geometry")
+        nodes, links = group.nodes, group.links
+        group_input, group_output = nodes.new('NodeGroupInput'), nodes.new('NodeGroupOutput')
+        stores = []
+        for name, data_type, field in (("lvp_position", 'FLOAT_VECTOR', 'GeometryNodeInputPosition'),
+                                       ("lvp_index", 'INT', 'GeometryNodeInputIndex')):
+            store = nodes.new('GeometryNodeStoreNamedAttribute')
+            store.data_type = data_type
+            store.domain = 'POINT'
+            store.inputs["Name"].default_value = name
+            value = next(socket for socket in store.inputs if socket.name == "Value" and socket.enabled)
+            links.new(nodes.new(field).outputs[0], value)
+            stores.append(store)
+        offset = nodes.new('GeometryNodeInputNamedAttribute')
+        offset.data_type = 'FLOAT_VECTOR'
+        offset.inputs["Name"].default_value = "lvp_offset"
+        set_position = nodes.new('GeometryNodeSetPosition')
+        links.new(group_input.outputs[0], stores[0].inputs[0])
+        links.new(stores[0].outputs[0], stores[1].inputs[0])
+        links.new(stores[1].outputs[0], set_position.inputs["Geometry"])
+        links.new(next(socket for socket in offset.outputs if socket.name == "Attribute" and socket.enabled),
+                  set_position.inputs["Offset"])
+        links.new(set_position.outputs[0], group_output.inputs[0])
+        group["lvp_node_group_version"] = 1
+        return group
+
+    def test_opened_and_corrected(self):
+        modifier = self.addon.node_group.find_modifier(self.obj)
+        holder_name = self.addon.offsets.offsets_object(modifier).name
+        # The file is made with this add-on's handlers off, which would bring the group up to date at
+        # once (bpy.ops.wm.save_as_mainfile updates the view layer first).
+        self.addon.handlers.unregister()
+        try:
+            old_group = self.version_one_node_group()
+            modifier.node_group = old_group
+            self.obj.data.attributes.new("lvp_offset", 'FLOAT_VECTOR', 'POINT')
+            self.addon.offsets.delete_if_unused(bpy.data.objects[holder_name])
+            self.assertIsNone(bpy.data.objects.get(holder_name))
+            path = self.save("version_one.blend")
+            self.assertEqual(modifier.node_group, old_group)
+        finally:
+            self.addon.handlers.register()
+        name = self.obj.name
+        bpy.ops.wm.open_mainfile(filepath=path)
+        self.obj = bpy.data.objects[name]
+        modifier = self.addon.node_group.find_modifier(self.obj)
+        self.assertTrue(self.addon.node_group.is_current(modifier.node_group))
+        self.assertNotIn("Volume Preservation", [group.name for group in bpy.data.node_groups
+                                                 if group.get("lvp_node_group_version") == 1])
+        bpy.context.scene.frame_set(10)
+        self.assertStatusContains(self.obj, "Correcting")
+        self.assertIsNotNone(self.addon.offsets.offsets_object(modifier))
+        mesh = self.obj.data
+        triangles = helpers.mesh_triangles(mesh)
+        rest_volume = helpers.volume(helpers.mesh_positions(mesh), triangles)
+        plain = helpers.relative_volume_error(helpers.uncorrected_positions(self.obj), triangles, rest_volume)
+        corrected = helpers.relative_volume_error(helpers.evaluated_positions(self.obj), triangles, rest_volume)
+        self.assertGreater(plain, 0.05)
+        self.assertSmallerThan(corrected, 0.1 * plain, "corrected after opening (plain %g)" % plain)
 
 
 class TestRender(FileTestCase):

@@ -1,11 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Characters brought into a shot from their own file by library override, as productions do.
 
-The override keeps the character's mesh linked, and Blender ignores what add-ons write into a linked
-or overridden mesh (tested here: the offsets read back as zeros), where the correction lives. So the
-panel says so and offers Make Mesh Local (object.lvp_make_mesh_local), which gives the object a local
-copy of its mesh; from then on it is corrected like a local character, and the override keeps it
-after saving and reopening the shot.
+The override keeps the character's mesh linked, and Blender ignores what add-ons write into a
+linked or overridden mesh. The correction lives in an offsets object of the shot's own
+(addon/offsets.py), so the character is corrected with its mesh still linked: it keeps following the
+character file (new weights, a changed rest mesh), and the override records which offsets object its
+modifier uses when the shot is saved.
 """
 
 import os
@@ -13,13 +13,13 @@ import os
 import bpy
 
 import lvp_helpers as helpers
-from test_panel import draw_panel
 
 
 class TestLibraryOverride(helpers.AddonTestCase):
 
-    def setUp(self):
-        super().setUp()
+    def make_shot(self, with_modifier):
+        """Saves the cylinder character (corrected or not) in its own file, then makes a new shot that
+        links and overrides it, as Blender's Library Override > Make does."""
         obj, rig = helpers.make_cylinder_character()
         collection = bpy.data.collections.new("Character")
         bpy.context.scene.collection.children.link(collection)
@@ -27,13 +27,14 @@ class TestLibraryOverride(helpers.AddonTestCase):
             for owner in list(item.users_collection):
                 owner.objects.unlink(item)
             collection.objects.link(item)
-        self.assertEqual(helpers.add_volume_preservation(obj), {'FINISHED'})
+        if with_modifier:
+            self.assertEqual(helpers.add_volume_preservation(obj), {'FINISHED'})
         self.directory = helpers.fresh_directory("override")
         self.asset = os.path.join(self.directory, "character.blend")
+        self.shot = os.path.join(self.directory, "shot.blend")
         bpy.ops.wm.save_as_mainfile(filepath=self.asset, copy=True)
-        # The shot: a new file that links the character and overrides it.
         scene = helpers.reset_scene()
-        with bpy.data.libraries.load(self.asset, link=True) as (source, target):
+        with bpy.data.libraries.load(self.asset, link=True) as (_source, target):
             target.collections = ["Character"]
         linked = target.collections[0]
         instance = helpers.link(bpy.data.objects.new("CharacterInstance", None))
@@ -42,49 +43,66 @@ class TestLibraryOverride(helpers.AddonTestCase):
         override = linked.override_hierarchy_create(scene, bpy.context.view_layer, reference=instance)
         self.obj = next(item for item in override.all_objects if item.type == 'MESH')
         self.rig = next(item for item in override.all_objects if item.type == 'ARMATURE')
-        self.triangles = helpers.mesh_triangles(self.obj.data)
-        self.rest_volume = helpers.volume(helpers.mesh_positions(self.obj.data), self.triangles)
-
-    def errors(self):
-        corrected = helpers.evaluated_positions(self.obj)
-        plain = helpers.uncorrected_positions(self.obj)
-        return (helpers.relative_volume_error(corrected, self.triangles, self.rest_volume),
-                helpers.relative_volume_error(plain, self.triangles, self.rest_volume))
-
-    def test_linked_mesh_made_local(self):
         self.assertIsNotNone(self.obj.override_library)
-        self.assertTrue(self.addon.live.mesh_from_library(self.obj.data))
-        helpers.bend(self.rig, 90.0)
-        bpy.context.view_layer.update()
-        self.assertStatusContains(self.obj, "Make Mesh Local")
-        self.assertIn("object.lvp_make_mesh_local", draw_panel(self, self.obj)["operators"])
-        corrected, plain = self.errors()
-        self.assertGreater(plain, 0.05)
-        self.assertEqual(corrected, plain, "nothing can be written into the linked mesh")
+        self.assertTrue(self.addon.mesh_data.is_linked(self.obj.data))
+        self.names = (self.obj.name, self.rig.name)
 
-        helpers.select_only(self.obj)
-        self.assertEqual(bpy.ops.object.lvp_make_mesh_local(), {'FINISHED'})
-        self.assertFalse(self.addon.live.mesh_from_library(self.obj.data))
-        self.assertNotIn("object.lvp_make_mesh_local", draw_panel(self, self.obj)["operators"])
+    def reopen_shot(self):
+        bpy.ops.wm.open_mainfile(filepath=self.shot)
+        self.obj, self.rig = (next(item for item in bpy.data.objects if item.name == name and item.library is None)
+                              for name in self.names)
+        self.assertIsNotNone(self.obj.override_library)
+        self.assertTrue(self.addon.mesh_data.is_linked(self.obj.data), "the mesh stays linked to the library")
+
+    def assertCorrectedAt90(self, message):
+        helpers.bend(self.rig, 90.0)
         bpy.context.view_layer.update()
         self.assertStatusContains(self.obj, "Correcting")
-        corrected, plain = self.errors()
-        self.assertSmallerThan(corrected, 0.1 * plain, "corrected volume error with the local mesh (plain %g)" % plain)
+        mesh = self.obj.data
+        triangles = helpers.mesh_triangles(mesh)
+        rest_volume = helpers.volume(helpers.mesh_positions(mesh), triangles)
+        corrected = helpers.relative_volume_error(helpers.evaluated_positions(self.obj), triangles, rest_volume)
+        plain = helpers.relative_volume_error(helpers.uncorrected_positions(self.obj), triangles, rest_volume)
+        self.assertGreater(plain, 0.05, message)
+        self.assertSmallerThan(corrected, 0.1 * plain, "%s: corrected volume error (plain %g)" % (message, plain))
+        holder = self.addon.offsets.offsets_object(self.addon.node_group.find_modifier(self.obj))
+        self.assertIsNone(holder.library, "the offsets object belongs to the shot")
 
-        # The override keeps the local mesh in the saved shot.
-        shot = os.path.join(self.directory, "shot.blend")
-        names = (self.obj.name, self.rig.name)
-        bpy.ops.wm.save_as_mainfile(filepath=shot)
-        bpy.ops.wm.open_mainfile(filepath=shot)
-        self.obj, self.rig = (next(item for item in bpy.data.objects if item.name == name and item.library is None)
-                              for name in names)
-        self.assertFalse(self.addon.live.mesh_from_library(self.obj.data))
-        helpers.bend(self.rig, 90.0)
-        bpy.context.view_layer.update()
-        corrected, plain = self.errors()
-        self.assertSmallerThan(corrected, 0.1 * plain, "after reopening the shot (plain %g)" % plain)
+    def test_corrected_with_the_mesh_linked(self):
+        self.make_shot(with_modifier=True)
+        self.assertCorrectedAt90("in the shot, with no user action")
+        self.obj.lvp.alpha = 1.5  # a setting changed in the shot
+        bpy.ops.wm.save_as_mainfile(filepath=self.shot)
+        self.reopen_shot()
+        self.assertEqual(self.obj.lvp.alpha, 1.5, "the shot keeps its own settings")
+        self.assertCorrectedAt90("after reopening the shot")
 
-    def test_nothing_to_make_local(self):
-        bpy.ops.object.select_all(action='DESELECT')
-        with self.assertRaises(RuntimeError):  # the poll fails: no selected object has a linked mesh
-            bpy.ops.object.lvp_make_mesh_local()
+        # The character file changes (its rest mesh made 20 % thicker): the shot follows it, corrected.
+        bpy.ops.wm.open_mainfile(filepath=self.asset)
+        mesh = next(obj for obj in bpy.data.objects if obj.type == 'MESH').data
+        for vertex in mesh.vertices:
+            vertex.co.x *= 1.2
+            vertex.co.y *= 1.2
+        bpy.ops.wm.save_mainfile()
+        self.reopen_shot()
+        widest = max(abs(vertex.co.x) for vertex in self.obj.data.vertices)
+        self.assertAlmostEqual(widest, 0.6, places=4, msg="the shot's mesh is the character file's")
+        self.assertCorrectedAt90("after the character file changed")
+
+    def test_added_in_the_shot(self):
+        self.make_shot(with_modifier=False)
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+        self.assertCorrectedAt90("added to the override")
+        bpy.ops.wm.save_as_mainfile(filepath=self.shot)
+        self.reopen_shot()
+        self.assertCorrectedAt90("added to the override, after reopening the shot")
+
+    def test_weights_are_the_library_files(self):
+        self.make_shot(with_modifier=True)
+        helpers.select_only(self.obj)
+        before = helpers.mesh_snapshot(self.obj.data)
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.object.lvp_auto_weights()
+        self.assertIn("linked from a library", str(raised.exception))
+        self.assertEqual(helpers.mesh_snapshot(self.obj.data), before)

@@ -400,36 +400,55 @@ class TestSeparateParts(helpers.AddonTestCase):
                                    "the part %s" % name)
 
 
-class TestLinkedDuplicates(CylinderTestCase):
-    """Objects sharing one mesh (Alt+D), each with the modifier and its own rig: the correction is
-    stored in the mesh, so it cannot be right for both. Both pass the mesh through and say how to fix
-    it, rather than one showing the other's correction."""
+class TestDuplicates(CylinderTestCase):
+    """Copies of a corrected object: each is corrected for its own pose. The correction lives in an
+    offsets object per object (addon/offsets.py), not in the mesh, so objects sharing one mesh (Alt+D)
+    are corrected too; a copy (Shift+D) whose modifier still names the original's offsets object gets
+    one of its own."""
 
-    def test_shared_mesh_passes_through_until_made_single_user(self):
+    def duplicate_with_own_rig(self, linked, degrees):
         helpers.select_only(self.obj)
-        bpy.ops.object.duplicate(linked=True)
+        bpy.ops.object.duplicate(linked=linked)
         duplicate = bpy.context.selected_objects[0]
         self.assertIsNot(duplicate, self.obj)
-        self.assertEqual(duplicate.data, self.obj.data)
-        own_rig = helpers.two_bone_armature("DuplicateRig")  # at rest: its skinned shape is the rest mesh
+        own_rig = helpers.two_bone_armature("DuplicateRig")
+        helpers.keyframe_bend(own_rig, {1: 0.0, 10: degrees})
         duplicate.parent = own_rig
         for modifier in duplicate.modifiers:
             if modifier.type == 'ARMATURE':
                 modifier.object = own_rig
-        self.scene.frame_set(10)
-        for obj in (self.obj, duplicate):
-            self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(obj),
-                                                        helpers.uncorrected_positions(obj)), 1e-6,
-                                   "%s shows a correction computed for a mesh it shares" % obj.name)
-            self.assertStatusContains(obj, "Make Single User")
-        helpers.select_only(duplicate)
-        bpy.ops.object.make_single_user(object=True, obdata=True)
-        self.assertNotEqual(duplicate.data, self.obj.data)
+        return duplicate
+
+    def offsets_object(self, obj):
+        return self.addon.offsets.offsets_object(self.addon.node_group.find_modifier(obj))
+
+    def assertEachCorrected(self, duplicate):
         self.scene.frame_set(9)
-        self.assertCorrected(self.obj, message="the original after Make Single User")
-        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(duplicate)), 1e-6,
-                               "the duplicate's rig is at rest: it needs no correction")
-        self.assertEqual(self.status_of(duplicate)[0], 'INFO')
+        self.scene.frame_set(10)
+        self.assertCorrected(self.obj, message="the original at 90 degrees")
+        self.assertCorrected(duplicate, message="the duplicate at 45 degrees")
+        self.assertEqual(self.status_of(duplicate)[0], 'INFO', self.status_of(duplicate))
+        self.assertIsNot(self.offsets_object(self.obj), self.offsets_object(duplicate))
+        self.assertEqual(self.offsets_object(duplicate)[self.addon.names.OFFSETS_OWNER_TAG], duplicate.name_full)
+
+    def test_shared_mesh_each_corrected(self):
+        duplicate = self.duplicate_with_own_rig(linked=True, degrees=45.0)
+        self.assertEqual(duplicate.data, self.obj.data)
+        self.assertEachCorrected(duplicate)
+
+    def test_copy_gets_its_own_offsets_object(self):
+        original_holder = self.offsets_object(self.obj)
+        duplicate = self.duplicate_with_own_rig(linked=False, degrees=45.0)
+        self.assertNotEqual(duplicate.data, self.obj.data)
+        self.assertEachCorrected(duplicate)
+        self.assertIs(self.offsets_object(self.obj), original_holder, "the original keeps its offsets object")
+        # Removing the copy's modifier deletes its offsets object and leaves the original's alone.
+        helpers.select_only(duplicate)
+        holder_name = self.offsets_object(duplicate).name
+        self.assertEqual(bpy.ops.object.lvp_remove(), {'FINISHED'})
+        self.assertIsNone(bpy.data.objects.get(holder_name))
+        self.assertIsNotNone(bpy.data.objects.get(original_holder.name))
+        self.assertCorrected(self.obj, message="the original after the copy's removal")
 
 
 class TestShapeKeys(CylinderTestCase):

@@ -1,0 +1,196 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where the correction lives: one offsets object per corrected object.
+
+The handlers compute per-vertex offsets every frame; the modifier's node group adds them to what
+leaves the Armature modifier (node_group.py). They are written into a small object of their own,
+never into the character's mesh:
+
+    character object --modifier "Volume Preservation", input "Offsets"--> offsets object
+                                                                          mesh: N loose vertices,
+                                                                          vertex i at offset i
+
+Why not an attribute of the character's mesh (version 1 of the node group did that):
+- a character linked from a library, as productions bring characters into shots by library
+  override, keeps its mesh linked, and Blender ignores what add-ons write into it; the offsets
+  object is local to the shot, and the override records which one the modifier uses;
+- objects that share one mesh (linked duplicates) each need their own correction;
+- on Blender 3.4 a tagged mesh is copied whole into its evaluated copy before the modifiers run
+  again (6 ms for 100k vertices); the offsets object is that copy's only cost, a third of it.
+
+The offsets object is in no collection (nothing to see, select or render) and is kept and saved
+because the modifier uses it. Its custom property names.OFFSETS_OWNER_TAG names the object it was
+made for: a modifier copied to another object (Copy to Selected, Duplicate) names the same offsets
+object, and the object that is not its owner gets one of its own at its next correction.
+New offsets objects are made on the main thread only (never from a render thread).
+"""
+
+from array import array
+
+import bpy
+
+from . import names
+from . import node_group
+
+
+def same_values(first, second):
+    """Bitwise equality of two arrays, at memcmp speed (array.__eq__ compares item by item in Python
+    objects, which costs milliseconds per frame on large meshes)."""
+    return len(first) == len(second) and first.tobytes() == second.tobytes()
+
+
+def offsets_object(modifier):
+    """The object the modifier's Offsets input names, or None."""
+    if modifier is None or modifier.node_group is None:
+        return None
+    identifier = node_group.offsets_socket_identifier(modifier.node_group)
+    if identifier is None:
+        return None
+    value = modifier.get(identifier)
+    return value if isinstance(value, bpy.types.Object) else None
+
+
+def is_offsets_object(obj):
+    return obj is not None and obj.type == 'MESH' and obj.get(names.OFFSETS_OWNER_TAG) is not None
+
+
+def _writable(obj):
+    return (obj.library is None and getattr(obj, "override_library", None) is None and obj.data is not None
+            and obj.data.library is None and getattr(obj.data, "override_library", None) is None)
+
+
+def _users_of(holder):
+    """Objects whose Volume Preservation modifier names holder (cheap when only one does: the usual case)."""
+    if holder.users < 2:
+        return None
+    return [obj for obj in bpy.data.objects
+            if obj.type == 'MESH' and offsets_object(node_group.find_modifier(obj)) == holder]
+
+
+def usable_offsets_object(obj, modifier, vertex_count):
+    """The offsets object obj's modifier names when obj may write it: made by the add-on, local, with
+    vertex_count vertices and obj as its only user (or its owner). None when obj needs a new one."""
+    holder = offsets_object(modifier)
+    if not is_offsets_object(holder) or not _writable(holder) or len(holder.data.vertices) != vertex_count:
+        return None
+    users = _users_of(holder)
+    if users is not None and len(users) > 1 and holder.get(names.OFFSETS_OWNER_TAG) != obj.name_full:
+        return None
+    return holder
+
+
+def new_offsets_object(obj, modifier, vertex_count):
+    """Makes obj an offsets object of vertex_count vertices at zero (no correction), names it in the
+    modifier and returns it. The one it replaces is deleted when nothing else uses it."""
+    identifier = node_group.offsets_socket_identifier(modifier.node_group)
+    if identifier is None:
+        raise ValueError("the node group of %r has no %r input" % (modifier.name, names.OFFSETS_SOCKET_NAME))
+    name = (names.OFFSETS_OBJECT_PREFIX + obj.name)[:63]
+    mesh = bpy.data.meshes.new(name)
+    mesh.vertices.add(vertex_count)  # at (0, 0, 0)
+    holder = bpy.data.objects.new(name, mesh)
+    holder[names.OFFSETS_OWNER_TAG] = obj.name_full
+    previous = offsets_object(modifier)
+    modifier[identifier] = holder
+    # A new object in the modifier is a new dependency: the assignment above does not tell the
+    # dependency graph, changing the modifier through its RNA property does.
+    modifier.show_viewport = modifier.show_viewport
+    obj.update_tag()
+    if previous is not None:
+        delete_if_unused(previous)
+    return holder
+
+
+def delete_if_unused(holder):
+    """Deletes an offsets object made by the add-on, and its mesh, when no modifier uses it any more."""
+    if not is_offsets_object(holder) or not _writable(holder) or holder.users > 0:
+        return
+    mesh = holder.data
+    bpy.data.objects.remove(holder)
+    if mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
+
+
+def delete_offsets_object(modifier):
+    """Before the modifier is removed: deletes its offsets object when nothing else uses it."""
+    holder = offsets_object(modifier)
+    if holder is None:
+        return
+    identifier = node_group.offsets_socket_identifier(modifier.node_group)
+    modifier[identifier] = None
+    delete_if_unused(holder)
+
+
+def write(holder, offsets, bound=None):
+    """Writes offsets (3 floats a vertex) into the offsets object when they differ from what it holds,
+    and tags its mesh for a new evaluation (which evaluates the corrected object again). Returns
+    whether anything was written.
+
+    bound.written remembers what was last written, which saves reading it back every frame; it is
+    forgotten (None) whenever something else may have changed it (undo, a new offsets object).
+    """
+    if bound is not None and bound.written is not None and same_values(bound.written, offsets):
+        return False
+    mesh = holder.data
+    if len(mesh.vertices) * 3 != len(offsets):
+        return False
+    if bound is None or bound.written is None:
+        current = array('f', bytes(4 * len(offsets)))
+        mesh.vertices.foreach_get("co", current)
+        if same_values(current, offsets):
+            if bound is not None:
+                bound.written = current
+            return False
+    mesh.vertices.foreach_set("co", offsets)
+    mesh.update_tag()
+    if bound is not None:
+        bound.written = array('f', offsets)
+    return True
+
+
+def write_zeros(modifier, bound=None):
+    """Pass-through: the modifier then adds nothing. Writes only into an offsets object the add-on made
+    and may write. Returns whether anything was written."""
+    holder = offsets_object(modifier)
+    if not is_offsets_object(holder) or not _writable(holder):
+        return False
+    zeros = array('f', bytes(12 * len(holder.data.vertices)))
+    if bound is not None and len(zeros) != 3 * bound.vertex_count:
+        bound = None
+    return write(holder, zeros, bound)
+
+
+def read(obj):
+    """The offsets obj's modifier adds (3 floats a vertex of obj's mesh; zero where its offsets
+    object has no vertex), or None when it has no Volume Preservation modifier."""
+    modifier = node_group.find_modifier(obj)
+    if modifier is None:
+        return None
+    values = array('f', bytes(12 * len(obj.data.vertices)))
+    holder = offsets_object(modifier)
+    if holder is not None and holder.type == 'MESH':
+        stored = array('f', bytes(12 * len(holder.data.vertices)))
+        holder.data.vertices.foreach_get("co", stored)
+        count = min(len(stored), len(values))
+        values[:count] = stored[:count]
+    return values
+
+
+def swap_untagged(holder, offsets=None):
+    """Replaces the offsets object's offsets with offsets (zeros when None) WITHOUT tagging it: what
+    Blender shows stays as it is, only what is saved changes. Returns the previous offsets, or None
+    when nothing was replaced (another vertex count, or the same values)."""
+    mesh = holder.data
+    previous = array('f', bytes(12 * len(mesh.vertices)))
+    if offsets is None:
+        offsets = array('f', bytes(4 * len(previous)))
+    if len(offsets) != len(previous):
+        return None
+    mesh.vertices.foreach_get("co", previous)
+    if same_values(previous, offsets):
+        return None
+    mesh.vertices.foreach_set("co", offsets)
+    return previous
+
+
+def all_writable_offsets_objects():
+    return [obj for obj in bpy.data.objects if is_offsets_object(obj) and _writable(obj)]

@@ -34,10 +34,23 @@ def is_linked(mesh):
     return mesh.library is not None or getattr(mesh, "override_library", None) is not None
 
 
-def vertex_positions(mesh):
-    """The mesh's vertex coordinates (its base shape, without shape keys), float32[3N]."""
-    positions = float_array(3 * len(mesh.vertices))
-    mesh.vertices.foreach_get("co", positions)
+def coordinates(mesh):
+    """(collection, property) through which foreach_get / foreach_set move a mesh's vertex coordinates
+    fastest: the "position" attribute on Blender 3.5+ (vertices' "co" takes 5.7 ms to set and 1.6 ms to
+    get for 100k vertices on 4.3, the attribute 0.05 ms), the vertices on 3.4, which has no such
+    attribute and moves "co" at attribute speed."""
+    attribute = mesh.attributes.get("position")
+    if attribute is not None and attribute.domain == 'POINT' and attribute.data_type == 'FLOAT_VECTOR':
+        return attribute.data, "vector"
+    return mesh.vertices, "co"
+
+
+def vertex_positions(mesh, out=None):
+    """The mesh's vertex coordinates (its base shape, without shape keys), float32[3N], into out when
+    given."""
+    positions = float_array(3 * len(mesh.vertices)) if out is None else out
+    collection, key = coordinates(mesh)
+    collection.foreach_get(key, positions)
     return positions
 
 

@@ -28,6 +28,7 @@ from array import array
 
 import bpy
 
+from . import mesh_data
 from . import names
 from . import node_group
 
@@ -134,13 +135,13 @@ def write(holder, offsets, bound=None):
     if len(mesh.vertices) * 3 != len(offsets):
         return False
     if bound is None or bound.written is None:
-        current = array('f', bytes(4 * len(offsets)))
-        mesh.vertices.foreach_get("co", current)
+        current = mesh_data.vertex_positions(mesh)
         if same_values(current, offsets):
             if bound is not None:
                 bound.written = current
             return False
-    mesh.vertices.foreach_set("co", offsets)
+    collection, key = mesh_data.coordinates(mesh)
+    collection.foreach_set(key, offsets)
     mesh.update_tag()
     if bound is not None:
         bound.written = array('f', offsets)
@@ -168,8 +169,7 @@ def read(obj):
     values = array('f', bytes(12 * len(obj.data.vertices)))
     holder = offsets_object(modifier)
     if holder is not None and holder.type == 'MESH':
-        stored = array('f', bytes(12 * len(holder.data.vertices)))
-        holder.data.vertices.foreach_get("co", stored)
+        stored = mesh_data.vertex_positions(holder.data)
         count = min(len(stored), len(values))
         values[:count] = stored[:count]
     return values
@@ -180,15 +180,13 @@ def swap_untagged(holder, offsets=None):
     Blender shows stays as it is, only what is saved changes. Returns the previous offsets, or None
     when nothing was replaced (another vertex count, or the same values)."""
     mesh = holder.data
-    previous = array('f', bytes(12 * len(mesh.vertices)))
+    previous = mesh_data.vertex_positions(mesh)
     if offsets is None:
         offsets = array('f', bytes(4 * len(previous)))
-    if len(offsets) != len(previous):
+    if len(offsets) != len(previous) or same_values(previous, offsets):
         return None
-    mesh.vertices.foreach_get("co", previous)
-    if same_values(previous, offsets):
-        return None
-    mesh.vertices.foreach_set("co", offsets)
+    collection, key = mesh_data.coordinates(mesh)
+    collection.foreach_set(key, offsets)
     return previous
 
 

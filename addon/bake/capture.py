@@ -20,6 +20,7 @@ from array import array
 import bpy
 
 from .. import bindings
+from .. import mesh_data
 from .. import names
 from .. import node_group
 from .. import offsets
@@ -121,7 +122,7 @@ class ObjectReader:
                 raise BakeError("%r at frame %d: the mesh leaving Volume Preservation has %d vertices, the object's "
                                 "mesh %d: a modifier before the Armature modifier adds or removes vertices"
                                 % (self.name, frame, count, self.vertex_count))
-            mesh_eval.vertices.foreach_get("co", self.positions)
+            mesh_data.vertex_positions(mesh_eval, self.positions)
             return self.positions
         captured = mesh_eval.attributes.get(names.CAPTURED_POSITION_ATTRIBUTE)
         if captured is None or captured.domain != 'POINT' or count < self.vertex_count:

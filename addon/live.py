@@ -187,18 +187,18 @@ def correct_object(obj, depsgraph, check_topology=False):
 
     bound = bindings.ensure(obj, depsgraph)
     if bound is None:
-        return offsets.write_zeros(modifier)
+        return offsets.write_zeros(obj, modifier)
     if mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0] or (
             check_topology and mesh_data.topology_signature(mesh) != bound.topology):
         bindings.set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
-        return offsets.write_zeros(modifier)
+        return offsets.write_zeros(obj, modifier)
     holder = offsets.usable_offsets_object(obj, modifier, bound.vertex_count)
     if holder is None:
         if not is_main_thread():
             bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has no offsets object of its own, which "
                                               "is made on the main thread (render once from the viewport, or "
                                               "press Bind)" % obj.name)
-            return offsets.write_zeros(modifier, bound)
+            return offsets.write_zeros(obj, modifier, bound)
         if not node_group.is_current(modifier.node_group):
             # Appended from a file of an older version, or its group edited by hand.
             node_group.repair_modifiers([obj])
@@ -209,29 +209,29 @@ def correct_object(obj, depsgraph, check_topology=False):
         # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has more than one Volume Preservation "
                                           "modifier; remove the copies" % obj.name)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     armature_modifier = node_group.find_armature_modifier(obj)
     if armature_modifier is None:
         bindings.set_status(obj, 'ERROR', "No Armature modifier before Volume Preservation: move Volume Preservation "
                                           "right after the Armature modifier, or remove it")
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     armature_object = armature_modifier.object
     if armature_object is None or armature_object.type != 'ARMATURE':
         bindings.set_status(obj, 'ERROR', "The Armature modifier %r has no armature object: set its Object field"
                             % armature_modifier.name)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
 
     unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
     if unfollowed is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     previous_bound, previous_map = bound, bound.map_key
     bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
     if bound is None:
-        return offsets.write_zeros(modifier)
+        return offsets.write_zeros(obj, modifier)
     bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
     if bound is None:
-        return offsets.write_zeros(modifier)
+        return offsets.write_zeros(obj, modifier)
     if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
                              obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
         display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
@@ -241,11 +241,11 @@ def correct_object(obj, depsgraph, check_topology=False):
     problem = evaluated_problem(obj, depsgraph, bound)
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
     if skeleton_problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
 
     rest_positions = None
     if mesh.shape_keys is not None:
@@ -258,7 +258,7 @@ def correct_object(obj, depsgraph, check_topology=False):
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     bound.stats = stats
@@ -268,7 +268,7 @@ def correct_object(obj, depsgraph, check_topology=False):
         bindings.set_status(obj, 'WARNING', "The correction diverged at this pose (largest offset %.3g, above %.3g, "
                                             "a quarter of the mesh size): showing plain skinning for this frame"
                             % (displacement, bound.displacement_limit))
-        return offsets.write_zeros(modifier, bound)
+        return offsets.write_zeros(obj, modifier, bound)
     warnings = []
     unseen = node_group.modifiers_before(obj, armature_modifier, depsgraph.mode)
     if unseen:

@@ -15,7 +15,9 @@ Why not an attribute of the character's mesh (version 1 of the node group did th
   object is local to the shot, and the override records which one the modifier uses;
 - objects that share one mesh (linked duplicates) each need their own correction;
 - on Blender 3.4 a tagged mesh is copied whole into its evaluated copy before the modifiers run
-  again (6 ms for 100k vertices); the offsets object is that copy's only cost, a third of it.
+  again: the object evaluated again after its offsets object changed takes 12.7 ms for 100k
+  vertices, after its own mesh changed 17-18.5 ms (BENCHMARKS.md). On 4.3 the Sample Index node
+  costs about 0.3 ms per evaluation instead.
 
 The offsets object is in no collection (nothing to see, select or render) and is kept and saved
 because the modifier uses it. Its custom property names.OFFSETS_OWNER_TAG names the object it was
@@ -67,21 +69,26 @@ def _users_of(holder):
             if obj.type == 'MESH' and offsets_object(node_group.find_modifier(obj)) == holder]
 
 
+def _owned_by(holder, obj):
+    """Whether obj may write holder: obj's modifier is the only one that names it, or obj is the
+    object it was made for (a copy's modifier names its original's until it gets its own)."""
+    users = _users_of(holder)
+    return users is None or len(users) < 2 or holder.get(names.OFFSETS_OWNER_TAG) == obj.name_full
+
+
 def usable_offsets_object(obj, modifier, vertex_count):
     """The offsets object obj's modifier names when obj may write it: made by the add-on, local, with
-    vertex_count vertices and obj as its only user (or its owner). None when obj needs a new one."""
+    vertex_count vertices, and obj's own. None when obj needs a new one."""
     holder = offsets_object(modifier)
-    if not is_offsets_object(holder) or not _writable(holder) or len(holder.data.vertices) != vertex_count:
-        return None
-    users = _users_of(holder)
-    if users is not None and len(users) > 1 and holder.get(names.OFFSETS_OWNER_TAG) != obj.name_full:
+    if (not is_offsets_object(holder) or not _writable(holder) or len(holder.data.vertices) != vertex_count
+            or not _owned_by(holder, obj)):
         return None
     return holder
 
 
 def new_offsets_object(obj, modifier, vertex_count):
-    """Makes obj an offsets object of vertex_count vertices at zero (no correction), names it in the
-    modifier and returns it. The one it replaces is deleted when nothing else uses it."""
+    """Makes an offsets object for obj, of vertex_count vertices at zero (no correction), names it in
+    the modifier and returns it. The one it replaces is deleted when nothing else uses it."""
     identifier = node_group.offsets_socket_identifier(modifier.node_group)
     if identifier is None:
         raise ValueError("the node group of %r has no %r input" % (modifier.name, names.OFFSETS_SOCKET_NAME))
@@ -91,10 +98,10 @@ def new_offsets_object(obj, modifier, vertex_count):
     holder = bpy.data.objects.new(name, mesh)
     holder[names.OFFSETS_OWNER_TAG] = obj.name_full
     previous = offsets_object(modifier)
+    # A new dependency of obj: the dependency graph learns of it because bpy.data.objects.new() above
+    # has it rebuild its relations at the next evaluation (tested: tests/blender/test_live.py,
+    # TestDuplicates, a copy given a new offsets object from a handler is corrected on that frame).
     modifier[identifier] = holder
-    # A new object in the modifier is a new dependency: the assignment above does not tell the
-    # dependency graph, changing the modifier through its RNA property does.
-    modifier.show_viewport = modifier.show_viewport
     obj.update_tag()
     if previous is not None:
         delete_if_unused(previous)
@@ -148,11 +155,12 @@ def write(holder, offsets, bound=None):
     return True
 
 
-def write_zeros(modifier, bound=None):
-    """Pass-through: the modifier then adds nothing. Writes only into an offsets object the add-on made
-    and may write. Returns whether anything was written."""
+def write_zeros(obj, modifier, bound=None):
+    """Pass-through: obj's modifier then adds nothing. Writes only into an offsets object the add-on
+    made, that can be written and that is obj's own (never into the original's from a copy). Returns
+    whether anything was written."""
     holder = offsets_object(modifier)
-    if not is_offsets_object(holder) or not _writable(holder):
+    if not is_offsets_object(holder) or not _writable(holder) or not _owned_by(holder, obj):
         return False
     zeros = array('f', bytes(12 * len(holder.data.vertices)))
     if bound is not None and len(zeros) != 3 * bound.vertex_count:

@@ -436,6 +436,26 @@ class TestDuplicates(CylinderTestCase):
         self.assertEqual(duplicate.data, self.obj.data)
         self.assertEachCorrected(duplicate)
 
+    def test_copy_passing_through_leaves_the_original_alone(self):
+        self.scene.frame_set(10)
+        offsets = helpers.offsets_of(self.obj)
+        self.assertGreater(helpers.max_abs(offsets), 0.01)
+        helpers.select_only(self.obj)
+        self.addon.handlers.unregister()  # else the copy gets its own offsets object right away
+        try:
+            bpy.ops.object.duplicate()
+        finally:
+            self.addon.handlers.register()
+        duplicate = bpy.context.selected_objects[0]
+        self.assertIs(self.offsets_object(duplicate), self.offsets_object(self.obj), "the copy's modifier names it")
+        duplicate.lvp.bind_id = ""  # the copy passes the mesh through ("Not bound")
+        # Called directly: through the handlers, the original would be corrected again after a write
+        # into its offsets object, and hide it.
+        written = self.addon.live.correct_object(duplicate, bpy.context.evaluated_depsgraph_get())
+        self.assertStatusContains(duplicate, "Not bound")
+        self.assertFalse(written)
+        self.assertEqual(helpers.offsets_of(self.obj), offsets, "the copy wrote into the original's offsets")
+
     def test_copy_gets_its_own_offsets_object(self):
         original_holder = self.offsets_object(self.obj)
         duplicate = self.duplicate_with_own_rig(linked=False, degrees=45.0)

@@ -71,10 +71,14 @@ class TestLibraryOverride(helpers.AddonTestCase):
     def test_corrected_with_the_mesh_linked(self):
         self.make_shot(with_modifier=True)
         self.assertCorrectedAt90("in the shot, with no user action")
-        self.obj.lvp.alpha = 1.5  # a setting changed in the shot
+        self.obj.lvp.alpha = 1.5  # settings changed in the shot
+        restriction = self.obj.lvp.region_restrictions.add()
+        restriction.region, restriction.bones = "Upper", "Lower"
         bpy.ops.wm.save_as_mainfile(filepath=self.shot)
         self.reopen_shot()
         self.assertEqual(self.obj.lvp.alpha, 1.5, "the shot keeps its own settings")
+        self.assertEqual([(item.region, item.bones) for item in self.obj.lvp.region_restrictions],
+                         [("Upper", "Lower")], "the shot keeps its region restrictions")
         self.assertCorrectedAt90("after reopening the shot")
 
         # The character file changes (its rest mesh made 20 % thicker): the shot follows it, corrected.

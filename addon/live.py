@@ -70,7 +70,7 @@ def _evaluated_positions(mesh_eval, bound, stack):
         indices = _scratch(bound, "scratch_indices", 'i', evaluated_count)
         index_attribute.data.foreach_get("value", indices)
         expected = _expected_indices(bound)
-        if not offsets.same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
+        if not mesh_data.same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
             return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
                     "the Armature modifier changes them, or one after Volume Preservation reorders them)")
         if evaluated_count != vertex_count and bound.mapping_checked != (evaluated_count, stack):

@@ -25,13 +25,20 @@ def int_array(count):
     return array('i', bytes(4 * count))
 
 
+def same_values(first, second):
+    """Bitwise equality of two arrays, at memcmp speed (array.__eq__ compares item by item in Python
+    objects, which costs milliseconds per frame on large meshes)."""
+    return len(first) == len(second) and first.tobytes() == second.tobytes()
+
+
 # ---- mesh ----------------------------------------------------------------------------------
 
 
-def is_linked(mesh):
-    """Whether mesh comes from a library (linked, or kept linked by a library override): Blender
-    ignores what add-ons write into such a mesh (its weights, its attributes)."""
-    return mesh.library is not None or getattr(mesh, "override_library", None) is not None
+def is_linked(data):
+    """Whether a data-block (a mesh, an object) comes from a library (linked, or kept linked by a
+    library override): Blender ignores what add-ons write into such a mesh (its weights, its
+    attributes)."""
+    return data.library is not None or getattr(data, "override_library", None) is not None
 
 
 def coordinates(mesh):
@@ -52,6 +59,12 @@ def vertex_positions(mesh, out=None):
     collection, key = coordinates(mesh)
     collection.foreach_get(key, positions)
     return positions
+
+
+def set_vertex_positions(mesh, positions):
+    """Moves the mesh's vertices to float32[3N] positions (without tagging the mesh)."""
+    collection, key = coordinates(mesh)
+    collection.foreach_set(key, positions)
 
 
 def bounding_box_diagonal(positions):

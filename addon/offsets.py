@@ -35,12 +35,6 @@ from . import names
 from . import node_group
 
 
-def same_values(first, second):
-    """Bitwise equality of two arrays, at memcmp speed (array.__eq__ compares item by item in Python
-    objects, which costs milliseconds per frame on large meshes)."""
-    return len(first) == len(second) and first.tobytes() == second.tobytes()
-
-
 def offsets_object(modifier):
     """The object the modifier's Offsets input names, or None."""
     if modifier is None or modifier.node_group is None:
@@ -57,8 +51,7 @@ def is_offsets_object(obj):
 
 
 def _writable(obj):
-    return (obj.library is None and getattr(obj, "override_library", None) is None and obj.data is not None
-            and obj.data.library is None and getattr(obj.data, "override_library", None) is None)
+    return not mesh_data.is_linked(obj) and obj.data is not None and not mesh_data.is_linked(obj.data)
 
 
 def _users_of(holder):
@@ -136,19 +129,18 @@ def write(holder, offsets, bound=None):
     bound.written remembers what was last written, which saves reading it back every frame; it is
     forgotten (None) whenever something else may have changed it (undo, a new offsets object).
     """
-    if bound is not None and bound.written is not None and same_values(bound.written, offsets):
+    if bound is not None and bound.written is not None and mesh_data.same_values(bound.written, offsets):
         return False
     mesh = holder.data
     if len(mesh.vertices) * 3 != len(offsets):
         return False
     if bound is None or bound.written is None:
         current = mesh_data.vertex_positions(mesh)
-        if same_values(current, offsets):
+        if mesh_data.same_values(current, offsets):
             if bound is not None:
                 bound.written = current
             return False
-    collection, key = mesh_data.coordinates(mesh)
-    collection.foreach_set(key, offsets)
+    mesh_data.set_vertex_positions(mesh, offsets)
     mesh.update_tag()
     if bound is not None:
         bound.written = array('f', offsets)
@@ -191,10 +183,9 @@ def swap_untagged(holder, offsets=None):
     previous = mesh_data.vertex_positions(mesh)
     if offsets is None:
         offsets = array('f', bytes(4 * len(previous)))
-    if len(offsets) != len(previous) or same_values(previous, offsets):
+    if len(offsets) != len(previous) or mesh_data.same_values(previous, offsets):
         return None
-    collection, key = mesh_data.coordinates(mesh)
-    collection.foreach_set(key, offsets)
+    mesh_data.set_vertex_positions(mesh, offsets)
     return previous
 
 

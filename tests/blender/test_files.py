@@ -104,6 +104,17 @@ class FileTestCase(helpers.AddonTestCase):
                                                                        completed.stdout[-4000:]))
         return completed
 
+    def dump_in_child(self, path, template, stem, frames, what, with_addon=True):
+        """Opens path in a second Blender that runs template (CHILD_DUMP...) for self.obj at frames;
+        returns what it dumped."""
+        out = os.path.join(self.directory, stem + ".json")
+        script = os.path.join(self.directory, "dump_" + stem + ".py")
+        with open(script, "w") as file:
+            file.write(template.format(here=helpers.HERE, out=out, name=self.obj.name, frames=frames))
+        self.run_child([path, "--python", script], what, with_addon=with_addon)
+        with open(out) as file:
+            return json.load(file)
+
 
 class TestSaveAndReopen(FileTestCase):
 
@@ -116,13 +127,7 @@ class TestSaveAndReopen(FileTestCase):
         scene.frame_set(7)
         at_save = helpers.evaluated_positions(self.obj)
         path = self.save("saved.blend")
-        out = os.path.join(self.directory, "reopened.json")
-        script = os.path.join(self.directory, "dump.py")
-        with open(script, "w") as file:
-            file.write(CHILD_DUMP.format(here=helpers.HERE, out=out, name=self.obj.name, frames=[10, 4]))
-        self.run_child([path, "--python", script], "reopen")
-        with open(out) as file:
-            result = json.load(file)
+        result = self.dump_in_child(path, CHILD_DUMP, "reopened", [10, 4], "reopen")
         self.assertTrue(result["bound"], "the binding was not rebuilt after opening the file")
         self.assertSmallerThan(helpers.max_distance(array('f', result["opened"]), at_save), 1e-5,
                                "as saved, right after opening")
@@ -150,14 +155,8 @@ class TestSaveAndReopen(FileTestCase):
         scene.frame_set(10)
         self.assertEqual(helpers.evaluated_positions(self.obj), shown, "the next frames are corrected as before")
 
-        out = os.path.join(self.directory, "without_addon.json")
-        script = os.path.join(self.directory, "dump_without_addon.py")
-        with open(script, "w") as file:
-            file.write(CHILD_DUMP_WITHOUT_ADDON.format(name=self.obj.name, out=out,
-                                                       frames=[10, 4]))
-        self.run_child([path, "--python", script], "open without the add-on", with_addon=False)
-        with open(out) as file:
-            result = json.load(file)
+        result = self.dump_in_child(path, CHILD_DUMP_WITHOUT_ADDON, "without_addon", [10, 4],
+                                    "open without the add-on", with_addon=False)
         self.assertFalse(result["addon_registered"], "the second Blender was meant to run without the add-on")
         self.assertEqual(result["largest_offset"], 0.0, "the saved file holds a correction")
         for frame in (10, 4):
@@ -177,13 +176,7 @@ class TestSaveAndReopen(FileTestCase):
         bpy.context.scene.frame_set(10)
         plain = helpers.uncorrected_positions(self.obj)
         path = self.save("changed.blend")
-        out = os.path.join(self.directory, "changed.json")
-        script = os.path.join(self.directory, "dump_changed.py")
-        with open(script, "w") as file:
-            file.write(CHILD_DUMP.format(here=helpers.HERE, out=out, name=self.obj.name, frames=[10]))
-        self.run_child([path, "--python", script], "reopen after a topology change")
-        with open(out) as file:
-            result = json.load(file)
+        result = self.dump_in_child(path, CHILD_DUMP, "changed", [10], "reopen after a topology change")
         self.assertIn("rebind needed", result["frame10_status"][1].lower())
         self.assertSmallerThan(helpers.max_distance(array('f', result["frame10"]), plain), 1e-6,
                                "passes the mesh through")

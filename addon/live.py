@@ -242,7 +242,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
         return offsets.write_zeros(obj, modifier, bound)
-    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
+    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval, bound.rigid_space)
     if skeleton_problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
         return offsets.write_zeros(obj, modifier, bound)
@@ -254,7 +254,8 @@ def correct_object(obj, depsgraph, check_topology=False):
     settings = obj.lvp
     try:
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
-                                      rest_positions=rest_positions, iterations=settings.iterations,
+                                      rest_positions=rest_positions, rigid_space=bound.rigid_space,
+                                      iterations=settings.iterations,
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)

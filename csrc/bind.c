@@ -61,7 +61,9 @@ void lvp_free(lvp_binding *binding)
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
 	    binding->bone_source, binding->region_part, binding->vertex_part, binding->cap_part_offsets,
 	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
-	    binding->part_uniform, binding->part_sum, binding->part_gain,
+	    binding->part_uniform, binding->part_sum, binding->part_gain, binding->stretch_offsets, binding->stretch_bones,
+	    binding->stretch_centre, binding->stretch_linear, binding->bone_entry, binding->stretch_offset,
+	    binding->stretch_change, binding->bone_stretch, binding->bone_stretch_valid,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -296,7 +298,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 
 	if ((result = lvp__segment(binding, r_diag)) || (result = lvp__build_borders(binding, r_diag)) ||
-	    (result = lvp__build_region_corners(binding, r_diag)) ||
+	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_stretch_pairs(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;

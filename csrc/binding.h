@@ -130,6 +130,18 @@ struct lvp_binding {
 	int32_t *region_vertex_offsets; /* region_count+1 */
 	int32_t *region_vertices;
 
+	/* ---- bones stretched against the bones they blend with (stretch.c) ---- */
+	int32_t *stretch_offsets; /* region_count+1 (local mode) */
+	int32_t *stretch_bones;   /* per entry: a bone other than the region's weighting a corner of its triangles */
+	lvp__vec3 *stretch_centre; /* per entry: where the pair's relative stretch is taken about (rest) */
+	double *stretch_linear;   /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates, 9 row-major */
+	double *bone_stretch;     /* bone_count*18, this frame: each bone's stretch U and U^-1 in the rigid frame */
+	uint8_t *bone_stretch_valid; /* bone_count, this frame: bone_stretch is set (the skin is not singular) */
+	int32_t *bone_entry;      /* bone_count: scratch, -1 between uses (the stretched entry of each bone) */
+	float *stretch_offset;    /* vertex_count*3: scratch, y - x of the region at hand */
+	double *stretch_change;   /* region_count: the reference change of this frame (zero without stretch) */
+	bool stretch_frame;       /* some pair is stretched this frame */
+
 	/* ---- per-frame work memory ---- */
 	float *work_positions;   /* vertex_count*3 */
 	float *normals;          /* vertex_count*3 */
@@ -272,6 +284,12 @@ void lvp__reference_volumes(lvp_binding *binding);
  * gradients (binding.h, border_gradient); needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
                          const lvp__region_sums *rest_totals, double *r_change);
+/* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
+ * centroid, points in one frame (the bone's). Returns 6 times its signed volume, and in
+ * r_grad_a, r_grad_b its gradient with respect to the deformed corners a and b (the centroid
+ * moves with them). */
+double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest,
+                       lvp__vec3 b);
 /* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */
 double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
 /* Signed volume of the mesh at positions, holes capped (double precision). */
@@ -286,6 +304,14 @@ void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, 
 /* correction.c */
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
                               const float *rest_positions, lvp_diagnostic *r_diag);
+
+/* stretch.c */
+/* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 5). */
+lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* This frame's stretch_change (needs lvp__prepare_frame); sets and returns stretch_frame.
+ * rest_positions: this frame's rest, or NULL for the bind rest; rigid_space: see lvp.h
+ * (lvp_frame_options), checked. */
+bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space);
 
 /* foldover.c */
 /* Moves the vertices that crossed into a neighbouring bone's flesh back to the contact surface

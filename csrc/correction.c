@@ -27,6 +27,16 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.tolerance", -1,
 		                 "options.tolerance is %g; it must be above 0 and below 1 (a relative volume).",
 		                 (double)options->tolerance);
+	if (options->rigid_space) {
+		lvp_result result = lvp__check_float_array(options->rigid_space, 16, "options.rigid_space", r_diag);
+		if (result)
+			return result;
+		lvp__mat4 space = lvp__mat4_load(options->rigid_space), inverse;
+		if (!lvp__mat4_invert_affine(&inverse, &space))
+			return lvp__fail(r_diag, lvp_error_invalid_option, "options.rigid_space", -1,
+			                 "options.rigid_space cannot be inverted (a zero or collapsed scale); pass the map from "
+			                 "the mesh's coordinates to the armature's, or NULL.");
+	}
 	return lvp_success;
 }
 
@@ -851,13 +861,15 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	return steps;
 }
 
-/* Whether some bone's posed frame changes volume against its rest frame by more than 1e-4
- * (squash and stretch, an inflated limb). Each region's local volume takes its bone's scale
- * out (kappa), so the region keeps the volume its bone gives it; but the whole mesh then has
- * no rest volume to go back to, and restoring it would squeeze the scaled volume out through
- * the joints. Such frames correct the regions only. */
+/* Whether some bone's posed frame changes volume against its rest frame by more than 1e-4, or
+ * some bone is stretched against a bone it blends with (squash and stretch, an inflated limb).
+ * The whole mesh then has no rest volume to go back to, and restoring it would squeeze the
+ * scaled volume out through the joints: such frames correct each region to the change its
+ * bones' scales give it (stretch.c), and nothing else. */
 static bool lvp__bones_scale(const lvp_binding *binding)
 {
+	if (binding->stretch_frame)
+		return true;
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		if (!binding->region_skipped[r] && fabs(binding->kappa[r] - 1.0) > 1e-4)
 			return true;
@@ -902,7 +914,7 @@ static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
 		double reference = binding->reference_volume[r];
 		if (binding->region_skipped[r] || !(reference > 0.0))
 			continue;
-		double relative = binding->change[r] / reference;
+		double relative = (binding->change[r] - binding->stretch_change[r]) / reference;
 		if (fabs(relative) > largest) {
 			largest = fabs(relative);
 			worst = r;
@@ -968,8 +980,13 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		binding->part_scale[p] = volume > 1e-6 * cube ? volume : cube;
 	}
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
-	memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);
+	/* Each region aims at zero change, or where bones are stretched against each other at the
+	 * change their stretch alone gives it (stretch.c). */
+	if (lvp__stretch_targets(binding, rest_positions, options->rigid_space))
+		memcpy(binding->target, binding->stretch_change, sizeof(double) * (size_t)binding->region_count);
+	else
+		memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
 	lvp__movable_regions(binding);
 	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
@@ -1011,7 +1028,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
 	if (stats.worst_region >= 0) {
 		stats.worst_region_change_after =
-		    binding->change[stats.worst_region] / binding->reference_volume[stats.worst_region];
+		    (binding->change[stats.worst_region] - binding->stretch_change[stats.worst_region]) /
+		    binding->reference_volume[stats.worst_region];
 		stats.worst_region = lvp__caller_bone(binding, stats.worst_region); /* its bone, in local mode */
 	}
 	stats.skipped_regions = lvp__count_skipped(binding);

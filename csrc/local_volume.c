@@ -18,11 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static inline double lvp__vol6(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
-{
-	return lvp__dot(a, lvp__cross(b, c));
-}
-
 /* ---- region borders --------------------------------------------------------------------- */
 
 /* Half-edge key: (lo, hi, direction), direction 1 when the half-edge runs hi -> lo. */
@@ -780,12 +775,8 @@ void lvp__reference_volumes(lvp_binding *binding)
 	}
 }
 
-/* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
- * centroid; points in the bone's local frame. Returns 6 times its signed volume, and in
- * r_grad_a, r_grad_b its gradient with respect to the deformed corners a and b (the centroid
- * moves with them). */
-static double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest,
-                              lvp__vec3 b_rest, lvp__vec3 b)
+double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest,
+                       lvp__vec3 b)
 {
 	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
 	/* d/dm of sum x . (y x m) over the four triangles is the sum of x x y. */

@@ -68,14 +68,21 @@
  *      Where such a step makes things worse (many overlapping regions, most of the whole
  *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
  *      two phases: the regions to their targets, then one multiplier for the whole mesh.
- *      Bones that scale: in a frame where some bone's posed frame changes volume against its
- *      rest frame (|det ratio - 1| > 1e-4: squash and stretch, an inflated limb), the whole mesh
- *      has no rest volume to go back to, so this multiplier is left out and only the regions
- *      are corrected, each to the volume its bone's scale gives it (local volumes are measured
- *      in the bone's frame, scale included). Across the weight band between a scaled and an
- *      unscaled bone, linear blending gives neither side its bone's volume, and the correction
- *      evens that out: a dent on one side of the joint, a swell on the other (the cylinder with
- *      one bone at x1.1, nothing bent: up to 4.5 % of its radius).
+ *      Bones that scale (squash and stretch, a stretchy chain, an inflated limb; not in the
+ *      paper, whose bones are rigid): in a frame where some bone's posed frame changes volume
+ *      against its rest frame (|det ratio - 1| > 1e-4), or some bone is stretched against a
+ *      bone it blends with, the whole mesh has no rest volume to go back to, so this multiplier
+ *      is left out. Each region is then corrected to the change it has in a reference pose
+ *      where the joints keep their scales and do not bend (stretch.c): each bone's skin is
+ *      split into a turn and a stretch (polar decomposition, in lvp_frame_options.rigid_space),
+ *      and the stretch of every bone against the region's bone is applied to the rest about
+ *      the joint, with the turns left out. A straight joint between a scaled and an unscaled
+ *      bone is thus left exactly as skinning makes it (linear blending interpolates the two
+ *      sizes across the weight band), and a bend is corrected to the volume the scales give
+ *      (the cylinder with its upper bone at x1.2, or stretched 1.5 along it with 0.8 across,
+ *      bent by 90 degrees: within 0.4 % of the same cylinder scaled and straight; plain
+ *      skinning loses 11 %). Frames where every bone's skin is a rotation times one common
+ *      scale skip this with a test per bone.
  *   6. Fold-over prevention (5.4), when enabled: see FOLD-OVER.
  *
  * CORRECTION MAPS (gamma, where the volume goes; paper sections 4 and 5.3)
@@ -431,6 +438,12 @@ typedef struct lvp_frame_options {
 	float tolerance;        /* stop when every region is within tolerance * its reference volume
 	                           of its target (ALGORITHM, 5); > 0, default 1e-4 (0.01 %) */
 	int32_t fold_over;      /* nonzero: fold-over prevention (local mode only), default 0 */
+	const float *rigid_space; /* NULL (default), or 16 floats (row-major, like the bone matrices): the
+	                           map from the mesh's coordinates to a space where a bone that is not
+	                           scaled only turns (the armature's), used to tell a bone's scale from
+	                           its bend (ALGORITHM, 5). NULL: each bone's rest frame, which is right
+	                           unless the mesh has been scaled unevenly against the armature since
+	                           the bind. Its 3x3 part must be invertible. */
 } lvp_frame_options;
 
 lvp_frame_options lvp_frame_default_options(void);
@@ -455,8 +468,8 @@ typedef struct lvp_frame_stats {
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what
  * leaves Blender's Armature modifier: the rest (or rest_positions) skinned by the bound
- * weights and these bones, linear or dual quaternion (see PERFORMANCE). bone_matrices: bone_count*16, the posed bone frames T_i
- * in the same space as the rest matrices (may be NULL in LVP_MODE_GLOBAL). rest_positions:
+ * weights and these bones, linear or dual quaternion (see PERFORMANCE). bone_matrices:
+ * bone_count*16, the posed bone frames T_i in the same space as the rest matrices (may be NULL in LVP_MODE_GLOBAL). rest_positions:
  * NULL to use the bind rest, or vertex_count*3 of this frame's un-skinned positions (shape keys),
  * against which volumes are then compared.
  * Outputs (vertex_count*3 each, at least one non-NULL): r_positions, the corrected positions

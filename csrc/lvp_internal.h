@@ -71,6 +71,11 @@ static inline double lvp__length(lvp__vec3 a)
 {
 	return sqrt(lvp__dot(a, a));
 }
+/* 6 x the signed volume of the tetrahedron (0, a, b, c). */
+static inline double lvp__vol6(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
+{
+	return lvp__dot(a, lvp__cross(b, c));
+}
 
 /* Closest point to p on the segment [a, b] (a point when a == b); returns its parameter. */
 static inline double lvp__closest_on_segment(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 a, lvp__vec3 b)

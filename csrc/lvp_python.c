@@ -996,18 +996,19 @@ static const lvp_py__rename lvp_py__frame_renames[] = {{"vertex_count", "positio
                                                        {"r_positions", "out_positions"},
                                                        {"r_offsets", "out_offsets"},
                                                        {"options.max_iterations", "iterations"},
+                                                       {"options.rigid_space", "rigid_space"},
                                                        {"r_changes", "positions"},
                                                        {NULL, NULL}};
 
 static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObject *kwargs)
 {
-	static char *keywords[] = {"positions",      "bone_matrices", "out_positions", "out_offsets", "rest_positions",
-	                           "iterations",     "tolerance",     "fold_over",     NULL};
+	static char *keywords[] = {"positions",  "bone_matrices", "out_positions", "out_offsets", "rest_positions",
+	                           "iterations", "tolerance",     "fold_over",     "rigid_space", NULL};
 	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
-	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOO:correct", keywords, &positions_object,
+	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL, *space_object = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOO:correct", keywords, &positions_object,
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
-	                                 &iterations, &tolerance, &fold_over))
+	                                 &iterations, &tolerance, &fold_over, &space_object))
 		return NULL;
 	lvp_frame_options options = lvp_frame_default_options();
 	if (lvp_py__parse_int(iterations, "iterations", &options.max_iterations) != 0 ||
@@ -1019,7 +1020,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 		return NULL;
 
 	lvp_py__buffers buffers = {.count = 0};
-	lvp_py__array positions, matrices, rest, out_positions, out_offsets;
+	lvp_py__array positions, matrices, rest, out_positions, out_offsets, space;
 	lvp_frame_stats stats;
 	lvp_diagnostic diag = {0};
 	lvp_result result;
@@ -1031,8 +1032,11 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	                 true) != 0 ||
 	    lvp_py__take(&buffers, &out_offsets, out_offsets_object, "out_offsets", LVP_PY__FLOAT32, true, true) != 0 ||
 	    lvp_py__expect_count(&out_positions, vertex_values, "3 per vertex of the binding") != 0 ||
-	    lvp_py__expect_count(&out_offsets, vertex_values, "3 per vertex of the binding") != 0)
+	    lvp_py__expect_count(&out_offsets, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__take(&buffers, &space, space_object, "rigid_space", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__expect_count(&space, 16, "a 4x4 matrix, row-major") != 0)
 		goto done;
+	options.rigid_space = space.given ? space.data : NULL;
 	if (!out_positions.given && !out_offsets.given) {
 		PyErr_SetString(PyExc_ValueError,
 		                "out_positions and out_offsets are both None; pass at least one float32 buffer of 3 values "
@@ -1216,7 +1220,7 @@ static PyMethodDef lvp_py__binding_methods[] = {
      "Replaces the correction map without rebinding."},
     {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
      "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
-     "iterations=8, tolerance=1e-4, fold_over=False) -> dict\n"
+     "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None) -> dict\n"
      "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
     {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
      "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"

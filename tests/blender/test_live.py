@@ -334,6 +334,40 @@ class TestTransforms(CylinderTestCase):
         self.transform_and_check()
 
 
+class TestScaledBones(CylinderTestCase):
+    """Squash and stretch: a pose bone scaled on purpose keeps the shape plain skinning gives it
+    where nothing bends, and a bend is corrected to the volume the scale gives (csrc/stretch.c)."""
+
+    def scale_upper(self, scale):
+        self.rig.pose.bones["Upper"].scale = scale
+        bpy.context.view_layer.update()
+
+    def test_straight_joint_is_left_alone(self):
+        # Before: each side of the joint was corrected to its own bone's size, which dented one side
+        # of the weight band and swelled the other (4.5 % of the radius at x1.1).
+        for scale in ((1.3, 1.3, 1.3), (0.8, 1.5, 0.8), (0.7, 0.7, 0.7), (1.0, 2.0, 1.0)):
+            self.scale_upper(scale)
+            self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(self.obj)), 1e-4, "offsets at %s" % (scale,))
+
+    def test_bend_is_corrected_to_the_scaled_volume(self):
+        for scale in ((1.3, 1.3, 1.3), (0.8, 1.5, 0.8)):
+            self.scene.frame_set(1)
+            self.scale_upper(scale)
+            straight = helpers.volume(helpers.evaluated_positions(self.obj), self.triangles)
+            self.scene.frame_set(10)
+            corrected = helpers.volume(helpers.evaluated_positions(self.obj), self.triangles)
+            plain = helpers.volume(helpers.uncorrected_positions(self.obj), self.triangles)
+            if not self.preserve_volume:  # dual quaternions lose little volume at a bend
+                self.assertLess(plain / straight - 1.0, -0.05, "plain skinning at 90 degrees, %s" % (scale,))
+            self.assertSmallerThan(abs(corrected / straight - 1.0), 0.01, "corrected at 90 degrees, %s" % (scale,))
+
+
+class TestScaledBonesPreserveVolume(TestScaledBones):
+    """The same with the Armature modifier's Preserve Volume (dual quaternions, scale blended linearly)."""
+
+    preserve_volume = True
+
+
 class TestSharedArmature(CylinderTestCase):
     """Several characters sharing one armature, each with its own binding."""
 

@@ -170,6 +170,16 @@ static void test_frame_errors_leave_outputs_untouched(void)
 	CHECK(lvp_correct(out, NULL, binding, s.skinned, s.posed, NULL, &options, NULL, &diag) ==
 	      lvp_error_invalid_option);
 	CHECK(strcmp(diag.argument, "options.tolerance") == 0);
+	/* A rigid space that cannot be inverted, or is not finite (lvp.h, lvp_frame_options). */
+	float space[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+	options = lvp_frame_default_options();
+	options.rigid_space = space;
+	CHECK(lvp_correct(out, NULL, binding, s.skinned, s.posed, NULL, &options, NULL, &diag) ==
+	      lvp_error_invalid_option);
+	CHECK(strcmp(diag.argument, "options.rigid_space") == 0);
+	space[10] = NAN;
+	CHECK(lvp_correct(out, NULL, binding, s.skinned, s.posed, NULL, &options, NULL, &diag) == lvp_error_not_finite);
+	CHECK(strcmp(diag.argument, "options.rigid_space") == 0 && diag.index == 10);
 	CHECK(lvp_correct(out, NULL, NULL, s.skinned, s.posed, NULL, NULL, NULL, &diag) == lvp_error_null_argument);
 	for (int32_t i = 0; i < 3 * n; ++i)
 		CHECK(out[i] == 12345.0f);

@@ -742,8 +742,9 @@ class TestErrors(unittest.TestCase):
         positions, matrices = tube.skinned(angle), tube.bone_matrices(angle)
         arguments = {'positions': positions, 'bone_matrices': matrices,
                      'out_positions': zeros('f', 3 * tube.vertex_count),
-                     'out_offsets': zeros('f', 3 * tube.vertex_count), 'rest_positions': tube.positions}
-        optional = ('bone_matrices', 'out_positions', 'out_offsets', 'rest_positions')
+                     'out_offsets': zeros('f', 3 * tube.vertex_count), 'rest_positions': tube.positions,
+                     'rigid_space': array.array('f', [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1])}
+        optional = ('bone_matrices', 'out_positions', 'out_offsets', 'rest_positions', 'rigid_space')
         self.check_every_buffer(binding.correct, arguments, outputs=('out_positions', 'out_offsets'),
                                 optional=optional)
         self.assertValueErrorNames('out_positions', binding.correct, positions, matrices)
@@ -764,8 +765,10 @@ class TestErrors(unittest.TestCase):
                                    out_positions=arguments['out_positions'])
         self.assertValueErrorNames('bone_matrices', binding.correct, positions, None,
                                    out_positions=arguments['out_positions'])
+        singular_space = array.array('f', [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1])
         for name, value in (('iterations', 0), ('iterations', 'many'), ('tolerance', 0.0), ('tolerance', -1.0),
-                            ('tolerance', None)):
+                            ('tolerance', None), ('rigid_space', singular_space), ('rigid_space', singular_space[:9]),
+                            ('rigid_space', array.array('d', singular_space))):
             with self.subTest(argument=name, value=value):
                 self.assertValueErrorNames(name, binding.correct, positions, matrices,
                                            out_positions=arguments['out_positions'], **{name: value})

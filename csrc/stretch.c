@@ -1,0 +1,317 @@
+/*
+ * stretch.c - what each region is corrected to when bones scale against the bones they blend
+ * with (squash and stretch, a stretchy chain, an inflated limb). The paper's bones are rigid;
+ * lvp.h (ALGORITHM, 5) documents this extension.
+ *
+ * A region's local volume is measured in its bone's frame, scale included, so skin that
+ * follows a scaled bone keeps the volume the scale gives it. Across the weight band between two
+ * bones of different scale, though, linear blending interpolates the two sizes, and in either
+ * bone's frame the band is larger or smaller than at rest even where the joint is straight:
+ * correcting that to zero would dent one side of the joint and swell the other. What the band
+ * should keep is the volume it has with the joint unbent, so each region is corrected to the
+ * change of a reference pose instead of to zero. For region r and a bone b weighting a corner
+ * of r's triangles, the skin of b seen from r's rest frame, F_rb = skin_r^-1 skin_b, has the
+ * linear part Q_rb U_rb (polar decomposition: Q_rb a rotation, U_rb the stretch; taken in a
+ * frame where a bone that is not scaled only turns: the caller's rigid space, the armature's,
+ * or r's bone rest frame). The reference keeps the stretch about the pair's centre c_rb and
+ * drops the rotation and the translation:
+ *     y_k = x_k + sum_b omega_kb (U_rb - I) (x_k - c_rb)        (x_k: rest, r's rest frame)
+ * and region r's target is its local volume change with y in place of the posed positions (the
+ * prisms and side quads of local_volume.c, already in r's rest frame). A straight joint whose
+ * bones scale about the centre is its own reference, so nothing is corrected there; a bend is
+ * corrected to the volume the scales give.
+ * c_rb: Blender scales a bone about its head, and a child's head sits on (or near) its parent;
+ * of the two heads, the one nearer the other bone's segment (the joint of connected bones).
+ * The reference drops translations so that it goes to the identity with the stretch: a target
+ * never jumps when a scale animates through 1.
+ * Cost: a test per bone in frames where every bone's skin is a rotation times one common scale
+ * (nothing stretched against anything: most animation); otherwise a polar decomposition per
+ * pair and a pass over the corners and triangles of the stretched regions.
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+/* Relative size of a stretch that is float noise of the bone matrices, not a scale. */
+#define LVP__STRETCH_EPSILON 1e-5
+
+static lvp_result lvp__stretch_out_of_memory(lvp_diagnostic *r_diag)
+{
+	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+}
+
+/* Where the relative stretch of bones r and b is taken about (see the top of the file). */
+static lvp__vec3 lvp__pair_centre(const lvp_binding *binding, int32_t r, int32_t b)
+{
+	double head_b_to_r = lvp__segment_distance(binding->heads[b], binding->heads[r], binding->tails[r]);
+	double head_r_to_b = lvp__segment_distance(binding->heads[r], binding->heads[b], binding->tails[b]);
+	return head_b_to_r <= head_r_to_b ? binding->heads[b] : binding->heads[r];
+}
+
+lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	int32_t s = binding->region_count, bones = binding->bone_count;
+	bool local = binding->mode == LVP_MODE_LOCAL && binding->weight_offsets;
+	binding->stretch_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	binding->bone_entry = malloc(sizeof(int32_t) * (size_t)(bones > 0 ? bones : 1));
+	binding->stretch_change = calloc((size_t)(s > 0 ? s : 1), sizeof(double));
+	binding->stretch_offset = malloc(sizeof(float) * 3 * (size_t)(local ? binding->vertex_count : 1));
+	binding->bone_stretch = malloc(sizeof(double) * 18 * (size_t)(bones > 0 ? bones : 1));
+	binding->bone_stretch_valid = calloc((size_t)(bones > 0 ? bones : 1), 1);
+	if (!binding->stretch_offsets || !binding->bone_entry || !binding->stretch_change || !binding->stretch_offset ||
+	    !binding->bone_stretch || !binding->bone_stretch_valid)
+		return lvp__stretch_out_of_memory(r_diag);
+	for (int32_t i = 0; i < bones; ++i)
+		binding->bone_entry[i] = -1;
+	/* Per region, the distinct bones other than its own weighting the corners of its triangles
+	 * (bone_entry marks them with the region while it is walked): counted, then listed. */
+	for (int pass = 0; pass < 2; ++pass) {
+		int64_t count = 0;
+		for (int32_t r = 0; r < s; ++r) {
+			binding->stretch_offsets[r] = (int32_t)count;
+			if (!local)
+				continue;
+			for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
+				int32_t k = binding->region_corners[i];
+				for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+					int32_t bone = binding->weight_bones[e];
+					if (bone == r || !(binding->weight_values[e] > 0.0f) || binding->bone_entry[bone] == r)
+						continue;
+					binding->bone_entry[bone] = r;
+					if (pass) {
+						binding->stretch_bones[count] = bone;
+						binding->stretch_centre[count] = lvp__pair_centre(binding, r, bone);
+					}
+					++count;
+				}
+			}
+			if (count > INT32_MAX)
+				return lvp__stretch_out_of_memory(r_diag);
+		}
+		binding->stretch_offsets[s] = (int32_t)count;
+		for (int32_t i = 0; i < bones; ++i)
+			binding->bone_entry[i] = -1;
+		if (!pass) {
+			size_t entries = (size_t)(count > 0 ? count : 1);
+			binding->stretch_bones = malloc(sizeof(int32_t) * entries);
+			binding->stretch_centre = malloc(sizeof(lvp__vec3) * entries);
+			binding->stretch_linear = calloc(9 * entries, sizeof(double));
+			if (!binding->stretch_bones || !binding->stretch_centre || !binding->stretch_linear)
+				return lvp__stretch_out_of_memory(r_diag);
+		}
+	}
+	return lvp_success;
+}
+
+/* r = a b for 3x3 matrices stored with row strides a_stride and b_stride (3, or 4 for the
+ * linear part of a 4x4 matrix). */
+static void lvp__linear_product(double r[9], const double *a, int a_stride, const double *b, int b_stride)
+{
+	for (int i = 0; i < 3; ++i)
+		for (int j = 0; j < 3; ++j)
+			r[3 * i + j] = a[a_stride * i] * b[j] + a[a_stride * i + 1] * b[b_stride + j] +
+			               a[a_stride * i + 2] * b[2 * b_stride + j];
+}
+
+/* Cofactor matrix of a 3x3 matrix (its inverse transposed, times its determinant); returns the
+ * determinant. */
+static double lvp__cofactors(double r[9], const double *a)
+{
+	r[0] = a[4] * a[8] - a[5] * a[7];
+	r[1] = a[5] * a[6] - a[3] * a[8];
+	r[2] = a[3] * a[7] - a[4] * a[6];
+	r[3] = a[2] * a[7] - a[1] * a[8];
+	r[4] = a[0] * a[8] - a[2] * a[6];
+	r[5] = a[1] * a[6] - a[0] * a[7];
+	r[6] = a[1] * a[5] - a[2] * a[4];
+	r[7] = a[2] * a[3] - a[0] * a[5];
+	r[8] = a[0] * a[4] - a[1] * a[3];
+	return a[0] * r[0] + a[1] * r[1] + a[2] * r[2];
+}
+
+/* Whether the bones' skins, in the rigid frame, may stretch some bone against another: false when
+ * each is a rotation times one common scale (A^T A = c I for all of them, the same c). */
+static bool lvp__some_stretch(const lvp_binding *binding, const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
+{
+	double common = -1.0;
+	for (int32_t i = 0; i < binding->bone_count; ++i) {
+		if (binding->region_skipped[i]) /* scaled to zero: its region is left alone */
+			continue;
+		double half[9], m[9];
+		lvp__linear_product(half, binding->skin[i].m, 4, from_rigid->m, 4);
+		lvp__linear_product(m, to_rigid->m, 4, half, 3);
+		lvp__vec3 c0 = lvp__v(m[0], m[3], m[6]), c1 = lvp__v(m[1], m[4], m[7]), c2 = lvp__v(m[2], m[5], m[8]);
+		double g00 = lvp__dot(c0, c0), g11 = lvp__dot(c1, c1), g22 = lvp__dot(c2, c2);
+		double scale2 = (g00 + g11 + g22) / 3.0, tolerance = LVP__STRETCH_EPSILON * scale2;
+		if (fabs(g00 - scale2) > tolerance || fabs(g11 - scale2) > tolerance || fabs(g22 - scale2) > tolerance ||
+		    fabs(lvp__dot(c0, c1)) > tolerance || fabs(lvp__dot(c0, c2)) > tolerance ||
+		    fabs(lvp__dot(c1, c2)) > tolerance)
+			return true;
+		if (common < 0.0)
+			common = scale2;
+		else if (fabs(scale2 - common) > LVP__STRETCH_EPSILON * common)
+			return true;
+	}
+	return false;
+}
+
+/* Bone i's stretch U_i and its inverse (bone_stretch), from the polar decomposition A = Q U of
+ * its skin's linear part in the rigid frame, by Newton's iteration Q <- (Q + Q^-T) / 2. Blender
+ * applies a bone's scale before its rotation (and a child's inherited scale with it), so U_i is
+ * the bone's scale and Q_i its turn. Returns false for a singular skin. */
+static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *to_rigid,
+                              const lvp__mat4 *from_rigid)
+{
+	double half[9], a[9], q[9], cof[9];
+	lvp__linear_product(half, binding->skin[i].m, 4, from_rigid->m, 4);
+	lvp__linear_product(a, to_rigid->m, 4, half, 3);
+	memcpy(q, a, sizeof(q));
+	for (int iteration = 0; iteration < 64; ++iteration) {
+		double det = lvp__cofactors(cof, q);
+		if (!(fabs(det) > 1e-12) || !isfinite(det))
+			return false;
+		double change = 0.0;
+		for (int k = 0; k < 9; ++k) {
+			double next = 0.5 * (q[k] + cof[k] / det);
+			change = fmax(change, fabs(next - q[k]));
+			q[k] = next;
+		}
+		if (change < 1e-14)
+			break;
+	}
+	/* U = Q^T A, made exactly symmetric; then its inverse */
+	double *u = binding->bone_stretch + 18 * (size_t)i, *inverse = u + 9;
+	for (int r = 0; r < 3; ++r)
+		for (int c = r; c < 3; ++c) {
+			double u_rc = q[r] * a[c] + q[3 + r] * a[3 + c] + q[6 + r] * a[6 + c];
+			double u_cr = q[c] * a[r] + q[3 + c] * a[3 + r] + q[6 + c] * a[6 + r];
+			u[3 * r + c] = u[3 * c + r] = 0.5 * (u_rc + u_cr);
+		}
+	double det = lvp__cofactors(cof, u);
+	if (!(fabs(det) > 1e-12))
+		return false;
+	for (int k = 0; k < 9; ++k)
+		inverse[k] = cof[k] / det; /* symmetric: the cofactors are their own transpose */
+	return true;
+}
+
+/* The stretch of bone b against region r's bone in the mesh's coordinates, U_r^-1 U_b - I taken
+ * back from the rigid frame (r_u_minus_i, 9 row-major): what F_rb = skin_r^-1 skin_b is once the
+ * turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b). Returns false, with nothing written, when it
+ * is the identity to float noise. */
+static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *binding, int32_t r, int32_t b,
+                                  const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
+{
+	const double *unstretch_r = binding->bone_stretch + 18 * (size_t)r + 9;
+	const double *stretch_b = binding->bone_stretch + 18 * (size_t)b;
+	double relative[9], half[9];
+	lvp__linear_product(relative, unstretch_r, 3, stretch_b, 3);
+	double largest = 0.0;
+	for (int k = 0; k < 9; ++k) {
+		relative[k] -= (k % 4 == 0);
+		largest = fmax(largest, fabs(relative[k]));
+	}
+	if (!(largest > LVP__STRETCH_EPSILON))
+		return false;
+	lvp__linear_product(half, relative, 3, to_rigid->m, 4);
+	lvp__linear_product(r_u_minus_i, from_rigid->m, 4, half, 3);
+	return true;
+}
+
+/* Region r's change in the reference pose (rest-world units, r's rest frame), with bone_entry
+ * naming the stretched entry of each bone that has one. */
+static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest)
+{
+	float *offset = binding->stretch_offset;
+	for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
+		int32_t k = binding->region_corners[i];
+		lvp__vec3 x = lvp__load(rest + 3 * k), d = lvp__v(0.0, 0.0, 0.0);
+		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+			int32_t entry = binding->bone_entry[binding->weight_bones[e]];
+			if (entry < 0)
+				continue;
+			const double *u = binding->stretch_linear + 9 * entry;
+			lvp__vec3 v = lvp__sub(x, binding->stretch_centre[entry]);
+			double w = binding->weight_values[e];
+			d = lvp__add(d, lvp__scale(lvp__v(u[0] * v.x + u[1] * v.y + u[2] * v.z, u[3] * v.x + u[4] * v.y + u[5] * v.z,
+			                                  u[6] * v.x + u[7] * v.y + u[8] * v.z),
+			                           w));
+		}
+		offset[3 * k] = (float)d.x;
+		offset[3 * k + 1] = (float)d.y;
+		offset[3 * k + 2] = (float)d.z;
+	}
+	/* Only where a corner moved does a prism or side quad have volume. About the bone's rest
+	 * origin, as local_volume.c measures. */
+	const double *m = binding->rest_matrices[r].m;
+	lvp__vec3 o = lvp__v(m[3], m[7], m[11]);
+	double volume6 = 0.0;
+	for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
+		const int32_t *corners = binding->triangles + 3 * t;
+		const float *d0 = offset + 3 * corners[0], *d1 = offset + 3 * corners[1], *d2 = offset + 3 * corners[2];
+		if (!d0[0] && !d0[1] && !d0[2] && !d1[0] && !d1[1] && !d1[2] && !d2[0] && !d2[1] && !d2[2])
+			continue;
+		lvp__vec3 x0 = lvp__sub(lvp__load(rest + 3 * corners[0]), o);
+		lvp__vec3 x1 = lvp__sub(lvp__load(rest + 3 * corners[1]), o);
+		lvp__vec3 x2 = lvp__sub(lvp__load(rest + 3 * corners[2]), o);
+		volume6 += lvp__vol6(lvp__add(x0, lvp__load(d0)), lvp__add(x1, lvp__load(d1)), lvp__add(x2, lvp__load(d2))) -
+		           lvp__vol6(x0, x1, x2);
+	}
+	for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
+		int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
+		lvp__vec3 da = lvp__load(offset + 3 * a), db = lvp__load(offset + 3 * b);
+		if (!da.x && !da.y && !da.z && !db.x && !db.y && !db.z)
+			continue;
+		lvp__vec3 xa = lvp__sub(lvp__load(rest + 3 * a), o), xb = lvp__sub(lvp__load(rest + 3 * b), o);
+		lvp__vec3 unused_a, unused_b;
+		volume6 += lvp__side_quad6(&unused_a, &unused_b, lvp__add(xa, da), xa, xb, lvp__add(xb, db));
+	}
+	return volume6 / 6.0;
+}
+
+bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space)
+{
+	int32_t s = binding->region_count;
+	bool had_stretch = binding->stretch_frame;
+	binding->stretch_frame = false;
+	/* The rigid frame: the caller's, or the first bone's rest frame (the armature's, turned). */
+	lvp__mat4 to_rigid, from_rigid;
+	if (rigid_space) {
+		to_rigid = lvp__mat4_load(rigid_space);
+		lvp__mat4_invert_affine(&from_rigid, &to_rigid); /* checked with the options */
+	} else if (binding->bone_count > 0) {
+		to_rigid = binding->rest_inverse[0];
+		from_rigid = binding->rest_matrices[0];
+	}
+	if (binding->mode != LVP_MODE_LOCAL || binding->stretch_offsets[s] == 0 ||
+	    !lvp__some_stretch(binding, &to_rigid, &from_rigid)) {
+		if (had_stretch)
+			memset(binding->stretch_change, 0, sizeof(double) * (size_t)s);
+		return false;
+	}
+	for (int32_t i = 0; i < binding->bone_count; ++i)
+		binding->bone_stretch_valid[i] =
+		    !binding->region_skipped[i] && lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	for (int32_t r = 0; r < s; ++r) {
+		binding->stretch_change[r] = 0.0;
+		if (!binding->bone_stretch_valid[r])
+			continue;
+		bool stretched = false;
+		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e) {
+			int32_t bone = binding->stretch_bones[e];
+			if (binding->bone_stretch_valid[bone] &&
+			    lvp__relative_stretch(binding->stretch_linear + 9 * e, binding, r, bone, &to_rigid, &from_rigid)) {
+				binding->bone_entry[bone] = e;
+				stretched = true;
+			}
+		}
+		if (!stretched)
+			continue;
+		binding->stretch_change[r] = lvp__reference_change(binding, r, rest);
+		binding->stretch_frame = true;
+		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
+			binding->bone_entry[binding->stretch_bones[e]] = -1;
+	}
+	return binding->stretch_frame;
+}

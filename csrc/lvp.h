@@ -441,9 +441,10 @@ typedef struct lvp_frame_options {
 	const float *rigid_space; /* NULL (default), or 16 floats (row-major, like the bone matrices): the
 	                           map from the mesh's coordinates to a space where a bone that is not
 	                           scaled only turns (the armature's), used to tell a bone's scale from
-	                           its bend (ALGORITHM, 5). NULL: each bone's rest frame, which is right
-	                           unless the mesh has been scaled unevenly against the armature since
-	                           the bind. Its 3x3 part must be invertible. */
+	                           its bend (ALGORITHM, 5). NULL: the first bone's rest frame (the
+	                           armature's, turned), which is right unless the mesh has been scaled
+	                           unevenly against the armature since the bind. Its 3x3 part must be
+	                           invertible. */
 } lvp_frame_options;
 
 lvp_frame_options lvp_frame_default_options(void);
@@ -454,7 +455,9 @@ typedef struct lvp_frame_stats {
 	double volume_after;      /* of the corrected positions */
 	int32_t worst_region;     /* region with the largest relative change before correction, -1 if none
 	                             (of separate parts, the part's bone: SEGMENTATION) */
-	double worst_region_change_before; /* its (V - V_rest) / V_ref, signed */
+	double worst_region_change_before; /* its (V - V_rest) / V_ref, signed; where bones are scaled
+	                                      against each other, less the change their scales give it
+	                                      (ALGORITHM, 5) */
 	double worst_region_change_after;
 	int32_t iterations;       /* correction steps done, fold-over rounds included */
 	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's

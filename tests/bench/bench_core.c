@@ -42,6 +42,7 @@ typedef struct bench_case {
 	test_rig rig;
 	const char *pose;   /* what is bent */
 	float *rotations;   /* bone_count*4 */
+	float stretch;      /* every other bone scaled by it about its head (1: none): squash and stretch */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -114,6 +115,9 @@ static void run_case(bench_case *c, int32_t cores)
 		posed[pose] = malloc(sizeof(float) * 16 * (size_t)b);
 		skinned[pose] = malloc(sizeof(float) * 3 * (size_t)n);
 		test_pose(posed[pose], rig, rotations);
+		for (int32_t i = 1; i < b && c->stretch != 1.0f; i += 2)
+			for (int k = 0; k < 12; ++k)
+				posed[pose][16 * i + k] *= k % 4 == 3 ? 1.0f : c->stretch;
 		test_skin_matrices(skin, rig, posed[pose]);
 		lvp_skin_linear(skinned[pose], rig->positions, n, &weights, skin, b, NULL);
 	}
@@ -192,7 +196,13 @@ int main(void)
 			c.rig = test_make_chain(chains[i].bones, 1.0f, 0.3f, chains[i].around, chains[i].rings, 0.5f);
 			c.pose = all ? "every joint" : "one joint";
 			c.rotations = chain_pose(c.rig.bone_count, all);
+			c.stretch = 1.0f;
 			run_case(&c, cores);
+			if (i == 1 && all) { /* the cost of bones scaled against each other (lvp.h, ALGORITHM 5) */
+				c.pose = "every joint, every other bone x1.2";
+				c.stretch = 1.2f;
+				run_case(&c, cores);
+			}
 			free(c.rotations);
 			test_rig_free(&c.rig);
 		}
@@ -210,6 +220,7 @@ int main(void)
 		c.rig = levels[i] ? test_subdivide(&giraffe, levels[i]) : giraffe;
 		c.pose = "neck, 2 legs";
 		c.rotations = giraffe_pose(&c.rig);
+		c.stretch = 1.0f;
 		run_case(&c, cores);
 		free(c.rotations);
 		if (levels[i])

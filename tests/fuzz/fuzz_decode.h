@@ -630,6 +630,13 @@ static void fuzz_decode_map(lvp_map_options *map, fuzz_case *c, fuzz_reader *r, 
 #endif
 }
 
+/* Rigid spaces (lvp_frame_options.rigid_space): none, uneven, singular, not finite. */
+static const float fuzz_rigid_spaces[3][16] = {
+    {1.3f, 0.2f, 0, 5, 0, 0.8f, 0, -2, 0, 0, 1, 0, 0, 0, 0, 1},
+    {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1},
+    {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, INFINITY, 0, 0, 0, 0, 1},
+};
+
 static lvp_frame_options fuzz_decode_frame(fuzz_reader *r)
 {
 	lvp_frame_options f = lvp_frame_default_options();
@@ -637,7 +644,11 @@ static lvp_frame_options fuzz_decode_frame(fuzz_reader *r)
 	if (iterations % 4 != 0)
 		f.max_iterations = (int32_t)(iterations % 12) - 1; /* -1 .. 10 */
 	f.tolerance = fuzz_option_float(r, f.tolerance);
-	f.fold_over = fuzz_byte(r) % 2;
+	/* One byte, as before rigid_space existed, so that the corpus decodes to the same cases. */
+	uint8_t flags = fuzz_byte(r);
+	f.fold_over = flags % 2;
+	if ((flags >> 1) % 4 != 0)
+		f.rigid_space = fuzz_rigid_spaces[(flags >> 1) % 4 - 1];
 	return f;
 }
 

@@ -499,17 +499,6 @@ static void test_scaled_bone_that_bends(void)
 		}
 }
 
-/* r = a b, 4x4 row-major floats. */
-static void multiply4(float r[16], const float a[16], const float b[16])
-{
-	float out[16];
-	for (int i = 0; i < 4; ++i)
-		for (int j = 0; j < 4; ++j)
-			out[4 * i + j] =
-			    a[4 * i] * b[j] + a[4 * i + 1] * b[4 + j] + a[4 * i + 2] * b[8 + j] + a[4 * i + 3] * b[12 + j];
-	memcpy(r, out, sizeof(out));
-}
-
 /* A mesh scaled unevenly against its armature after the bind (in Blender: the object's scale
  * changed to 1.3 x 0.8 x 1): in the mesh's coordinates each bone's skin is W G W^-1, a bend
  * that looks like a shear, and the posed frames are W G W^-1 times the rest frames. Told the
@@ -523,20 +512,15 @@ static void test_rigid_space(void)
 	const float to_armature[16] = {1 / 1.3f, 0, 0, 0, 0, 1 / 0.8f, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 	posed_cylinder c = make_bent_cylinder(90.0);
 	int32_t n = c.rig.vertex_count;
+	float *skin = malloc(sizeof(float) * 16 * (size_t)c.rig.bone_count);
+	test_skin_matrices(skin, &c.rig, c.posed); /* G */
 	for (int32_t b = 0; b < c.rig.bone_count; ++b) {
-		float *posed = c.posed + 16 * b, rest_inverse[16] = {0}, skin[16];
-		const float *rest = c.rig.rest_matrices + 16 * b; /* a rotation and a translation: R^T, -R^T t */
-		for (int i = 0; i < 3; ++i) {
-			for (int j = 0; j < 3; ++j)
-				rest_inverse[4 * i + j] = rest[4 * j + i];
-			rest_inverse[4 * i + 3] = -(rest[i] * rest[3] + rest[4 + i] * rest[7] + rest[8 + i] * rest[11]);
-		}
-		rest_inverse[15] = 1.0f;
-		multiply4(skin, posed, rest_inverse); /* G */
-		multiply4(skin, to_mesh, skin);
-		multiply4(skin, skin, to_armature); /* W G W^-1 */
-		multiply4(posed, skin, c.rig.rest_matrices + 16 * b);
+		float *posed = c.posed + 16 * b, *g = skin + 16 * b;
+		test_multiply_matrices(g, to_mesh, g);
+		test_multiply_matrices(g, g, to_armature); /* W G W^-1 */
+		test_multiply_matrices(posed, g, c.rig.rest_matrices + 16 * b);
 	}
+	free(skin);
 	skin_linear(c.skinned, &c.rig, c.posed);
 	lvp_binding *binding = bind_rig(&c.rig, lvp_bind_default_options());
 	double rest = volume(c.rig.positions, &c.rig), errors[2], ends[2];

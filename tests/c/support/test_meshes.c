@@ -460,6 +460,16 @@ void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations
 	free(delta);
 }
 
+void test_multiply_matrices(float r[16], const float a[16], const float b[16])
+{
+	double x[16], y[16], product[16];
+	test__mat_load(x, a);
+	test__mat_load(y, b);
+	test__mat_mul(product, x, y);
+	for (int k = 0; k < 16; ++k)
+		r[k] = (float)product[k];
+}
+
 void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed)
 {
 	for (int32_t i = 0; i < rig->bone_count; ++i) {

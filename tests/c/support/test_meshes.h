@@ -73,6 +73,9 @@ void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations
 /* r_skin[i] = posed_i * rest_i^-1 (bone_count*16), what lvp_skin_linear() takes. */
 void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
 
+/* r = a * b, 4x4 row-major (r may be a or b). */
+void test_multiply_matrices(float r[16], const float a[16], const float b[16]);
+
 /* Number of pairs of triangles that intersect, decided exactly (rational arithmetic on the
  * float coordinates). Pairs that share a vertex or an edge count only when they meet
  * somewhere other than their shared vertex or edge. Zero-area triangles are ignored. */

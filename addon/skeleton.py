@@ -171,6 +171,7 @@ class CoreSkeleton:
         self._bound_premat_inverse = premat.inverted_safe()
         self._to_bind_premat = None  # see _posed_to_bind_frames
         self._to_bind = None
+        self._rigid_space = None     # premat^-1 as float32[16], with _to_bind
         self._head_tail = {}
         for name in bone_names:
             bone = data_bones[name]
@@ -350,9 +351,9 @@ class CoreSkeleton:
         found nothing. Returns None, or why the frames cannot be given.
         """
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
-        if out_rigid_space is not None:
-            out_rigid_space[:] = array('f', [value for row in premat.inverted_safe() for value in row])
         to_bind = self._posed_to_bind_frames(premat)
+        if out_rigid_space is not None:
+            out_rigid_space[:] = self._rigid_space
         pose_bones = armature_object.pose.bones
         pose_bone, posed_bone = None, None
         values = []
@@ -382,6 +383,7 @@ class CoreSkeleton:
         identity while the object has not moved against its armature since the bind; cached per premat."""
         if self._to_bind_premat != premat:
             premat_inverse = premat.inverted_safe()
+            self._rigid_space = array('f', [value for row in premat_inverse for value in row])
             self._to_bind = [inverse @ premat_inverse @ rest for inverse, rest in
                              zip(self._rest_armature_inverse, self.rest_frames)]
             self._to_bind_premat = premat.copy()

@@ -108,6 +108,11 @@ lvp__mat4 lvp__mat4_mul(const lvp__mat4 *a, const lvp__mat4 *b);
 bool lvp__mat4_invert_affine(lvp__mat4 *r_inverse, const lvp__mat4 *a);
 double lvp__mat4_det3(const lvp__mat4 *a);
 
+/* skinning.c: the 3x3 matrix a (row-major) split as a = R X, R the rotation nearest to a (polar
+ * decomposition, also for singular or mirrored a), r_x = R^T a: the scale and shear applied
+ * before R (symmetric when det a > 0). */
+void lvp__split_rotation(double r_x[9], const double a[9]);
+
 static inline lvp__vec3 lvp__transform_point(const lvp__mat4 *a, lvp__vec3 p)
 {
 	const double *m = a->m;

@@ -203,6 +203,21 @@ static void lvp__quat_to_matrix(double r_m[9], lvp__quat q)
 	r_m[6] = 2.0 * (xz - wy), r_m[7] = 2.0 * (yz + wx), r_m[8] = 1.0 - 2.0 * (xx + yy);
 }
 
+/* X = R^T a for the rotation r (row-major). */
+static void lvp__unrotated(double r_x[9], const double r[9], const double a[9])
+{
+	for (int i = 0; i < 3; ++i)
+		for (int j = 0; j < 3; ++j)
+			r_x[3 * i + j] = r[i] * a[j] + r[3 + i] * a[3 + j] + r[6 + i] * a[6 + j];
+}
+
+void lvp__split_rotation(double r_x[9], const double a[9])
+{
+	double r[9];
+	lvp__quat_to_matrix(r, lvp__nearest_rotation(a));
+	lvp__unrotated(r_x, r, a);
+}
+
 static lvp__dq_bone lvp__dq_from_matrix(const float *matrix)
 {
 	lvp__dq_bone bone;
@@ -211,10 +226,7 @@ static lvp__dq_bone lvp__dq_from_matrix(const float *matrix)
 	bone.real = lvp__nearest_rotation(a);
 	double r[9];
 	lvp__quat_to_matrix(r, bone.real);
-	/* X = R^T a */
-	for (int i = 0; i < 3; ++i)
-		for (int j = 0; j < 3; ++j)
-			bone.scale[3 * i + j] = r[i] * a[j] + r[3 + i] * a[3 + j] + r[6 + i] * a[6 + j];
+	lvp__unrotated(bone.scale, r, a);
 	/* dual = 1/2 (0, t) * real */
 	lvp__quat q = bone.real;
 	bone.dual.w = -0.5 * (t.x * q.x + t.y * q.y + t.z * q.z);

@@ -26,7 +26,7 @@
  * never jumps when a scale animates through 1.
  * Cost: a test per bone in frames where every bone's skin is a rotation times one common scale
  * (nothing stretched against anything: most animation); otherwise a polar decomposition per
- * pair and a pass over the corners and triangles of the stretched regions.
+ * bone and a pass over the corners, triangles and border edges of the stretched regions.
  */
 #include "binding.h"
 
@@ -56,7 +56,7 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 	binding->bone_entry = malloc(sizeof(int32_t) * (size_t)(bones > 0 ? bones : 1));
 	binding->stretch_change = calloc((size_t)(s > 0 ? s : 1), sizeof(double));
 	binding->stretch_offset = malloc(sizeof(float) * 3 * (size_t)(local ? binding->vertex_count : 1));
-	binding->bone_stretch = malloc(sizeof(double) * 18 * (size_t)(bones > 0 ? bones : 1));
+	binding->bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
 	binding->bone_stretch_valid = calloc((size_t)(bones > 0 ? bones : 1), 1);
 	if (!binding->stretch_offsets || !binding->bone_entry || !binding->stretch_change || !binding->stretch_offset ||
 	    !binding->bone_stretch || !binding->bone_stretch_valid)
@@ -103,30 +103,12 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 	return lvp_success;
 }
 
-/* r = a b for 3x3 matrices stored with row strides a_stride and b_stride (3, or 4 for the
- * linear part of a 4x4 matrix). */
-static void lvp__linear_product(double r[9], const double *a, int a_stride, const double *b, int b_stride)
+/* Bone i's skin in the rigid frame: to_rigid skin_i from_rigid (only its linear part is used). */
+static lvp__mat4 lvp__rigid_skin(const lvp_binding *binding, int32_t i, const lvp__mat4 *to_rigid,
+                                 const lvp__mat4 *from_rigid)
 {
-	for (int i = 0; i < 3; ++i)
-		for (int j = 0; j < 3; ++j)
-			r[3 * i + j] = a[a_stride * i] * b[j] + a[a_stride * i + 1] * b[b_stride + j] +
-			               a[a_stride * i + 2] * b[2 * b_stride + j];
-}
-
-/* Cofactor matrix of a 3x3 matrix (its inverse transposed, times its determinant); returns the
- * determinant. */
-static double lvp__cofactors(double r[9], const double *a)
-{
-	r[0] = a[4] * a[8] - a[5] * a[7];
-	r[1] = a[5] * a[6] - a[3] * a[8];
-	r[2] = a[3] * a[7] - a[4] * a[6];
-	r[3] = a[2] * a[7] - a[1] * a[8];
-	r[4] = a[0] * a[8] - a[2] * a[6];
-	r[5] = a[1] * a[6] - a[0] * a[7];
-	r[6] = a[1] * a[5] - a[2] * a[4];
-	r[7] = a[2] * a[3] - a[0] * a[5];
-	r[8] = a[0] * a[4] - a[1] * a[3];
-	return a[0] * r[0] + a[1] * r[1] + a[2] * r[2];
+	lvp__mat4 half = lvp__mat4_mul(&binding->skin[i], from_rigid);
+	return lvp__mat4_mul(to_rigid, &half);
 }
 
 /* Whether the bones' skins, in the rigid frame, may stretch some bone against another: false when
@@ -137,10 +119,9 @@ static bool lvp__some_stretch(const lvp_binding *binding, const lvp__mat4 *to_ri
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
 		if (binding->region_skipped[i]) /* scaled to zero: its region is left alone */
 			continue;
-		double half[9], m[9];
-		lvp__linear_product(half, binding->skin[i].m, 4, from_rigid->m, 4);
-		lvp__linear_product(m, to_rigid->m, 4, half, 3);
-		lvp__vec3 c0 = lvp__v(m[0], m[3], m[6]), c1 = lvp__v(m[1], m[4], m[7]), c2 = lvp__v(m[2], m[5], m[8]);
+		lvp__mat4 skin = lvp__rigid_skin(binding, i, to_rigid, from_rigid);
+		const double *m = skin.m;
+		lvp__vec3 c0 = lvp__v(m[0], m[4], m[8]), c1 = lvp__v(m[1], m[5], m[9]), c2 = lvp__v(m[2], m[6], m[10]);
 		double g00 = lvp__dot(c0, c0), g11 = lvp__dot(c1, c1), g22 = lvp__dot(c2, c2);
 		double scale2 = (g00 + g11 + g22) / 3.0, tolerance = LVP__STRETCH_EPSILON * scale2;
 		if (fabs(g00 - scale2) > tolerance || fabs(g11 - scale2) > tolerance || fabs(g22 - scale2) > tolerance ||
@@ -155,44 +136,26 @@ static bool lvp__some_stretch(const lvp_binding *binding, const lvp__mat4 *to_ri
 	return false;
 }
 
-/* Bone i's stretch U_i and its inverse (bone_stretch), from the polar decomposition A = Q U of
- * its skin's linear part in the rigid frame, by Newton's iteration Q <- (Q + Q^-T) / 2. Blender
- * applies a bone's scale before its rotation (and a child's inherited scale with it), so U_i is
- * the bone's scale and Q_i its turn. Returns false for a singular skin. */
+/* Bone i's stretch U_i and its inverse (bone_stretch[2i], [2i+1]): the polar decomposition A = Q U
+ * of its skin in the rigid frame (lvp__split_rotation, the one dual quaternion skinning uses).
+ * Blender applies a bone's scale before its rotation (and a child's inherited scale with it), so
+ * U_i is the bone's scale and Q_i its turn. Returns false for a singular skin. */
 static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *to_rigid,
                               const lvp__mat4 *from_rigid)
 {
-	double half[9], a[9], q[9], cof[9];
-	lvp__linear_product(half, binding->skin[i].m, 4, from_rigid->m, 4);
-	lvp__linear_product(a, to_rigid->m, 4, half, 3);
-	memcpy(q, a, sizeof(q));
-	for (int iteration = 0; iteration < 64; ++iteration) {
-		double det = lvp__cofactors(cof, q);
-		if (!(fabs(det) > 1e-12) || !isfinite(det))
-			return false;
-		double change = 0.0;
-		for (int k = 0; k < 9; ++k) {
-			double next = 0.5 * (q[k] + cof[k] / det);
-			change = fmax(change, fabs(next - q[k]));
-			q[k] = next;
-		}
-		if (change < 1e-14)
-			break;
-	}
-	/* U = Q^T A, made exactly symmetric; then its inverse */
-	double *u = binding->bone_stretch + 18 * (size_t)i, *inverse = u + 9;
-	for (int r = 0; r < 3; ++r)
-		for (int c = r; c < 3; ++c) {
-			double u_rc = q[r] * a[c] + q[3 + r] * a[3 + c] + q[6 + r] * a[6 + c];
-			double u_cr = q[c] * a[r] + q[3 + c] * a[3 + r] + q[6 + c] * a[6 + r];
-			u[3 * r + c] = u[3 * c + r] = 0.5 * (u_rc + u_cr);
-		}
-	double det = lvp__cofactors(cof, u);
-	if (!(fabs(det) > 1e-12))
-		return false;
-	for (int k = 0; k < 9; ++k)
-		inverse[k] = cof[k] / det; /* symmetric: the cofactors are their own transpose */
-	return true;
+	lvp__mat4 skin = lvp__rigid_skin(binding, i, to_rigid, from_rigid);
+	double a[9], u[9];
+	for (int row = 0; row < 3; ++row)
+		for (int col = 0; col < 3; ++col)
+			a[3 * row + col] = skin.m[4 * row + col];
+	lvp__split_rotation(u, a);
+	lvp__mat4 *stretch = &binding->bone_stretch[2 * (size_t)i];
+	memset(stretch, 0, sizeof(*stretch));
+	stretch->m[15] = 1.0;
+	for (int row = 0; row < 3; ++row) /* made exactly symmetric */
+		for (int col = 0; col < 3; ++col)
+			stretch->m[4 * row + col] = 0.5 * (u[3 * row + col] + u[3 * col + row]);
+	return lvp__mat4_invert_affine(stretch + 1, stretch);
 }
 
 /* The stretch of bone b against region r's bone in the mesh's coordinates, U_r^-1 U_b - I taken
@@ -202,19 +165,20 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *binding, int32_t r, int32_t b,
                                   const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
 {
-	const double *unstretch_r = binding->bone_stretch + 18 * (size_t)r + 9;
-	const double *stretch_b = binding->bone_stretch + 18 * (size_t)b;
-	double relative[9], half[9];
-	lvp__linear_product(relative, unstretch_r, 3, stretch_b, 3);
+	lvp__mat4 relative = lvp__mat4_mul(&binding->bone_stretch[2 * (size_t)r + 1], &binding->bone_stretch[2 * (size_t)b]);
 	double largest = 0.0;
-	for (int k = 0; k < 9; ++k) {
-		relative[k] -= (k % 4 == 0);
-		largest = fmax(largest, fabs(relative[k]));
+	for (int row = 0; row < 3; ++row) {
+		relative.m[5 * row] -= 1.0; /* the diagonal */
+		for (int col = 0; col < 3; ++col)
+			largest = fmax(largest, fabs(relative.m[4 * row + col]));
 	}
 	if (!(largest > LVP__STRETCH_EPSILON))
 		return false;
-	lvp__linear_product(half, relative, 3, to_rigid->m, 4);
-	lvp__linear_product(r_u_minus_i, from_rigid->m, 4, half, 3);
+	lvp__mat4 half = lvp__mat4_mul(&relative, to_rigid);
+	lvp__mat4 in_mesh = lvp__mat4_mul(from_rigid, &half); /* linear parts multiply alone */
+	for (int row = 0; row < 3; ++row)
+		for (int col = 0; col < 3; ++col)
+			r_u_minus_i[3 * row + col] = in_mesh.m[4 * row + col];
 	return true;
 }
 

@@ -1,8 +1,8 @@
 /*
  * binding.h - the inside of an lvp_binding: everything computed once at rest (segmentation,
  * correction map, region borders, rest constants) and the per-frame work memory, so that
- * lvp_correct() never allocates. Shared by bind.c, segmentation.c, local_volume.c,
- * correction.c and foldover.c; not part of the public API.
+ * lvp_correct() never allocates. Shared by bind.c, parts.c, segmentation.c, local_volume.c,
+ * frame_map.c, correction.c, stretch.c and foldover.c; not part of the public API.
  */
 #ifndef LVP_BINDING_H
 #define LVP_BINDING_H
@@ -300,6 +300,12 @@ double lvp__pass_volume(const lvp_binding *binding, const float *positions);
  * capped from their own apex; the triangles without region count in part 0. */
 void lvp__part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
 void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
+
+/* frame_map.c */
+/* This frame's frame_gamma (the bind map times the deformation weighting), the bones' skin
+ * classes and the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions:
+ * this frame's rest, or NULL for the bind rest. */
+void lvp__frame_map(lvp_binding *binding, const float *rest_positions);
 
 /* correction.c */
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,

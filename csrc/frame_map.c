@@ -1,0 +1,221 @@
+/*
+ * frame_map.c - this frame's correction map: the bind map gamma_k times the deformation
+ * weighting a_k of lvp.h (how far apart the vertex's bones would carry it), and which vertices
+ * are dynamic (binding.h): those whose bones do not all move alike. Bones that move alike this
+ * frame share a skin class; a vertex whose bones are all in one class moves rigidly, and its
+ * map is zero. In an animation the classes rarely change, and then only the dynamic vertices'
+ * map is recomputed.
+ */
+#include "binding.h"
+
+#include <string.h>
+
+/* Bones whose skin matrices agree (to 1e-6 of their size) this frame share a class: the
+ * vertices they alone move, move rigidly. Quadratic in the bones, so only for rigs of up to
+ * LVP__CLASS_BONES bones; beyond, every bone is its own class (correct, only slower). */
+#define LVP__CLASS_BONES 512
+static void lvp__skin_classes(lvp_binding *binding)
+{
+	int32_t b = binding->caller_bone_count;
+	for (int32_t i = 0; i < b; ++i) {
+		int32_t skin_class = i;
+		const double *m = binding->skin[i].m;
+		double scale = 1.0;
+		for (int c = 0; c < 12; ++c)
+			scale = fmax(scale, fabs(m[c]));
+		for (int32_t j = 0; j < i && b <= LVP__CLASS_BONES; ++j) {
+			if (binding->skin_class[j] != j)
+				continue;
+			const double *other = binding->skin[j].m;
+			bool same = true;
+			for (int c = 0; c < 12 && same; ++c)
+				same = fabs(m[c] - other[c]) <= 1e-6 * scale;
+			if (same) {
+				skin_class = j;
+				break;
+			}
+		}
+		if (binding->skin_class[i] != skin_class)
+			binding->dynamic_set_current = binding->frame_map_current = false;
+		binding->skin_class[i] = skin_class;
+	}
+	/* A copy of a caller's bone for a separate part (binding.h) is in its bone's class. */
+	for (int32_t i = b; i < binding->bone_count; ++i)
+		binding->skin_class[i] = binding->skin_class[lvp__caller_bone(binding, i)];
+}
+
+/* The skin class that all bones of vertex k (with weight) share, or -1. */
+static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
+{
+	int32_t shared = -1;
+	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		if (!(binding->weight_values[e] > 0.0f))
+			continue;
+		int32_t c = binding->skin_class[binding->weight_bones[e]];
+		if (shared >= 0 && c != shared)
+			return -1;
+		shared = c;
+	}
+	return shared;
+}
+
+/* Displacement (S_b - I) p of rest point p by bone b's skin matrix, in float (skin_displacement):
+ * small where bones nearly agree, so rounding does not swamp their difference. */
+static inline void lvp__displacement(float r_d[3], const lvp_binding *binding, int32_t bone, const float *p)
+{
+	const float *m = binding->skin_displacement + 12 * bone;
+	r_d[0] = m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3];
+	r_d[1] = m[4] * p[0] + m[5] * p[1] + m[6] * p[2] + m[7];
+	r_d[2] = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
+}
+
+/* a_k of lvp.h for rest point p moved by `count` bones with the given weights: how far apart
+ * they would carry it (the weighted mean distance of each bone's image from their blend). */
+#define LVP__SPREAD_KEPT 16
+static float lvp__spread(const lvp_binding *binding, const float *p, const int32_t *bones, const float *weights,
+                         int32_t count)
+{
+	float kept[LVP__SPREAD_KEPT][3]; /* the first bones' displacements, for the second loop */
+	float blend[3] = {0.0f, 0.0f, 0.0f};
+	for (int32_t e = 0; e < count; ++e) {
+		float d[3];
+		lvp__displacement(d, binding, bones[e], p);
+		if (e < LVP__SPREAD_KEPT)
+			memcpy(kept[e], d, sizeof(d));
+		for (int c = 0; c < 3; ++c)
+			blend[c] += weights[e] * d[c];
+	}
+	float spread = 0.0f;
+	for (int32_t e = 0; e < count; ++e) {
+		float d[3];
+		if (e < LVP__SPREAD_KEPT)
+			memcpy(d, kept[e], sizeof(d));
+		else
+			lvp__displacement(d, binding, bones[e], p);
+		float dx = d[0] - blend[0], dy = d[1] - blend[1], dz = d[2] - blend[2];
+		spread += weights[e] * sqrtf(dx * dx + dy * dy + dz * dz);
+	}
+	/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
+	return spread < (float)(1e-6 * binding->size) ? 0.0f : spread;
+}
+
+/* The skin classes of vertex k's bones (with weight), each with the sum of their weights:
+ * bones of one class move it alike, so a_k needs one displacement per class. Returns the
+ * number of classes, or -1 when there are more than LVP__SPREAD_KEPT (then taken bone by
+ * bone). */
+static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_t r_class[LVP__SPREAD_KEPT],
+                                   float r_weight[LVP__SPREAD_KEPT])
+{
+	int32_t count = 0;
+	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		float w = binding->weight_values[e];
+		if (!(w > 0.0f))
+			continue;
+		int32_t c = binding->skin_class[binding->weight_bones[e]], i = 0;
+		while (i < count && r_class[i] != c)
+			++i;
+		if (i == count) {
+			if (count == LVP__SPREAD_KEPT)
+				return -1;
+			r_class[count] = c;
+			r_weight[count++] = 0.0f;
+		}
+		r_weight[i] += w;
+	}
+	return count;
+}
+
+/* a_k of vertex k, its bones in more than one class: one displacement per class. */
+static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int32_t k)
+{
+	int32_t classes[LVP__SPREAD_KEPT];
+	float class_weight[LVP__SPREAD_KEPT];
+	int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
+	if (class_count >= 0)
+		return lvp__spread(binding, p, classes, class_weight, class_count);
+	int32_t first = binding->weight_offsets[k];
+	return lvp__spread(binding, p, binding->weight_bones + first, binding->weight_values + first,
+	                   binding->weight_offsets[k + 1] - first);
+}
+
+typedef struct lvp__frame_map_context {
+	lvp_binding *binding;
+	const float *rest;
+} lvp__frame_map_context;
+
+/* This frame's map at vertex k of the given class (lvp__vertex_class). */
+static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
+{
+	float gamma = binding->gamma[k];
+	if (!binding->map.deformation_weighted)
+		return gamma;
+	if (!(gamma > 0.0f) || vertex_class >= 0)
+		return 0.0f; /* all its bones in one class: it moves rigidly */
+	return gamma * lvp__vertex_spread(binding, rest + 3 * k, k);
+}
+
+/* Per vertex, independent of every other: split over the worker threads. A class is the index
+ * of its first bone (lvp__skin_classes), so it names that bone's displacement. */
+static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__frame_map_context *c = context;
+	lvp_binding *binding = c->binding;
+	bool changed = false;
+	for (int32_t k = begin; k < end; ++k) {
+		int32_t vertex_class = lvp__vertex_class(binding, k);
+		changed = changed || binding->vertex_class[k] != vertex_class;
+		binding->vertex_class[k] = vertex_class;
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, vertex_class);
+		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
+		changed = changed || binding->vertex_dynamic[k] != dynamic;
+		binding->vertex_dynamic[k] = dynamic;
+	}
+	binding->chunk_changed[begin / LVP__GRAIN] = changed;
+}
+
+/* The same over the dynamic vertices only, when their classes and flags are known. */
+static void lvp__frame_map_dynamic_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__frame_map_context *c = context;
+	lvp_binding *binding = c->binding;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic_vertices[v];
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, binding->vertex_class[k]);
+	}
+}
+
+/* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
+ * vertices are dynamic (binding.h). */
+void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
+{
+	int32_t n = binding->vertex_count;
+	if (binding->mode != LVP_MODE_LOCAL) {
+		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
+		memset(binding->vertex_dynamic, 1, (size_t)n);
+		return;
+	}
+	lvp__skin_classes(binding);
+	for (int32_t i = 0; i < binding->bone_count; ++i) {
+		const double *m = binding->skin[i].m;
+		float *d = binding->skin_displacement + 12 * i;
+		for (int c = 0; c < 12; ++c)
+			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
+	}
+	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	if (binding->frame_map_current && binding->dynamic_set_current) {
+		/* The bones fall into the same classes as in the frame before and nothing else changed a
+		 * vertex's class or flag (binding.h): only the dynamic vertices' map follows the pose;
+		 * every other vertex is rigid, its map still zero. In an animation this is most frames,
+		 * and the walk over all vertices is skipped. */
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__frame_map_dynamic_loop,
+		                  &context, binding->dynamic_vertex_count, LVP__GRAIN);
+		return;
+	}
+	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
+	memset(binding->chunk_changed, 0, (size_t)chunks);
+	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
+	for (int32_t i = 0; i < chunks; ++i)
+		if (binding->chunk_changed[i])
+			binding->dynamic_set_current = false;
+	binding->frame_map_current = true;
+}

@@ -64,7 +64,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
 	    binding->part_uniform, binding->part_sum, binding->part_gain, binding->stretch_offsets, binding->stretch_bones,
 	    binding->stretch_centre, binding->stretch_linear, binding->bone_entry, binding->stretch_offset,
-	    binding->stretch_change, binding->bone_stretch, binding->bone_stretch_valid,
+	    binding->stretch_regions, binding->stretch_change, binding->bone_stretch, binding->bone_stretch_valid,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);

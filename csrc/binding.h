@@ -30,6 +30,11 @@
 #define LVP__ASSEMBLY_CHUNKS 16
 #define LVP__ASSEMBLY_BLOCK(dense) ((((size_t)(dense) + 1) * ((size_t)(dense) + 2) + 7) / 8 * 8 + 8)
 
+/* The reference pass of stretch.c runs over the stretched regions in at most
+ * LVP__STRETCH_GROUPS groups of consecutive regions of about equal work (cut by the regions'
+ * sizes, not the thread count), each group with its own bone_entry scratch. */
+#define LVP__STRETCH_GROUPS 16
+
 typedef struct lvp__region_sums {
 	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
 	double area6[3];   /* sum of cr = (p_j - p_i) x (p_k - p_i): twice the area vector */
@@ -137,8 +142,12 @@ struct lvp_binding {
 	double *stretch_linear;   /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates, 9 row-major */
 	lvp__mat4 *bone_stretch;  /* bone_count*2, this frame: each bone's stretch U and U^-1 in the rigid frame */
 	uint8_t *bone_stretch_valid; /* bone_count, this frame: bone_stretch is set (the skin is not singular) */
-	int32_t *bone_entry;      /* bone_count: scratch, -1 between uses (the stretched entry of each bone) */
-	float *stretch_offset;    /* vertex_count*3: scratch, y - x of the region at hand */
+	int32_t *bone_entry;      /* LVP__STRETCH_GROUPS*bone_count: scratch per group, -1 between uses (the
+	                           * entry of each bone for the region at hand) */
+	float *stretch_offset;    /* slot_count*3: scratch, y - x at each corner of each stretched region */
+	int32_t *stretch_regions; /* region_count, this frame: the stretched regions, in order */
+	int32_t stretch_group_first[LVP__STRETCH_GROUPS + 1]; /* this frame: groups of stretch_regions */
+	int32_t stretch_group_count;
 	double *stretch_change;   /* region_count: the reference change of this frame (zero without stretch) */
 	bool stretch_frame;       /* some pair is stretched this frame */
 
@@ -247,6 +256,15 @@ void lvp__parts_free(lvp__parts *parts);
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {
 	return binding->bone_source && i >= 0 ? binding->bone_source[i] : i;
+}
+
+/* The slot of vertex k for region r (it exists when k is on one of r's triangles), or -1. */
+static inline int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
+{
+	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
+		if (binding->slot_region[slot] == r)
+			return slot;
+	return -1;
 }
 
 /* The part of region r (-1: the triangles without region, which count in part 0). */

@@ -68,15 +68,6 @@ static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], 
 	return written;
 }
 
-/* The slot of vertex k for region r (it exists when k is on one of r's triangles). */
-static int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
-{
-	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
-		if (binding->slot_region[slot] == r)
-			return slot;
-	return -1;
-}
-
 /* Sorts the cap edges by the part of their hole (binding.h, cap_part_offsets): a stable
  * counting sort by the part of their first vertex. */
 static lvp_result lvp__sort_caps_by_part(lvp_binding *binding)

@@ -53,15 +53,17 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 	int32_t s = binding->region_count, bones = binding->bone_count;
 	bool local = binding->mode == LVP_MODE_LOCAL && binding->weight_offsets;
 	binding->stretch_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	binding->bone_entry = malloc(sizeof(int32_t) * (size_t)(bones > 0 ? bones : 1));
+	binding->bone_entry = malloc(sizeof(int32_t) * LVP__STRETCH_GROUPS * (size_t)(bones > 0 ? bones : 1));
 	binding->stretch_change = calloc((size_t)(s > 0 ? s : 1), sizeof(double));
-	binding->stretch_offset = malloc(sizeof(float) * 3 * (size_t)(local ? binding->vertex_count : 1));
+	size_t slots = (size_t)(local && binding->slot_count > 0 ? binding->slot_count : 1);
+	binding->stretch_offset = malloc(sizeof(float) * 3 * slots);
+	binding->stretch_regions = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	binding->bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
 	binding->bone_stretch_valid = calloc((size_t)(bones > 0 ? bones : 1), 1);
 	if (!binding->stretch_offsets || !binding->bone_entry || !binding->stretch_change || !binding->stretch_offset ||
-	    !binding->bone_stretch || !binding->bone_stretch_valid)
+	    !binding->stretch_regions || !binding->bone_stretch || !binding->bone_stretch_valid)
 		return lvp__stretch_out_of_memory(r_diag);
-	for (int32_t i = 0; i < bones; ++i)
+	for (int32_t i = 0; i < LVP__STRETCH_GROUPS * bones; ++i)
 		binding->bone_entry[i] = -1;
 	/* Per region, the distinct bones other than its own weighting the corners of its triangles
 	 * (bone_entry marks them with the region while it is walked): counted, then listed. */
@@ -160,7 +162,7 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 
 /* The stretch of bone b against region r's bone in the mesh's coordinates, U_r^-1 U_b - I taken
  * back from the rigid frame (r_u_minus_i, 9 row-major): what F_rb = skin_r^-1 skin_b is once the
- * turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b). Returns false, with nothing written, when it
+ * turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b). Returns false, with zeros written, when it
  * is the identity to float noise. */
 static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *binding, int32_t r, int32_t b,
                                   const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
@@ -172,8 +174,10 @@ static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *bind
 		for (int col = 0; col < 3; ++col)
 			largest = fmax(largest, fabs(relative.m[4 * row + col]));
 	}
-	if (!(largest > LVP__STRETCH_EPSILON))
+	if (!(largest > LVP__STRETCH_EPSILON)) {
+		memset(r_u_minus_i, 0, sizeof(double) * 9);
 		return false;
+	}
 	lvp__mat4 half = lvp__mat4_mul(&relative, to_rigid);
 	lvp__mat4 in_mesh = lvp__mat4_mul(from_rigid, &half); /* linear parts multiply alone */
 	for (int row = 0; row < 3; ++row)
@@ -182,16 +186,18 @@ static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *bind
 	return true;
 }
 
-/* Region r's change in the reference pose (rest-world units, r's rest frame), with bone_entry
- * naming the stretched entry of each bone that has one. */
-static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest)
+/* Region r's change in the reference pose (rest-world units, r's rest frame). bone_entry: the
+ * region's entry of each bone (-1 for bones that are not among its pairs). The offsets y - x
+ * are kept per slot of the region's corners (binding.h), so that regions sharing a vertex can
+ * be walked at once. */
+static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest, const int32_t *bone_entry)
 {
 	float *offset = binding->stretch_offset;
 	for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
-		int32_t k = binding->region_corners[i];
+		int32_t k = binding->region_corners[i], slot = lvp__find_slot(binding, k, r);
 		lvp__vec3 x = lvp__load(rest + 3 * k), d = lvp__v(0.0, 0.0, 0.0);
 		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-			int32_t entry = binding->bone_entry[binding->weight_bones[e]];
+			int32_t entry = bone_entry[binding->weight_bones[e]];
 			if (entry < 0)
 				continue;
 			const double *u = binding->stretch_linear + 9 * entry;
@@ -201,9 +207,9 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 			                                  u[6] * v.x + u[7] * v.y + u[8] * v.z),
 			                           w));
 		}
-		offset[3 * k] = (float)d.x;
-		offset[3 * k + 1] = (float)d.y;
-		offset[3 * k + 2] = (float)d.z;
+		offset[3 * slot] = (float)d.x;
+		offset[3 * slot + 1] = (float)d.y;
+		offset[3 * slot + 2] = (float)d.z;
 	}
 	/* Only where a corner moved does a prism or side quad have volume. About the bone's rest
 	 * origin, as local_volume.c measures. */
@@ -211,8 +217,8 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	lvp__vec3 o = lvp__v(m[3], m[7], m[11]);
 	double volume6 = 0.0;
 	for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
-		const int32_t *corners = binding->triangles + 3 * t;
-		const float *d0 = offset + 3 * corners[0], *d1 = offset + 3 * corners[1], *d2 = offset + 3 * corners[2];
+		const int32_t *corners = binding->triangles + 3 * t, *slots = binding->corner_slot + 3 * t;
+		const float *d0 = offset + 3 * slots[0], *d1 = offset + 3 * slots[1], *d2 = offset + 3 * slots[2];
 		if (!d0[0] && !d0[1] && !d0[2] && !d1[0] && !d1[1] && !d1[2] && !d2[0] && !d2[1] && !d2[2])
 			continue;
 		lvp__vec3 x0 = lvp__sub(lvp__load(rest + 3 * corners[0]), o);
@@ -223,7 +229,8 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	}
 	for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 		int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
-		lvp__vec3 da = lvp__load(offset + 3 * a), db = lvp__load(offset + 3 * b);
+		lvp__vec3 da = lvp__load(offset + 3 * binding->border_slots[2 * i]);
+		lvp__vec3 db = lvp__load(offset + 3 * binding->border_slots[2 * i + 1]);
 		if (!da.x && !da.y && !da.z && !db.x && !db.y && !db.z)
 			continue;
 		lvp__vec3 xa = lvp__sub(lvp__load(rest + 3 * a), o), xb = lvp__sub(lvp__load(rest + 3 * b), o);
@@ -231,6 +238,58 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 		volume6 += lvp__side_quad6(&unused_a, &unused_b, lvp__add(xa, da), xa, xb, lvp__add(xb, db));
 	}
 	return volume6 / 6.0;
+}
+
+/* What the reference pass of region r costs, in corners, triangles and border edges. */
+static int64_t lvp__reference_work(const lvp_binding *binding, int32_t r)
+{
+	return (int64_t)(binding->region_corner_offsets[r + 1] - binding->region_corner_offsets[r]) +
+	       (binding->region_triangle_offsets[r + 1] - binding->region_triangle_offsets[r]) +
+	       (binding->border_offsets[r + 1] - binding->border_offsets[r]);
+}
+
+/* Cuts stretch_regions[0..count) into groups of consecutive regions of about equal work; returns
+ * the total work. */
+static int64_t lvp__cut_reference_groups(lvp_binding *binding, int32_t count)
+{
+	int64_t total = 0;
+	for (int32_t i = 0; i < count; ++i)
+		total += lvp__reference_work(binding, binding->stretch_regions[i]);
+	int64_t share = total / LVP__STRETCH_GROUPS + 1, done = 0;
+	int32_t groups = 0;
+	binding->stretch_group_first[0] = 0;
+	for (int32_t i = 0; i < count; ++i) {
+		done += lvp__reference_work(binding, binding->stretch_regions[i]);
+		if (done >= (groups + 1) * share && groups + 1 < LVP__STRETCH_GROUPS && i + 1 < count)
+			binding->stretch_group_first[++groups] = i + 1;
+	}
+	binding->stretch_group_count = count > 0 ? groups + 1 : 0;
+	binding->stretch_group_first[binding->stretch_group_count] = count;
+	return total;
+}
+
+typedef struct lvp__reference_context {
+	lvp_binding *binding;
+	const float *rest;
+} lvp__reference_context;
+
+/* Groups [begin, end) of stretched regions, each with its own bone_entry scratch: each region
+ * writes only its own slots and its stretch_change, so the groups can run at once. */
+static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__reference_context *c = context;
+	lvp_binding *binding = c->binding;
+	for (int32_t group = begin; group < end; ++group) {
+		int32_t *bone_entry = binding->bone_entry + (size_t)group * (size_t)binding->bone_count;
+		for (int32_t i = binding->stretch_group_first[group]; i < binding->stretch_group_first[group + 1]; ++i) {
+			int32_t r = binding->stretch_regions[i];
+			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
+				bone_entry[binding->stretch_bones[e]] = e;
+			binding->stretch_change[r] = lvp__reference_change(binding, r, c->rest, bone_entry);
+			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
+				bone_entry[binding->stretch_bones[e]] = -1;
+		}
+	}
 }
 
 bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space)
@@ -256,26 +315,29 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 	for (int32_t i = 0; i < binding->bone_count; ++i)
 		binding->bone_stretch_valid[i] =
 		    !binding->region_skipped[i] && lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
-	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	/* Each pair's relative stretch (zero for the pairs that have none), and the regions with some. */
+	int32_t stretched = 0;
 	for (int32_t r = 0; r < s; ++r) {
 		binding->stretch_change[r] = 0.0;
 		if (!binding->bone_stretch_valid[r])
 			continue;
-		bool stretched = false;
+		bool any = false;
 		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e) {
 			int32_t bone = binding->stretch_bones[e];
-			if (binding->bone_stretch_valid[bone] &&
-			    lvp__relative_stretch(binding->stretch_linear + 9 * e, binding, r, bone, &to_rigid, &from_rigid)) {
-				binding->bone_entry[bone] = e;
-				stretched = true;
-			}
+			double *u_minus_i = binding->stretch_linear + 9 * e;
+			if (binding->bone_stretch_valid[bone])
+				any = lvp__relative_stretch(u_minus_i, binding, r, bone, &to_rigid, &from_rigid) || any;
+			else
+				memset(u_minus_i, 0, sizeof(double) * 9);
 		}
-		if (!stretched)
-			continue;
-		binding->stretch_change[r] = lvp__reference_change(binding, r, rest);
-		binding->stretch_frame = true;
-		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
-			binding->bone_entry[binding->stretch_bones[e]] = -1;
+		if (any)
+			binding->stretch_regions[stretched++] = r;
 	}
-	return binding->stretch_frame;
+	if (stretched == 0)
+		return false;
+	int64_t work = lvp__cut_reference_groups(binding, stretched);
+	lvp__reference_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__reference_loop, &context, binding->stretch_group_count, 1);
+	binding->stretch_frame = true;
+	return true;
 }

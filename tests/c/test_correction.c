@@ -316,17 +316,25 @@ static void test_threads_give_identical_results(void)
 		outputs[i] = calloc((size_t)n * 3, sizeof(float));
 	}
 	CHECK(n > 8 * 4096); /* several chunks (LVP__GRAIN) per loop */
-	/* Twice: with the default map, then a painted map that holds every fifth ring still, so
-	 * that the chunks of a step move different numbers of vertices. */
+	/* Three times: with the default map; with a painted map that holds every fifth ring still,
+	 * so that the chunks of a step move different numbers of vertices; and with the default map
+	 * and every other bone scaled by 1.2, so that the reference pass of every region runs
+	 * (stretch.c, split in groups of regions). */
 	float *painted = malloc(sizeof(float) * (size_t)n);
 	for (int32_t k = 0; k < n; ++k)
 		painted[k] = (k / 48) % 5 == 0 ? 0.0f : 1.0f;
-	for (int round = 0; round < 2; ++round) {
-		for (int i = 0; i < 3 && round == 1; ++i) {
+	for (int round = 0; round < 3; ++round) {
+		for (int i = 0; i < 3 && round > 0; ++i) {
 			lvp_map_options map = lvp_bind_default_options().map;
-			map.map = LVP_MAP_PAINTED;
-			map.painted = painted;
+			map.map = round == 1 ? LVP_MAP_PAINTED : LVP_MAP_ORGANIC;
+			map.painted = round == 1 ? painted : NULL;
 			CHECK(lvp_set_map(bindings[i], &map, NULL) == lvp_success);
+		}
+		if (round == 2) {
+			for (int32_t i = 1; i < b; i += 2)
+				for (int c = 0; c < 12; ++c)
+					posed[16 * i + c] *= c % 4 == 3 ? 1.0f : 1.2f;
+			skin_linear(skinned, &rig, posed);
 		}
 		/* bindings 1 and 2 (3 and 4 threads each) run at the same time from two threads */
 		pthread_t threads[2];
@@ -343,6 +351,12 @@ static void test_threads_give_identical_results(void)
 		for (int i = 0; i < 3; ++i) {
 			CHECK(jobs[i].result == lvp_success);
 			CHECK(memcmp(outputs[0], outputs[i], sizeof(float) * 3 * (size_t)n) == 0);
+		}
+		if (round == 2) { /* corrected to what the scales give (stretch.c), not back to the rest volume */
+			lvp_frame_stats stats;
+			CHECK(lvp_correct(outputs[2], NULL, bindings[2], skinned, posed, NULL, NULL, &stats, NULL) == lvp_success);
+			CHECK(stats.volume_after > 1.1 * stats.volume_rest);
+			CHECK(fabs(stats.worst_region_change_after) < 1e-3);
 		}
 		double moved = 0.0;
 		for (int32_t k = 0; k < n; ++k)

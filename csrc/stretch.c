@@ -26,7 +26,8 @@
  * never jumps when a scale animates through 1.
  * Cost: a test per bone in frames where every bone's skin is a rotation times one common scale
  * (nothing stretched against anything: most animation); otherwise a polar decomposition per
- * bone and a pass over the corners, triangles and border edges of the stretched regions.
+ * bone and a pass over the corners, triangles and border edges of the stretched regions, in
+ * groups of regions split over the worker threads.
  */
 #include "binding.h"
 

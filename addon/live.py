@@ -255,7 +255,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     try:
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
                                       rest_positions=rest_positions, rigid_space=bound.rigid_space,
-                                      iterations=settings.iterations,
+                                      iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)

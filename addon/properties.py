@@ -102,6 +102,15 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         default=8, min=1, max=64,
         update=_settings_changed,
     )
+    tolerance: FloatProperty(
+        override=OVERRIDABLE,
+        name="Tolerance",
+        description="The passes stop once every region is this close to its rest volume (percent of the "
+                    "region's volume); larger saves passes and leaves more of the error",
+        subtype='PERCENTAGE',
+        default=0.01, min=0.001, max=10.0, soft_max=1.0, precision=3, step=1,
+        update=_settings_changed,
+    )
     fold_over: BoolProperty(
         override=OVERRIDABLE,
         name="Fold-Over Prevention",

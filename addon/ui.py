@@ -73,6 +73,7 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         if settings.effect != 'RUBBER':
             shaping.prop(settings, "beta")
         column.prop(settings, "iterations")
+        column.prop(settings, "tolerance")
         sub = column.row()
         sub.active = settings.effect != 'GLOBAL'
         sub.prop(settings, "fold_over")

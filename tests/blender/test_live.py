@@ -154,6 +154,27 @@ class TestCylinder(CylinderTestCase):
         corrected, plain = self.errors_at_current_frame()
         self.assertSmallerThan(corrected, 0.5 * plain, "one pass (the paper's)")
 
+    def test_tolerance_ends_the_passes(self):
+        # 90 degrees: after one pass the regions are still about 1 % off (the linearization error),
+        # so the default 0.01 % takes more passes; a 5 % tolerance stops after the first one and
+        # gives what one pass gives.
+        self.scene.frame_set(10)
+        settings = self.obj.lvp
+        default_error, plain = self.errors_at_current_frame()
+        default_passes = self.bound().stats["iterations"]
+        settings.tolerance = 5.0
+        bpy.context.view_layer.update()
+        loose_error, _plain = self.errors_at_current_frame()
+        self.assertEqual(self.bound().stats["iterations"], 1)
+        self.assertGreater(default_passes, 1)
+        settings.tolerance = 0.01
+        settings.iterations = 1
+        bpy.context.view_layer.update()
+        one_pass_error, _plain = self.errors_at_current_frame()
+        self.assertSmallerThan(abs(loose_error - one_pass_error), 1e-9, "5 % tolerance vs one pass")
+        self.assertSmallerThan(default_error, 0.5 * loose_error, "the default tolerance vs 5 %")
+        self.assertSmallerThan(loose_error, 0.5 * plain, "one pass still corrects")
+
     def test_painted_effect(self):
         group = self.obj.vertex_groups.new(name="Painted")
         for vertex in self.obj.data.vertices:

@@ -26,8 +26,8 @@
  * never jumps when a scale animates through 1.
  * Cost: a test per bone in frames where every bone's skin is a rotation times one common scale
  * (nothing stretched against anything: most animation); otherwise a polar decomposition per
- * bone and a pass over the corners, triangles and border edges of the stretched regions, in
- * groups of regions split over the worker threads.
+ * bone and a pass over the corners, dynamic triangles and border edges of the stretched regions,
+ * in groups of regions split over the worker threads.
  */
 #include "binding.h"
 
@@ -190,12 +190,22 @@ static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *bind
 /* Region r's change in the reference pose (rest-world units, r's rest frame). bone_entry: the
  * region's entry of each bone (-1 for bones that are not among its pairs). The offsets y - x
  * are kept per slot of the region's corners (binding.h), so that regions sharing a vertex can
- * be walked at once. */
+ * be walked at once. A corner that this frame's skin carries rigidly with r's bone (binding.h,
+ * the dynamic set) has only bones that move as r's, so none stretched against it: its offset is
+ * zero, and the triangles whose corners are all such (static) add nothing. So the corners'
+ * weights are walked only where some bone moves otherwise, and only the dynamic triangles. */
 static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest, const int32_t *bone_entry)
 {
 	float *offset = binding->stretch_offset;
+	int32_t bone_class = binding->skin_class[r];
 	for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
 		int32_t k = binding->region_corners[i], slot = lvp__find_slot(binding, k, r);
+		if (slot < 0) /* cannot happen: every corner of r's triangles has a slot for r */
+			continue;
+		if (!binding->vertex_dynamic[k] && binding->vertex_class[k] == bone_class) {
+			offset[3 * slot] = offset[3 * slot + 1] = offset[3 * slot + 2] = 0.0f;
+			continue;
+		}
 		lvp__vec3 x = lvp__load(rest + 3 * k), d = lvp__v(0.0, 0.0, 0.0);
 		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
 			int32_t entry = bone_entry[binding->weight_bones[e]];
@@ -217,7 +227,8 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	const double *m = binding->rest_matrices[r].m;
 	lvp__vec3 o = lvp__v(m[3], m[7], m[11]);
 	double volume6 = 0.0;
-	for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
+	for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1]; ++i) {
+		int32_t t = binding->dynamic_triangles[i];
 		const int32_t *corners = binding->triangles + 3 * t, *slots = binding->corner_slot + 3 * t;
 		const float *d0 = offset + 3 * slots[0], *d1 = offset + 3 * slots[1], *d2 = offset + 3 * slots[2];
 		if (!d0[0] && !d0[1] && !d0[2] && !d1[0] && !d1[1] && !d1[2] && !d2[0] && !d2[1] && !d2[2])
@@ -230,8 +241,10 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	}
 	for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 		int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
-		lvp__vec3 da = lvp__load(offset + 3 * binding->border_slots[2 * i]);
-		lvp__vec3 db = lvp__load(offset + 3 * binding->border_slots[2 * i + 1]);
+		int32_t slot_a = binding->border_slots[2 * i], slot_b = binding->border_slots[2 * i + 1];
+		if (slot_a < 0 || slot_b < 0) /* as above */
+			continue;
+		lvp__vec3 da = lvp__load(offset + 3 * slot_a), db = lvp__load(offset + 3 * slot_b);
 		if (!da.x && !da.y && !da.z && !db.x && !db.y && !db.z)
 			continue;
 		lvp__vec3 xa = lvp__sub(lvp__load(rest + 3 * a), o), xb = lvp__sub(lvp__load(rest + 3 * b), o);
@@ -241,11 +254,11 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	return volume6 / 6.0;
 }
 
-/* What the reference pass of region r costs, in corners, triangles and border edges. */
+/* What the reference pass of region r costs, in corners, dynamic triangles and border edges. */
 static int64_t lvp__reference_work(const lvp_binding *binding, int32_t r)
 {
 	return (int64_t)(binding->region_corner_offsets[r + 1] - binding->region_corner_offsets[r]) +
-	       (binding->region_triangle_offsets[r + 1] - binding->region_triangle_offsets[r]) +
+	       (binding->region_dynamic_offsets[r + 1] - binding->region_dynamic_offsets[r]) +
 	       (binding->border_offsets[r + 1] - binding->border_offsets[r]);
 }
 

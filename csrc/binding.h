@@ -35,6 +35,13 @@
  * sizes, not the thread count), each group with its own bone_entry scratch. */
 #define LVP__STRETCH_GROUPS 16
 
+/* What a parallel loop over a binding's vertices, triangles or regions reads besides the binding:
+ * one array of positions (this frame's, or the rest). */
+typedef struct lvp__loop_context {
+	lvp_binding *binding;
+	const float *positions;
+} lvp__loop_context;
+
 typedef struct lvp__region_sums {
 	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
 	double area6[3];   /* sum of cr = (p_j - p_i) x (p_k - p_i): twice the area vector */

@@ -138,11 +138,6 @@ static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int3
 	                   binding->weight_offsets[k + 1] - first);
 }
 
-typedef struct lvp__frame_map_context {
-	lvp_binding *binding;
-	const float *rest;
-} lvp__frame_map_context;
-
 /* This frame's map at vertex k of the given class (lvp__vertex_class). */
 static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
 {
@@ -158,14 +153,14 @@ static inline float lvp__frame_gamma(const lvp_binding *binding, const float *re
  * of its first bone (lvp__skin_classes), so it names that bone's displacement. */
 static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 {
-	const lvp__frame_map_context *c = context;
+	const lvp__loop_context *c = context; /* positions: the rest */
 	lvp_binding *binding = c->binding;
 	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
 		int32_t vertex_class = lvp__vertex_class(binding, k);
 		changed = changed || binding->vertex_class[k] != vertex_class;
 		binding->vertex_class[k] = vertex_class;
-		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, vertex_class);
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, vertex_class);
 		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
 		changed = changed || binding->vertex_dynamic[k] != dynamic;
 		binding->vertex_dynamic[k] = dynamic;
@@ -176,11 +171,11 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 /* The same over the dynamic vertices only, when their classes and flags are known. */
 static void lvp__frame_map_dynamic_loop(void *context, int32_t begin, int32_t end)
 {
-	const lvp__frame_map_context *c = context;
+	const lvp__loop_context *c = context; /* positions: the rest */
 	lvp_binding *binding = c->binding;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic_vertices[v];
-		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->rest, k, binding->vertex_class[k]);
+		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, binding->vertex_class[k]);
 	}
 }
 
@@ -201,7 +196,7 @@ void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
 		for (int c = 0; c < 12; ++c)
 			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
 	}
-	lvp__frame_map_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	lvp__loop_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
 	if (binding->frame_map_current && binding->dynamic_set_current) {
 		/* The bones fall into the same classes as in the frame before and nothing else changed a
 		 * vertex's class or flag (binding.h): only the dynamic vertices' map follows the pose;

@@ -462,14 +462,9 @@ static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volu
  * dynamic triangles of one region, cut at fixed places (every LVP__GRAIN from the region's
  * first), and each region adds its pieces' sums in order: the same sums for any threads, and
  * a region larger than the others does not leave a thread idle. */
-typedef struct lvp__pass_context {
-	lvp_binding *binding;
-	const float *positions;
-} lvp__pass_context;
-
 static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 {
-	const lvp__pass_context *c = context;
+	const lvp__loop_context *c = context;
 	lvp_binding *binding = c->binding;
 	const int32_t *dynamic = binding->dynamic_triangles, *triangles = binding->triangles;
 	float *triangle_gradient = binding->triangle_gradient, *triangle_volume6 = binding->triangle_volume6;
@@ -534,7 +529,7 @@ static void lvp__region_sums_from_pieces(lvp_binding *binding)
  * vertices never move this frame and need none. */
 static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 {
-	lvp_binding *binding = ((lvp__pass_context *)context)->binding;
+	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
 	float *slot_gradient = binding->slot_gradient;
 	const float *triangle_gradient = binding->triangle_gradient;
 	for (int32_t v = begin; v < end; ++v) {
@@ -571,7 +566,7 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 
 void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 {
-	lvp__pass_context context = {binding, positions};
+	lvp__loop_context context = {binding, positions};
 	/* The triangle terms are taken about float origins; every other use of the origins (the
 	 * whole-mesh volume, the update pass) takes the same rounded points, so all agree exactly. */
 	for (int32_t r = 0; r <= binding->region_count; ++r) {
@@ -894,7 +889,7 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 void lvp__vertex_gradients(lvp_binding *binding)
 {
 	if (!binding->vertex_terms_current) {
-		lvp__pass_context context = {binding, NULL};
+		lvp__loop_context context = {binding, NULL};
 		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__vertex_loop, &context,
 		                  binding->dynamic_vertex_count, LVP__GRAIN);
 		binding->vertex_terms_current = true;

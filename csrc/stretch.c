@@ -282,16 +282,11 @@ static int64_t lvp__cut_reference_groups(lvp_binding *binding, int32_t count)
 	return total;
 }
 
-typedef struct lvp__reference_context {
-	lvp_binding *binding;
-	const float *rest;
-} lvp__reference_context;
-
 /* Groups [begin, end) of stretched regions, each with its own bone_entry scratch: each region
  * writes only its own slots and its stretch_change, so the groups can run at once. */
 static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 {
-	const lvp__reference_context *c = context;
+	const lvp__loop_context *c = context; /* positions: the rest */
 	lvp_binding *binding = c->binding;
 	for (int32_t group = begin; group < end; ++group) {
 		int32_t *bone_entry = binding->bone_entry + (size_t)group * (size_t)binding->bone_count;
@@ -299,7 +294,7 @@ static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 			int32_t r = binding->stretch_regions[i];
 			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
 				bone_entry[binding->stretch_bones[e]] = e;
-			binding->stretch_change[r] = lvp__reference_change(binding, r, c->rest, bone_entry);
+			binding->stretch_change[r] = lvp__reference_change(binding, r, c->positions, bone_entry);
 			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
 				bone_entry[binding->stretch_bones[e]] = -1;
 		}
@@ -350,7 +345,7 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 	if (stretched == 0)
 		return false;
 	int64_t work = lvp__cut_reference_groups(binding, stretched);
-	lvp__reference_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
+	lvp__loop_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
 	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__reference_loop, &context, binding->stretch_group_count, 1);
 	binding->stretch_frame = true;
 	return true;

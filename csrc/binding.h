@@ -146,7 +146,7 @@ struct lvp_binding {
 	int32_t *stretch_offsets; /* region_count+1 (local mode) */
 	int32_t *stretch_bones;   /* per entry: a bone other than the region's weighting a corner of its triangles */
 	lvp__vec3 *stretch_centre; /* per entry: where the pair's relative stretch is taken about (rest) */
-	double *stretch_linear;   /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates, 9 row-major */
+	lvp__mat4 *stretch_linear; /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates (its 3x3) */
 	lvp__mat4 *bone_stretch;  /* bone_count*2, this frame: each bone's stretch U and U^-1 in the rigid frame */
 	uint8_t *bone_stretch_valid; /* bone_count, this frame: bone_stretch is set (the skin is not singular) */
 	int32_t *bone_entry;      /* LVP__STRETCH_GROUPS*bone_count: scratch per group, -1 between uses (the

@@ -472,9 +472,9 @@ typedef struct lvp_frame_stats {
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what
  * leaves Blender's Armature modifier: the rest (or rest_positions) skinned by the bound
  * weights and these bones, linear or dual quaternion (see PERFORMANCE). bone_matrices:
- * bone_count*16, the posed bone frames T_i in the same space as the rest matrices (may be NULL in LVP_MODE_GLOBAL). rest_positions:
- * NULL to use the bind rest, or vertex_count*3 of this frame's un-skinned positions (shape keys),
- * against which volumes are then compared.
+ * bone_count*16, the posed bone frames T_i in the same space as the rest matrices (may be NULL
+ * in LVP_MODE_GLOBAL). rest_positions: NULL to use the bind rest, or vertex_count*3 of this
+ * frame's un-skinned positions (shape keys), against which volumes are then compared.
  * Outputs (vertex_count*3 each, at least one non-NULL): r_positions, the corrected positions
  * (may be the same buffer as positions), and r_offsets, corrected minus input.
  * r_stats may be NULL. No allocation; O(1) stack. */

@@ -98,7 +98,7 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 			size_t entries = (size_t)(count > 0 ? count : 1);
 			binding->stretch_bones = malloc(sizeof(int32_t) * entries);
 			binding->stretch_centre = malloc(sizeof(lvp__vec3) * entries);
-			binding->stretch_linear = calloc(9 * entries, sizeof(double));
+			binding->stretch_linear = calloc(entries, sizeof(lvp__mat4));
 			if (!binding->stretch_bones || !binding->stretch_centre || !binding->stretch_linear)
 				return lvp__stretch_out_of_memory(r_diag);
 		}
@@ -162,13 +162,14 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 }
 
 /* The stretch of bone b against region r's bone in the mesh's coordinates, U_r^-1 U_b - I taken
- * back from the rigid frame (r_u_minus_i, 9 row-major): what F_rb = skin_r^-1 skin_b is once the
- * turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b). Returns false, with zeros written, when it
- * is the identity to float noise. */
-static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *binding, int32_t r, int32_t b,
+ * back from the rigid frame (r_u_minus_i: its linear part; the translation is not used): what
+ * F_rb = skin_r^-1 skin_b is once the turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b).
+ * Returns false, with zeros written, when it is the identity to float noise. */
+static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *binding, int32_t r, int32_t b,
                                   const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
 {
-	lvp__mat4 relative = lvp__mat4_mul(&binding->bone_stretch[2 * (size_t)r + 1], &binding->bone_stretch[2 * (size_t)b]);
+	const lvp__mat4 *stretch = binding->bone_stretch;
+	lvp__mat4 relative = lvp__mat4_mul(&stretch[2 * (size_t)r + 1], &stretch[2 * (size_t)b]);
 	double largest = 0.0;
 	for (int row = 0; row < 3; ++row) {
 		relative.m[5 * row] -= 1.0; /* the diagonal */
@@ -176,14 +177,11 @@ static bool lvp__relative_stretch(double r_u_minus_i[9], const lvp_binding *bind
 			largest = fmax(largest, fabs(relative.m[4 * row + col]));
 	}
 	if (!(largest > LVP__STRETCH_EPSILON)) {
-		memset(r_u_minus_i, 0, sizeof(double) * 9);
+		memset(r_u_minus_i, 0, sizeof(*r_u_minus_i));
 		return false;
 	}
 	lvp__mat4 half = lvp__mat4_mul(&relative, to_rigid);
-	lvp__mat4 in_mesh = lvp__mat4_mul(from_rigid, &half); /* linear parts multiply alone */
-	for (int row = 0; row < 3; ++row)
-		for (int col = 0; col < 3; ++col)
-			r_u_minus_i[3 * row + col] = in_mesh.m[4 * row + col];
+	*r_u_minus_i = lvp__mat4_mul(from_rigid, &half); /* linear parts multiply alone */
 	return true;
 }
 
@@ -211,12 +209,9 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 			int32_t entry = bone_entry[binding->weight_bones[e]];
 			if (entry < 0)
 				continue;
-			const double *u = binding->stretch_linear + 9 * entry;
 			lvp__vec3 v = lvp__sub(x, binding->stretch_centre[entry]);
-			double w = binding->weight_values[e];
-			d = lvp__add(d, lvp__scale(lvp__v(u[0] * v.x + u[1] * v.y + u[2] * v.z, u[3] * v.x + u[4] * v.y + u[5] * v.z,
-			                                  u[6] * v.x + u[7] * v.y + u[8] * v.z),
-			                           w));
+			d = lvp__add(d, lvp__scale(lvp__transform_vector(&binding->stretch_linear[entry], v),
+			                           binding->weight_values[e]));
 		}
 		offset[3 * slot] = (float)d.x;
 		offset[3 * slot + 1] = (float)d.y;
@@ -333,11 +328,11 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 		bool any = false;
 		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e) {
 			int32_t bone = binding->stretch_bones[e];
-			double *u_minus_i = binding->stretch_linear + 9 * e;
+			lvp__mat4 *u_minus_i = &binding->stretch_linear[e];
 			if (binding->bone_stretch_valid[bone])
 				any = lvp__relative_stretch(u_minus_i, binding, r, bone, &to_rigid, &from_rigid) || any;
 			else
-				memset(u_minus_i, 0, sizeof(double) * 9);
+				memset(u_minus_i, 0, sizeof(*u_minus_i));
 		}
 		if (any)
 			binding->stretch_regions[stretched++] = r;

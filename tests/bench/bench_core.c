@@ -116,8 +116,7 @@ static void run_case(bench_case *c, int32_t cores)
 		skinned[pose] = malloc(sizeof(float) * 3 * (size_t)n);
 		test_pose(posed[pose], rig, rotations);
 		for (int32_t i = 1; i < b && c->stretch != 1.0f; i += 2)
-			for (int k = 0; k < 12; ++k)
-				posed[pose][16 * i + k] *= k % 4 == 3 ? 1.0f : c->stretch;
+			test_scale_bone(posed[pose] + 16 * i, c->stretch, c->stretch, c->stretch);
 		test_skin_matrices(skin, rig, posed[pose]);
 		lvp_skin_linear(skinned[pose], rig->positions, n, &weights, skin, b, NULL);
 	}

@@ -66,22 +66,18 @@ class RecordingLayout:
         self._check_property(active_data, active_name)
 
 
-def draw_panel(test, obj):
-    """What the Volume Preservation panel draws for obj: {"labels", "props", "inactive", "operators"}."""
-    panel_type = bpy.types.LVP_PT_volume_preservation
-    context = types.SimpleNamespace(object=obj, scene=bpy.context.scene, screen=None)
-    test.assertTrue(panel_type.poll(context))
-    layout = RecordingLayout(test)
-    panel = types.SimpleNamespace(layout=layout, draw_statistics=None)
-    panel.draw_statistics = lambda *arguments: panel_type.draw_statistics(panel, *arguments)
-    panel_type.draw(panel, context)
-    return layout.record
-
-
 class TestPanel(helpers.AddonTestCase):
 
     def draw(self, obj):
-        return draw_panel(self, obj)
+        """What the Volume Preservation panel draws for obj: {"labels", "props", "inactive", "operators"}."""
+        panel_type = bpy.types.LVP_PT_volume_preservation
+        context = types.SimpleNamespace(object=obj, scene=bpy.context.scene, screen=None)
+        self.assertTrue(panel_type.poll(context))
+        layout = RecordingLayout(self)
+        panel = types.SimpleNamespace(layout=layout, draw_statistics=None)
+        panel.draw_statistics = lambda *arguments: panel_type.draw_statistics(panel, *arguments)
+        panel_type.draw(panel, context)
+        return layout.record
 
     def test_without_modifier(self):
         obj, rig = helpers.make_cylinder_character()

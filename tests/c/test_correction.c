@@ -332,8 +332,7 @@ static void test_threads_give_identical_results(void)
 		}
 		if (round == 2) {
 			for (int32_t i = 1; i < b; i += 2)
-				for (int c = 0; c < 12; ++c)
-					posed[16 * i + c] *= c % 4 == 3 ? 1.0f : 1.2f;
+				test_scale_bone(posed + 16 * i, 1.2, 1.2, 1.2);
 			skin_linear(skinned, &rig, posed);
 		}
 		/* bindings 1 and 2 (3 and 4 threads each) run at the same time from two threads */
@@ -421,11 +420,7 @@ static void test_many_regions(void)
  * bone scaled about its head, which is the joint. */
 static void scale_upper_bone(posed_cylinder *c, double sx, double sy, double sz)
 {
-	float *m = c->posed + 16;
-	const double scale[3] = {sx, sy, sz};
-	for (int row = 0; row < 3; ++row)
-		for (int col = 0; col < 3; ++col)
-			m[4 * row + col] *= (float)scale[col];
+	test_scale_bone(c->posed + 16, sx, sy, sz);
 	skin_linear(c->skinned, &c->rig, c->posed);
 }
 

@@ -470,6 +470,14 @@ void test_multiply_matrices(float r[16], const float a[16], const float b[16])
 		r[k] = (float)product[k];
 }
 
+void test_scale_bone(float posed_bone[16], double sx, double sy, double sz)
+{
+	const double scale[3] = {sx, sy, sz};
+	for (int row = 0; row < 3; ++row)
+		for (int col = 0; col < 3; ++col)
+			posed_bone[4 * row + col] *= (float)scale[col];
+}
+
 void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed)
 {
 	for (int32_t i = 0; i < rig->bone_count; ++i) {

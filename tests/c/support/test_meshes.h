@@ -76,6 +76,10 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
 /* r = a * b, 4x4 row-major (r may be a or b). */
 void test_multiply_matrices(float r[16], const float a[16], const float b[16]);
 
+/* A posed bone frame (16 floats, row-major) times a scale in its own frame: the bone scaled by
+ * sx, sy, sz along its axes (Y along the bone) about its head, as Blender scales a pose bone. */
+void test_scale_bone(float posed_bone[16], double sx, double sy, double sz);
+
 /* Number of pairs of triangles that intersect, decided exactly (rational arithmetic on the
  * float coordinates). Pairs that share a vertex or an edge count only when they meet
  * somewhere other than their shared vertex or edge. Zero-area triangles are ignored. */

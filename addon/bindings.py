@@ -57,7 +57,6 @@ class BoundObject:
         self.rest_in_use = False            # whether rest_positions differs from the bind rest
         self.rest_state = None              # the shape key values rest_positions was mixed for
         self.bone_matrices = mesh_data.float_array(16 * core_skeleton.core_bone_count)
-        self.rigid_space = mesh_data.float_array(16)  # mesh -> armature space: where bones only turn and scale
         self.expected_indices = None        # array('i', range(vertex_count))
         self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
         self.scratch_positions = None       # evaluated "lvp_position" when the final mesh has more vertices

@@ -242,7 +242,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     if problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
         return offsets.write_zeros(obj, modifier, bound)
-    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval, bound.rigid_space)
+    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
     if skeleton_problem is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
         return offsets.write_zeros(obj, modifier, bound)
@@ -254,7 +254,7 @@ def correct_object(obj, depsgraph, check_topology=False):
     settings = obj.lvp
     try:
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
-                                      rest_positions=rest_positions, rigid_space=bound.rigid_space,
+                                      rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:

@@ -69,12 +69,17 @@ def _owned_by(holder, obj):
     return users is None or len(users) < 2 or holder.get(names.OFFSETS_OWNER_TAG) == obj.name_full
 
 
+def _may_write(holder, obj):
+    """Whether obj may write holder: an offsets object the add-on made, local, and obj's own (never
+    the original's from a copy)."""
+    return is_offsets_object(holder) and _writable(holder) and _owned_by(holder, obj)
+
+
 def usable_offsets_object(obj, modifier, vertex_count):
-    """The offsets object obj's modifier names when obj may write it: made by the add-on, local, with
-    vertex_count vertices, and obj's own. None when obj needs a new one."""
+    """The offsets object obj's modifier names when obj may write it (_may_write) and it has
+    vertex_count vertices. None when obj needs a new one."""
     holder = offsets_object(modifier)
-    if (not is_offsets_object(holder) or not _writable(holder) or len(holder.data.vertices) != vertex_count
-            or not _owned_by(holder, obj)):
+    if not _may_write(holder, obj) or len(holder.data.vertices) != vertex_count:
         return None
     return holder
 
@@ -148,11 +153,10 @@ def write(holder, offsets, bound=None):
 
 
 def write_zeros(obj, modifier, bound=None):
-    """Pass-through: obj's modifier then adds nothing. Writes only into an offsets object the add-on
-    made, that can be written and that is obj's own (never into the original's from a copy). Returns
-    whether anything was written."""
+    """Pass-through: obj's modifier then adds nothing. Writes only into an offsets object obj may
+    write (_may_write). Returns whether anything was written."""
     holder = offsets_object(modifier)
-    if not is_offsets_object(holder) or not _writable(holder) or not _owned_by(holder, obj):
+    if not _may_write(holder, obj):
         return False
     zeros = array('f', bytes(12 * len(holder.data.vertices)))
     if bound is not None and len(zeros) != 3 * bound.vertex_count:

@@ -341,10 +341,15 @@ class CoreSkeleton:
                 return "the rest pose of %r changed" % name
         return None
 
-    def posed_matrices(self, out, mesh_object, armature_object, out_rigid_space=None):
-        """Writes the posed core bone frames (float32[16C]) into out, and into out_rigid_space
-        (float32[16]) the map from the mesh's coordinates to the armature's, where a bone that is not
-        scaled only turns: the core tells a bone's scale from its bend there (lvp.h, rigid_space).
+    @property
+    def rigid_space(self):
+        """float32[16]: the map from the mesh's coordinates to the armature's, where a bone that is not
+        scaled only turns: the core tells a bone's scale from its bend there (lvp.h, rigid_space). Kept
+        for the object matrices of the last posed_matrices()."""
+        return self._rigid_space
+
+    def posed_matrices(self, out, mesh_object, armature_object):
+        """Writes the posed core bone frames (float32[16C]) into out, and sets rigid_space.
 
         mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
         corrected (their matrices and pose are those of the frame being evaluated), after changed()
@@ -352,8 +357,6 @@ class CoreSkeleton:
         """
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         to_bind = self._posed_to_bind_frames(premat)
-        if out_rigid_space is not None:
-            out_rigid_space[:] = self._rigid_space
         pose_bones = armature_object.pose.bones
         pose_bone, posed_bone = None, None
         values = []

@@ -79,6 +79,9 @@ _entries = {}
 # object name -> (level, message): the last status of each object, shown by the panel.
 # level is 'INFO', 'WARNING' or 'ERROR'.
 _status = {}
+# Names of the meshes whose next update the add-on made itself, outside the handlers (see
+# expect_own_update); taken by the next depsgraph_update_post.
+_own_updates = set()
 
 
 def thread_count():
@@ -110,6 +113,7 @@ def clear():
         bound.close()
     _entries.clear()
     _status.clear()
+    _own_updates.clear()
 
 
 def forget_written():
@@ -118,6 +122,31 @@ def forget_written():
     for bound in _entries.values():
         bound.written = None
         bound.rest_state = None
+
+
+def changes_come_one_at_a_time(obj):
+    """Whether obj is changed by a person in the interface (or painted in Weight Paint Mode), one change
+    per update: then reading its weights and rest mesh waits for the changes to pause (live.py), and
+    the add-on's own updates are told apart (expect_own_update). Scripts in background Blender may make
+    several changes before one update, and expect each update to be followed completely."""
+    return obj.mode == 'WEIGHT_PAINT' or not bpy.app.background
+
+
+def expect_own_update(obj):
+    """The add-on is about to tag obj, or has set a property of obj.lvp (which has Blender tag the whole
+    object): the next update reports obj's mesh as changed, but neither its weights nor its rest mesh
+    changed, or what changed was just bound. Reading them again for it (note_mesh_changed) would cost a
+    Python loop over the vertices (75-100 ms for 100k) to find nothing. Only where changes come one at
+    a time: a script in background Blender may paint weights and change a setting before one update."""
+    if obj.type == 'MESH' and obj.data is not None and changes_come_one_at_a_time(obj):
+        _own_updates.add(obj.data.name_full)
+
+
+def take_own_updates():
+    """The meshes marked by expect_own_update since the last call (and forgets them)."""
+    marked = set(_own_updates)
+    _own_updates.clear()
+    return marked
 
 
 def note_mesh_changed(obj, at_once=False):
@@ -349,6 +378,7 @@ def bind(obj, depsgraph=None, inputs=None):
 def new_bind_record(obj, bound):
     """Stores a fresh bind record on the object for bound and caches it (operators only)."""
     forget(obj)
+    expect_own_update(obj)  # bound was made of the mesh as it is now
     obj.lvp.bind_id = uuid.uuid4().hex
     obj.lvp.topology_signature = bound.topology
     bound.bind_id = obj.lvp.bind_id

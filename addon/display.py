@@ -115,6 +115,7 @@ def update_display(obj, context=None):
     mesh = obj.data
     if settings.display == 'NONE' or obj.type != 'MESH':
         remove_display_attributes(obj)
+        bindings.expect_own_update(obj)
         mesh.update_tag()
         return None
     if mesh_data.is_linked(mesh):
@@ -153,6 +154,7 @@ def update_display(obj, context=None):
         mesh.attributes.remove(other)
     _write_colors(mesh, shown, colors)
     _set_active_color(mesh, shown)
+    bindings.expect_own_update(obj)  # colours, not weights or positions
     mesh.update_tag()
     _show_attribute_colors(context if context is not None else bpy.context)
     return None

@@ -9,7 +9,10 @@
 - depsgraph_update_post: after an interactive change (posing a bone, moving an object, changing
   a setting, undo), correct the objects whose geometry was re-evaluated. Writing the offsets tags
   the offsets object's mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
-  offsets and writes nothing, so there is no loop.
+  offsets and writes nothing, so there is no loop. A mesh reported as changed has its weights and
+  rest mesh read again, unless the add-on made that update itself (bindings.expect_own_update: a
+  setting, a bind, the display's colours); marks made while a handler runs are dropped with it,
+  since the pass that follows runs no handlers.
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
   lazily by the next correction, with no user action. load_post also replaces node groups of an
   older layout (or edited by hand) with the current one: the group is the add-on's code.
@@ -87,6 +90,7 @@ def _correct(objects, depsgraph, check_topology=()):
                                                   "through")
     finally:
         _busy = False
+        bindings.take_own_updates()  # tags made while correcting: the pass that follows runs no handlers
     if live.is_main_thread() and any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
             not bpy.app.timers.is_registered(after_mesh_changes):
         bpy.app.timers.register(after_mesh_changes, first_interval=live.CHECK_PAUSE)
@@ -142,6 +146,7 @@ def frame_change_post(scene, depsgraph=None):
 def depsgraph_update_post(scene, depsgraph=None):
     if _busy or depsgraph is None:
         return
+    own_updates = bindings.take_own_updates()
     if not may_write(scene):
         return
     objects = []
@@ -150,7 +155,7 @@ def depsgraph_update_post(scene, depsgraph=None):
     for update in depsgraph.updates:
         data = update.id.original if update.id is not None else None
         if isinstance(data, bpy.types.Mesh):
-            if update.is_updated_geometry:
+            if update.is_updated_geometry and data.name_full not in own_updates:
                 changed_meshes.add(data.name_full)
         elif isinstance(data, bpy.types.Object) and data.type == 'MESH':
             if data.name_full not in seen and node_group.find_modifier(data) is not None:
@@ -207,6 +212,7 @@ def _correct_windows_after_load():
 
 @persistent
 def undo_post(*_arguments):
+    bindings.take_own_updates()  # the update that follows brings back what the undo step holds
     bindings.prune(bpy.data.objects)
     bindings.forget_written()
 

@@ -22,8 +22,6 @@ import threading
 import time
 from array import array
 
-import bpy
-
 from . import bindings
 from . import display
 from . import mesh_data
@@ -126,8 +124,7 @@ CHECK_PAUSE = 0.4
 
 def _check_waits(obj, changed_at):
     """Whether reading obj's weights and rest mesh again waits for changes to pause (CHECK_PAUSE)."""
-    interactive = obj.mode == 'WEIGHT_PAINT' or not bpy.app.background
-    return interactive and time.monotonic() - changed_at < CHECK_PAUSE
+    return bindings.changes_come_one_at_a_time(obj) and time.monotonic() - changed_at < CHECK_PAUSE
 
 
 def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):

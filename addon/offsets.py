@@ -30,6 +30,7 @@ from array import array
 
 import bpy
 
+from . import bindings
 from . import mesh_data
 from . import names
 from . import node_group
@@ -100,6 +101,7 @@ def new_offsets_object(obj, modifier, vertex_count):
     # has it rebuild its relations at the next evaluation (tested: tests/blender/test_live.py,
     # TestDuplicates, a copy given a new offsets object from a handler is corrected on that frame).
     modifier[identifier] = holder
+    bindings.expect_own_update(obj)
     obj.update_tag()
     if previous is not None:
         delete_if_unused(previous)

@@ -392,6 +392,7 @@ class OBJECT_OT_lvp_region_restriction_remove(bpy.types.Operator):
         index = min(settings.active_region_restriction, len(settings.region_restrictions) - 1)
         settings.region_restrictions.remove(index)
         settings.active_region_restriction = max(0, index - 1)
+        bindings.expect_own_update(obj)
         obj.update_tag()
         return {'FINISHED'}
 

@@ -10,23 +10,34 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
                        PointerProperty, StringProperty)
 
+from . import bindings
+from . import display
+
 # Every setting can be changed on a library override (a character linked into a shot) and is kept
 # in the shot's file; otherwise Blender would give it back the character file's value on reopening.
 OVERRIDABLE = {'LIBRARY_OVERRIDABLE'}
 
 
+def _own_property_changed(settings, context):
+    """Blender tags the whole object when an add-on's property of it changes, and reports its mesh as
+    changed: not a change of its weights or rest mesh, which are not read again for it."""
+    obj = settings.id_data
+    if isinstance(obj, bpy.types.Object):
+        bindings.expect_own_update(obj)
+
+
 def _settings_changed(settings, context):
     obj = settings.id_data
     if isinstance(obj, bpy.types.Object):
-        # The transform's tag brings the handlers without evaluating the modifiers again, and does
-        # not report the mesh as changed (which would have its weights read again, live.py).
+        _own_property_changed(settings, context)
+        # The handlers correct the object again with the new setting.
         obj.update_tag(refresh={'OBJECT'})
 
 
 def _display_changed(settings, context):
-    from . import display
     obj = settings.id_data
     if isinstance(obj, bpy.types.Object):
+        _own_property_changed(settings, context)
         display.update_display(obj, context)
 
 
@@ -131,7 +142,8 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         name="Region Restrictions",
         description="Regions whose flesh is measured from chosen bones only",
     )
-    active_region_restriction: IntProperty(name="Active Region Restriction", default=0, min=0, override=OVERRIDABLE)
+    active_region_restriction: IntProperty(name="Active Region Restriction", default=0, min=0, override=OVERRIDABLE,
+                                           update=_own_property_changed)
     display: EnumProperty(
         override=OVERRIDABLE,
         name="Display",

@@ -169,3 +169,52 @@ class TestWeightPaintMode(FollowTestCase):
         self.assertIsNone(self.addon.handlers.after_mesh_changes(), "the timer tagged the object and stops")
         bpy.context.view_layer.update()
         self.assertFollowedNewWeights(before, "after painting")
+
+    def test_own_changes_read_nothing_again(self):
+        """A setting, the display, a region restriction and Bind each have Blender report the mesh as
+        changed; what the add-on did itself changed neither the weights nor the rest mesh (or was just
+        bound), so they are not read again (75-100 ms for 100k vertices once the changes pause). The
+        next stroke still is."""
+        self.scene.frame_set(10)
+        bpy.context.view_layer.objects.active = self.obj
+        bpy.ops.object.mode_set(mode='WEIGHT_PAINT')
+        bpy.context.view_layer.update()  # Blender reports entering the mode as a change of the mesh
+        time.sleep(self.addon.live.CHECK_PAUSE)
+        self.addon.handlers.after_mesh_changes()
+        bpy.context.view_layer.update()
+        self.assertEqual(self.addon.bindings.unchecked_mesh_changes(), [], "checked once painting paused")
+        offsets_before = helpers.offsets_of(self.obj)
+        settings = self.obj.lvp
+
+        def set_alpha():
+            settings.alpha = 0.5
+
+        def show_segmentation():
+            settings.display = 'SEGMENTATION'
+
+        def restrict_a_region():
+            self.assertEqual(bpy.ops.object.lvp_region_restriction_add(), {'FINISHED'})
+            settings.region_restrictions[0].region = "Upper"
+            settings.region_restrictions[0].bones = "Upper"
+            settings.active_region_restriction = 0
+
+        def bind():
+            helpers.select_only(self.obj)
+            self.assertEqual(bpy.ops.object.lvp_bind(), {'FINISHED'})
+
+        for change in (set_alpha, show_segmentation, restrict_a_region, bind):
+            change()
+            bpy.context.view_layer.update()
+            self.assertEqual(self.addon.bindings.unchecked_mesh_changes(), [], change.__name__)
+            self.assertEqual(self.status_of(self.obj), ('INFO', "Correcting"), change.__name__)
+        self.assertNotEqual(offsets_before.tobytes(), helpers.offsets_of(self.obj).tobytes(), "alpha 0.5 corrects")
+        self.assertIn("lvp_segmentation", self.obj.data.attributes)
+        before = self.bound()
+        self.repaint_weights()
+        bpy.context.view_layer.update()
+        self.assertEqual([name for name, _changed_at in self.addon.bindings.unchecked_mesh_changes()],
+                         [self.obj.name], "a stroke after the add-on's own updates is a change")
+        time.sleep(self.addon.live.CHECK_PAUSE)
+        self.assertIsNone(self.addon.handlers.after_mesh_changes())
+        bpy.context.view_layer.update()
+        self.assertFollowedNewWeights(before, "a stroke after the add-on's own updates")

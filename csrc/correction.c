@@ -15,6 +15,10 @@
 
 #include <stdlib.h>
 
+/* A correction step that leaves more than this share of the error norm ends the coupled
+ * iteration (lvp__volume_iterations). */
+#define LVP__LEAST_GAIN 0.9
+
 /* Rounds of (volume step, contact test) after the first contact test of fold-over prevention. */
 #define LVP__FOLD_ROUNDS 4
 
@@ -566,7 +570,11 @@ static double lvp__error_norm(lvp_binding *binding)
 /* Correct, re-measure, correct... from a measured state, at most `budget` steps; leaves the
  * last measurement of work_positions. Returns the number of steps taken; *r_first_active
  * receives the number of regions corrected by the first one. A step that makes the regions
- * worse overall is undone and ends the iteration, with *r_failed set. */
+ * worse overall is undone and ends the iteration, with *r_failed set. So does a step that
+ * removes less than a tenth of the error, but it is kept: a Newton step that achieves so little
+ * means the regions' targets and the whole mesh's volume pull against each other (many short
+ * regions bent a little, whose estimates sum to more than the mesh's true change), and the
+ * steps after it would trade the same error back and forth until the cap. */
 static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_options *options,
                                       const float *rest_positions, const lvp__region_sums *totals, int32_t budget,
                                       int32_t *r_first_active, bool *r_failed)
@@ -592,6 +600,10 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 				binding->target[t] -= binding->uniform_gain[t] * binding->part_uniform[lvp__region_part(binding, t)];
 			}
 			lvp__measure(binding, rest_positions, totals);
+			*r_failed = true;
+			break;
+		}
+		if (!(lvp__error_norm(binding) < LVP__LEAST_GAIN * before)) {
 			*r_failed = true;
 			break;
 		}

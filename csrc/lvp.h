@@ -67,7 +67,11 @@
  *      part: each part is restored to its own rest volume, as it would be alone.
  *      Where such a step makes things worse (many overlapping regions, most of the whole
  *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
- *      two phases: the regions to their targets, then one multiplier for the whole mesh.
+ *      two phases: the regions to their targets, then one multiplier for the whole mesh. A step
+ *      that removes less than a tenth of the error is kept and goes on the same way: there the
+ *      targets and the whole mesh pull against each other (many short regions bent a little,
+ *      whose estimates add up to more than the mesh's true change), and more coupled steps
+ *      would trade the same error back and forth until max_iterations.
  *      Bones that scale (squash and stretch, a stretchy chain, an inflated limb; not in the
  *      paper, whose bones are rigid): in a frame where some bone's posed frame changes volume
  *      against its rest frame (|det ratio - 1| > 1e-4), or some bone is stretched against a

@@ -301,6 +301,12 @@ def offsets_of(obj):
     return enable_addon().offsets.read(obj)
 
 
+def offsets_object(obj):
+    """The offsets object that obj's Volume Preservation modifier reads (addon/offsets.py)."""
+    addon = enable_addon()
+    return addon.offsets.offsets_object(addon.node_group.find_modifier(obj))
+
+
 def volume(positions, triangles):
     return lvp().mesh_volume(positions, triangles)
 
@@ -363,6 +369,19 @@ def uncorrected_positions(obj, depsgraph=None):
 
 def relative_volume_error(positions, triangles, rest_volume):
     return abs(volume(positions, triangles) - rest_volume) / abs(rest_volume)
+
+
+def volume_errors(obj, triangles=None, rest_volume=None):
+    """(corrected, plain) relative volume errors of obj's evaluated mesh, against rest_volume (by
+    default its mesh's volume, with its triangles)."""
+    if triangles is None:
+        triangles = mesh_triangles(obj.data)
+    if rest_volume is None:
+        rest_volume = volume(mesh_positions(obj.data), triangles)
+    corrected = evaluated_positions(obj)
+    plain = uncorrected_positions(obj)
+    return (relative_volume_error(corrected, triangles, rest_volume),
+            relative_volume_error(plain, triangles, rest_volume))
 
 
 def mesh_snapshot(mesh):

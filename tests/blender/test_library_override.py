@@ -58,14 +58,10 @@ class TestLibraryOverride(helpers.AddonTestCase):
         helpers.bend(self.rig, 90.0)
         bpy.context.view_layer.update()
         self.assertStatusContains(self.obj, "Correcting")
-        mesh = self.obj.data
-        triangles = helpers.mesh_triangles(mesh)
-        rest_volume = helpers.volume(helpers.mesh_positions(mesh), triangles)
-        corrected = helpers.relative_volume_error(helpers.evaluated_positions(self.obj), triangles, rest_volume)
-        plain = helpers.relative_volume_error(helpers.uncorrected_positions(self.obj), triangles, rest_volume)
+        corrected, plain = helpers.volume_errors(self.obj)
         self.assertGreater(plain, 0.05, message)
         self.assertSmallerThan(corrected, 0.1 * plain, "%s: corrected volume error (plain %g)" % (message, plain))
-        holder = self.addon.offsets.offsets_object(self.addon.node_group.find_modifier(self.obj))
+        holder = helpers.offsets_object(self.obj)
         self.assertIsNone(holder.library, "the offsets object belongs to the shot")
 
     def test_corrected_with_the_mesh_linked(self):

@@ -39,11 +39,7 @@ class CylinderTestCase(helpers.AddonTestCase):
 
     def errors_at_current_frame(self, obj=None):
         """(corrected, plain) relative volume errors of the evaluated mesh."""
-        obj = obj or self.obj
-        corrected = helpers.evaluated_positions(obj)
-        plain = helpers.uncorrected_positions(obj)
-        return (helpers.relative_volume_error(corrected, self.triangles, self.rest_volume),
-                helpers.relative_volume_error(plain, self.triangles, self.rest_volume))
+        return helpers.volume_errors(obj or self.obj, self.triangles, self.rest_volume)
 
     def assertCorrected(self, obj=None, plain_at_least=0.02, ratio=0.1, message=""):
         corrected, plain = self.errors_at_current_frame(obj)
@@ -479,17 +475,14 @@ class TestDuplicates(CylinderTestCase):
                 modifier.object = own_rig
         return duplicate
 
-    def offsets_object(self, obj):
-        return self.addon.offsets.offsets_object(self.addon.node_group.find_modifier(obj))
-
     def assertEachCorrected(self, duplicate):
         self.scene.frame_set(9)
         self.scene.frame_set(10)
         self.assertCorrected(self.obj, message="the original at 90 degrees")
         self.assertCorrected(duplicate, message="the duplicate at 45 degrees")
         self.assertEqual(self.status_of(duplicate)[0], 'INFO', self.status_of(duplicate))
-        self.assertIsNot(self.offsets_object(self.obj), self.offsets_object(duplicate))
-        self.assertEqual(self.offsets_object(duplicate)[self.addon.names.OFFSETS_OWNER_TAG], duplicate.name_full)
+        self.assertIsNot(helpers.offsets_object(self.obj), helpers.offsets_object(duplicate))
+        self.assertEqual(helpers.offsets_object(duplicate)[self.addon.names.OFFSETS_OWNER_TAG], duplicate.name_full)
 
     def test_shared_mesh_each_corrected(self):
         duplicate = self.duplicate_with_own_rig(linked=True, degrees=45.0)
@@ -507,7 +500,8 @@ class TestDuplicates(CylinderTestCase):
         finally:
             self.addon.handlers.register()
         duplicate = bpy.context.selected_objects[0]
-        self.assertIs(self.offsets_object(duplicate), self.offsets_object(self.obj), "the copy's modifier names it")
+        self.assertIs(helpers.offsets_object(duplicate), helpers.offsets_object(self.obj),
+                      "the copy's modifier names it")
         duplicate.lvp.bind_id = ""  # the copy passes the mesh through ("Not bound")
         # Called directly: through the handlers, the original would be corrected again after a write
         # into its offsets object, and hide it.
@@ -517,14 +511,14 @@ class TestDuplicates(CylinderTestCase):
         self.assertEqual(helpers.offsets_of(self.obj), offsets, "the copy wrote into the original's offsets")
 
     def test_copy_gets_its_own_offsets_object(self):
-        original_holder = self.offsets_object(self.obj)
+        original_holder = helpers.offsets_object(self.obj)
         duplicate = self.duplicate_with_own_rig(linked=False, degrees=45.0)
         self.assertNotEqual(duplicate.data, self.obj.data)
         self.assertEachCorrected(duplicate)
-        self.assertIs(self.offsets_object(self.obj), original_holder, "the original keeps its offsets object")
+        self.assertIs(helpers.offsets_object(self.obj), original_holder, "the original keeps its offsets object")
         # Removing the copy's modifier deletes its offsets object and leaves the original's alone.
         helpers.select_only(duplicate)
-        holder_name = self.offsets_object(duplicate).name
+        holder_name = helpers.offsets_object(duplicate).name
         self.assertEqual(bpy.ops.object.lvp_remove(), {'FINISHED'})
         self.assertIsNone(bpy.data.objects.get(holder_name))
         self.assertIsNotNone(bpy.data.objects.get(original_holder.name))

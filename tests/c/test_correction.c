@@ -589,8 +589,8 @@ static void test_rigid_space(void)
 		free(offsets);
 	}
 	printf("  mesh scaled 1.3 x 0.8 x 1 against its armature after the bind, bent 90 degrees: volume %+.2f %% "
-	       "plain, %+.4f %% corrected with the rigid space, %+.4f %% without\n",
-	       100.0 * (volume(c.skinned, &c.rig) / rest - 1.0), 100.0 * errors[1], 100.0 * errors[0]);
+	       "plain, %+.4f %% corrected with the rigid space (ends moved %.2g), %+.4f %% without (%.2g)\n",
+	       100.0 * (volume(c.skinned, &c.rig) / rest - 1.0), 100.0 * errors[1], ends[1], 100.0 * errors[0], ends[0]);
 	CHECK(fabs(errors[1]) < 0.001);
 	CHECK(ends[1] <= 0.01 * 0.5);
 	lvp_free(binding);

@@ -90,7 +90,9 @@ def _correct(objects, depsgraph, check_topology=()):
                                                   "through")
     finally:
         _busy = False
-        bindings.take_own_updates()  # tags made while correcting: the pass that follows runs no handlers
+        # Marks made while correcting are not kept: in a handler, Blender's pass that follows runs no
+        # handlers, and after loading a file one more reading of the weights costs nothing but time.
+        bindings.take_own_updates()
     if live.is_main_thread() and any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
             not bpy.app.timers.is_registered(after_mesh_changes):
         bpy.app.timers.register(after_mesh_changes, first_interval=live.CHECK_PAUSE)

@@ -192,7 +192,7 @@ struct lvp_binding {
 	bool dynamic_set_current;
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map:
-	 * cleared by whatever changes one of them otherwise (correction.c, lvp__frame_map). */
+	 * cleared by whatever changes one of them otherwise (frame_map.c, lvp__frame_map). */
 	bool frame_map_current;
 	/* Pieces of the dynamic triangles for the mesh pass (local_volume.c, lvp__piece_loop);
 	 * capacity triangle_count / LVP__GRAIN + region_count + 2. */
@@ -207,7 +207,8 @@ struct lvp_binding {
 	int32_t *skin_class;     /* bone_count: bones with equal skin matrices this frame share a class */
 	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
 	double *target;          /* region_count: the change a region is corrected to (correction.c,
-	                            lvp__correct_volumes): zero, plus its part of the whole mesh's fix */
+	                            lvp__correct_volumes): stretch_change (zero where no bone is stretched
+	                            against another), plus its part of the whole mesh's fix */
 	double *uniform_gain;    /* region_count: per active region, what equal multipliers of all
 	                            active regions do to its volume (its row of the system) */
 	double *total_gain;      /* region_count: per active region, what its multiplier does to the
@@ -263,6 +264,13 @@ void lvp__parts_free(lvp__parts *parts);
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {
 	return binding->bone_source && i >= 0 ? binding->bone_source[i] : i;
+}
+
+/* Whether vertex k follows the bone of skin class bone_class rigidly this frame (it does not move
+ * in this frame's correction, and rest and posed agree in that bone's frame). */
+static inline bool lvp__carried_rigidly(const lvp_binding *binding, int32_t k, int32_t bone_class)
+{
+	return !binding->vertex_dynamic[k] && binding->vertex_class[k] == bone_class;
 }
 
 /* The slot of vertex k for region r (it exists when k is on one of r's triangles), or -1. */

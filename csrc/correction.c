@@ -593,7 +593,8 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		lvp__take_step(binding, m);
 		++steps;
 		lvp__remeasure(binding, rest_positions, totals);
-		if (!(lvp__error_norm(binding) < before)) {
+		double after = lvp__error_norm(binding);
+		if (!(after < before)) {
 			lvp__undo_step(binding);
 			for (int32_t i = 0; i < m; ++i) { /* and the targets it moved */
 				int32_t t = binding->active[i];
@@ -603,7 +604,7 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 			*r_failed = true;
 			break;
 		}
-		if (!(lvp__error_norm(binding) < LVP__LEAST_GAIN * before)) {
+		if (!(after < LVP__LEAST_GAIN * before)) {
 			*r_failed = true;
 			break;
 		}

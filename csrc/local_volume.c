@@ -335,7 +335,7 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 		bool whole_region_static = true;
 		for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
 			int32_t k = binding->region_corners[i];
-			if (binding->vertex_dynamic[k] || binding->vertex_class[k] != bone_class) {
+			if (!lvp__carried_rigidly(binding, k, bone_class)) {
 				whole_region_static = false;
 				break;
 			}
@@ -357,7 +357,7 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 			const int32_t *corners = binding->triangles + 3 * t;
 			bool is_static = true;
 			for (int i = 0; i < 3 && is_static; ++i)
-				is_static = !binding->vertex_dynamic[corners[i]] && binding->vertex_class[corners[i]] == bone_class;
+				is_static = lvp__carried_rigidly(binding, corners[i], bone_class);
 			binding->triangle_static[t] = is_static;
 			if (is_static)
 				continue;
@@ -808,8 +808,7 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
 				/* Both ends static with the region's bone: rest and posed edge are the same in the
 				 * bone's frame, the quad is flat, and neither end moves this frame. */
-				if (!binding->vertex_dynamic[a] && !binding->vertex_dynamic[b] &&
-				    binding->vertex_class[a] == bone_class && binding->vertex_class[b] == bone_class)
+				if (lvp__carried_rigidly(binding, a, bone_class) && lvp__carried_rigidly(binding, b, bone_class))
 					continue;
 				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);

@@ -13,7 +13,7 @@
  * of r's triangles, the skin of b seen from r's rest frame, F_rb = skin_r^-1 skin_b, has the
  * linear part Q_rb U_rb (polar decomposition: Q_rb a rotation, U_rb the stretch; taken in a
  * frame where a bone that is not scaled only turns: the caller's rigid space, the armature's,
- * or r's bone rest frame). The reference keeps the stretch about the pair's centre c_rb and
+ * or the first bone's rest frame). The reference keeps the stretch about the pair's centre c_rb and
  * drops the rotation and the translation:
  *     y_k = x_k + sum_b omega_kb (U_rb - I) (x_k - c_rb)        (x_k: rest, r's rest frame)
  * and region r's target is its local volume change with y in place of the posed positions (the
@@ -200,7 +200,7 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 		int32_t k = binding->region_corners[i], slot = lvp__find_slot(binding, k, r);
 		if (slot < 0) /* cannot happen: every corner of r's triangles has a slot for r */
 			continue;
-		if (!binding->vertex_dynamic[k] && binding->vertex_class[k] == bone_class) {
+		if (lvp__carried_rigidly(binding, k, bone_class)) {
 			offset[3 * slot] = offset[3 * slot + 1] = offset[3 * slot + 2] = 0.0f;
 			continue;
 		}

@@ -557,7 +557,7 @@ static void test_scaled_bone_that_bends(void)
  * that looks like a shear, and the posed frames are W G W^-1 times the rest frames. Told the
  * rigid space (W^-1, the map to the armature's coordinates), the correction sees a bend and no
  * stretch: the cylinder bent by 90 degrees keeps its volume as when nothing was scaled. Left
- * to the bones' rest frames (lvp.h, rigid_space), the bend reads as a stretch of one bone
+ * to the first bone's rest frame (lvp.h, rigid_space), the bend reads as a stretch of one bone
  * against the other: what the add-on avoids by always passing the rigid space. */
 static void test_rigid_space(void)
 {

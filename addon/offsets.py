@@ -150,7 +150,10 @@ def write(holder, offsets, bound=None):
     mesh_data.set_vertex_positions(mesh, offsets)
     mesh.update_tag()
     if bound is not None:
-        bound.written = array('f', offsets)
+        if bound.written is not None and len(bound.written) == len(offsets):
+            bound.written[:] = offsets  # in place: no new buffer per frame
+        else:
+            bound.written = array('f', offsets)
     return True
 
 

@@ -131,7 +131,7 @@ def main():
     # the handlers do (addon/offsets.py, write), the view layer updated, the correction off.
     set_correction(addon, False)
     scene.frame_set(half)
-    holder = addon.offsets.offsets_object(addon.node_group.find_modifier(ours))
+    holder = helpers.offsets_object(ours)
     reevaluation_times = []
     for _repeat in range(15):
         start = time.perf_counter()

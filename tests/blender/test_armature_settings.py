@@ -73,7 +73,7 @@ class TestArmatureMask(MaskTestCase):
         self.scene.frame_set(9)
         self.scene.frame_set(10)
         self.assertStatusContains(self.obj, "bound again by itself: the vertex group of the Armature modifier changed")
-        self.assertIsNone(self.addon.bindings.entry(self.obj).skeleton.still_bone)
+        self.assertIsNone(self.bound().skeleton.still_bone)
         self.assertCorrected(message="without the mask, bound again")
 
     def test_mask_weights_painted_after_bind(self):

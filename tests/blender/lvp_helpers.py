@@ -7,7 +7,6 @@ Used by tests/blender/test_*.py (run by tests/blender/runner.py) and by bench.py
 
 import math
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -77,10 +76,6 @@ def _install_extension(zip_path):
     if module_name not in {addon.module for addon in bpy.context.preferences.addons}:
         addon_utils.enable(module_name, default_set=True)
     return module_name
-
-
-def addon_module_name():
-    return ("bl_ext.%s.%s" % (EXTENSION_REPO, ADDON_ID)) if uses_extensions() else ADDON_ID
 
 
 def enable_addon():
@@ -457,13 +452,6 @@ def run_blender(arguments, timeout=300, with_addon=True):
 
 def fresh_directory(prefix):
     return tempfile.mkdtemp(prefix=prefix + "-", dir=test_tmp())
-
-
-def fresh_copy(path):
-    directory = tempfile.mkdtemp(prefix="copy-", dir=test_tmp())
-    target = os.path.join(directory, os.path.basename(path))
-    shutil.copy(path, target)
-    return target
 
 
 # ---- test base -----------------------------------------------------------------------------

@@ -46,7 +46,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class, binding->triangle_gradient,
 	    binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles, binding->vertex_dirty,
 	    binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->cap_edges, binding->gamma,
+	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->border_rest, binding->cap_edges, binding->gamma,
 	    binding->frame_gamma, binding->log_gamma, binding->distance, binding->region_bone_offsets,
 	    binding->region_bones, binding->region_movable, binding->step_mu, binding->neighbour_offsets,
 	    binding->neighbour_bones, binding->neighbour_contact, binding->region_vertex_offsets, binding->region_vertices,
@@ -321,6 +321,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 	binding->size = lvp__length(lvp__sub(hi, lo));
 	lvp__rest_constants(binding, NULL, binding->rest_totals);
+	lvp__frame_rest(binding, NULL);
 	*r_binding = binding;
 	return lvp_success;
 }

@@ -114,6 +114,9 @@ struct lvp_binding {
 	int32_t *border_slots;   /* 2 per border half-edge: the slots of a and b for the region */
 	float *border_gradient;  /* 6 per border half-edge: this frame's border terms of the region's
 	                            volume gradient at a and at b (world, lvp__region_changes) */
+	lvp__vec3 *border_rest;  /* 3 per border half-edge: a and b at rest in the region's rest frame, and
+	                            a x b (what the side quads keep of the rest, lvp__frame_rest) */
+	bool border_rest_is_bind; /* border_rest holds the bind rest, not a frame's own */
 
 	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
 	int32_t *cap_edges;      /* 2 per half-edge */
@@ -311,18 +314,33 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 void lvp__vertex_gradients(lvp_binding *binding);
 /* Rest side: the region sums of the rest positions (NULL = bind rest) about the rest origins. */
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals);
+/* The rest side of a frame whose rest is rest_positions (NULL = bind rest): border_rest, and the
+ * region sums to measure against (rest_totals, or frame_totals filled from rest_positions). */
+const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
 void lvp__reference_volumes(lvp_binding *binding);
 /* Region changes (rest-world units) from the last mesh pass, and the border terms of the
  * gradients (binding.h, border_gradient); needs posed/posed_inverse. */
-void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
-                         const lvp__region_sums *rest_totals, double *r_change);
+void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp__region_sums *rest_totals,
+                         double *r_change);
 /* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
- * centroid, points in one frame (the bone's). Returns 6 times its signed volume, and in
- * r_grad_a, r_grad_b its gradient with respect to the deformed corners a and b (the centroid
- * moves with them). */
-double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest,
-                       lvp__vec3 b);
+ * centroid, points in one frame (the bone's); rest_cross = a_rest x b_rest. Returns 6 times its
+ * signed volume, and in r_grad_a, r_grad_b its gradient with respect to the deformed corners a
+ * and b (the centroid moves with them). */
+static inline double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest,
+                                     lvp__vec3 b_rest, lvp__vec3 b, lvp__vec3 rest_cross)
+{
+	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
+	/* The four triangles' sum of x . (y x m) is m . c, c the sum of their x x y; its gradient
+	 * through m is c / 4 for each corner. */
+	lvp__vec3 c =
+	    lvp__add(lvp__add(lvp__cross(a, a_rest), rest_cross), lvp__add(lvp__cross(b_rest, b), lvp__cross(b, a)));
+	lvp__vec3 through_m = lvp__scale(c, 0.25);
+	*r_grad_a = lvp__add(lvp__add(lvp__cross(a_rest, m), lvp__cross(m, b)), through_m);
+	*r_grad_b = lvp__add(lvp__add(lvp__cross(m, b_rest), lvp__cross(a, m)), through_m);
+	return lvp__dot(m, c);
+}
+
 /* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */
 double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
 /* Signed volume of the mesh at positions, holes capped (double precision). */

@@ -533,18 +533,18 @@ static void lvp__measure(lvp_binding *binding, const float *rest_positions, cons
 {
 	lvp__dynamic_set(binding, rest_positions, totals, false);
 	lvp__mesh_pass(binding, binding->work_positions);
-	lvp__region_changes(binding, binding->work_positions, rest_positions, totals, binding->change);
+	lvp__region_changes(binding, binding->work_positions, totals, binding->change);
 }
 
 /* Measures again after a step that moved only binding->moved: only their triangles are visited,
  * or, when they are most of the dynamic set, the whole set again (streaming and threaded). */
-static void lvp__remeasure(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
+static void lvp__remeasure(lvp_binding *binding, const lvp__region_sums *totals)
 {
 	if (2 * binding->moved_count >= binding->dynamic_vertex_count)
 		lvp__mesh_pass(binding, binding->work_positions);
 	else
 		lvp__update_pass(binding, binding->work_positions, binding->moved, binding->moved_count);
-	lvp__region_changes(binding, binding->work_positions, rest_positions, totals, binding->change);
+	lvp__region_changes(binding, binding->work_positions, totals, binding->change);
 }
 
 /* Sum over the regions of their squared relative distance to their targets, and, spreading
@@ -592,7 +592,7 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		double before = lvp__assemble_step(binding, m);
 		lvp__take_step(binding, m);
 		++steps;
-		lvp__remeasure(binding, rest_positions, totals);
+		lvp__remeasure(binding, totals);
 		double after = lvp__error_norm(binding);
 		if (!(after < before)) {
 			lvp__undo_step(binding);
@@ -653,7 +653,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			break;
 		lvp__apply_multipliers(binding, binding->active, touched);
 		++steps;
-		lvp__remeasure(binding, rest_positions, totals);
+		lvp__remeasure(binding, totals);
 		lvp__part_changes(binding);
 		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
@@ -754,11 +754,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		return result;
 
 	int32_t n = binding->vertex_count;
-	const lvp__region_sums *totals = binding->rest_totals;
-	if (rest_positions) {
-		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
-		totals = binding->frame_totals;
-	}
+	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__frame_map(binding, rest_positions);
 
@@ -875,14 +871,10 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 	lvp_result result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag);
 	if (result)
 		return result;
-	const lvp__region_sums *totals = binding->rest_totals;
-	if (rest_positions) {
-		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
-		totals = binding->frame_totals;
-	}
+	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
 	lvp__dynamic_set(binding, rest_positions, totals, true);
 	lvp__mesh_pass(binding, positions);
-	lvp__region_changes(binding, positions, rest_positions, totals, binding->change);
+	lvp__region_changes(binding, positions, totals, binding->change);
 	/* Per caller's region: the sum over the separate parts of its bone (binding.h). */
 	int32_t regions = lvp_region_count(binding);
 	memset(r_changes, 0, sizeof(double) * (size_t)regions);

@@ -145,7 +145,8 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
 	binding->border_slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
 	binding->border_gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
-	if (!binding->border_slots || !binding->border_gradient)
+	binding->border_rest = malloc(sizeof(lvp__vec3) * 3 * (size_t)(written > 0 ? written : 1));
+	if (!binding->border_slots || !binding->border_gradient || !binding->border_rest)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	for (int32_t r = 0; r < s; ++r)
 		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
@@ -719,6 +720,36 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 	}
 }
 
+/* Each border half-edge's ends at `rest` in its region's rest frame, and their cross product:
+ * the rest side of its side quad, the same for every measurement of a frame. */
+static void lvp__border_rest(lvp_binding *binding, const float *rest)
+{
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		const lvp__mat4 *to_local = &binding->rest_inverse[r];
+		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
+			lvp__vec3 *ends = binding->border_rest + 3 * i;
+			ends[0] = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i]));
+			ends[1] = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i + 1]));
+			ends[2] = lvp__cross(ends[0], ends[1]);
+		}
+	}
+}
+
+const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions)
+{
+	if (rest_positions) {
+		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
+		lvp__border_rest(binding, rest_positions);
+		binding->border_rest_is_bind = false;
+		return binding->frame_totals;
+	}
+	if (!binding->border_rest_is_bind) {
+		lvp__border_rest(binding, binding->rest_positions);
+		binding->border_rest_is_bind = true;
+	}
+	return binding->rest_totals;
+}
+
 void lvp__reference_volumes(lvp_binding *binding)
 {
 	const float *rest = binding->rest_positions;
@@ -761,22 +792,9 @@ void lvp__reference_volumes(lvp_binding *binding)
 	}
 }
 
-double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest, lvp__vec3 b_rest,
-                       lvp__vec3 b)
-{
-	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
-	/* d/dm of sum x . (y x m) over the four triangles is the sum of x x y. */
-	lvp__vec3 through_m = lvp__scale(lvp__add(lvp__add(lvp__cross(a, a_rest), lvp__cross(a_rest, b_rest)),
-	                                          lvp__add(lvp__cross(b_rest, b), lvp__cross(b, a))),
-	                                 0.25);
-	*r_grad_a = lvp__add(lvp__add(lvp__cross(a_rest, m), lvp__cross(m, b)), through_m);
-	*r_grad_b = lvp__add(lvp__add(lvp__cross(m, b_rest), lvp__cross(a, m)), through_m);
-	return lvp__vol6(a, a_rest, m) + lvp__vol6(a_rest, b_rest, m) + lvp__vol6(b_rest, b, m) + lvp__vol6(b, a, m);
-}
-
 typedef struct lvp__change_context {
 	lvp_binding *binding;
-	const float *positions, *rest;
+	const float *positions;
 	const lvp__region_sums *rest_totals;
 	double *r_change;
 } lvp__change_context;
@@ -786,7 +804,7 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 {
 	const lvp__change_context *c = context;
 	lvp_binding *binding = c->binding;
-	const float *positions = c->positions, *rest = c->rest;
+	const float *positions = c->positions;
 	for (int32_t r = first; r < last; ++r) {
 		if (binding->region_skipped[r]) {
 			c->r_change[r] = 0.0;
@@ -797,7 +815,6 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 		double sides6 = 0.0;
 		if (binding->border_offsets[r + 1] > binding->border_offsets[r]) {
 			const lvp__mat4 *to_local = &binding->posed_inverse[r];
-			const lvp__mat4 *rest_to_local = &binding->rest_inverse[r];
 			const double *m = to_local->m;
 			/* side gradients: local frame, 6 x volume -> world, in the units of the top part's
 			 * gradient (which the correction multiplies by kappa); q = L p => dV/dp = L^T dV/dq */
@@ -812,10 +829,9 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 					continue;
 				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
-				lvp__vec3 ra = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * a));
-				lvp__vec3 rb = lvp__transform_point(rest_to_local, lvp__load(rest + 3 * b));
+				const lvp__vec3 *rest = binding->border_rest + 3 * i;
 				lvp__vec3 local[2];
-				sides6 += lvp__side_quad6(&local[0], &local[1], qa, ra, rb, qb);
+				sides6 += lvp__side_quad6(&local[0], &local[1], qa, rest[0], rest[1], qb, rest[2]);
 				/* The top's gradient was taken in its translation-invariant form, exact only where
 				 * a vertex's fan is closed; on the border the fan is open and the exact gradient
 				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is
@@ -836,11 +852,10 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 	}
 }
 
-void lvp__region_changes(lvp_binding *binding, const float *positions, const float *rest_positions,
-                         const lvp__region_sums *rest_totals, double *r_change)
+void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp__region_sums *rest_totals,
+                         double *r_change)
 {
-	lvp__change_context context = {binding, positions, rest_positions ? rest_positions : binding->rest_positions,
-	                               rest_totals, r_change};
+	lvp__change_context context = {binding, positions, rest_totals, r_change};
 	/* a border edge costs about as much as 8 triangles of the mesh pass */
 	int64_t work = 8 * (int64_t)binding->border_offsets[binding->region_count];
 	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__region_change_loop, &context, binding->region_count, 1);

@@ -114,8 +114,9 @@ struct lvp_binding {
 	int32_t *border_slots;   /* 2 per border half-edge: the slots of a and b for the region */
 	float *border_gradient;  /* 6 per border half-edge: this frame's border terms of the region's
 	                            volume gradient at a and at b (world, lvp__region_changes) */
-	lvp__vec3 *border_rest;  /* 3 per border half-edge: a and b at rest in the region's rest frame, and
-	                            a x b (what the side quads keep of the rest, lvp__frame_rest) */
+	lvp__vec3 *border_rest;  /* 2 per border half-edge: with A, B its ends at rest in the region's rest
+	                            frame, A + B and A x B (all its side quad needs of the rest,
+	                            lvp__side_quad6; lvp__frame_rest) */
 	bool border_rest_is_bind; /* border_rest holds the bind rest, not a frame's own */
 
 	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
@@ -323,22 +324,19 @@ void lvp__reference_volumes(lvp_binding *binding);
  * gradients (binding.h, border_gradient); needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp__region_sums *rest_totals,
                          double *r_change);
-/* Side quad (a, a', b', b) of the prism over the border half-edge a -> b, split in four at its
- * centroid, points in one frame (the bone's); rest_cross = a_rest x b_rest. Returns 6 times its
- * signed volume, and in r_grad_a, r_grad_b its gradient with respect to the deformed corners a
- * and b (the centroid moves with them). */
-static inline double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 a_rest,
-                                     lvp__vec3 b_rest, lvp__vec3 b, lvp__vec3 rest_cross)
+/* Side quad (a, A, B, b) of the prism over the border half-edge a -> b (A, B: a and b at rest),
+ * split in four at its centroid m, points in one frame (the bone's). Returns 6 times its signed
+ * volume, and in r_grad_a, r_grad_b its gradient with respect to the deformed corners a and b (m
+ * moves with them). Only rest_sum = A + B and rest_cross = A x B are needed: expanding the four
+ * triangles' sum of x . (y x m), the terms with a repeated point vanish and the rest pair up
+ * into ((a + b) . (A x B) + a . ((A + B) x b)) / 2. */
+static inline double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, lvp__vec3 a, lvp__vec3 b,
+                                     lvp__vec3 rest_sum, lvp__vec3 rest_cross)
 {
-	lvp__vec3 m = lvp__scale(lvp__add(lvp__add(a, a_rest), lvp__add(b_rest, b)), 0.25);
-	/* The four triangles' sum of x . (y x m) is m . c, c the sum of their x x y; its gradient
-	 * through m is c / 4 for each corner. */
-	lvp__vec3 c =
-	    lvp__add(lvp__add(lvp__cross(a, a_rest), rest_cross), lvp__add(lvp__cross(b_rest, b), lvp__cross(b, a)));
-	lvp__vec3 through_m = lvp__scale(c, 0.25);
-	*r_grad_a = lvp__add(lvp__add(lvp__cross(a_rest, m), lvp__cross(m, b)), through_m);
-	*r_grad_b = lvp__add(lvp__add(lvp__cross(m, b_rest), lvp__cross(a, m)), through_m);
-	return lvp__dot(m, c);
+	lvp__vec3 sum_b = lvp__cross(rest_sum, b);
+	*r_grad_a = lvp__scale(lvp__add(rest_cross, sum_b), 0.5);
+	*r_grad_b = lvp__scale(lvp__add(rest_cross, lvp__cross(a, rest_sum)), 0.5);
+	return 0.5 * (lvp__dot(lvp__add(a, b), rest_cross) + lvp__dot(a, sum_b));
 }
 
 /* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */

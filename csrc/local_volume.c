@@ -145,7 +145,7 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
 	binding->border_slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
 	binding->border_gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
-	binding->border_rest = malloc(sizeof(lvp__vec3) * 3 * (size_t)(written > 0 ? written : 1));
+	binding->border_rest = malloc(sizeof(lvp__vec3) * 2 * (size_t)(written > 0 ? written : 1));
 	if (!binding->border_slots || !binding->border_gradient || !binding->border_rest)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	for (int32_t r = 0; r < s; ++r)
@@ -720,17 +720,17 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 	}
 }
 
-/* Each border half-edge's ends at `rest` in its region's rest frame, and their cross product:
- * the rest side of its side quad, the same for every measurement of a frame. */
+/* The rest side of each border half-edge's side quad at `rest` (binding.h, border_rest): the
+ * same for every measurement of a frame. */
 static void lvp__border_rest(lvp_binding *binding, const float *rest)
 {
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		const lvp__mat4 *to_local = &binding->rest_inverse[r];
 		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
-			lvp__vec3 *ends = binding->border_rest + 3 * i;
-			ends[0] = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i]));
-			ends[1] = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i + 1]));
-			ends[2] = lvp__cross(ends[0], ends[1]);
+			lvp__vec3 a = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i]));
+			lvp__vec3 b = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i + 1]));
+			binding->border_rest[2 * i] = lvp__add(a, b);
+			binding->border_rest[2 * i + 1] = lvp__cross(a, b);
 		}
 	}
 }
@@ -829,9 +829,9 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 					continue;
 				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
-				const lvp__vec3 *rest = binding->border_rest + 3 * i;
+				const lvp__vec3 *rest = binding->border_rest + 2 * i;
 				lvp__vec3 local[2];
-				sides6 += lvp__side_quad6(&local[0], &local[1], qa, rest[0], rest[1], qb, rest[2]);
+				sides6 += lvp__side_quad6(&local[0], &local[1], qa, qb, rest[0], rest[1]);
 				/* The top's gradient was taken in its translation-invariant form, exact only where
 				 * a vertex's fan is closed; on the border the fan is open and the exact gradient
 				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is

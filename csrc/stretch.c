@@ -244,7 +244,8 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 			continue;
 		lvp__vec3 xa = lvp__sub(lvp__load(rest + 3 * a), o), xb = lvp__sub(lvp__load(rest + 3 * b), o);
 		lvp__vec3 unused_a, unused_b;
-		volume6 += lvp__side_quad6(&unused_a, &unused_b, lvp__add(xa, da), xa, xb, lvp__add(xb, db), lvp__cross(xa, xb));
+		volume6 += lvp__side_quad6(&unused_a, &unused_b, lvp__add(xa, da), lvp__add(xb, db), lvp__add(xa, xb),
+		                           lvp__cross(xa, xb));
 	}
 	return volume6 / 6.0;
 }

@@ -239,7 +239,7 @@ struct lvp_binding {
 	double *system;          /* dense^2, dense = min(region_count, LVP__DENSE_MAX) */
 	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of LVP__ASSEMBLY_BLOCK(dense) */
 	double *rhs;             /* LVP__DENSE_MAX */
-	int32_t *pivots;         /* LVP__DENSE_MAX */
+	int32_t *lu_profile;     /* 2 x LVP__DENSE_MAX: the solve's sparsity (correction.c) */
 	double *mu;              /* region_count */
 	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
 };

@@ -94,24 +94,48 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 /* ---- the dense solve of the active regions' system ------------------------------------------- */
 
 /* LU with partial pivoting, in place on the m x m row-major matrix; solves for rhs (overwritten
- * with the solution). Returns false when a pivot is negligible. */
-static bool lvp__lu_solve(double *a, double *rhs, int32_t *pivots, int32_t m)
+ * with the solution). Returns false when a pivot is negligible. r_profile: 2m ints.
+ *
+ * The region system is sparse and close to banded (regions couple where their bones blend, and
+ * the regions come in skeleton order), so the loops skip what is zero and stays zero: column
+ * col is zero below row reach[col], the last row whose first nonzero is at or left of col (a
+ * row past it has never been swapped or eliminated into: that happens to a row only once col
+ * reaches its first nonzero), and no row up to there has a nonzero past rows_last[reach[col]],
+ * the last nonzero column of any of them, fill-in included. The same result as the full loops. */
+static bool lvp__lu_solve(double *a, double *rhs, int32_t *r_profile, int32_t m)
 {
-	double largest = 0.0;
-	for (int32_t i = 0; i < m * m; ++i)
-		largest = fmax(largest, fabs(a[i]));
+	int32_t *reach = r_profile, *rows_last = r_profile + m;
+	double largest = 0.0; /* (a compare, not fmax: a call per element without -ffinite-math-only) */
+	for (int32_t col = 0; col < m; ++col)
+		reach[col] = -1;
+	for (int32_t row = 0; row < m; ++row) {
+		int32_t first = m, last = -1;
+		for (int32_t j = 0; j < m; ++j) {
+			double size = fabs(a[row * m + j]);
+			if (size > 0.0) {
+				first = first < m ? first : j;
+				last = j;
+				largest = size > largest ? size : largest;
+			}
+		}
+		if (first < m)
+			reach[first] = row;
+		rows_last[row] = row > 0 && rows_last[row - 1] > last ? rows_last[row - 1] : last;
+	}
 	if (!(largest > 0.0))
 		return false;
+	for (int32_t col = 1; col < m; ++col)
+		reach[col] = reach[col] > reach[col - 1] ? reach[col] : reach[col - 1];
 	for (int32_t col = 0; col < m; ++col) {
+		int32_t rows = reach[col] > col ? reach[col] : col, columns = rows_last[rows] + 1;
 		int32_t pivot = col;
-		for (int32_t row = col + 1; row < m; ++row)
+		for (int32_t row = col + 1; row <= rows; ++row)
 			if (fabs(a[row * m + col]) > fabs(a[pivot * m + col]))
 				pivot = row;
 		if (!(fabs(a[pivot * m + col]) > 1e-13 * largest))
 			return false;
-		pivots[col] = pivot;
 		if (pivot != col) {
-			for (int32_t j = 0; j < m; ++j) {
+			for (int32_t j = col; j < columns; ++j) {
 				double t = a[col * m + j];
 				a[col * m + j] = a[pivot * m + j];
 				a[pivot * m + j] = t;
@@ -121,18 +145,19 @@ static bool lvp__lu_solve(double *a, double *rhs, int32_t *pivots, int32_t m)
 			rhs[pivot] = t;
 		}
 		double inverse = 1.0 / a[col * m + col];
-		for (int32_t row = col + 1; row < m; ++row) {
+		for (int32_t row = col + 1; row <= rows; ++row) {
 			double factor = a[row * m + col] * inverse;
 			if (factor == 0.0)
 				continue;
-			for (int32_t j = col + 1; j < m; ++j)
+			for (int32_t j = col + 1; j < columns; ++j)
 				a[row * m + j] -= factor * a[col * m + j];
 			rhs[row] -= factor * rhs[col];
 		}
+		reach[col] = columns; /* kept for the back substitution: row col of U ends before it */
 	}
 	for (int32_t row = m - 1; row >= 0; --row) {
 		double sum = rhs[row];
-		for (int32_t j = row + 1; j < m; ++j)
+		for (int32_t j = row + 1; j < reach[row]; ++j)
 			sum -= a[row * m + j] * rhs[j];
 		rhs[row] = sum / a[row * m + row];
 	}
@@ -449,7 +474,7 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 			rhs[i] = 0.0;
 		}
 	}
-	bool solved = dense > 0 && lvp__lu_solve(system, rhs, binding->pivots, dense);
+	bool solved = dense > 0 && lvp__lu_solve(system, rhs, binding->lu_profile, dense);
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
 		double diagonal = binding->mu[t], mu;

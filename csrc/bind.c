@@ -58,7 +58,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
-	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->lu_profile, binding->mu,
+	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->lu_profile, binding->normal, binding->normal_rhs, binding->mu,
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
 	    binding->bone_source, binding->region_part, binding->vertex_part, binding->cap_part_offsets,
 	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
@@ -275,6 +275,8 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->assembly = lvp__alloc(LVP__ASSEMBLY_CHUNKS * LVP__ASSEMBLY_BLOCK(dense), sizeof(double), &ok);
 	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->lu_profile = lvp__alloc(2 * dense, sizeof(int32_t), &ok);
+	binding->normal = lvp__alloc(dense * dense, sizeof(double), &ok);
+	binding->normal_rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->mu = lvp__alloc(s, sizeof(double), &ok);
 	size_t parts_count = (size_t)binding->part_count;
 	binding->cap_part_offsets = lvp__alloc(parts_count + 1, sizeof(int32_t), &ok);

@@ -240,6 +240,9 @@ struct lvp_binding {
 	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of LVP__ASSEMBLY_BLOCK(dense) */
 	double *rhs;             /* LVP__DENSE_MAX */
 	int32_t *lu_profile;     /* 2 x LVP__DENSE_MAX: the solve's sparsity (correction.c) */
+	int32_t assembly_chunks; /* the blocks of the last assembly */
+	double *normal;          /* dense^2: the least-squares system, when the region system is singular */
+	double *normal_rhs;      /* LVP__DENSE_MAX */
 	double *mu;              /* region_count */
 	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
 };

@@ -409,6 +409,84 @@ static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
 	}
 }
 
+/* binding->system: the dense block of the region system, the chunks' blocks of the last
+ * assembly added in chunk order. */
+static void lvp__sum_system(lvp_binding *binding, int32_t dense)
+{
+	double *system = binding->system;
+	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
+	for (int32_t chunk = 0; chunk < binding->assembly_chunks; ++chunk) {
+		const double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
+		for (int32_t row = 0; row < dense; ++row)
+			for (int32_t j = 0; j < dense; ++j)
+				system[row * dense + j] += sums[row * (dense + 1) + j];
+	}
+}
+
+/* The right-hand side of the regions' own step (towards their targets), with the regions that
+ * cannot move (zero map around them: a negligible diagonal) taken out of the system: their row
+ * and column zero, their diagonal 1, their multiplier 0. */
+static void lvp__take_out_still_regions(lvp_binding *binding, int32_t dense, double largest_diagonal)
+{
+	double *system = binding->system, *rhs = binding->rhs;
+	for (int32_t i = 0; i < dense; ++i) {
+		rhs[i] = binding->target[binding->active[i]] - binding->change[binding->active[i]];
+		if (!(fabs(system[i * dense + i]) > 1e-12 * largest_diagonal)) {
+			for (int32_t j = 0; j < dense; ++j)
+				system[i * dense + j] = system[j * dense + i] = 0.0;
+			system[i * dense + i] = 1.0;
+			rhs[i] = 0.0;
+		}
+	}
+}
+
+/* When the LU finds the system singular: the damped least-squares solution, (J^T J + lambda
+ * diag(J^T J)) mu = J^T rhs, lambda = 1e-9, in rhs. Regions whose maps overlap so much that no
+ * multipliers tell them apart (a tail of short bones, each vertex shared half and half with the
+ * next bone's: rows [1 2 1]) make the system singular; the damping gives the multipliers of
+ * least size among those that come closest, where an exact solve would add a large alternating
+ * pattern and the per-region steps overshoot. J^T J is summed row by row over each row's nonzero
+ * columns, so a banded system costs its band; one that would cost more than 16 m^2 is left
+ * unsolved (false). */
+static bool lvp__least_squares_solve(lvp_binding *binding, int32_t dense, double largest_diagonal)
+{
+	lvp__sum_system(binding, dense);
+	lvp__take_out_still_regions(binding, dense, largest_diagonal);
+	const double *system = binding->system, *rhs = binding->rhs;
+	double *normal = binding->normal, *normal_rhs = binding->normal_rhs;
+	int32_t *first = binding->lu_profile, *last = binding->lu_profile + dense;
+	int64_t cost = 0;
+	for (int32_t row = 0; row < dense; ++row) {
+		first[row] = dense;
+		last[row] = -1;
+		for (int32_t j = 0; j < dense; ++j)
+			if (system[row * dense + j] != 0.0) {
+				first[row] = first[row] < dense ? first[row] : j;
+				last[row] = j;
+			}
+		int64_t width = last[row] - first[row] + 1;
+		cost += width > 0 ? width * width : 0;
+	}
+	if (cost > 16 * (int64_t)dense * dense)
+		return false;
+	memset(normal, 0, sizeof(double) * (size_t)dense * (size_t)dense);
+	memset(normal_rhs, 0, sizeof(double) * (size_t)dense);
+	for (int32_t row = 0; row < dense; ++row) {
+		const double *j_row = system + (size_t)row * dense;
+		for (int32_t i = first[row]; i <= last[row]; ++i) {
+			if (j_row[i] == 0.0)
+				continue;
+			for (int32_t j = first[row]; j <= last[row]; ++j)
+				normal[i * dense + j] += j_row[i] * j_row[j];
+			normal_rhs[i] += j_row[i] * rhs[row];
+		}
+	}
+	for (int32_t i = 0; i < dense; ++i)
+		normal[i * dense + i] *= 1.0 + 1e-9;
+	memcpy(binding->rhs, normal_rhs, sizeof(double) * (size_t)dense);
+	return lvp__lu_solve(normal, binding->rhs, binding->lu_profile, dense);
+}
+
 /* The system of a correction step over the active regions (active[0..m)), and what equal
  * multipliers do to each (uniform_gain). Returns the error norm of the measured state. */
 static double lvp__assemble_step(lvp_binding *binding, int32_t m)
@@ -426,14 +504,12 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	int32_t chunks = (dynamic + chunk_size - 1) / chunk_size;
 	lvp__assembly_context context = {binding, dense, chunk_size};
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_chunks, &context, chunks, 1);
-	double *system = binding->system, *gains = binding->rhs; /* rhs is free until the solve */
-	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
+	binding->assembly_chunks = chunks;
+	lvp__sum_system(binding, dense);
+	double *gains = binding->rhs; /* rhs is free until the solve */
 	memset(gains, 0, sizeof(double) * (size_t)dense);
 	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
 		const double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
-		for (int32_t row = 0; row < dense; ++row)
-			for (int32_t j = 0; j < dense; ++j)
-				system[row * dense + j] += sums[row * (dense + 1) + j];
 		for (int32_t j = 0; j < dense; ++j)
 			gains[j] += sums[(dense + 1) * (dense + 1) + j];
 	}
@@ -462,19 +538,13 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 	 * map around them) are taken out of the system. The diagonal is kept in mu[] for the
 	 * per-region fallback. */
 	double largest_diagonal = 0.0;
-	for (int32_t i = 0; i < dense; ++i)
-		largest_diagonal = fmax(largest_diagonal, fabs(system[i * dense + i]));
 	for (int32_t i = 0; i < dense; ++i) {
+		largest_diagonal = fmax(largest_diagonal, fabs(system[i * dense + i]));
 		binding->mu[active[i]] = system[i * dense + i];
-		rhs[i] = binding->target[active[i]] - binding->change[active[i]];
-		if (!(fabs(system[i * dense + i]) > 1e-12 * largest_diagonal)) {
-			for (int32_t j = 0; j < dense; ++j)
-				system[i * dense + j] = system[j * dense + i] = 0.0;
-			system[i * dense + i] = 1.0;
-			rhs[i] = 0.0;
-		}
 	}
-	bool solved = dense > 0 && lvp__lu_solve(system, rhs, binding->lu_profile, dense);
+	lvp__take_out_still_regions(binding, dense, largest_diagonal);
+	bool solved = dense > 0 && (lvp__lu_solve(system, rhs, binding->lu_profile, dense) ||
+	                            lvp__least_squares_solve(binding, dense, largest_diagonal));
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
 		double diagonal = binding->mu[t], mu;
@@ -597,9 +667,7 @@ static double lvp__error_norm(lvp_binding *binding)
  * receives the number of regions corrected by the first one. A step that makes the regions
  * worse overall is undone and ends the iteration, with *r_failed set. So does a step that
  * removes less than a tenth of the error, but it is kept: a Newton step that achieves so little
- * means the regions' targets and the whole mesh's volume pull against each other (many short
- * regions bent a little, whose estimates sum to more than the mesh's true change), and the
- * steps after it would trade the same error back and forth until the cap. */
+ * will not be followed by better ones (seen on degenerate input: the fuzzer's). */
 static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_options *options,
                                       const float *rest_positions, const lvp__region_sums *totals, int32_t budget,
                                       int32_t *r_first_active, bool *r_failed)

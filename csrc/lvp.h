@@ -50,6 +50,11 @@
  *      multipliers mu solve the small system  sum_t M_st mu_t = dV_s  (M_st = sum_k g_sk gamma_k
  *      g_k phi_kt, g_sk the part of g_k from region s's triangles) over the regions whose
  *      volume changed; unchanged regions cost nothing. With one region this is exactly eq. 5.
+ *      Where the maps overlap so much that no multipliers tell some regions apart (a tail of
+ *      short bones whose every vertex is shared half and half with the next bone: rows
+ *      [1 2 1], singular), mu is the damped least-squares solution (M^T M + 1e-9 diag) mu =
+ *      M^T dV: the smallest multipliers that come closest, in one step where the per-region
+ *      steps of eq. 5 overshoot each other and crawl.
  *   4. The true volumes are measured again and steps 1-3 repeat until every region is within
  *      `tolerance` of its target (step 5) or `max_iterations` is reached: the linearization error
  *      of the paper's single pass is removed, not reported. The gradient of each region's
@@ -68,10 +73,8 @@
  *      Where such a step makes things worse (many overlapping regions, most of the whole
  *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
  *      two phases: the regions to their targets, then one multiplier for the whole mesh. A step
- *      that removes less than a tenth of the error is kept and goes on the same way: there the
- *      targets and the whole mesh pull against each other (many short regions bent a little,
- *      whose estimates add up to more than the mesh's true change), and more coupled steps
- *      would trade the same error back and forth until max_iterations.
+ *      that removes less than a tenth of the error is kept and goes on the same way: a Newton
+ *      step that achieves so little will not be followed by better ones (degenerate input).
  *      Bones that scale (squash and stretch, a stretchy chain, an inflated limb; not in the
  *      paper, whose bones are rigid): in a frame where some bone's posed frame changes volume
  *      against its rest frame (|det ratio - 1| > 1e-4), or some bone is stretched against a
@@ -212,8 +215,9 @@
  *   iteration: one pass over the dynamic triangles, region by region (or over the
  *   triangles around the moved vertices, when they are few) and, when a step follows, two
  *   over the dynamic vertices (their gradients, then the active regions' system) and one to
- *   move them, plus a dense solve of the active regions' system (m^3/3 for m active regions,
- *   negligible below a few hundred). Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B)
+ *   move them, plus a solve of the active regions' system that skips what is zero and stays
+ *   zero (regions in skeleton order couple in a band: a chain costs its band, m^3/3 at worst),
+ *   over at most 256 regions; past them, the per-region step of eq. 5. Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B)
  *   for the normal test or O(N B log F) for the exact test.
  */
 #ifndef LVP_H

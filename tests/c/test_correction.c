@@ -416,13 +416,15 @@ static void test_many_regions(void)
 	test_rig_free(&rig);
 }
 
-/* Short regions on a coarse tube, bent at every joint: the regions' estimates add up to more than
- * the mesh's true change (their borders are a large share of them), so the regions' targets and
- * the whole mesh's volume pull against each other, and coupled steps after the first gain
- * nothing. Such a step ends the coupled iteration (lvp.h, ALGORITHM 5) instead of running to
- * max_iterations (8): the 8-bone chain bent 40 degrees took all 8 steps before, for the same
- * result. The whole mesh ends within the tolerance, and every region within 1 % of its rest. */
-static void test_stalled_steps_end_the_iteration(void)
+/* Short regions on a coarse tube (4 rings a bone, weights blended over half a bone), bent at
+ * every joint: every vertex of a weight band is shared half and half by two bones, so no
+ * multipliers tell neighbouring regions apart and the region system is singular (rows [1 2 1]).
+ * Its damped least-squares solution (lvp.h, ALGORITHM 3) corrects them in one or two steps;
+ * the per-region steps of eq. 5 that a singular system used to fall back to overshot each other
+ * and took 5 steps on the 8-bone chain bent 40 degrees (8, the cap, before the iteration ended
+ * on steps that gain too little) and 3 on the 64-bone tail. The whole mesh ends within the
+ * tolerance, and every region within 1 % of its rest. */
+static void test_regions_that_cannot_be_told_apart(void)
 {
 	const struct {
 		int bones;
@@ -448,7 +450,7 @@ static void test_stalled_steps_end_the_iteration(void)
 		printf("  %d bones bent %.0f degrees: %.3f%% -> %.5f%% in %d steps, worst region %+.3f%% -> %+.3f%%\n",
 		       cases[c].bones, cases[c].degrees, 100 * before, 100 * after, (int)stats.iterations,
 		       100 * stats.worst_region_change_before, 100 * stats.worst_region_change_after);
-		CHECK(stats.iterations < lvp_frame_default_options().max_iterations);
+		CHECK(stats.iterations <= 2);
 		CHECK(fabs(after) < lvp_frame_default_options().tolerance);
 		CHECK(fabs(stats.worst_region_change_after) < 0.01);
 		lvp_free(binding);
@@ -729,7 +731,7 @@ int main(void)
 	RUN(test_in_place_output);
 	RUN(test_threads_give_identical_results);
 	RUN(test_many_regions);
-	RUN(test_stalled_steps_end_the_iteration);
+	RUN(test_regions_that_cannot_be_told_apart);
 	RUN(test_scaled_bone_is_not_undone);
 	RUN(test_scaled_bone_that_bends);
 	RUN(test_rigid_space);

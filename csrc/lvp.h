@@ -217,8 +217,8 @@
  *   over the dynamic vertices (their gradients, then the active regions' system) and one to
  *   move them, plus a solve of the active regions' system that skips what is zero and stays
  *   zero (regions in skeleton order couple in a band: a chain costs its band, m^3/3 at worst),
- *   over at most 256 regions; past them, the per-region step of eq. 5. Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B)
- *   for the normal test or O(N B log F) for the exact test.
+ *   over at most 256 regions; past them, the per-region step of eq. 5. Bind: O(N B) for maps
+ *   and, in lvp_auto_weights(), O(N B) for the normal test or O(N B log F) for the exact test.
  */
 #ifndef LVP_H
 #define LVP_H

@@ -125,7 +125,24 @@ run_c_tests() {
 			failed=1
 		fi
 	done
+	run_fuzz_regressions_clang || failed=1
 	return $failed
+}
+
+# The fuzzer's findings replayed once more, built by clang as the fuzzer is: its UBSan checks
+# more than gcc's (a zero offset applied to a null pointer, for one).
+run_fuzz_regressions_clang() {
+	ensure_packages clang libclang-rt-14-dev libc6-dev libgmp-dev
+	log "C test test_fuzz_regressions (clang)"
+	# shellcheck disable=SC2046
+	clang "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+		$(core_sources) $(support_sources) "$ROOT/tests/c/test_fuzz_regressions.c" \
+		-o "$BUILD/tests/test_fuzz_regressions_clang" -lm -lgmp
+	if ! (cd "$ROOT/tests" && "$BUILD/tests/test_fuzz_regressions_clang"); then
+		printf '\033[31mFAILED\033[0m test_fuzz_regressions under clang; rerun alone: %s\n' \
+			"bash -c 'source ./build.sh; run_fuzz_regressions_clang'" >&2
+		return 1
+	fi
 }
 
 run_c_test_alone() {
@@ -167,9 +184,9 @@ cmd_fuzz() {
 	# shellcheck disable=SC2046
 	clang -std=c11 -D_GNU_SOURCE -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
 		-pthread -I"$ROOT/csrc" $(core_sources) "$ROOT/tests/fuzz/fuzz_lvp.c" -o "$BUILD/fuzz/fuzz_lvp" -lm
-	log "fuzzing for $seconds s (seed corpus tests/fuzz/corpus)"
+	log "fuzzing for $seconds s (seeds: tests/fuzz/corpus and tests/fuzz/regressions)"
 	"$BUILD/fuzz/fuzz_lvp" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=4096 \
-		-artifact_prefix="$BUILD/fuzz/" "$BUILD/fuzz/corpus" "$ROOT/tests/fuzz/corpus"
+		-artifact_prefix="$BUILD/fuzz/" "$BUILD/fuzz/corpus" "$ROOT/tests/fuzz/corpus" "$ROOT/tests/fuzz/regressions"
 }
 
 cmd_bench() {

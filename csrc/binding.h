@@ -19,7 +19,9 @@
 
 /* Above this many changed regions in one frame, the coupled region system is no longer
  * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
- * next iteration re-measures. Real rigs bend far fewer regions at once. */
+ * next iteration re-measures. Rigs with many B-Bone segments can bend more at once, and then
+ * converge slowly (BENCHMARKS.md, "Many short regions"); the dense blocks cost m^2 to clear and
+ * add at every step, so a larger limit would need the system stored as a band. */
 #define LVP__DENSE_MAX 256
 
 /* The region system is summed over the dynamic vertices in at most LVP__ASSEMBLY_CHUNKS chunks

@@ -721,10 +721,13 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 }
 
 /* The rest side of each border half-edge's side quad at `rest` (binding.h, border_rest): the
- * same for every measurement of a frame. */
+ * same for every measurement of a frame. Regions without borders are skipped before their rest
+ * frame is looked at: the global mode's one region has none, nor, without a skeleton, a frame. */
 static void lvp__border_rest(lvp_binding *binding, const float *rest)
 {
 	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (binding->border_offsets[r + 1] == binding->border_offsets[r])
+			continue;
 		const lvp__mat4 *to_local = &binding->rest_inverse[r];
 		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
 			lvp__vec3 a = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i]));

@@ -3,7 +3,9 @@
  * (inputs that once crashed the fuzzer or broke a contract it checks) and the seed corpus
  * tests/fuzz/corpus/, through the fuzzer's own decoding (tests/fuzz/fuzz_decode.h). A crash
  * found by `./build.sh fuzz` becomes a permanent test by copying the artifact into
- * tests/fuzz/regressions/ under a name that says what it broke.
+ * tests/fuzz/regressions/ under a name that says what it broke. `./build.sh test` runs it
+ * twice: built by gcc with the other C tests, and by clang as the fuzzer is (build.sh,
+ * run_fuzz_regressions_clang), whose UBSan also flags a zero offset applied to a null pointer.
  */
 #include "support/check.h"
 #include "support/test_meshes.h"

@@ -80,7 +80,8 @@ _entries = {}
 # level is 'INFO', 'WARNING' or 'ERROR'.
 _status = {}
 # Names of the meshes whose next update the add-on made itself, outside the handlers (see
-# expect_own_update); taken by the next depsgraph_update_post.
+# expect_own_update); taken by the next depsgraph_update_post, dropped after each correction and
+# at undo.
 _own_updates = set()
 
 

@@ -150,10 +150,10 @@ def write(holder, offsets, bound=None):
     mesh_data.set_vertex_positions(mesh, offsets)
     mesh.update_tag()
     if bound is not None:
-        if bound.written is not None and len(bound.written) == len(offsets):
-            bound.written[:] = offsets  # in place: no new buffer per frame
-        else:
+        if bound.written is None:
             bound.written = array('f', offsets)
+        else:
+            bound.written[:] = offsets  # in place: no new buffer per frame (it resizes when it must)
     return True
 
 

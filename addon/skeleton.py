@@ -386,7 +386,8 @@ class CoreSkeleton:
         identity while the object has not moved against its armature since the bind; cached per premat."""
         if self._to_bind_premat != premat:
             premat_inverse = premat.inverted_safe()
-            self._rigid_space = array('f', [value for row in premat_inverse for value in row])
+            self._rigid_space = mesh_data.float_array(16)
+            mesh_data.flatten_matrix(premat_inverse, self._rigid_space, 0)
             self._to_bind = [inverse @ premat_inverse @ rest for inverse, rest in
                              zip(self._rest_armature_inverse, self.rest_frames)]
             self._to_bind_premat = premat.copy()

@@ -109,18 +109,25 @@ cmd_build() {
 
 # ---- tests --------------------------------------------------------------------------------
 
+# build_c_test COMPILER NAME OUT: tests/c/NAME.c with the core, sanitized, warnings as errors,
+# into $BUILD/tests/OUT. Its callers test its status: they run inside `||`, where set -e does not
+# stop at a failed compile, and the binary of the last build would run instead.
+build_c_test() {
+	local compiler="$1" name="$2" out="$3"
+	mkdir -p "$BUILD/tests"
+	# shellcheck disable=SC2046
+	"$compiler" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+		$(core_sources) $(support_sources) "$ROOT/tests/c/$name.c" -o "$BUILD/tests/$out" -lm -lgmp
+}
+
 run_c_tests() {
 	ensure_packages gcc libc6-dev libgmp-dev
-	mkdir -p "$BUILD/tests"
 	local failed=0
 	for test_src in "$ROOT"/tests/c/test_*.c; do
 		local name
 		name="$(basename "${test_src%.c}")"
 		log "C test $name"
-		# shellcheck disable=SC2046
-		"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-			$(core_sources) $(support_sources) "$test_src" -o "$BUILD/tests/$name" -lm -lgmp
-		if ! (cd "$ROOT/tests" && "$BUILD/tests/$name"); then
+		if ! build_c_test "$CC" "$name" "$name" || ! (cd "$ROOT/tests" && "$BUILD/tests/$name"); then
 			printf '\033[31mFAILED\033[0m %s; rerun alone: ./build.sh test-c %s\n' "$name" "$name" >&2
 			failed=1
 		fi
@@ -134,11 +141,8 @@ run_c_tests() {
 run_fuzz_regressions_clang() {
 	ensure_packages clang libclang-rt-14-dev libc6-dev libgmp-dev
 	log "C test test_fuzz_regressions (clang)"
-	# shellcheck disable=SC2046
-	clang "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-		$(core_sources) $(support_sources) "$ROOT/tests/c/test_fuzz_regressions.c" \
-		-o "$BUILD/tests/test_fuzz_regressions_clang" -lm -lgmp
-	if ! (cd "$ROOT/tests" && "$BUILD/tests/test_fuzz_regressions_clang"); then
+	if ! build_c_test clang test_fuzz_regressions test_fuzz_regressions_clang ||
+		! (cd "$ROOT/tests" && "$BUILD/tests/test_fuzz_regressions_clang"); then
 		printf '\033[31mFAILED\033[0m test_fuzz_regressions under clang; rerun alone: %s\n' \
 			"bash -c 'source ./build.sh; run_fuzz_regressions_clang'" >&2
 		return 1
@@ -148,10 +152,7 @@ run_fuzz_regressions_clang() {
 run_c_test_alone() {
 	local name="$1"
 	ensure_packages gcc libc6-dev libgmp-dev
-	mkdir -p "$BUILD/tests"
-	# shellcheck disable=SC2046
-	"$CC" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-		$(core_sources) $(support_sources) "$ROOT/tests/c/$name.c" -o "$BUILD/tests/$name" -lm -lgmp
+	build_c_test "$CC" "$name" "$name"
 	(cd "$ROOT/tests" && "$BUILD/tests/$name")
 }
 

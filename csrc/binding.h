@@ -368,8 +368,9 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 /* stretch.c */
 /* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 5). */
 lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* This frame's stretch_change (needs lvp__prepare_frame and this frame's dynamic set,
- * lvp__dynamic_set); sets and returns stretch_frame.
+/* This frame's stretch_change, zero for every region when no bone is stretched (needs
+ * lvp__prepare_frame and this frame's dynamic set, lvp__dynamic_set); sets and returns
+ * stretch_frame.
  * rest_positions: this frame's rest, or NULL for the bind rest; rigid_space: see lvp.h
  * (lvp_frame_options), checked. */
 bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space);

@@ -874,11 +874,9 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	memset(binding->region_touched, 0, (size_t)binding->region_count);
 	lvp__measure(binding, rest_positions, totals);
 	/* Each region aims at zero change, or where bones are stretched against each other at the
-	 * change their stretch alone gives it (stretch.c). */
-	if (lvp__stretch_targets(binding, rest_positions, options->rigid_space))
-		memcpy(binding->target, binding->stretch_change, sizeof(double) * (size_t)binding->region_count);
-	else
-		memset(binding->target, 0, sizeof(double) * (size_t)binding->region_count);
+	 * change their stretch alone gives it (stretch.c; zero without stretch). */
+	lvp__stretch_targets(binding, rest_positions, options->rigid_space);
+	memcpy(binding->target, binding->stretch_change, sizeof(double) * (size_t)binding->region_count);
 	lvp__movable_regions(binding);
 	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);

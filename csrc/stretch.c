@@ -15,9 +15,10 @@
  * frame where a bone that is not scaled only turns: the caller's rigid space, the armature's,
  * or the first bone's rest frame). The reference keeps the stretch about the pair's centre c_rb and
  * drops the rotation and the translation:
- *     y_k = x_k + sum_b omega_kb (U_rb - I) (x_k - c_rb)        (x_k: rest, r's rest frame)
+ *     y_k = x_k + sum_b omega_kb (U_rb - I) (x_k - c_rb)        (x_k: rest)
  * and region r's target is its local volume change with y in place of the posed positions (the
- * prisms and side quads of local_volume.c, already in r's rest frame). A straight joint whose
+ * prisms and side quads of local_volume.c; y and x are both at rest, so they are taken in the
+ * mesh's coordinates about r's rest origin, in rest-world units). A straight joint whose
  * bones scale about the centre is its own reference, so nothing is corrected there; a bend is
  * corrected to the volume the scales give.
  * c_rb: Blender scales a bone about its head, and a child's head sits on (or near) its parent;
@@ -185,10 +186,10 @@ static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *bin
 	return true;
 }
 
-/* Region r's change in the reference pose (rest-world units, r's rest frame). bone_entry: the
- * region's entry of each bone (-1 for bones that are not among its pairs). The offsets y - x
- * are kept per slot of the region's corners (binding.h), so that regions sharing a vertex can
- * be walked at once. A corner that this frame's skin carries rigidly with r's bone (binding.h,
+/* Region r's change in the reference pose (rest-world units, taken in the mesh's coordinates
+ * about r's rest origin). bone_entry: the region's entry of each bone (-1 for bones that are
+ * not among its pairs). The offsets y - x are kept per slot of the region's corners (binding.h),
+ * so that regions sharing a vertex can be walked at once. A corner that this frame's skin carries rigidly with r's bone (binding.h,
  * the dynamic set) has only bones that move as r's, so none stretched against it: its offset is
  * zero, and the triangles whose corners are all such (static) add nothing. So the corners'
  * weights are walked only where some bone moves otherwise, and only the dynamic triangles. */

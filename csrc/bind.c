@@ -59,8 +59,11 @@ void lvp_free(lvp_binding *binding)
 	    binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
 	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
 	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
-	    binding->active_index, binding->system, binding->assembly, binding->rhs, binding->lu_profile,
-	    binding->normal, binding->normal_rhs, binding->mu,
+	    binding->active_index, binding->coupling_offsets, binding->coupling, binding->solve_order,
+	    binding->system_profile.first, binding->system_profile.lower, binding->system_profile.upper,
+	    binding->normal_profile.first, binding->normal_profile.lower, binding->normal_profile.upper, binding->system,
+	    binding->factor, binding->normal, binding->assembly, binding->rhs, binding->solution, binding->row_values,
+	    binding->row_last, binding->still, binding->system_place, binding->mu,
 	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
 	    binding->bone_source, binding->region_part, binding->vertex_part, binding->cap_part_offsets,
 	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
@@ -272,13 +275,6 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
 	binding->active = lvp__alloc(s, sizeof(int32_t), &ok);
 	binding->active_index = lvp__alloc(s, sizeof(int32_t), &ok);
-	size_t dense = s < LVP__DENSE_MAX ? s : LVP__DENSE_MAX;
-	binding->system = lvp__alloc(dense * dense, sizeof(double), &ok);
-	binding->assembly = lvp__alloc(LVP__ASSEMBLY_CHUNKS * LVP__ASSEMBLY_BLOCK(dense), sizeof(double), &ok);
-	binding->rhs = lvp__alloc(dense, sizeof(double), &ok);
-	binding->lu_profile = lvp__alloc(2 * dense, sizeof(int32_t), &ok);
-	binding->normal = lvp__alloc(dense * dense, sizeof(double), &ok);
-	binding->normal_rhs = lvp__alloc(dense, sizeof(double), &ok);
 	binding->mu = lvp__alloc(s, sizeof(double), &ok);
 	size_t parts_count = (size_t)binding->part_count;
 	binding->cap_part_offsets = lvp__alloc(parts_count + 1, sizeof(int32_t), &ok);
@@ -303,7 +299,8 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 
 	if ((result = lvp__segment(binding, r_diag)) || (result = lvp__build_borders(binding, r_diag)) ||
-	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_stretch_pairs(binding, r_diag)) ||
+	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_region_system(binding, r_diag)) ||
+	    (result = lvp__build_stretch_pairs(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;

@@ -17,20 +17,28 @@
  * that is too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
 #define LVP__POOL_FOR(binding, work) ((work) >= 8 * LVP__GRAIN ? (binding)->pool : NULL)
 
-/* Above this many changed regions in one frame, the coupled region system is no longer
- * solved densely: the regions beyond it get the per-region (diagonal) step of eq. 5 and the
- * next iteration re-measures. Rigs with many B-Bone segments can bend more at once, and then
- * converge slowly (BENCHMARKS.md, "Many short regions"); the dense blocks cost m^2 to clear and
- * add at every step, so a larger limit would need the system stored as a band. */
-#define LVP__DENSE_MAX 256
+/* The most cells a region system (region_system.c) is stored in: a step whose active regions'
+ * profile would take more solves the coupled system for as many of them as fit (in the solve
+ * order) and gives the others the per-region step of eq. 5; the next iteration re-measures. A
+ * chain of bones takes 3 cells a region, a bone coupled with all the others 2 more each: a
+ * region count far past any rig; only regions coupled all with all (no skeleton does that) reach
+ * it, at 256 of them. The normal equations of least squares have the same limit. */
+#define LVP__SYSTEM_CELLS (1 << 16)
 
 /* The region system is summed over the dynamic vertices in at most LVP__ASSEMBLY_CHUNKS chunks
  * of at least LVP__GRAIN vertices, cut where the dynamic vertex count alone says (not the
- * thread count), each into its own block of binding->assembly: dense + 1 rows of dense + 1
- * sums (a spare row and column for what falls outside the dense system), then dense + 1
- * column gains, a cache line apart from the next block. The blocks are added in chunk order. */
+ * thread count), each into its own block of binding->assembly: the sums, then one gain per
+ * column of the system and a spare one, a cache line apart from the next block. The blocks are
+ * added in chunk order. The sums of a system of up to LVP__ROWS_ASSEMBLY regions are (count +
+ * 1)^2, row by row with a spare row and column, which the assembly indexes with one load per
+ * entry; a larger system's are the cells of its profile and a spare one (lvp__system_cell). */
 #define LVP__ASSEMBLY_CHUNKS 16
-#define LVP__ASSEMBLY_BLOCK(dense) ((((size_t)(dense) + 1) * ((size_t)(dense) + 2) + 7) / 8 * 8 + 8)
+#define LVP__ROWS_ASSEMBLY 64
+#define LVP__ASSEMBLY_BLOCK(cells, regions)                                                                       \
+	((((size_t)(cells) + 1 > (LVP__ROWS_ASSEMBLY + 1) * (LVP__ROWS_ASSEMBLY + 1)                                     \
+	       ? (size_t)(cells) + 1                                                                                   \
+	       : (LVP__ROWS_ASSEMBLY + 1) * (LVP__ROWS_ASSEMBLY + 1)) +                                                \
+	  (size_t)(regions) + 1 + 7) / 8 * 8 + 8)
 
 /* The reference pass of stretch.c runs over the stretched regions in at most
  * LVP__STRETCH_GROUPS groups of consecutive regions of about equal work (cut by the regions'
@@ -48,6 +56,22 @@ typedef struct lvp__region_sums {
 	double volume6;    /* sum over the region's triangles of (p_i - o) . cr, o = the region origin */
 	double area6[3];   /* sum of cr = (p_j - p_i) x (p_k - p_i): twice the area vector */
 } lvp__region_sums;
+
+/* A square matrix stored by its profile (region_system.c): entry (i, j) with first[i] <= j <= i at
+ * cell lower[i] + j, entry (j, i) with first[i] <= j < i at cell upper[i] + j; every other entry
+ * is zero. Rows and columns [0, count), in `cells` cells. */
+typedef struct lvp__profile {
+	int32_t *first, *lower, *upper;
+	int32_t count, cells;
+} lvp__profile;
+
+/* Where region r's row and column are in a step's system (region_system.c, lvp__system_layout):
+ * index its row and column (the profile's count when it is not in the system), first, lower and
+ * upper the profile's (first INT32_MAX when it is not in the system). Kept per region, together,
+ * so the assembly finds a cell with one load per region. */
+typedef struct lvp__system_place {
+	int32_t index, first, lower, upper;
+} lvp__system_place;
 
 struct lvp_binding {
 	lvp_mode mode;
@@ -238,13 +262,28 @@ struct lvp_binding {
 	uint8_t *region_touched; /* region_count: corrected at least once this frame */
 	int32_t *active;         /* region_count: active region list */
 	int32_t *active_index;   /* region_count: region -> index in the active list, or -1 */
-	double *system;          /* dense^2, dense = min(region_count, LVP__DENSE_MAX) */
-	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of LVP__ASSEMBLY_BLOCK(dense) */
-	double *rhs;             /* LVP__DENSE_MAX */
-	int32_t *lu_profile;     /* 2 x LVP__DENSE_MAX: the solve's sparsity (correction.c) */
+	/* The region system of a step (region_system.c): the regions coupled with each (both ways),
+	 * the order it is solved in, and its profile over the step's active regions (active[i] is
+	 * row and column i). */
+	int32_t *coupling_offsets; /* region_count+1 */
+	int32_t *coupling;
+	int32_t *solve_order;    /* region_count: the regions in the order the system is solved in */
+	int32_t system_capacity; /* cells of system and factor (at most LVP__SYSTEM_CELLS) */
+	int32_t normal_capacity; /* cells of normal */
+	lvp__profile system_profile; /* this step's; its arrays region_count */
+	lvp__profile normal_profile; /* of the least-squares normal equations; region_count */
+	lvp__system_place *system_place; /* region_count: this step's (lvp__system_cell) */
+	double *system;          /* system_capacity: the summed system */
+	double *factor;          /* system_capacity: its LU */
+	double *normal;          /* normal_capacity: the normal equations, when the LU fails */
+	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of assembly_block doubles */
+	size_t assembly_block;   /* LVP__ASSEMBLY_BLOCK(system_capacity, region_count) */
 	int32_t assembly_chunks; /* the blocks of the last assembly */
-	double *normal;          /* dense^2: the least-squares system, when the region system is singular */
-	double *normal_rhs;      /* LVP__DENSE_MAX */
+	double *rhs;             /* region_count: the system's right-hand side */
+	double *solution;        /* region_count: its solution */
+	double *row_values;      /* region_count: scratch (one row of the system) */
+	int32_t *row_last;       /* region_count: scratch (each row's last nonzero column) */
+	uint8_t *still;          /* region_count: scratch (the rows taken out of the system) */
 	double *mu;              /* region_count */
 	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
 };
@@ -360,6 +399,37 @@ void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, 
  * classes and the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions:
  * this frame's rest, or NULL for the bind rest. */
 void lvp__frame_map(lvp_binding *binding, const float *rest_positions);
+
+/* region_system.c */
+/* The coupling of the regions, their solve order and the system's storage (binding.h); after
+ * lvp__build_region_corners. */
+lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* Lays out the system of a step over active[0..m) (in solve order, active_index set) in
+ * system_profile and system_place; returns how many of them it holds (the first ones), up to
+ * system_capacity. */
+int32_t lvp__system_layout(lvp_binding *binding, int32_t m);
+/* The cell of the step's system that region `row`'s row and region `column`'s column meet in
+ * (their places, binding.h), or `spare` when either is not in the system or the entry is outside
+ * the profile. Branch free: the assembly calls it for every pair of a vertex's regions. */
+static inline int32_t lvp__system_cell(lvp__system_place row, lvp__system_place column, int32_t spare)
+{
+	int32_t below = column.index >= row.first ? row.lower + column.index : spare;
+	int32_t above = row.index >= column.first ? column.upper + row.index : spare;
+	return column.index <= row.index ? below : above;
+}
+/* Whether this step's system is assembled row by row (binding.h, LVP__ROWS_ASSEMBLY). */
+static inline bool lvp__assembled_by_rows(const lvp_binding *binding)
+{
+	return binding->system_profile.count <= LVP__ROWS_ASSEMBLY;
+}
+/* system: the sums of the chunks' blocks of the last assembly, added in chunk order. */
+void lvp__sum_system(lvp_binding *binding);
+/* The sum of each row of the summed system, into r_sums[0..count). */
+void lvp__system_row_sums(const lvp_binding *binding, double *r_sums);
+/* Solves the summed system for rhs into solution: regions with a diagonal under 1e-12 of
+ * largest_diagonal taken out (multiplier 0), LU, and damped least squares when the LU cannot be
+ * trusted. Returns false when neither solves it. */
+bool lvp__solve_system(lvp_binding *binding, double largest_diagonal);
 
 /* correction.c */
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,

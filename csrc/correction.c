@@ -91,79 +91,6 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 	return lvp_success;
 }
 
-/* ---- the dense solve of the active regions' system ------------------------------------------- */
-
-/* LU with partial pivoting, in place on the m x m row-major matrix; solves for rhs (overwritten
- * with the solution). Returns false when a pivot is negligible. r_profile: 2m ints.
- *
- * The region system is sparse and close to banded (regions couple where their bones blend, and
- * the regions come in skeleton order), so the loops skip what is zero and stays zero: column
- * col is zero below row reach[col], the last row whose first nonzero is at or left of col (a
- * row past it has never been swapped or eliminated into: that happens to a row only once col
- * reaches its first nonzero), and no row up to there has a nonzero past rows_last[reach[col]],
- * the last nonzero column of any of them, fill-in included. The same result as the full loops. */
-static bool lvp__lu_solve(double *a, double *rhs, int32_t *r_profile, int32_t m)
-{
-	int32_t *reach = r_profile, *rows_last = r_profile + m;
-	double largest = 0.0; /* (a compare, not fmax: a call per element without -ffinite-math-only) */
-	for (int32_t col = 0; col < m; ++col)
-		reach[col] = -1;
-	for (int32_t row = 0; row < m; ++row) {
-		int32_t first = m, last = -1;
-		for (int32_t j = 0; j < m; ++j) {
-			double size = fabs(a[row * m + j]);
-			if (size > 0.0) {
-				first = first < m ? first : j;
-				last = j;
-				largest = size > largest ? size : largest;
-			}
-		}
-		if (first < m)
-			reach[first] = row;
-		rows_last[row] = row > 0 && rows_last[row - 1] > last ? rows_last[row - 1] : last;
-	}
-	if (!(largest > 0.0))
-		return false;
-	for (int32_t col = 1; col < m; ++col)
-		reach[col] = reach[col] > reach[col - 1] ? reach[col] : reach[col - 1];
-	for (int32_t col = 0; col < m; ++col) {
-		int32_t rows = reach[col] > col ? reach[col] : col, columns = rows_last[rows] + 1;
-		int32_t pivot = col;
-		for (int32_t row = col + 1; row <= rows; ++row)
-			if (fabs(a[row * m + col]) > fabs(a[pivot * m + col]))
-				pivot = row;
-		if (!(fabs(a[pivot * m + col]) > 1e-13 * largest))
-			return false;
-		if (pivot != col) {
-			for (int32_t j = col; j < columns; ++j) {
-				double t = a[col * m + j];
-				a[col * m + j] = a[pivot * m + j];
-				a[pivot * m + j] = t;
-			}
-			double t = rhs[col];
-			rhs[col] = rhs[pivot];
-			rhs[pivot] = t;
-		}
-		double inverse = 1.0 / a[col * m + col];
-		for (int32_t row = col + 1; row <= rows; ++row) {
-			double factor = a[row * m + col] * inverse;
-			if (factor == 0.0)
-				continue;
-			for (int32_t j = col + 1; j < columns; ++j)
-				a[row * m + j] -= factor * a[col * m + j];
-			rhs[row] -= factor * rhs[col];
-		}
-		reach[col] = columns; /* kept for the back substitution: row col of U ends before it */
-	}
-	for (int32_t row = m - 1; row >= 0; --row) {
-		double sum = rhs[row];
-		for (int32_t j = row + 1; j < reach[row]; ++j)
-			sum -= a[row * m + j] * rhs[j];
-		rhs[row] = sum / a[row * m + row];
-	}
-	return true;
-}
-
 /* Moves vertex k by rho along its normal, remembering where it was in moved[slot] and
  * step_backup (lvp__undo_step). A single step moves a vertex by at most a quarter of the mesh's
  * size: a pose folded onto itself (a joint bent near 180 degrees) can make the linearization
@@ -275,11 +202,12 @@ static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions,
 
 typedef struct lvp__assembly_context {
 	lvp_binding *binding;
-	int32_t dense, chunk_size;
+	int32_t chunk_size;
 } lvp__assembly_context;
 
-/* Past the dense block: the diagonal of columns [begin, end) (stored in mu temporarily) and
- * what they do to the whole mesh. Only for rigs bending more than LVP__DENSE_MAX regions. */
+/* Past the regions the system holds: the diagonal of columns [begin, end) (stored in mu
+ * temporarily) and what they do to the whole mesh. Only where a step's profile would take more
+ * than LVP__SYSTEM_CELLS (binding.h). */
 static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, int32_t end)
 {
 	for (int32_t j = begin; j < end; ++j)
@@ -304,53 +232,70 @@ static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, i
 	}
 }
 
-/* The region system's partial sums over chunks [begin, end) of the dynamic vertices, each in its
- * block of binding->assembly (binding.h): row s, column t gathers what region t's multiplier does
- * to region s, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt, for the active regions (by
- * their index in the active list); the gains, sum_k gamma_k g_k^2 phi_kt, what it does to the
- * whole mesh. Whatever falls outside the dense system (a region not active, or past the dense
- * block) goes to the spare row or column, so the loop does not branch on it. */
+/* The region system's partial sums over the dynamic vertices [first, last), into one block of
+ * binding->assembly (binding.h): row s, column t gathers what region t's multiplier does to region
+ * s, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt, for the regions of the system (by their
+ * place in it, binding.h); the gains, sum_k gamma_k g_k^2 phi_kt, what each column's multiplier
+ * does to the whole mesh. Whatever falls outside the system (a region not active, or past the
+ * regions it holds) goes to a spare row, cell or gain, so the loop does not branch on it.
+ * by_rows: the block is (count + 1)^2 sums, row by row (a small system: the cheapest to index),
+ * else the cells of the profile and a spare one. The gains follow the sums. */
+static inline void lvp__assemble_range(const lvp_binding *binding, double *sums, int32_t first, int32_t last,
+                                       bool by_rows)
+{
+	int32_t dense = binding->system_profile.count, cells = binding->system_profile.cells, stride = dense + 1;
+	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
+	 * change what the binding points to. */
+	const lvp__system_place *place = binding->system_place;
+	const int32_t *dynamic = binding->dynamic_vertices;
+	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
+	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
+	const double *kappa = binding->kappa;
+	const lvp__system_place outside = {dense, INT32_MAX, 0, 0}; /* the triangles without region */
+	double *gains = sums + (by_rows ? stride * stride : cells + 1);
+	memset(sums, 0, sizeof(double) * (size_t)(gains + stride - sums));
+	for (int32_t v = first; v < last; ++v) {
+		int32_t k = dynamic[v];
+		if (!lvp__can_move(binding, k))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+		for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
+			int32_t s = slot_region[slot];
+			lvp__system_place row = s >= 0 ? place[s] : outside;
+			bool first_slot = slot == slot_offsets[k], in_system = row.index < dense;
+			if (!first_slot && !in_system)
+				continue; /* nothing for this slot; the first one also carries the gains */
+			double coefficient = in_system ? kappa[s] * slot_g[slot] : 0.0;
+			double *row_sums = sums + (size_t)row.index * (size_t)stride;
+			for (int32_t i = 0; i < support.count; ++i) {
+				lvp__system_place column = place[support.regions[i]];
+				double weight = gain * support.phi[i];
+				if (first_slot)
+					gains[column.index] += weight * g;
+				if (by_rows)
+					row_sums[column.index] += coefficient * weight;
+				else if (in_system)
+					sums[lvp__system_cell(row, column, cells)] += coefficient * weight;
+			}
+		}
+	}
+}
+
+/* The assembly of chunks [begin, end) of the dynamic vertices (lvp__assemble_step), each into its
+ * block. */
 static void lvp__assemble_chunks(void *context, int32_t begin, int32_t end)
 {
 	const lvp__assembly_context *c = context;
 	const lvp_binding *binding = c->binding;
-	int32_t dense = c->dense, stride = dense + 1;
-	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
-	 * change what the binding points to. */
-	const int32_t *active_index = binding->active_index, *dynamic = binding->dynamic_vertices;
-	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
-	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
-	const double *kappa = binding->kappa;
 	for (int32_t chunk = begin; chunk < end; ++chunk) {
-		double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
-		double *gains = sums + (size_t)stride * (size_t)stride;
-		memset(sums, 0, sizeof(double) * (size_t)stride * (size_t)(stride + 1));
+		double *sums = binding->assembly + (size_t)chunk * binding->assembly_block;
 		int32_t first = chunk * c->chunk_size, last = first + c->chunk_size;
 		last = last < binding->dynamic_vertex_count ? last : binding->dynamic_vertex_count;
-		for (int32_t v = first; v < last; ++v) {
-			int32_t k = dynamic[v];
-			if (!lvp__can_move(binding, k))
-				continue;
-			lvp__support support = lvp__vertex_support(binding, k);
-			double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
-			for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
-				int32_t s = slot_region[slot];
-				int32_t row = s >= 0 ? active_index[s] : -1;
-				bool first_slot = slot == slot_offsets[k], in_system = (uint32_t)row < (uint32_t)dense;
-				if (!first_slot && !in_system)
-					continue; /* nothing for this slot; the first one also carries the gains */
-				double coefficient = in_system ? kappa[s] * slot_g[slot] : 0.0;
-				double *row_sums = sums + (in_system ? row : dense) * stride;
-				for (int32_t i = 0; i < support.count; ++i) {
-					int32_t column = active_index[support.regions[i]];
-					column = (uint32_t)column < (uint32_t)dense ? column : dense;
-					double weight = gain * support.phi[i];
-					if (first_slot)
-						gains[column] += weight * g;
-					row_sums[column] += coefficient * weight;
-				}
-			}
-		}
+		if (lvp__assembled_by_rows(binding))
+			lvp__assemble_range(binding, sums, first, last, true);
+		else
+			lvp__assemble_range(binding, sums, first, last, false);
 	}
 }
 
@@ -409,90 +354,12 @@ static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
 	}
 }
 
-/* binding->system: the dense block of the region system, the chunks' blocks of the last
- * assembly added in chunk order. */
-static void lvp__sum_system(lvp_binding *binding, int32_t dense)
-{
-	double *system = binding->system;
-	memset(system, 0, sizeof(double) * (size_t)dense * (size_t)dense);
-	for (int32_t chunk = 0; chunk < binding->assembly_chunks; ++chunk) {
-		const double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
-		for (int32_t row = 0; row < dense; ++row)
-			for (int32_t j = 0; j < dense; ++j)
-				system[row * dense + j] += sums[row * (dense + 1) + j];
-	}
-}
-
-/* The right-hand side of the regions' own step (towards their targets), with the regions that
- * cannot move (zero map around them: a negligible diagonal) taken out of the system: their row
- * and column zero, their diagonal 1, their multiplier 0. */
-static void lvp__take_out_still_regions(lvp_binding *binding, int32_t dense, double largest_diagonal)
-{
-	double *system = binding->system, *rhs = binding->rhs;
-	for (int32_t i = 0; i < dense; ++i) {
-		rhs[i] = binding->target[binding->active[i]] - binding->change[binding->active[i]];
-		if (!(fabs(system[i * dense + i]) > 1e-12 * largest_diagonal)) {
-			for (int32_t j = 0; j < dense; ++j)
-				system[i * dense + j] = system[j * dense + i] = 0.0;
-			system[i * dense + i] = 1.0;
-			rhs[i] = 0.0;
-		}
-	}
-}
-
-/* When the LU finds the system singular: the damped least-squares solution, (J^T J + lambda
- * diag(J^T J)) mu = J^T rhs, lambda = 1e-9, in rhs. Regions whose maps overlap so much that no
- * multipliers tell them apart (a tail of short bones, each vertex shared half and half with the
- * next bone's: rows [1 2 1]) make the system singular; the damping gives the multipliers of
- * least size among those that come closest, where an exact solve would add a large alternating
- * pattern and the per-region steps overshoot. J^T J is summed row by row over each row's nonzero
- * columns, so a banded system costs its band; one that would cost more than 16 m^2 is left
- * unsolved (false). */
-static bool lvp__least_squares_solve(lvp_binding *binding, int32_t dense, double largest_diagonal)
-{
-	lvp__sum_system(binding, dense);
-	lvp__take_out_still_regions(binding, dense, largest_diagonal);
-	const double *system = binding->system, *rhs = binding->rhs;
-	double *normal = binding->normal, *normal_rhs = binding->normal_rhs;
-	int32_t *first = binding->lu_profile, *last = binding->lu_profile + dense;
-	int64_t cost = 0;
-	for (int32_t row = 0; row < dense; ++row) {
-		first[row] = dense;
-		last[row] = -1;
-		for (int32_t j = 0; j < dense; ++j)
-			if (system[row * dense + j] != 0.0) {
-				first[row] = first[row] < dense ? first[row] : j;
-				last[row] = j;
-			}
-		int64_t width = last[row] - first[row] + 1;
-		cost += width > 0 ? width * width : 0;
-	}
-	if (cost > 16 * (int64_t)dense * dense)
-		return false;
-	memset(normal, 0, sizeof(double) * (size_t)dense * (size_t)dense);
-	memset(normal_rhs, 0, sizeof(double) * (size_t)dense);
-	for (int32_t row = 0; row < dense; ++row) {
-		const double *j_row = system + (size_t)row * dense;
-		for (int32_t i = first[row]; i <= last[row]; ++i) {
-			if (j_row[i] == 0.0)
-				continue;
-			for (int32_t j = first[row]; j <= last[row]; ++j)
-				normal[i * dense + j] += j_row[i] * j_row[j];
-			normal_rhs[i] += j_row[i] * rhs[row];
-		}
-	}
-	for (int32_t i = 0; i < dense; ++i)
-		normal[i * dense + i] *= 1.0 + 1e-9;
-	memcpy(binding->rhs, normal_rhs, sizeof(double) * (size_t)dense);
-	return lvp__lu_solve(normal, binding->rhs, binding->lu_profile, dense);
-}
-
 /* The system of a correction step over the active regions (active[0..m)), and what equal
  * multipliers do to each (uniform_gain). Returns the error norm of the measured state. */
 static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->active;
-	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
+	int32_t dense = lvp__system_layout(binding, m);
 	for (int32_t i = 0; i < m; ++i)
 		binding->region_touched[active[i]] = 1;
 
@@ -502,29 +369,28 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	int32_t chunk_size = (dynamic + LVP__ASSEMBLY_CHUNKS - 1) / LVP__ASSEMBLY_CHUNKS;
 	chunk_size = chunk_size > LVP__GRAIN ? chunk_size : LVP__GRAIN;
 	int32_t chunks = (dynamic + chunk_size - 1) / chunk_size;
-	lvp__assembly_context context = {binding, dense, chunk_size};
+	lvp__assembly_context context = {binding, chunk_size};
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_chunks, &context, chunks, 1);
 	binding->assembly_chunks = chunks;
-	lvp__sum_system(binding, dense);
+	lvp__sum_system(binding);
 	double *gains = binding->rhs; /* rhs is free until the solve */
 	memset(gains, 0, sizeof(double) * (size_t)dense);
+	size_t gains_at = lvp__assembled_by_rows(binding) ? (size_t)(dense + 1) * (size_t)(dense + 1)
+	                                                  : (size_t)binding->system_profile.cells + 1;
 	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
-		const double *sums = binding->assembly + (size_t)chunk * LVP__ASSEMBLY_BLOCK(dense);
+		const double *sums = binding->assembly + (size_t)chunk * binding->assembly_block + gains_at;
 		for (int32_t j = 0; j < dense; ++j)
-			gains[j] += sums[(dense + 1) * (dense + 1) + j];
+			gains[j] += sums[j];
 	}
 	for (int32_t j = 0; j < dense; ++j)
 		binding->total_gain[active[j]] = gains[j];
 	if (m > dense)
 		lvp__assemble_diagonals(binding, dense, m);
-	/* What equal multipliers do to each region: its row of the system (past the dense block, its
-	 * diagonal, kept in mu[] by the assembly). */
-	for (int32_t i = 0; i < m; ++i) {
-		double row = i < dense ? 0.0 : binding->mu[active[i]];
-		for (int32_t j = 0; j < dense && i < dense; ++j)
-			row += binding->system[i * dense + j];
-		binding->uniform_gain[active[i]] = row;
-	}
+	/* What equal multipliers do to each region: its row of the system (past the regions the
+	 * system holds, its diagonal, kept in mu[] by the assembly). */
+	lvp__system_row_sums(binding, gains);
+	for (int32_t i = 0; i < m; ++i)
+		binding->uniform_gain[active[i]] = i < dense ? gains[i] : binding->mu[active[i]];
 	return lvp__error_norm(binding);
 }
 
@@ -532,25 +398,24 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 static void lvp__take_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->active;
-	int32_t dense = m < LVP__DENSE_MAX ? m : LVP__DENSE_MAX;
-	double *system = binding->system, *rhs = binding->rhs;
-	/* The regions' own step, towards their measured rest volumes. Regions that cannot move (zero
-	 * map around them) are taken out of the system. The diagonal is kept in mu[] for the
+	const lvp__profile *profile = &binding->system_profile;
+	int32_t dense = profile->count;
+	/* The regions' own step, towards their targets. The diagonal is kept in mu[] for the
 	 * per-region fallback. */
 	double largest_diagonal = 0.0;
 	for (int32_t i = 0; i < dense; ++i) {
-		largest_diagonal = fmax(largest_diagonal, fabs(system[i * dense + i]));
-		binding->mu[active[i]] = system[i * dense + i];
+		double diagonal = binding->system[profile->lower[i] + i];
+		largest_diagonal = fmax(largest_diagonal, fabs(diagonal));
+		binding->mu[active[i]] = diagonal;
+		binding->rhs[i] = binding->target[active[i]] - binding->change[active[i]];
 	}
-	lvp__take_out_still_regions(binding, dense, largest_diagonal);
-	bool solved = dense > 0 && (lvp__lu_solve(system, rhs, binding->lu_profile, dense) ||
-	                            lvp__least_squares_solve(binding, dense, largest_diagonal));
+	bool solved = lvp__solve_system(binding, largest_diagonal);
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
 		double diagonal = binding->mu[t], mu;
 		if (i < dense && solved)
-			mu = rhs[i];
-		else /* past the dense block, or a singular system: the region's own eq. 5 step */
+			mu = binding->solution[i];
+		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
 			mu = diagonal > 1e-12 * largest_diagonal ? (binding->target[t] - binding->change[t]) / diagonal : 0.0;
 		binding->mu[t] = isfinite(mu) ? mu : 0.0;
 	}
@@ -582,8 +447,10 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 		lvp__part_changes(binding);
 		any_off = lvp__parts_off(binding, tolerance);
 	}
-	for (int32_t r = 0; r < binding->region_count; ++r) {
+	for (int32_t r = 0; r < binding->region_count; ++r)
 		binding->active_index[r] = -1;
+	for (int32_t i = 0; i < binding->region_count; ++i) {
+		int32_t r = binding->solve_order[i]; /* the system's order (region_system.c) */
 		double reference = binding->reference_volume[r];
 		if (binding->region_skipped[r] || !(reference > 0.0) || !binding->region_movable[r])
 			continue;

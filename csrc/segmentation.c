@@ -25,32 +25,30 @@ static int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_ma
 }
 
 /* The region of a triangle: the bone with the largest sum of weights over its three corners
- * (ties: lower bone index); -1 when no corner has weight. */
-static int32_t lvp__triangle_bone(const lvp_binding *binding, const int32_t *corners)
+ * (ties: lower bone index); -1 when no corner has weight. A bone appears at most once per corner
+ * in sane data; duplicates simply add, as Blender adds duplicate groups. The sums are gathered
+ * in r_sums (bone_count, zero before and after), so a vertex with many weights costs their count,
+ * not its square. */
+static int32_t lvp__triangle_bone(const lvp_binding *binding, const int32_t *corners, double *r_sums)
 {
+	for (int c = 0; c < 3; ++c)
+		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e)
+			r_sums[binding->weight_bones[e]] += binding->weight_values[e];
 	int32_t best = -1;
 	double best_sum = 0.0;
 	for (int c = 0; c < 3; ++c) {
-		int32_t k = corners[c];
-		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
+		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e) {
 			int32_t bone = binding->weight_bones[e];
-			if (binding->weight_values[e] <= 0.0f)
-				continue;
-			/* Sum this bone's weight over the corners (a bone appears at most once per corner
-			 * in sane data; duplicates simply add, as Blender adds duplicate groups). */
-			double sum = 0.0;
-			for (int c2 = 0; c2 < 3; ++c2) {
-				int32_t k2 = corners[c2];
-				for (int32_t e2 = binding->weight_offsets[k2]; e2 < binding->weight_offsets[k2 + 1]; ++e2)
-					if (binding->weight_bones[e2] == bone)
-						sum += binding->weight_values[e2];
-			}
-			if (sum > best_sum || (sum == best_sum && bone < best)) {
+			double sum = r_sums[bone];
+			if (binding->weight_values[e] > 0.0f && (sum > best_sum || (sum == best_sum && bone < best))) {
 				best = bone;
 				best_sum = sum;
 			}
 		}
 	}
+	for (int c = 0; c < 3; ++c)
+		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e)
+			r_sums[binding->weight_bones[e]] = 0.0;
 	return best;
 }
 
@@ -74,15 +72,18 @@ static lvp_result lvp__assign_regions(lvp_binding *binding, const int32_t *trian
 
 	int32_t *region_of = malloc(sizeof(int32_t) * (size_t)f);
 	int32_t *count = calloc((size_t)s + 2, sizeof(int32_t));
-	if (!region_of || !count) {
+	double *sums = calloc((size_t)binding->bone_count + 1, sizeof(double));
+	if (!region_of || !count || !sums) {
 		free(region_of);
 		free(count);
+		free(sums);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while segmenting.");
 	}
 	for (int32_t t = 0; t < f; ++t) {
-		region_of[t] = local ? lvp__triangle_bone(binding, triangles_in + 3 * t) : 0;
+		region_of[t] = local ? lvp__triangle_bone(binding, triangles_in + 3 * t, sums) : 0;
 		++count[(region_of[t] < 0 ? s : region_of[t]) + 1];
 	}
+	free(sums);
 	for (int32_t r = 0; r <= s; ++r)
 		count[r + 1] += count[r];
 	for (int32_t r = 0; r <= s; ++r)

@@ -34,11 +34,12 @@
  * entry; a larger system's are the cells of its profile and a spare one (lvp__system_cell). */
 #define LVP__ASSEMBLY_CHUNKS 16
 #define LVP__ROWS_ASSEMBLY 64
+#define LVP__ASSEMBLY_ROWS(regions) ((size_t)((regions) < LVP__ROWS_ASSEMBLY ? (regions) : LVP__ROWS_ASSEMBLY) + 1)
 #define LVP__ASSEMBLY_BLOCK(cells, regions)                                                                       \
-	((((size_t)(cells) + 1 > (LVP__ROWS_ASSEMBLY + 1) * (LVP__ROWS_ASSEMBLY + 1)                                     \
-	       ? (size_t)(cells) + 1                                                                                   \
-	       : (LVP__ROWS_ASSEMBLY + 1) * (LVP__ROWS_ASSEMBLY + 1)) +                                                \
-	  (size_t)(regions) + 1 + 7) / 8 * 8 + 8)
+	(((size_t)(cells) + 1 > LVP__ASSEMBLY_ROWS(regions) * LVP__ASSEMBLY_ROWS(regions)                                \
+	      ? (size_t)(cells) + 1                                                                                    \
+	      : LVP__ASSEMBLY_ROWS(regions) * LVP__ASSEMBLY_ROWS(regions)) +                                           \
+	 (size_t)(regions) + 1 + 7) / 8 * 8 + 8
 
 /* The reference pass of stretch.c runs over the stretched regions in at most
  * LVP__STRETCH_GROUPS groups of consecutive regions of about equal work (cut by the regions'

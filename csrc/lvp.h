@@ -50,11 +50,15 @@
  *      multipliers mu solve the small system  sum_t M_st mu_t = dV_s  (M_st = sum_k g_sk gamma_k
  *      g_k phi_kt, g_sk the part of g_k from region s's triangles) over the regions whose
  *      volume changed; unchanged regions cost nothing. With one region this is exactly eq. 5.
+ *      M_st can be nonzero only where a corner of s's triangles has a weight of bone t, so
+ *      M is stored by its profile, the regions ordered at bind to keep coupled ones close
+ *      (reverse Cuthill-McKee: a chain of bones is a band, a bone blending with many comes
+ *      after them), and solved by LU without pivoting inside that profile.
  *      Where the maps overlap so much that no multipliers tell some regions apart (a tail of
  *      short bones whose every vertex is shared half and half with the next bone: rows
- *      [1 2 1], singular), mu is the damped least-squares solution (M^T M + 1e-9 diag) mu =
- *      M^T dV: the smallest multipliers that come closest, in one step where the per-region
- *      steps of eq. 5 overshoot each other and crawl.
+ *      [1 2 1], singular), or a pivot comes out negligible, mu is the damped least-squares
+ *      solution (M^T M + 1e-9 diag) mu = M^T dV: the smallest multipliers that come closest,
+ *      in one step where the per-region steps of eq. 5 overshoot each other and crawl.
  *   4. The true volumes are measured again and steps 1-3 repeat until every region is within
  *      `tolerance` of its target (step 5) or `max_iterations` is reached: the linearization error
  *      of the paper's single pass is removed, not reported. The gradient of each region's
@@ -193,7 +197,8 @@
  *
  * THREADS AND MEMORY
  *
- *   No global state. A binding owns all of its memory (sized at bind, O(N + F + E + B^2)) and
+ *   No global state. A binding owns all of its memory (sized at bind, O(N + F + E + W + B), W
+ *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates. With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
@@ -215,10 +220,12 @@
  *   iteration: one pass over the dynamic triangles, region by region (or over the
  *   triangles around the moved vertices, when they are few) and, when a step follows, two
  *   over the dynamic vertices (their gradients, then the active regions' system) and one to
- *   move them, plus a solve of the active regions' system that skips what is zero and stays
- *   zero (regions in skeleton order couple in a band: a chain costs its band, m^3/3 at worst),
- *   over at most 256 regions; past them, the per-region step of eq. 5. Bind: O(N B) for maps
- *   and, in lvp_auto_weights(), O(N B) for the normal test or O(N B log F) for the exact test.
+ *   move them, plus a solve of the active regions' system within its profile (a chain of m
+ *   regions costs O(m), regions coupled all with all m^3/3). The profile is stored in at most
+ *   65,536 cells (3 a region in a chain: some 21,000 regions; 256 coupled all with all); the
+ *   regions past what fits take the per-region step of eq. 5 and the next iteration goes on
+ *   from there. Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B) for the normal test
+ *   or O(N B log F) for the exact test.
  */
 #ifndef LVP_H
 #define LVP_H

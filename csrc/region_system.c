@@ -116,7 +116,7 @@ static bool lvp__build_coupling(lvp_binding *binding)
 {
 	int32_t s = binding->region_count;
 	binding->coupling_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	int32_t *seen = malloc(sizeof(int32_t) * (size_t)s);
+	int32_t *seen = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	size_t count = 0, capacity = 64;
 	int64_t *pairs = malloc(sizeof(int64_t) * capacity);
 	bool ok = binding->coupling_offsets && seen && pairs;
@@ -174,8 +174,9 @@ static bool lvp__order_regions(lvp_binding *binding)
 {
 	int32_t s = binding->region_count, *order = binding->solve_order;
 	const int32_t *offsets = binding->coupling_offsets;
-	int32_t *by_degree = malloc(sizeof(int32_t) * (size_t)s), *counts = calloc((size_t)s + 1, sizeof(int32_t));
-	uint8_t *placed_already = calloc((size_t)s, 1);
+	int32_t *by_degree = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
+	int32_t *counts = calloc((size_t)s + 1, sizeof(int32_t));
+	uint8_t *placed_already = calloc((size_t)s + 1, 1);
 	bool ok = by_degree && counts && placed_already;
 	if (ok) {
 		/* The regions by coupling count (a counting sort, stable): where each set starts. */
@@ -262,7 +263,7 @@ static bool lvp__normal_layout(lvp_binding *binding)
 lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count;
-	size_t n = (size_t)s;
+	size_t n = s > 0 ? (size_t)s : 1;
 	binding->solve_order = malloc(sizeof(int32_t) * n);
 	binding->system_profile.first = malloc(sizeof(int32_t) * n);
 	binding->system_profile.lower = malloc(sizeof(int32_t) * n);

@@ -8,7 +8,8 @@
  * neighbours per region (the bones a joint blends), so the system is stored by its profile, not
  * densely: the regions are ordered once at bind to keep coupled ones close (reverse
  * Cuthill-McKee on the coupling graph: a chain of bones becomes a band of width one, a bone that
- * blends with many, such as a head under a face rig's bones, comes last and makes an arrow),
+ * blends with many, such as a head under a face rig's bones, comes after most of them and makes
+ * an arrow),
  * and a step lays out its active regions in that order. Row i is stored from its first coupled
  * column to the diagonal, column i from its first coupled row to above the diagonal (one first
  * index for both: the coupling is taken both ways). An LU without pivoting keeps its fill inside
@@ -16,9 +17,9 @@
  * profile, not m^2.
  *
  * Without pivoting, a pivot that comes out negligible against its row's diagonal means a system
- * the LU cannot trust (near singular: regions no multipliers tell apart, or a small region
- * between two large ones); the step is then solved in damped least squares, on the normal
- * equations, whose matrix is symmetric positive definite and needs no pivoting either.
+ * the LU cannot trust (near singular, as where no multipliers tell regions apart, or one that
+ * would need rows swapped); the step is then solved in damped least squares, on the normal
+ * equations, whose matrix is symmetric positive definite and needs no pivoting.
  */
 #include "binding.h"
 
@@ -280,7 +281,8 @@ lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag
 	bool ok = binding->solve_order && binding->system_profile.first && binding->system_profile.lower &&
 	          binding->system_profile.upper && binding->normal_profile.first && binding->normal_profile.lower &&
 	          binding->normal_profile.upper && binding->row_last && binding->still && binding->rhs &&
-	          binding->solution && binding->row_values && binding->system_place && lvp__build_coupling(binding) && lvp__order_regions(binding);
+	          binding->solution && binding->row_values && binding->system_place;
+	ok = ok && lvp__build_coupling(binding) && lvp__order_regions(binding);
 	if (ok) {
 		/* The capacities: the profiles of every region active at once (a step's, of fewer
 		 * regions, is never larger: compacting an order only brings coupled regions closer),

@@ -2,7 +2,7 @@
  * binding.h - the inside of an lvp_binding: everything computed once at rest (segmentation,
  * correction map, region borders, rest constants) and the per-frame work memory, so that
  * lvp_correct() never allocates. Shared by bind.c, parts.c, segmentation.c, local_volume.c,
- * frame_map.c, correction.c, stretch.c and foldover.c; not part of the public API.
+ * frame_map.c, correction.c, region_system.c, stretch.c and foldover.c; not part of the public API.
  */
 #ifndef LVP_BINDING_H
 #define LVP_BINDING_H
@@ -422,6 +422,13 @@ static inline int32_t lvp__system_cell(lvp__system_place row, lvp__system_place 
 static inline bool lvp__assembled_by_rows(const lvp_binding *binding)
 {
 	return binding->system_profile.count <= LVP__ROWS_ASSEMBLY;
+}
+/* Where the gains start in an assembly block of this step (binding.h, LVP__ASSEMBLY_CHUNKS): after
+ * the (count + 1)^2 sums row by row, or the profile's cells and a spare one. */
+static inline size_t lvp__assembly_gains_at(const lvp_binding *binding)
+{
+	size_t stride = (size_t)binding->system_profile.count + 1;
+	return lvp__assembled_by_rows(binding) ? stride * stride : (size_t)binding->system_profile.cells + 1;
 }
 /* system: the sums of the chunks' blocks of the last assembly, added in chunk order. */
 void lvp__sum_system(lvp_binding *binding);

@@ -252,7 +252,7 @@ static inline void lvp__assemble_range(const lvp_binding *binding, double *sums,
 	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
 	const double *kappa = binding->kappa;
 	const lvp__system_place outside = {dense, INT32_MAX, 0, 0}; /* the triangles without region */
-	double *gains = sums + (by_rows ? stride * stride : cells + 1);
+	double *gains = sums + lvp__assembly_gains_at(binding);
 	memset(sums, 0, sizeof(double) * (size_t)(gains + stride - sums));
 	for (int32_t v = first; v < last; ++v) {
 		int32_t k = dynamic[v];
@@ -375,8 +375,7 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	lvp__sum_system(binding);
 	double *gains = binding->rhs; /* rhs is free until the solve */
 	memset(gains, 0, sizeof(double) * (size_t)dense);
-	size_t gains_at = lvp__assembled_by_rows(binding) ? (size_t)(dense + 1) * (size_t)(dense + 1)
-	                                                  : (size_t)binding->system_profile.cells + 1;
+	size_t gains_at = lvp__assembly_gains_at(binding);
 	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
 		const double *sums = binding->assembly + (size_t)chunk * binding->assembly_block + gains_at;
 		for (int32_t j = 0; j < dense; ++j)

@@ -53,7 +53,7 @@
  *      M_st can be nonzero only where a corner of s's triangles has a weight of bone t, so
  *      M is stored by its profile, the regions ordered at bind to keep coupled ones close
  *      (reverse Cuthill-McKee: a chain of bones is a band, a bone blending with many comes
- *      after them), and solved by LU without pivoting inside that profile.
+ *      after most of them), and solved by LU without pivoting inside that profile.
  *      Where the maps overlap so much that no multipliers tell some regions apart (a tail of
  *      short bones whose every vertex is shared half and half with the next bone: rows
  *      [1 2 1], singular), or a pivot comes out negligible, mu is the damped least-squares

@@ -103,12 +103,6 @@ static bool lvp__profile_solve(double *a, const lvp__profile *profile, double *x
 
 /* ---- at bind: the coupling and the order -------------------------------------------------------- */
 
-static int lvp__compare_pairs(const void *a, const void *b)
-{
-	int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
-	return (x > y) - (x < y);
-}
-
 /* The regions coupled with each region, both ways (coupling_offsets, coupling): t with a weight on
  * a corner of s's triangles, or s with one on a corner of t's. Every bone of a vertex's weights
  * counts, and its region, whatever the map (lvp_set_map can change which of them reach it:
@@ -119,7 +113,7 @@ static bool lvp__build_coupling(lvp_binding *binding)
 	binding->coupling_offsets = calloc((size_t)s + 1, sizeof(int32_t));
 	int32_t *seen = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	size_t count = 0, capacity = 64;
-	int64_t *pairs = malloc(sizeof(int64_t) * capacity);
+	uint64_t *pairs = malloc(sizeof(uint64_t) * capacity);
 	bool ok = binding->coupling_offsets && seen && pairs;
 	for (int32_t r = 0; r < s && ok; ++r)
 		seen[r] = -1;
@@ -134,7 +128,7 @@ static bool lvp__build_coupling(lvp_binding *binding)
 					continue;
 				seen[t] = r;
 				if (count + 2 > capacity) {
-					int64_t *grown = realloc(pairs, sizeof(int64_t) * capacity * 2);
+					uint64_t *grown = realloc(pairs, sizeof(uint64_t) * capacity * 2);
 					if (!grown) {
 						ok = false;
 						break;
@@ -142,13 +136,13 @@ static bool lvp__build_coupling(lvp_binding *binding)
 					pairs = grown;
 					capacity *= 2;
 				}
-				pairs[count++] = (int64_t)r * s + t;
-				pairs[count++] = (int64_t)t * s + r;
+				pairs[count++] = (uint64_t)r * (uint64_t)s + (uint64_t)t;
+				pairs[count++] = (uint64_t)t * (uint64_t)s + (uint64_t)r;
 			}
 		}
 	}
 	if (ok) {
-		qsort(pairs, count, sizeof(int64_t), lvp__compare_pairs);
+		qsort(pairs, count, sizeof(uint64_t), lvp__compare_u64);
 		size_t unique = 0;
 		for (size_t i = 0; i < count; ++i)
 			if (i == 0 || pairs[i] != pairs[i - 1])
@@ -156,8 +150,8 @@ static bool lvp__build_coupling(lvp_binding *binding)
 		binding->coupling = malloc(sizeof(int32_t) * (unique > 0 ? unique : 1));
 		ok = binding->coupling != NULL;
 		for (size_t i = 0; i < unique && ok; ++i) {
-			binding->coupling[i] = (int32_t)(pairs[i] % s);
-			binding->coupling_offsets[pairs[i] / s + 1]++;
+			binding->coupling[i] = (int32_t)(pairs[i] % (uint64_t)s);
+			binding->coupling_offsets[pairs[i] / (uint64_t)s + 1]++;
 		}
 		for (int32_t r = 0; r < s && ok; ++r)
 			binding->coupling_offsets[r + 1] += binding->coupling_offsets[r];
@@ -338,10 +332,11 @@ void lvp__sum_system(lvp_binding *binding)
 {
 	const lvp__profile *p = &binding->system_profile;
 	double *system = binding->system;
+	bool by_rows = lvp__assembled_by_rows(binding);
 	memset(system, 0, sizeof(double) * (size_t)p->cells);
 	for (int32_t chunk = 0; chunk < binding->assembly_chunks; ++chunk) {
 		const double *sums = binding->assembly + (size_t)chunk * binding->assembly_block;
-		if (!lvp__assembled_by_rows(binding)) {
+		if (!by_rows) {
 			for (int32_t c = 0; c < p->cells; ++c)
 				system[c] += sums[c];
 			continue;

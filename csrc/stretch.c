@@ -188,7 +188,7 @@ static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *bin
 
 /* Region r's change in the reference pose (rest-world units, taken in the mesh's coordinates
  * about r's rest origin). bone_entry: the region's entry of each bone (-1 for bones that are
- * not among its pairs). The offsets y - x are kept per slot of the region's corners (binding.h),
+ * not among its pairs, or not stretched against it). The offsets y - x are kept per slot of the region's corners (binding.h),
  * so that regions sharing a vertex can be walked at once. A corner that this frame's skin carries rigidly with r's bone (binding.h,
  * the dynamic set) has only bones that move as r's, so none stretched against it: its offset is
  * zero, and the triangles whose corners are all such (static) add nothing. So the corners'
@@ -279,8 +279,20 @@ static int64_t lvp__cut_reference_groups(lvp_binding *binding, int32_t count)
 	return total;
 }
 
+/* Whether a pair's U_r^-1 U_b - I (stretch_linear) is not the zero lvp__stretch_targets leaves
+ * for a pair without stretch. */
+static bool lvp__pair_stretched(const lvp__mat4 *u_minus_i)
+{
+	for (int row = 0; row < 3; ++row)
+		for (int col = 0; col < 3; ++col)
+			if (u_minus_i->m[4 * row + col] != 0.0)
+				return true;
+	return false;
+}
+
 /* Groups [begin, end) of stretched regions, each with its own bone_entry scratch: each region
- * writes only its own slots and its stretch_change, so the groups can run at once. */
+ * writes only its own slots and its stretch_change, so the groups can run at once. Only the
+ * region's stretched pairs get an entry: the others would add zero at every corner. */
 static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__loop_context *c = context; /* positions: the rest */
@@ -290,7 +302,8 @@ static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 		for (int32_t i = binding->stretch_group_first[group]; i < binding->stretch_group_first[group + 1]; ++i) {
 			int32_t r = binding->stretch_regions[i];
 			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
-				bone_entry[binding->stretch_bones[e]] = e;
+				if (lvp__pair_stretched(&binding->stretch_linear[e]))
+					bone_entry[binding->stretch_bones[e]] = e;
 			binding->stretch_change[r] = lvp__reference_change(binding, r, c->positions, bone_entry);
 			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
 				bone_entry[binding->stretch_bones[e]] = -1;

@@ -3,7 +3,8 @@
  * and the allocation of all per-frame memory, so that lvp_correct() never allocates.
  * The stages of the method are in segmentation.c (5.2 regions, maps of 4.2-5.3),
  * local_volume.c (5.2 prisms), frame_map.c (the map of each frame, 5.3), correction.c (3.2-3.3),
- * stretch.c (bones scaled against each other) and foldover.c (5.4).
+ * region_system.c (the coupled regions' system of a correction step), stretch.c (bones scaled
+ * against each other) and foldover.c (5.4).
  */
 #include "binding.h"
 

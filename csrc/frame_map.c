@@ -1,9 +1,10 @@
 /*
  * frame_map.c - this frame's correction map: the bind map gamma_k times the deformation
  * weighting a_k of lvp.h (how far apart the vertex's bones would carry it), and which vertices
- * are dynamic (binding.h): those whose bones do not all move alike. Bones that move alike this
- * frame share a skin class; a vertex whose bones are all in one class moves rigidly, and its
- * map is zero. In an animation the classes rarely change, and then only the dynamic vertices'
+ * are dynamic (binding.h): those whose bones do not all move alike, or that the map lets move.
+ * Bones that move alike this frame share a skin class; a vertex whose bones are all in one class
+ * moves rigidly, and with the deformation weighting its map is zero (without it, the bind map
+ * still lets it move, and it is dynamic). In an animation the classes rarely change, and then only the dynamic vertices'
  * map is recomputed.
  */
 #include "binding.h"

@@ -21,6 +21,7 @@ VERSION="$(sed -n 's/^version = "\(.*\)"/\1/p' "$ROOT/blender_manifest.toml" 2>/
 VERSION="${VERSION:-0.1.0}"
 CACHE="${LVP_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/lvp}"
 PYTHON_INCLUDE="/usr/include/python3.11"
+CLANG_PACKAGES=(clang libclang-rt-14-dev) # the fuzzer and the replay of its findings
 
 CC="${CC:-gcc}"
 CFLAGS_COMMON=(-std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-function)
@@ -139,7 +140,7 @@ run_c_tests() {
 # The fuzzer's findings replayed once more, built by clang as the fuzzer is: its UBSan checks
 # more than gcc's (a zero offset applied to a null pointer, for one).
 run_fuzz_regressions_clang() {
-	ensure_packages clang libclang-rt-14-dev libc6-dev libgmp-dev
+	ensure_packages "${CLANG_PACKAGES[@]}" libc6-dev libgmp-dev
 	log "C test test_fuzz_regressions (clang)"
 	if ! build_c_test clang test_fuzz_regressions test_fuzz_regressions_clang ||
 		! (cd "$ROOT/tests" && "$BUILD/tests/test_fuzz_regressions_clang"); then
@@ -179,7 +180,7 @@ cmd_test() {
 
 cmd_fuzz() {
 	local seconds="${1:-60}"
-	ensure_packages clang libclang-rt-14-dev
+	ensure_packages "${CLANG_PACKAGES[@]}"
 	mkdir -p "$BUILD/fuzz" "$BUILD/fuzz/corpus"
 	log "building the fuzzer (clang, libFuzzer, ASan, UBSan)"
 	# shellcheck disable=SC2046

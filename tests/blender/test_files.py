@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What happens outside this Blender: saving and reopening in a fresh Blender, and renders made by
-`blender -b file.blend -a` (and -f), with and without a Subdivision Surface modifier after ours.
+`blender -b file.blend -a` (and -f), with and without a Subdivision Surface modifier after ours, and
+the motion steps of a motion-blurred render.
 
 Each test saves a temporary .blend here and starts a second Blender of the same version with the
 add-on enabled the same way (lvp_helpers.run_blender). Renders are compared by their alpha
@@ -341,6 +342,42 @@ class TestRender(FileTestCase):
                              "-a render vs the corrected shape (%d pixels differ from plain)" % bulge)
         self.assertLessEqual(count_differences(single_alpha, reference_alpha), 2,
                              "-f render vs the corrected shape")
+
+    def test_motion_blur_steps_are_corrected(self):
+        """Cycles' motion blur evaluates the scene again at the ends of the shutter (a frame and a
+        subframe, in the render's depsgraph) and blurs between what it finds: each of those
+        evaluations must carry the correction of its own pose, not the frame's."""
+        self.setup_render()
+        scene = bpy.context.scene
+        scene.render.resolution_x = scene.render.resolution_y = 16
+        scene.render.use_motion_blur = True
+        scene.frame_set(5)
+        seen = []
+
+        def record(_scene, depsgraph=None):  # runs after the add-on's frame_change_post
+            if depsgraph is not None and depsgraph.mode == 'RENDER':
+                evaluated = depsgraph.scene_eval
+                seen.append((evaluated.frame_current, evaluated.frame_subframe, helpers.offsets_of(self.obj)))
+
+        bpy.app.handlers.frame_change_post.append(record)
+        try:
+            bpy.ops.render.render()
+        finally:
+            bpy.app.handlers.frame_change_post.remove(record)
+        times = sorted({frame + subframe for frame, subframe, _offsets in seen})
+        self.assertGreaterEqual(len(times), 3, "motion steps evaluated: %s" % times)
+        self.assertLess(times[0], 5.0)
+        self.assertGreater(times[-1], 5.0)
+        centre = next(offsets for frame, subframe, offsets in seen if frame + subframe == 5.0)
+        for frame, subframe, offsets in seen:
+            scene.frame_set(frame, subframe=subframe)
+            expected = helpers.offsets_of(self.obj)
+            self.assertGreater(helpers.max_abs(expected), 1e-3, "a bent pose is corrected")
+            self.assertLess(helpers.max_distance(offsets, expected), 1e-6,
+                            "the render's correction at frame %d + %g is the viewport's" % (frame, subframe))
+            if frame + subframe != 5.0:
+                self.assertGreater(helpers.max_distance(offsets, centre), 1e-4,
+                                   "frame %d + %g is corrected for its own pose, not frame 5's" % (frame, subframe))
 
     def test_render_animation_shows_corrected_shape(self):
         self.check_renders(subdivision=False)

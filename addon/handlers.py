@@ -94,6 +94,14 @@ def _shown(objects, depsgraph):
     return shown
 
 
+def corrected_in(obj, depsgraph):
+    """Whether the handlers correct obj when the depsgraph is evaluated (what a bake needs): it evaluates
+    obj and shows it (_shown)."""
+    if not obj.evaluated_get(depsgraph).is_evaluated:
+        return False
+    return depsgraph.mode != 'VIEWPORT' or _shown_in_viewport(obj, depsgraph.view_layer)
+
+
 def _shown_again(depsgraph):
     """The objects left uncorrected while hidden (_hidden) that the viewport shows now. Blender
     reports showing an object as an update of the scene alone (its base), not of the object."""

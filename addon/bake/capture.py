@@ -21,6 +21,7 @@ from array import array
 import bpy
 
 from .. import bindings
+from .. import handlers
 from .. import mesh_data
 from .. import names
 from .. import node_group
@@ -84,11 +85,11 @@ def object_problem(scene, obj):
 
 
 def check_evaluated(objects, depsgraph):
-    """Objects that the depsgraph does not evaluate (hidden, excluded collection) cannot be baked."""
-    evaluated = {instance.original.name_full for instance in depsgraph.objects}
-    missing = [obj.name for obj in objects if obj.name_full not in evaluated]
+    """Objects that the depsgraph does not correct (hidden, in an excluded collection that nothing
+    instances: handlers.corrected_in) cannot be baked."""
+    missing = [obj.name for obj in objects if not handlers.corrected_in(obj, depsgraph)]
     if missing:
-        raise BakeError("%s %s not evaluated in this view layer (hidden, or in an excluded or disabled collection): "
+        raise BakeError("%s %s not shown in this view layer (hidden, or in an excluded or disabled collection): "
                         "show %s to bake" % (", ".join(repr(name) for name in missing),
                                              "is" if len(missing) == 1 else "are",
                                              "it" if len(missing) == 1 else "them"))

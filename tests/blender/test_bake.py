@@ -173,6 +173,31 @@ class TestOperator(BakeTestCase):
             bpy.ops.object.lvp_bake(filepath=os.path.join(blocker, "cache"), frame_start=1, frame_end=4)
         self.assertEqual(os.listdir(self.out), ["file"])
 
+    def test_hidden_character_is_refused_with_a_reason(self):
+        """A character the viewport does not correct (hidden: handlers.corrected_in) would bake as plain
+        skinning: the bake refuses it and says how to fix it. One shown through a collection instance
+        is corrected, so it bakes."""
+        obj, _rig = cylinder_scene(4)
+        capture = self.addon.bake.capture
+        capture.check_evaluated([obj], bpy.context.evaluated_depsgraph_get())
+        collection = bpy.data.collections.new("Character")
+        bpy.context.scene.collection.children.link(collection)
+        bpy.context.scene.collection.objects.unlink(obj)
+        collection.objects.link(obj)
+        layer_collection = bpy.context.view_layer.layer_collection.children[collection.name]
+        for hide in (lambda: obj.hide_set(True), lambda: setattr(layer_collection, "hide_viewport", True)):
+            obj.hide_set(False)
+            layer_collection.hide_viewport = False
+            hide()
+            with self.assertRaisesRegex(capture.BakeError, "'Cylinder' is not shown in this view layer .*show it"):
+                capture.check_evaluated([obj], bpy.context.evaluated_depsgraph_get())
+        layer_collection.hide_viewport = False
+        layer_collection.exclude = True
+        instance = helpers.link(bpy.data.objects.new("Instance", None))
+        instance.instance_type = 'COLLECTION'
+        instance.instance_collection = collection
+        capture.check_evaluated([obj], bpy.context.evaluated_depsgraph_get())
+
     def test_cancel_keeps_frames_and_the_next_bake_resumes(self):
         obj, _rig = cylinder_scene(12)
         path = os.path.join(self.out, "Cylinder.pc2")

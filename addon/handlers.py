@@ -78,15 +78,21 @@ def _objects_with_modifier(depsgraph):
     return _shown(found, depsgraph)
 
 
+def _shows(depsgraph, obj):
+    """Whether the depsgraph shows obj, which it evaluates: a render shows all it evaluates; the
+    viewport does not show the objects the user hid (_shown_in_viewport)."""
+    return depsgraph.mode != 'VIEWPORT' or _shown_in_viewport(obj, depsgraph.view_layer)
+
+
 def _shown(objects, depsgraph):
-    """The objects the depsgraph shows. A render shows all it evaluates; the viewport does not show
-    the objects the user hid, which are remembered in _hidden until shown again."""
-    if depsgraph.mode != 'VIEWPORT':
-        return objects
+    """The objects the depsgraph shows (_shows). Those the viewport's leaves out are remembered in
+    _hidden until it shows them again."""
     shown = []
     for obj in objects:
-        if _shown_in_viewport(obj, depsgraph.view_layer):
+        if _shows(depsgraph, obj):
             shown.append(obj)
+            if depsgraph.mode == 'VIEWPORT':
+                _hidden.discard(obj.name_full)
         else:
             _hidden.add(obj.name_full)
             bindings.set_status(obj, 'INFO', "Hidden: corrected again when shown (the figures are of the last "
@@ -96,10 +102,8 @@ def _shown(objects, depsgraph):
 
 def corrected_in(obj, depsgraph):
     """Whether the handlers correct obj when the depsgraph is evaluated (what a bake needs): it evaluates
-    obj and shows it (_shown)."""
-    if not obj.evaluated_get(depsgraph).is_evaluated:
-        return False
-    return depsgraph.mode != 'VIEWPORT' or _shown_in_viewport(obj, depsgraph.view_layer)
+    obj and shows it (_shows)."""
+    return obj.evaluated_get(depsgraph).is_evaluated and _shows(depsgraph, obj)
 
 
 def _shown_again(depsgraph):
@@ -156,8 +160,6 @@ def _correct(objects, depsgraph, check_topology=()):
     _busy = True
     try:
         for obj in objects:
-            if depsgraph.mode == 'VIEWPORT':
-                _hidden.discard(obj.name_full)
             try:
                 live.correct_object(obj, depsgraph, check_topology=obj.data.name_full in check_topology)
             except Exception:

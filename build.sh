@@ -9,8 +9,8 @@
 #   ./build.sh package    only the packages
 #
 # Each command installs what it needs when it is missing (Debian packages, with sudo when not
-# root). BLENDER=/path/to/blender adds a Blender to test against; LVP_SKIP_BLENDER43=1 skips
-# the Blender 4.3 chroot.
+# root). BLENDER=/path/to/blender adds a Blender to test against; LVP_SKIP_BLENDER43=1 and
+# LVP_SKIP_BLENDER52=1 skip the chroots of Blender 4.3 and 5.2.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"

@@ -11,6 +11,7 @@ import colorsys
 import bpy
 
 from . import bindings
+from . import blender_api
 from . import mesh_data
 from . import names
 from . import skeleton
@@ -46,27 +47,6 @@ def heat_color(value):
     return stops[-1][1] + (1.0,)
 
 
-def _color_attributes(mesh):
-    return getattr(mesh, "color_attributes", mesh.attributes)
-
-
-def _active_color_name(mesh):
-    active = getattr(_color_attributes(mesh), "active_color", None)
-    return active.name if active is not None else ""
-
-
-def _set_active_color(mesh, name):
-    attribute = mesh.attributes.get(name) if name else None
-    group = _color_attributes(mesh)
-    if attribute is not None:
-        group.active_color = attribute
-        if hasattr(group, "render_color_index"):
-            for index, candidate in enumerate(group):
-                if candidate.name == name:
-                    group.render_color_index = index
-                    break
-
-
 def remove_display_attributes(obj):
     """Removes the display attributes and restores the previously active colour attribute."""
     mesh = obj.data
@@ -80,7 +60,7 @@ def remove_display_attributes(obj):
             removed = True
     previous = obj.lvp.previous_color_attribute
     if removed and previous:
-        _set_active_color(mesh, previous)
+        blender_api.set_active_color(mesh, previous)
     obj.lvp.previous_color_attribute = ""
     return removed
 
@@ -146,14 +126,14 @@ def update_display(obj, context=None):
             colors[4 * vertex:4 * vertex + 4] = mesh_data.array('f', heat_color(value))
         shown, hidden = names.CORRECTION_MAP_ATTRIBUTE, names.SEGMENTATION_ATTRIBUTE
     if not settings.previous_color_attribute:
-        active = _active_color_name(mesh)
+        active = blender_api.active_color_name(mesh)
         if active not in (names.SEGMENTATION_ATTRIBUTE, names.CORRECTION_MAP_ATTRIBUTE):
             settings.previous_color_attribute = active
     other = mesh.attributes.get(hidden)
     if other is not None:
         mesh.attributes.remove(other)
     _write_colors(mesh, shown, colors)
-    _set_active_color(mesh, shown)
+    blender_api.set_active_color(mesh, shown)
     bindings.expect_own_update(obj)  # colours, not weights or positions
     mesh.update_tag()
     _show_attribute_colors(context if context is not None else bpy.context)

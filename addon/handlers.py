@@ -42,6 +42,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import bindings
+from . import blender_api
 from . import live
 from . import node_group
 from . import offsets
@@ -314,6 +315,9 @@ _offsets_while_saving = {}
 
 @persistent
 def save_pre(*_arguments):
+    for obj in bpy.data.objects:
+        if obj.override_library is not None and obj.type == 'MESH':
+            blender_api.prepare_override_diff(obj, "lvp")
     _offsets_while_saving.clear()
     for holder in offsets.all_writable_offsets_objects():
         previous = offsets.swap_untagged(holder)
@@ -353,13 +357,13 @@ HANDLERS = (
     ("render_init", render_init),
     ("save_pre", save_pre),
     ("save_post", save_post),
-    ("save_post_fail", save_post),  # Blender 4.1+
+    ("save_post_fail", save_post),
 )
 
 
 def register():
     for name, function in HANDLERS:
-        handler_list = getattr(bpy.app.handlers, name, None)
+        handler_list = blender_api.app_handlers(name)
         if handler_list is None:
             continue
         # Reloading the add-on must not leave two copies behind.
@@ -373,6 +377,6 @@ def unregister():
     if bpy.app.timers.is_registered(after_mesh_changes):
         bpy.app.timers.unregister(after_mesh_changes)
     for name, function in HANDLERS:
-        handler_list = getattr(bpy.app.handlers, name, None)
+        handler_list = blender_api.app_handlers(name)
         if handler_list is not None and function in handler_list:
             handler_list.remove(function)

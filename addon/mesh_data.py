@@ -9,6 +9,8 @@ No numpy (Debian's Blender 3.4 has none): array.array buffers with foreach_get /
 import zlib
 from array import array
 
+from . import blender_api
+
 
 def flatten_matrix(matrix, out, offset):
     """Writes a 4x4 mathutils Matrix row by row into out[offset:offset + 16]."""
@@ -38,7 +40,7 @@ def is_linked(data):
     """Whether a data-block (a mesh, an object) comes from a library (linked, or kept linked by a
     library override): Blender ignores what add-ons write into such a mesh (its weights, its
     attributes)."""
-    return data.library is not None or getattr(data, "override_library", None) is not None
+    return data.library is not None or data.override_library is not None
 
 
 def coordinates(mesh):
@@ -77,8 +79,7 @@ def bounding_box_diagonal(positions):
 
 def loop_triangles(mesh):
     """The mesh's faces split into triangles, int32[3T], wound like the faces."""
-    if hasattr(mesh, "calc_loop_triangles"):
-        mesh.calc_loop_triangles()
+    blender_api.update_loop_triangles(mesh)
     triangles = int_array(3 * len(mesh.loop_triangles))
     mesh.loop_triangles.foreach_get("vertices", triangles)
     return triangles

@@ -18,13 +18,15 @@ into that object's mesh, never into the character's own mesh: a character linked
 the second evaluation does not copy the character's mesh. With no offsets object, or one with fewer
 vertices, Sample Index reads zero and the modifier passes the mesh through unchanged.
 
-The node group is never loaded from a file: it is rebuilt when missing or outdated. It works on
-Blender 3.4 (node_group.inputs / outputs, one "Value" socket per data type) and on 4.x
-(node_group.interface, a single "Value" socket that changes type).
+The node group is never loaded from a file: it is rebuilt when missing or outdated. Its sockets are
+found by name and type (_socket), so the same code builds it on Blender 3.4 (one "Value" socket per
+data type) and on 4.x and 5.x (a single "Value" socket that changes type); how the group's inputs
+are declared and how a modifier holds their values differ too (blender_api.py).
 """
 
 import bpy
 
+from . import blender_api
 from . import names
 
 
@@ -41,17 +43,11 @@ def _socket(sockets, name, socket_type=None):
 
 
 def _new_group_sockets(group):
-    if hasattr(group, "interface"):  # Blender 4.0+
-        group.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
-        offsets = group.interface.new_socket(names.OFFSETS_SOCKET_NAME, in_out='INPUT', socket_type='NodeSocketObject')
-        group.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
-    else:  # Blender 3.x
-        group.inputs.new('NodeSocketGeometry', "Geometry")
-        offsets = group.inputs.new('NodeSocketObject', names.OFFSETS_SOCKET_NAME)
-        group.outputs.new('NodeSocketGeometry', "Geometry")
+    blender_api.new_group_socket(group, "Geometry", 'INPUT', 'NodeSocketGeometry')
+    offsets = blender_api.new_group_socket(group, names.OFFSETS_SOCKET_NAME, 'INPUT', 'NodeSocketObject')
+    blender_api.new_group_socket(group, "Geometry", 'OUTPUT', 'NodeSocketGeometry')
     offsets.description = "The object that holds this object's correction (made and written by Volume Preservation)"
-    if hasattr(group, "is_modifier"):  # Blender 4.1+: offered in the modifier's group list
-        group.is_modifier = True
+    blender_api.offer_as_modifier(group)
 
 
 def _new_store_node(nodes, attribute_name, data_type, location):
@@ -138,14 +134,9 @@ def is_current(group):
 
 
 def offsets_socket_identifier(group):
-    """The key of the modifier's custom property that holds the offsets object ("Input_1" on 3.x,
-    "Socket_1" on 4.x), or None when group has no such input."""
-    if hasattr(group, "interface"):  # Blender 4.0+
-        sockets = [item for item in group.interface.items_tree
-                   if item.item_type == 'SOCKET' and item.in_out == 'INPUT']
-    else:
-        sockets = list(group.inputs)
-    for socket in sockets:
+    """The identifier of the modifier's input that holds the offsets object ("Input_1" on 3.x,
+    "Socket_1" on 4.x+; blender_api.modifier_input reads it), or None when group has no such input."""
+    for socket in blender_api.group_inputs(group):
         if socket.name == names.OFFSETS_SOCKET_NAME and socket.bl_socket_idname == 'NodeSocketObject':
             return socket.identifier
     return None
@@ -237,12 +228,8 @@ def move_modifier(context, obj, modifier, index):
     current = modifier_index(obj, modifier)
     if current == index:
         return
-    if hasattr(obj.modifiers, "move"):  # Blender 4.0+
-        obj.modifiers.move(current, index)
-        return
-    with context.temp_override(object=obj, active_object=obj):
-        result = bpy.ops.object.modifier_move_to_index(modifier=modifier.name, index=index)
-    if 'FINISHED' not in result or modifier_index(obj, modifier) != index:
+    moved = blender_api.move_modifier(context, obj, modifier, current, index)
+    if not moved or modifier_index(obj, modifier) != index:
         raise RuntimeError("could not move modifier %r to position %d" % (modifier.name, index))
 
 

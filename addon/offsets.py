@@ -31,6 +31,7 @@ from array import array
 import bpy
 
 from . import bindings
+from . import blender_api
 from . import mesh_data
 from . import names
 from . import node_group
@@ -43,7 +44,7 @@ def offsets_object(modifier):
     identifier = node_group.offsets_socket_identifier(modifier.node_group)
     if identifier is None:
         return None
-    value = modifier.get(identifier)
+    value = blender_api.modifier_input(modifier, identifier)
     return value if isinstance(value, bpy.types.Object) else None
 
 
@@ -100,7 +101,7 @@ def new_offsets_object(obj, modifier, vertex_count):
     # A new dependency of obj: the dependency graph learns of it because bpy.data.objects.new() above
     # has it rebuild its relations at the next evaluation (tested: tests/blender/test_live.py,
     # TestDuplicates, a copy given a new offsets object from a handler is corrected on that frame).
-    modifier[identifier] = holder
+    blender_api.set_modifier_input(modifier, identifier, holder)
     bindings.expect_own_update(obj)
     obj.update_tag()
     if previous is not None:
@@ -124,7 +125,7 @@ def delete_offsets_object(modifier):
     if holder is None:
         return
     identifier = node_group.offsets_socket_identifier(modifier.node_group)
-    modifier[identifier] = None
+    blender_api.set_modifier_input(modifier, identifier, None)
     delete_if_unused(holder)
 
 

@@ -43,6 +43,7 @@ from array import array
 
 from mathutils import Vector
 
+from . import blender_api
 from . import mesh_data
 
 PLAIN = -1  # the joint of a core bone that is a whole bone (no B-Bone segments)
@@ -103,7 +104,7 @@ def _segments(bone):
 
 def _mapping(bone):
     """'STRAIGHT' or 'CURVED' (Blender 4.2+): how a vertex is placed along a B-Bone."""
-    return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
+    return blender_api.bbone_mapping_mode(bone)
 
 
 def _segment_matrix(pose_bone, joint, rest):

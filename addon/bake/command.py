@@ -25,6 +25,7 @@ import traceback
 
 import bpy
 
+from .. import blender_api
 from . import engine
 from . import pc2
 from .capture import BakeError, find_objects
@@ -261,7 +262,7 @@ _handle = None
 
 def register():
     global _handle
-    if hasattr(bpy.utils, "register_cli_command") and _handle is None:
+    if blender_api.has_cli_commands() and _handle is None:
         _handle = bpy.utils.register_cli_command(COMMAND, run)
 
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # tests/blender/bench.sh - Blender frame times on a ~100k-vertex mesh (called by ./build.sh bench):
 # Armature alone, Armature + Corrective Smooth (default settings), Armature + Volume Preservation,
-# side by side in one run, on each Blender: 3.4 (Debian's), 4.3 (the chroot of blender43.sh)
-# unless LVP_SKIP_BLENDER43=1, and $BLENDER when set. Prints one table per Blender and a summary.
+# side by side in one run, on each Blender: 3.4 (Debian's), 4.3 and 5.2 (the chroots of blender_chroot.sh)
+# unless LVP_SKIP_BLENDER43=1 / LVP_SKIP_BLENDER52=1, and $BLENDER when set. One table per Blender and a summary.
 #
 #   tests/blender/bench.sh [--vertices N] [--frames N]
 #

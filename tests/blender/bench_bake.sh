@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # tests/blender/bench_bake.sh - bake speed (issue 4): frames per second baking the giraffe and a
-# ~100k-vertex mesh to PC2 with 1 and 2 jobs, on each Blender: 3.4 (Debian's), 4.3 (the chroot of
-# blender43.sh) unless LVP_SKIP_BLENDER43=1, and $BLENDER when set. Called by tests/blender/bench.sh
+# ~100k-vertex mesh to PC2 with 1 and 2 jobs, on each Blender of bench_common.sh (3.4, 4.3, 5.2,
+# $BLENDER). Called by tests/blender/bench.sh
 # (./build.sh bench); tests what is in dist/.
 #
 #   tests/blender/bench_bake.sh [--frames N] [--vertices N]

@@ -1,8 +1,8 @@
 # tests/blender/bench_common.sh - what bench.sh and bench_bake.sh share (sourced, not run): one
 # benchmark script run headless in each Blender, its table printed.
 #
-# Blenders: 3.4 (Debian's), 4.3 (the chroot of blender43.sh) unless LVP_SKIP_BLENDER43=1, and
-# $BLENDER when set. The add-on tested is what is in dist/. Blender's user directories point into a
+# Blenders: 3.4 (Debian's), 4.3 and 5.2 (the chroots of blender_chroot.sh) unless
+# LVP_SKIP_BLENDER43=1 or LVP_SKIP_BLENDER52=1, and $BLENDER when set. The add-on tested is what is in dist/. Blender's user directories point into a
 # fresh directory under /tmp, so the user's own Blender set-up is never touched.
 
 BENCH_HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -33,12 +33,13 @@ bench_in_each_blender() {
 
 		local blenders=(3.4) selection status=0
 		[ "${LVP_SKIP_BLENDER43:-0}" = 1 ] || blenders+=(4.3)
+		[ "${LVP_SKIP_BLENDER52:-0}" = 1 ] || blenders+=(5.2)
 		[ -z "${BLENDER:-}" ] || blenders+=("$BLENDER")
 		for selection in "${blenders[@]}"; do
 			local command
 			case "$selection" in
 			3.4) ensure_packages blender; command=(/usr/bin/blender) ;;
-			4.3) command=("$BENCH_HERE/blender43.sh" run) ;;
+			4.3 | 5.2) command=("$BENCH_HERE/blender_chroot.sh" "$selection" run) ;;
 			*) command=("$selection") ;;
 			esac
 			log "Blender $selection"

@@ -418,7 +418,7 @@ def _foreach(collection, attribute, width, kind):
 
 
 def blender_command():
-    """The command that starts this same Blender (inside the 4.3 chroot, binary_path works as is)."""
+    """The command that starts this same Blender (inside a chroot, binary_path works as is)."""
     return [bpy.app.binary_path, "-b", "--factory-startup", "-noaudio"]
 
 

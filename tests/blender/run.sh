@@ -6,21 +6,23 @@
 #
 #   TEST_NAME               test_module, test_module.TestClass or test_module.TestClass.test_method
 #   --blender SEL           only this Blender (repeatable): 3.4 = Debian's /usr/bin/blender (installed
-#                           with apt when missing), 4.3 = trixie's Blender 4.3.2 in the chroot of
-#                           tests/blender/blender43.sh, or the path of any blender binary
+#                           with apt when missing), 4.3 = trixie's Blender 4.3.2 and 5.2 = sid's
+#                           Blender 5.2.2 LTS, each in its chroot (tests/blender/blender_chroot.sh),
+#                           or the path of any blender binary
 #   -k PATTERN              only tests whose name contains PATTERN (unittest -k)
 #   -f, --failfast          stop each Blender's run at its first failure
 #   -q, --quiet             one character per test
 #   --list                  list the tests (on each Blender) without running them
 #   --no-build              do not run `./build.sh package` first; test what is in dist/
 #
-# Default Blenders: 3.4, then 4.3 unless LVP_SKIP_BLENDER43=1, then $BLENDER when set.
+# Default Blenders: 3.4, then 4.3 unless LVP_SKIP_BLENDER43=1, then 5.2 unless LVP_SKIP_BLENDER52=1,
+# then $BLENDER when set.
 # Every failing test is printed with the command that reruns it alone, e.g.
 #   tests/blender/run.sh --blender 4.3 test_modifier.TestLive.test_frame_set
 #
-# Environment: BLENDER, LVP_SKIP_BLENDER43, LVP_ADDON_DIR / LVP_EXTENSION_ZIP (test another
+# Environment: BLENDER, LVP_SKIP_BLENDER43, LVP_SKIP_BLENDER52, LVP_ADDON_DIR / LVP_EXTENSION_ZIP (test another
 # build than dist/), LVP_BLENDER_TIMEOUT (seconds per Blender, default 1800), LVP_KEEP_TMP=1
-# (keep the per-run directory under /tmp), LVP_CACHE (where the 4.3 chroot lives).
+# (keep the per-run directory under /tmp), LVP_CACHE (where the chroots live).
 # Blender's user directories (config, scripts, extensions) point into a fresh directory under
 # /tmp, so the tests never touch the user's own Blender set-up.
 set -euo pipefail
@@ -64,6 +66,7 @@ done
 if [ ${#selectors[@]} -eq 0 ]; then
 	selectors=(3.4)
 	[ "${LVP_SKIP_BLENDER43:-0}" = 1 ] || selectors+=(4.3)
+	[ "${LVP_SKIP_BLENDER52:-0}" = 1 ] || selectors+=(5.2)
 	[ -z "${BLENDER:-}" ] || selectors+=("$BLENDER")
 fi
 
@@ -72,34 +75,39 @@ if [ "$(pwd -P)" = "$(cd "$REPO" && pwd -P)" ]; then SELF=tests/blender/run.sh; 
 
 # ---- set-up -------------------------------------------------------------------------------
 
-need_43=0
+# The Blenders that live in a chroot (blender_chroot.sh), by their selector.
+is_chroot_blender() { [ "$1" = 4.3 ] || [ "$1" = 5.2 ]; }
+
 for sel in "${selectors[@]}"; do
 	case "$sel" in
 	3.4) ;;
-	4.3) need_43=1 ;;
-	*) [ -x "$sel" ] || die "--blender $sel: not 3.4, 4.3 or an executable file" ;;
+	*) is_chroot_blender "$sel" || [ -x "$sel" ] || die "--blender $sel: not 3.4, 4.3, 5.2 or an executable file" ;;
 	esac
 done
 
-BLENDER43="$HERE/blender43.sh"
-builder_pid=""
+CHROOT_BLENDER="$HERE/blender_chroot.sh"
+declare -A builder_pids=()
 RUN_TMP="$(mktemp -d /tmp/lvp-blender-tests.XXXXXX)"
 chmod 755 "$RUN_TMP"
 cleanup() {
-	if [ -n "$builder_pid" ]; then kill "$builder_pid" 2>/dev/null || true; fi
+	local pid
+	for pid in "${builder_pids[@]}"; do kill "$pid" 2>/dev/null || true; done
 	if [ "${LVP_KEEP_TMP:-0}" = 1 ]; then log "kept $RUN_TMP"; else rm -rf "$RUN_TMP"; fi
 }
 trap cleanup EXIT
 
-if [ "$need_43" = 1 ] && [ "$list" = 0 ]; then
-	ensure_packages debootstrap
-	if ! "$BLENDER43" status >/dev/null 2>&1; then
-		# Build the chroot while the rest is built, installed and tested: it has its own dpkg, so
-		# the host's apt-get below can run at the same time.
-		log "building the Blender 4.3 chroot in the background (log: $RUN_TMP/blender43-build.log)"
-		"$BLENDER43" ensure >"$RUN_TMP/blender43-build.log" 2>&1 &
-		builder_pid=$!
-	fi
+if [ "$list" = 0 ]; then
+	for sel in "${selectors[@]}"; do
+		is_chroot_blender "$sel" || continue
+		ensure_packages debootstrap
+		if ! "$CHROOT_BLENDER" "$sel" status >/dev/null 2>&1; then
+			# Build the chroot while the rest is built, installed and tested: it has its own dpkg, so
+			# the host's apt-get below can run at the same time.
+			log "building the Blender $sel chroot in the background (log: $RUN_TMP/blender$sel-build.log)"
+			"$CHROOT_BLENDER" "$sel" ensure >"$RUN_TMP/blender$sel-build.log" 2>&1 &
+			builder_pids[$sel]=$!
+		fi
+	done
 fi
 
 if [ "$build" = 1 ] && [ "$list" = 0 ]; then
@@ -136,24 +144,24 @@ run_one() {
 	local sel="$1" label expect="" cmd
 	case "$sel" in
 	3.4) label="3.4"; expect=3.4; cmd=(/usr/bin/blender) ;;
-	4.3) label="4.3"; expect=4.3; cmd=("$BLENDER43" run) ;;
+	4.3 | 5.2) label="$sel"; expect="$sel"; cmd=("$CHROOT_BLENDER" "$sel" run) ;;
 	*) label="$sel"; cmd=("$sel") ;;
 	esac
 	local rerun
 	rerun="$SELF --blender $(printf '%q' "$sel")"
 
-	if [ "$sel" = 4.3 ] && [ -n "$builder_pid" ]; then
-		log "waiting for the Blender 4.3 chroot"
-		if ! wait "$builder_pid"; then
-			builder_pid=""
-			cat "$RUN_TMP/blender43-build.log" >&2
-			log "Blender 4.3: the chroot could not be built (LVP_SKIP_BLENDER43=1 skips it)"
-			failed_lines+=("${SELF%run.sh}blender43.sh ensure    # the Blender 4.3 chroot could not be built")
+	if is_chroot_blender "$sel" && [ -n "${builder_pids[$sel]:-}" ]; then
+		log "waiting for the Blender $sel chroot"
+		local builder="${builder_pids[$sel]}"
+		unset "builder_pids[$sel]"
+		if ! wait "$builder"; then
+			cat "$RUN_TMP/blender$sel-build.log" >&2
+			log "Blender $sel: the chroot could not be built (LVP_SKIP_BLENDER${sel//./}=1 skips it)"
+			failed_lines+=("${SELF%run.sh}blender_chroot.sh $sel ensure    # the Blender $sel chroot could not be built")
 			blender_failures=$((blender_failures + 1))
 			return 1
 		fi
-		builder_pid=""
-		grep 'ready in' "$RUN_TMP/blender43-build.log" >&2 || true
+		grep 'ready in' "$RUN_TMP/blender$sel-build.log" >&2 || true
 	fi
 
 	local results="$RUN_TMP/results-${label//[^A-Za-z0-9.]/_}"

@@ -28,7 +28,7 @@ What the tests can rely on (also in os.environ, so that a Blender they start see
     LVP_REPO              absolute path of the repository
     LVP_ADDON_DIR         the add-on folder (may not exist yet: skip with a message)
     LVP_EXTENSION_ZIP     the extension zip ("" when there is none)
-    LVP_EXPECT_BLENDER_VERSION   "3.4", "4.3" or "" (any Blender)
+    LVP_EXPECT_BLENDER_VERSION   "3.4", "4.3", "5.2" or "" (any Blender)
     LVP_TEST_TMP          a fresh directory under /tmp for this run, removed afterwards
                           (kept with LVP_KEEP_TMP=1); visible at the same path in the chroot
     LVP_RERUN_PREFIX      the --rerun prefix

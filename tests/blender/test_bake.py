@@ -221,8 +221,8 @@ class TestOperator(BakeTestCase):
 
 def mount_namespace():
     """The command prefix that runs a command in a private mount namespace where it may mount a tmpfs, or
-    None (not root, no unshare). Inside the 4.3 chroot "/" is not a mount point: its namespace is already
-    private (blender43.sh), so a copy with unchanged propagation is private too."""
+    None (not root, no unshare). Inside the 4.3 and 5.2 chroots "/" is not a mount point: its namespace is
+    already private (blender_chroot.sh), so a copy with unchanged propagation is private too."""
     if os.geteuid() != 0 or shutil.which("unshare") is None:
         return None
     attempts = [["unshare", "-m", "--propagation", "private"]]

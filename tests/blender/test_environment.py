@@ -3,7 +3,7 @@
 It checks what the other suites take for granted: the Blender version is the one asked for,
 bpy works headless (scene evaluation, text with the built-in font, a small Cycles CPU render
 with denoising off), the repository and /tmp are visible at the same paths (also inside the
-Blender 4.3 chroot), and the compiled module `_lvp` from the built add-on folder imports in
+Blender 4.3 and 5.2 chroots), and the compiled module `_lvp` from the built add-on folder imports in
 this Blender's Python and reports its version.
 """
 
@@ -21,7 +21,7 @@ ADDON_DIR = os.environ.get("LVP_ADDON_DIR") or os.path.join(REPO, "dist", "local
 EXPECTED = os.environ.get("LVP_EXPECT_BLENDER_VERSION", "")
 
 # The Python that each supported Blender embeds (Debian's builds link the system Python).
-EXPECTED_PYTHON = {"3.4": (3, 11), "4.3": (3, 13)}
+EXPECTED_PYTHON = {"3.4": (3, 11), "4.3": (3, 13), "5.2": (3, 14)}
 
 
 def load_lvp():
@@ -74,7 +74,7 @@ class TestBlender(unittest.TestCase):
             self.assertEqual(sys.version_info[:2], EXPECTED_PYTHON[EXPECTED])
 
     def test_same_paths(self):
-        # Tests pass absolute paths unchanged, also into the Blender 4.3 chroot.
+        # Tests pass absolute paths unchanged, also into the chroots of Blender 4.3 and 5.2.
         self.assertTrue(os.path.isfile(os.path.join(REPO, "build.sh")), REPO)
         self.assertTrue(os.path.isfile(os.path.abspath(__file__)))
         tmp = os.environ.get("LVP_TEST_TMP")

@@ -54,7 +54,8 @@ if hasattr(group, "interface"):
     key = next(item.identifier for item in group.interface.items_tree if getattr(item, "name", "") == "Offsets")
 else:
     key = group.inputs["Offsets"].identifier
-holder = modifier[key].data
+inputs = getattr(getattr(modifier, "properties", None), "inputs", None)  # Blender 5.2+: RNA, not custom properties
+holder = (getattr(inputs, key).value if inputs is not None else modifier[key]).data
 offsets = array('f', bytes(12 * len(holder.vertices)))
 holder.vertices.foreach_get("co", offsets)
 result = {{"addon_registered": hasattr(bpy.types.Object, "lvp"), "largest_offset": max(map(abs, offsets))}}

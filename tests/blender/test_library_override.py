@@ -97,6 +97,12 @@ class TestLibraryOverride(helpers.AddonTestCase):
         bpy.ops.wm.save_as_mainfile(filepath=self.shot)
         self.reopen_shot()
         self.assertCorrectedAt90("added to the override, after reopening the shot")
+        # Saved again as opened: the bind and the settings are still the override's own.
+        self.obj.lvp.alpha = 1.5
+        bpy.ops.wm.save_mainfile()
+        self.reopen_shot()
+        self.assertEqual(self.obj.lvp.alpha, 1.5, "the shot keeps its own settings")
+        self.assertCorrectedAt90("added to the override, after saving and reopening the shot twice")
 
     def test_weights_are_the_library_files(self):
         self.make_shot(with_modifier=True)

@@ -1,30 +1,36 @@
 #!/usr/bin/env bash
-# tests/blender/blender43.sh - Blender 4.3.2 (Debian trixie's `blender`) in a debootstrap chroot
-# cached outside the repository.
+# tests/blender/blender_chroot.sh - a Blender of a newer Debian release in a debootstrap chroot
+# cached outside the repository: 4.3 is Blender 4.3.2 (Debian trixie's `blender`), 5.2 is Blender
+# 5.2.2 LTS (Debian sid's).
 #
-#   tests/blender/blender43.sh [ensure]      create the chroot when missing or half-built; print its path
-#   tests/blender/blender43.sh run ARGS...   run trixie's blender with ARGS inside the chroot
-#   tests/blender/blender43.sh exec CMD...   run any command inside the chroot the same way (debugging)
-#   tests/blender/blender43.sh status        say whether the chroot is complete, its size and build time
-#   tests/blender/blender43.sh rebuild       delete it and build it again
-#   tests/blender/blender43.sh remove        delete it
+#   tests/blender/blender_chroot.sh VERSION [ensure]    create the chroot when missing or half-built; print its path
+#   tests/blender/blender_chroot.sh VERSION run ARGS... run that blender with ARGS inside the chroot
+#   tests/blender/blender_chroot.sh VERSION exec CMD... run any command inside the chroot the same way (debugging)
+#   tests/blender/blender_chroot.sh VERSION status      say whether the chroot is complete, its size and build time
+#   tests/blender/blender_chroot.sh VERSION rebuild     delete it and build it again
+#   tests/blender/blender_chroot.sh VERSION remove      delete it
 #
 # `run` and `exec` see the repository and /tmp at the SAME absolute paths as outside (bind mounts
 # in a private mount namespace made with `unshare -m`, so they vanish with the process even when
 # it is killed), plus /proc and a private /dev/shm. Extra host directories can be shown the same
 # way with LVP_CHROOT_BINDS=/a:/b. The command runs as the calling user (uid:gid), in the calling
-# directory when that is visible inside, with the caller's environment less LD_*, XDG_*, DISPLAY,
-# locale variables (LANG=C.UTF-8) and with PATH and HOME of the chroot.
+# directory when that is visible inside, with the caller's environment less LD_*, XDG_*, Wayland,
+# locale variables (LANG=C.UTF-8) and with PATH and HOME of the chroot. DISPLAY is kept: a local X
+# server's socket (Xvfb's, for screenshots) is in /tmp, which the chroot sees; drawing a window also
+# needs Mesa inside (tests/blender/panel_screenshot.sh installs it).
 #
 # Environment:
 #   LVP_CACHE             cache directory (default ${XDG_CACHE_HOME:-$HOME/.cache}/lvp)
-#   LVP_BLENDER43_CHROOT  the chroot directory (default $LVP_CACHE/trixie-blender)
+#   LVP_BLENDER43_CHROOT  the 4.3 chroot directory (default $LVP_CACHE/trixie-blender)
+#   LVP_BLENDER52_CHROOT  the 5.2 chroot directory (default $LVP_CACHE/sid-blender)
 #   LVP_DEBIAN_MIRROR     Debian mirror (default http://deb.debian.org/debian)
 #
 # Building needs root (sudo is used when not root), debootstrap (installed when missing) and about
-# 1.5 GB of disk; it takes about a minute on a fast mirror. A lock file next to the chroot keeps
-# two runs from building it at once; the chroot is built in DIR.partial, gets a marker file
-# (.lvp-complete, which also records the recipe) and only then is renamed to DIR, so a run that
+# 1.5 GB of disk per chroot; it takes a few minutes. Debian sid moves every day: its Release file
+# may be past its Valid-Until date on a mirror (not checked here), and a library renamed mid-
+# transition can leave blender unpacked but unconfigured (`apt-get -f install` mends it).
+# A lock file next to the chroot keeps two runs from building it at once; the chroot is built in
+# DIR.partial, gets a marker file (.lvp-complete, which also records the recipe) and only then is renamed to DIR, so a run that
 # was killed half-way leaves nothing that looks complete and the next run starts over.
 set -euo pipefail
 
@@ -33,14 +39,32 @@ REPO="$(cd "$HERE/../.." && pwd)"
 # build.sh gives log, die, as_root, ensure_packages and CACHE (one implementation of each).
 # shellcheck source=../../build.sh
 source "$REPO/build.sh"
-log() { printf '\033[1m[blender43 +%ss]\033[0m %s\n' "$SECONDS" "$*" >&2; }
-die() { printf '\033[31m[blender43] error:\033[0m %s\n' "$*" >&2; exit 1; }
+log() { printf '\033[1m[blender%s +%ss]\033[0m %s\n' "$BLENDER_VERSION" "$SECONDS" "$*" >&2; }
+die() { printf '\033[31m[blender%s] error:\033[0m %s\n' "$BLENDER_VERSION" "$*" >&2; exit 1; }
 
-CHROOT="${LVP_BLENDER43_CHROOT:-$CACHE/trixie-blender}"
+BLENDER_VERSION="${1:-}"
+case "$BLENDER_VERSION" in
+4.3)
+	SUITE=trixie
+	CHROOT="${LVP_BLENDER43_CHROOT:-$CACHE/trixie-blender}"
+	PACKAGES=(blender)
+	;;
+5.2)
+	SUITE=sid
+	CHROOT="${LVP_BLENDER52_CHROOT:-$CACHE/sid-blender}"
+	# Blender 5.2's extension manager (bl_pkg, which `blender --command extension` needs) imports
+	# cattrs and requests; Blender's own builds bundle them, Debian's package does not depend on them.
+	PACKAGES=(blender python3-cattr python3-requests)
+	;;
+-h | --help | help)
+	sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'
+	exit 0
+	;;
+*) die "the first argument is the Blender version: 4.3 or 5.2 (see --help)" ;;
+esac
+shift
 CHROOT="${CHROOT%/}"
 MIRROR="${LVP_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
-SUITE=trixie
-PACKAGES=(blender)
 MARKER=.lvp-complete
 # Bump when the way the chroot is made changes: a chroot with another recipe is rebuilt.
 RECIPE="4 $SUITE minbase ${PACKAGES[*]} no-recommends nodoc mtab"
@@ -156,7 +180,7 @@ in_chroot() {
 	local userspec="" home=/root
 	if [ "$as_caller" = 1 ] && [ "$(id -u)" != 0 ]; then
 		userspec="--userspec=$(id -u):$(id -g)"
-		home="/tmp/lvp-blender43-home-$(id -u)"
+		home="/tmp/lvp-blender-chroot-home-$(id -u)"
 		mkdir -p "$home"
 	fi
 	local cwd
@@ -166,7 +190,7 @@ in_chroot() {
 	while IFS= read -r -d '' kv; do
 		name="${kv%%=*}"
 		case "$name" in
-		LD_* | XDG_* | LC_* | LANG | LANGUAGE | DISPLAY | WAYLAND_DISPLAY | PATH | HOME | TMPDIR | \
+		LD_* | XDG_* | LC_* | LANG | LANGUAGE | WAYLAND_DISPLAY | PATH | HOME | TMPDIR | \
 			PWD | OLDPWD | SHLVL | _ | SUDO_* | BASH_FUNC_* | *%%*) ;;
 		*) envs+=("$kv") ;;
 		esac
@@ -174,7 +198,7 @@ in_chroot() {
 	envs+=("PATH=$CHROOT_PATH" "HOME=$home" "LANG=C.UTF-8")
 	local launcher=()
 	private_namespace launcher
-	local cmd=(env -i "${envs[@]}" "${launcher[@]}" /bin/sh -c "$INNER" blender43-chroot
+	local cmd=(env -i "${envs[@]}" "${launcher[@]}" /bin/sh -c "$INNER" blender-chroot
 		"$CHROOT" "$userspec" "$cwd" "${#binds[@]}" "${binds[@]}" -- "$@")
 	[ "$(id -u)" = 0 ] || cmd=(sudo "${cmd[@]}")
 	if [ "${IN_CHROOT_EXEC:-0}" = 1 ]; then
@@ -208,7 +232,7 @@ build_chroot() {
 	remove_dir "$partial"
 	remove_dir "$CHROOT"
 	local start=$SECONDS
-	log "creating the Debian $SUITE chroot with blender 4.3 in $CHROOT (log: $logfile)"
+	log "creating the Debian $SUITE chroot with blender $BLENDER_VERSION in $CHROOT (log: $logfile)"
 	: >"$logfile"
 	log "debootstrap --variant=minbase $SUITE ($MIRROR)"
 	local launcher=()
@@ -229,7 +253,7 @@ printf "#!/bin/sh\nexit 101\n" >"$1/usr/sbin/policy-rc.d"
 chmod 755 "$1/usr/sbin/policy-rc.d"
 # dpkg without fsync: 2-3 times faster to unpack, and a killed build is thrown away anyway.
 echo force-unsafe-io >"$1/etc/dpkg/dpkg.cfg.d/02-lvp-unsafe-io"
-printf "Acquire::Retries \"5\";\n" >"$1/etc/apt/apt.conf.d/80-lvp-retries"
+printf "Acquire::Retries \"5\";\nAcquire::Check-Valid-Until \"false\";\n" >"$1/etc/apt/apt.conf.d/80-lvp-retries"
 # Blender lists mounted file systems through /etc/mtab.
 ln -sf ../proc/self/mounts "$1/etc/mtab"
 cp -L /etc/resolv.conf "$1/etc/resolv.conf" 2>/dev/null || true' sh "$partial"
@@ -237,7 +261,7 @@ cp -L /etc/resolv.conf "$1/etc/resolv.conf" 2>/dev/null || true' sh "$partial"
 	local saved="$CHROOT"
 	CHROOT="$partial"
 	if ! in_chroot 0 -- env DEBIAN_FRONTEND=noninteractive sh -c \
-		'apt-get update -q && apt-get install -y -q --no-install-recommends "$@" && apt-get clean' \
+		'apt-get update -q && { apt-get install -y -q --no-install-recommends "$@" || apt-get -f install -y -q; } && apt-get -f install -y -q && apt-get clean' \
 		sh "${PACKAGES[@]}" >>"$logfile" 2>&1; then
 		CHROOT="$saved"
 		tail -n 30 "$logfile" >&2
@@ -299,7 +323,7 @@ ensure_chroot() {
 			rc=$?
 		fi
 		set -e
-		[ "$rc" = 0 ] || die "could not build the Blender 4.3 chroot (see $CHROOT.log)"
+		[ "$rc" = 0 ] || die "could not build the Blender $BLENDER_VERSION chroot (see $CHROOT.log)"
 	fi
 	unlock
 	printf '%s\n' "$CHROOT"
@@ -318,7 +342,7 @@ status() {
 	fi
 }
 
-blender43_main() {
+blender_chroot_main() {
 	local command="${1:-ensure}"
 	shift || true
 	case "$command" in
@@ -341,9 +365,8 @@ blender43_main() {
 		remove_dir "$CHROOT"
 		unlock
 		;;
-	-h | --help | help) sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//' ;;
 	*) die "unknown command '$command' (ensure, run, exec, status, rebuild, remove)" ;;
 	esac
 }
 
-if [ "${BASH_SOURCE[0]}" = "$0" ]; then blender43_main "$@"; fi
+if [ "${BASH_SOURCE[0]}" = "$0" ]; then blender_chroot_main "$@"; fi

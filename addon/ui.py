@@ -1,12 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The Volume Preservation panel, in Properties > Modifiers, below the modifier stack: where an
-artist looks for a modifier's settings."""
+"""The Volume Preservation panel, in Properties > Modifiers, with the modifier stack: where an artist
+looks for a modifier's settings. The settings are in the panel itself; what the correction did at
+the current frame and the region restrictions are in sub-panels of it, so that the panel reads in
+full at the default width of the Properties editor (panel_text.py)."""
 
 import bpy
 
 from . import bindings
 from . import handlers
 from . import node_group
+from . import panel_text
 
 STATUS_ICONS = {'INFO': 'CHECKMARK', 'WARNING': 'ERROR', 'ERROR': 'CANCEL'}
 
@@ -32,7 +35,7 @@ class LVP_UL_region_restrictions(bpy.types.UIList):
 
 
 class LVP_PT_volume_preservation(bpy.types.Panel):
-    """Local Volume Preservation: settings, bind and remove, live statistics and colour display"""
+    """Local Volume Preservation: settings, bind and remove, baking"""
 
     bl_label = "Volume Preservation"
     bl_idname = "LVP_PT_volume_preservation"
@@ -51,9 +54,9 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         settings = obj.lvp
         modifier = node_group.find_modifier(obj)
         if modifier is None:
-            layout.label(text="Keeps the volume of a skinned mesh at bending joints")
+            panel_text.wrapped_label(layout, context, "Keeps the volume of a skinned mesh at bending joints")
             layout.operator("object.lvp_add", icon='MOD_ARMATURE')
-            layout.operator("object.lvp_auto_weights", icon='GROUP_VERTEX')
+            layout.operator("object.lvp_auto_weights", text="Auto Weights", icon='GROUP_VERTEX')
             return
 
         row = layout.row(align=True)
@@ -64,7 +67,7 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         column.use_property_split = True
         column.prop(settings, "effect")
         if settings.effect == 'PAINTED':
-            column.prop_search(settings, "painted_vertex_group", obj, "vertex_groups")
+            column.prop_search(settings, "painted_vertex_group", obj, "vertex_groups", text="Map")
         # The painted map is taken as painted: alpha and beta stay visible, greyed, as Blender shows
         # settings that the current choice ignores.
         shaping = column.column()
@@ -74,62 +77,112 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
             shaping.prop(settings, "beta")
         column.prop(settings, "iterations")
         column.prop(settings, "tolerance")
-        sub = column.row()
-        sub.active = settings.effect != 'GLOBAL'
-        sub.prop(settings, "fold_over")
+        # A heading names the checkbox in the names' column, as Blender's own panels do.
+        fold_over = column.column(heading="Fold-Over")
+        fold_over.active = settings.effect != 'GLOBAL'
+        fold_over.prop(settings, "fold_over", text="Prevent")
         column.prop(settings, "display")
 
-        box = layout.box()
-        box.label(text="Region Restrictions (distance measured from chosen bones)")
-        row = box.row()
+        render = context.scene.render
+        if not render.use_lock_interface or handlers.render_without_lock:
+            box = layout.box()
+            panel_text.wrapped_label(box, context, "F12 renders show the correction only with Render > Lock "
+                                                   "Interface", icon='ERROR', boxed=True)
+            box.prop(render, "use_lock_interface")
+        row = layout.row(align=True)
+        # The scene's frame range into //lvp_cache/<object>.pc2, with a progress bar (Esc keeps what is baked).
+        row.operator("object.lvp_bake", text="Bake to PC2", icon='FILE_CACHE')
+        row.operator("object.lvp_auto_weights", text="Auto Weights", icon='GROUP_VERTEX')
+
+
+class LVP_PT_statistics(bpy.types.Panel):
+    """What the correction did at the current frame"""
+
+    bl_label = "Statistics"
+    bl_idname = "LVP_PT_statistics"
+    bl_parent_id = "LVP_PT_volume_preservation"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "modifier"
+
+    @classmethod
+    def poll(cls, context):
+        return node_group.find_modifier(context.object) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        obj = context.object
+        status = bindings.status(obj)
+        if status is not None:
+            level, message = status
+            panel_text.wrapped_label(layout, context, message, icon=STATUS_ICONS.get(level, 'INFO'), boxed=True)
+        bound = bindings.entry(obj)
+        stats = bound.stats if bound is not None else None
+        if not stats or (status is not None and status[0] == 'ERROR'):
+            return
+        column = layout.column(align=True)
+        _figures(column, "", "Before", "After")
+        rest = stats["volume_rest"]
+        if rest != 0.0:
+            _figures(column, "Volume", _percent((stats["volume_before"] - rest) / rest),
+                     _percent((stats["volume_after"] - rest) / rest))
+        worst = stats["worst_region"]
+        if worst >= 0:
+            name = "Whole Mesh" if stats.get("mode") == 'GLOBAL' else stats.get("worst_region_name", str(worst))
+            _figures(column, "Worst Region", name)
+            _figures(column, "", _percent(stats["worst_region_change_before"]),
+                     _percent(stats["worst_region_change_after"]))
+        column.separator()
+        _figures(column, "Corrected", "%d regions, %d passes" % (stats["active_regions"], stats["iterations"]))
+        if stats.get("folded_vertices"):
+            _figures(column, "Unfolded", "%d vertices" % stats["folded_vertices"])
+
+
+def _figures(layout, name, *values):
+    """One line of the statistics: a name in the names' column (right-aligned, as property names are),
+    then the values side by side in the values' column."""
+    split = layout.split(factor=panel_text.PROPERTY_SPLIT)
+    names = split.row()
+    names.alignment = 'RIGHT'
+    names.label(text=name)
+    row = split.row()
+    for value in values:
+        row.label(text=value)
+
+
+class LVP_PT_region_restrictions(bpy.types.Panel):
+    """Regions whose flesh is measured from chosen bones only (paper Fig. 11: the belly from the spine)"""
+
+    bl_label = "Region Restrictions"
+    bl_idname = "LVP_PT_region_restrictions"
+    bl_parent_id = "LVP_PT_volume_preservation"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "modifier"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    @classmethod
+    def poll(cls, context):
+        return node_group.find_modifier(context.object) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.object.lvp
+        panel_text.wrapped_label(layout, context, "Each region listed measures its flesh from the bones named "
+                                                  "beside it (comma-separated)", boxed=True)
+        row = layout.row()
         row.template_list("LVP_UL_region_restrictions", "", settings, "region_restrictions", settings,
                           "active_region_restriction", rows=2)
         buttons = row.column(align=True)
         buttons.operator("object.lvp_region_restriction_add", icon='ADD', text="")
         buttons.operator("object.lvp_region_restriction_remove", icon='REMOVE', text="")
 
-        self.draw_statistics(layout, context, obj)
-        # The scene's frame range into //lvp_cache/<object>.pc2, with a progress bar (Esc keeps what is baked).
-        layout.operator("object.lvp_bake", text="Bake to PC2", icon='FILE_CACHE')
-
-        render = context.scene.render
-        if not render.use_lock_interface or handlers.render_without_lock:
-            box = layout.box()
-            box.label(text="F12 renders need Render > Lock Interface", icon='ERROR')
-            box.prop(render, "use_lock_interface")
-        layout.operator("object.lvp_auto_weights", icon='GROUP_VERTEX')
-
-    def draw_statistics(self, layout, context, obj):
-        box = layout.box()
-        status = bindings.status(obj)
-        if status is not None:
-            level, message = status
-            box.label(text=message, icon=STATUS_ICONS.get(level, 'INFO'))
-        bound = bindings.entry(obj)
-        stats = bound.stats if bound is not None else None
-        if not stats or (status is not None and status[0] == 'ERROR'):
-            return
-        rest = stats["volume_rest"]
-        if rest != 0.0:
-            column = box.column(align=True)
-            column.label(text="Volume change: %s before, %s after correction"
-                              % (_percent((stats["volume_before"] - rest) / rest),
-                                 _percent((stats["volume_after"] - rest) / rest)))
-        worst = stats["worst_region"]
-        if worst >= 0:
-            name = "whole mesh" if stats.get("mode") == 'GLOBAL' else stats.get("worst_region_name", str(worst))
-            box.label(text="Worst region %s: %s before, %s after"
-                           % (name, _percent(stats["worst_region_change_before"]),
-                              _percent(stats["worst_region_change_after"])))
-        details = "%d regions corrected, %d passes" % (stats["active_regions"], stats["iterations"])
-        if stats.get("folded_vertices"):
-            details += ", %d vertices unfolded" % stats["folded_vertices"]
-        box.label(text=details)
-
 
 classes = (
     LVP_UL_region_restrictions,
     LVP_PT_volume_preservation,
+    LVP_PT_statistics,
+    LVP_PT_region_restrictions,
 )
 
 

@@ -35,6 +35,9 @@ from . import skeleton
 DISPLACEMENT_LIMIT = 0.25
 
 
+REBIND_NEEDED = "Rebind needed: the mesh topology changed since the bind (press Bind)"
+
+
 class BindError(Exception):
     """A user-facing reason why an object cannot be bound: what is wrong and how to fix it."""
 
@@ -67,6 +70,7 @@ class BoundObject:
         self.digests = {}                   # BindInputs.digests of what this binding was made of
         self.inputs_changed_at = None       # time.monotonic() of a change to the mesh not yet checked
         self.rebound_because = None         # why this binding replaced an earlier one of the same record
+        self.topology_changed = False       # the mesh's topology is no longer the bound one (live.py)
 
     def close(self):
         if self.binding is not None:
@@ -401,12 +405,13 @@ def ensure(obj, depsgraph=None):
     bound = _entries.get(key)
     if bound is not None:
         if bound.topology != settings.topology_signature:
+            set_status(obj, 'ERROR', REBIND_NEEDED)
             return None
         return bound
     # Lazy rebuild: only for the topology that was bound.
     signature = mesh_data.topology_signature(obj.data)
     if signature != settings.topology_signature:
-        set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
+        set_status(obj, 'ERROR', REBIND_NEEDED)
         return None
     try:
         bound = bind(obj, depsgraph)
@@ -449,6 +454,11 @@ def rebind(obj, bound, depsgraph=None, reason=None, inputs=None):
     obj cannot be bound any more (the old binding is dropped either way)."""
     _entries.pop((obj.name_full, bound.bind_id), None)
     bound.close()
+    if mesh_data.topology_signature(obj.data) != obj.lvp.topology_signature:
+        # The bind record is of another topology: what was bound no longer maps onto the mesh vertex for
+        # vertex, and a reopened file would not bind either. Only the artist's Bind makes a new record.
+        set_status(obj, 'ERROR', REBIND_NEEDED)
+        return None
     try:
         rebound = bind(obj, depsgraph, inputs)
     except BindError as error:

@@ -185,9 +185,14 @@ def correct_object(obj, depsgraph, check_topology=False):
     bound = bindings.ensure(obj, depsgraph)
     if bound is None:
         return offsets.write_zeros(obj, modifier)
-    if mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0] or (
-            check_topology and mesh_data.topology_signature(mesh) != bound.topology):
-        bindings.set_status(obj, 'ERROR', "Rebind needed: the mesh topology changed since the bind (press Bind)")
+    # The counts are cheap to compare every frame; the whole topology is read when the mesh changed.
+    # What was found holds until the mesh changes again (undone, the binding follows again) or the
+    # artist binds: a changed topology is never left for a later frame to forget.
+    counts_changed = mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0]
+    if counts_changed or check_topology:
+        bound.topology_changed = counts_changed or mesh_data.topology_signature(mesh) != bound.topology
+    if bound.topology_changed:
+        bindings.set_status(obj, 'ERROR', bindings.REBIND_NEEDED)
         return offsets.write_zeros(obj, modifier)
     holder = offsets.usable_offsets_object(obj, modifier, bound.vertex_count)
     if holder is None:

@@ -21,11 +21,13 @@ Why not an attribute of the character's mesh (version 1 of the node group did th
 
 The offsets object is in no collection (nothing to see, select or render) and is kept and saved
 because the modifier uses it. Its custom property names.OFFSETS_OWNER_TAG names the object it was
-made for: a modifier copied to another object (Copy to Selected, Duplicate) names the same offsets
-object, and the object that is not its owner gets one of its own at its next correction.
+made for: a modifier copied to another object (Copy to Selected, Link Modifiers, Duplicate) names
+the same offsets object; the object that is not its owner gets one of its own at its next correction,
+or, while it cannot be corrected (not bound yet), names none.
 New offsets objects are made on the main thread only (never from a render thread).
 """
 
+import threading
 from array import array
 
 import bpy
@@ -119,6 +121,14 @@ def delete_if_unused(holder):
         bpy.data.meshes.remove(mesh)
 
 
+def _name_no_offsets_object(obj, modifier):
+    """obj's modifier then samples nothing: it passes the mesh through."""
+    identifier = node_group.offsets_socket_identifier(modifier.node_group)
+    blender_api.set_modifier_input(modifier, identifier, None)
+    bindings.expect_own_update(obj)
+    obj.update_tag()
+
+
 def delete_offsets_object(modifier):
     """Before the modifier is removed: deletes its offsets object when nothing else uses it."""
     holder = offsets_object(modifier)
@@ -159,10 +169,19 @@ def write(holder, offsets, bound=None):
 
 
 def write_zeros(obj, modifier, bound=None):
-    """Pass-through: obj's modifier then adds nothing. Writes only into an offsets object obj may
-    write (_may_write). Returns whether anything was written."""
+    """Pass-through: obj's modifier then adds nothing. Writes zeros into an offsets object obj may
+    write (_may_write). A modifier that names another object's offsets object (a copy of that
+    object's modifier: Copy to Selected, Link Modifiers) would add that object's correction: it is
+    made to name none (on the main thread, where data-blocks may change). Returns whether anything
+    was written."""
     holder = offsets_object(modifier)
+    if holder is None:
+        return False
     if not _may_write(holder, obj):
+        if is_offsets_object(holder) and not _owned_by(holder, obj) and \
+                threading.current_thread() is threading.main_thread():
+            _name_no_offsets_object(obj, modifier)
+            return True
         return False
     zeros = array('f', bytes(12 * len(holder.data.vertices)))
     if bound is not None and len(zeros) != 3 * bound.vertex_count:

@@ -379,6 +379,10 @@ def volume_errors(obj, triangles=None, rest_volume=None):
             relative_volume_error(plain, triangles, rest_volume))
 
 
+def topology_counts(mesh):
+    return (len(mesh.vertices), len(mesh.edges), len(mesh.polygons), len(mesh.loops))
+
+
 def mesh_snapshot(mesh):
     """Everything a user could lose on a mesh, as comparable Python values."""
     snapshot = {

@@ -71,6 +71,7 @@ class BoundObject:
         self.inputs_changed_at = None       # time.monotonic() of a change to the mesh not yet checked
         self.rebound_because = None         # why this binding replaced an earlier one of the same record
         self.topology_changed = False       # the mesh's topology is no longer the bound one (live.py)
+        self.stray_vertex = None            # (index, distance) of a vertex far from the armature (stray_vertex)
 
     def close(self):
         if self.binding is not None:
@@ -376,8 +377,34 @@ def bind(obj, depsgraph=None, inputs=None):
                         settings.bind_id, map_key(settings), mode)
     bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
     bound.unweighted_vertices = unweighted
+    bound.stray_vertex = stray_vertex(positions, heads, tails)
     bound.digests = inputs.digests
     return bound
+
+
+# A vertex farther than this many times the armature's size from its bones' box is taken for a stray.
+STRAY_DISTANCE = 10.0
+
+
+def stray_vertex(positions, heads, tails):
+    """(index, distance) of the vertex farthest outside the box of the bones' heads and tails, when it
+    is more than STRAY_DISTANCE times the box's diagonal outside it, else None. Such a vertex (one
+    moved far away by mistake, or Inf typed into a field) makes its region's volume mostly its own,
+    so its region is measured wrong. Cheap when there is none: six max/min over the coordinates."""
+    ends = list(heads) + list(tails)
+    low = [min(ends[axis::3]) for axis in range(3)]
+    high = [max(ends[axis::3]) for axis in range(3)]
+    margin = STRAY_DISTANCE * max(sum((high[axis] - low[axis]) ** 2 for axis in range(3)) ** 0.5, 1e-6)
+    if all(min(positions[axis::3]) >= low[axis] - margin and max(positions[axis::3]) <= high[axis] + margin
+           for axis in range(3)):
+        return None
+    farthest, index = 0.0, -1
+    for vertex in range(len(positions) // 3):
+        outside = sum(max(low[axis] - positions[3 * vertex + axis], positions[3 * vertex + axis] - high[axis], 0.0)
+                      ** 2 for axis in range(3)) ** 0.5
+        if outside > farthest:
+            farthest, index = outside, vertex
+    return index, farthest
 
 
 def new_bind_record(obj, bound):

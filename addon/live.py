@@ -169,6 +169,14 @@ def correct_object(obj, depsgraph, check_topology=False):
     modifier = node_group.find_modifier(obj)
     if modifier is None:
         return False
+    if not node_group.is_current(modifier.node_group):
+        # Deleted or edited by hand: what it does is no longer the correction the panel reports.
+        if not is_main_thread():
+            bindings.set_status(obj, 'ERROR', "Passing the mesh through: the modifier's node group was deleted or "
+                                              "edited; it is rebuilt at the next frame shown in the viewport")
+            return False
+        node_group.repair_modifiers([obj])
+        modifier = node_group.find_modifier(obj)
     if check_topology:
         # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
         bindings.note_mesh_changed(obj)
@@ -201,10 +209,6 @@ def correct_object(obj, depsgraph, check_topology=False):
                                               "is made on the main thread (render once from the viewport, or "
                                               "press Bind)" % obj.name)
             return offsets.write_zeros(obj, modifier, bound)
-        if not node_group.is_current(modifier.node_group):
-            # Appended from a file of an older version, or its group edited by hand.
-            node_group.repair_modifiers([obj])
-            modifier = node_group.find_modifier(obj)
         holder = offsets.new_offsets_object(obj, modifier, bound.vertex_count)
         bound.written = None
     if node_group.count_modifiers(obj) > 1:
@@ -223,6 +227,12 @@ def correct_object(obj, depsgraph, check_topology=False):
                             % armature_modifier.name)
         return offsets.write_zeros(obj, modifier, bound)
 
+    if not node_group.modifier_enabled(armature_modifier, depsgraph.mode):
+        # The mesh enters Volume Preservation unposed: the bones' pose is not what it shows.
+        bindings.set_status(obj, 'INFO', "Passing the mesh through: the Armature modifier %r is disabled in the %s, "
+                                         "so the mesh is not posed" % (armature_modifier.name, "render" if
+                                                                        depsgraph.mode == 'RENDER' else "viewport"))
+        return offsets.write_zeros(obj, modifier, bound)
     unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
     if unfollowed is not None:
         bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
@@ -265,6 +275,10 @@ def correct_object(obj, depsgraph, check_topology=False):
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     bound.stats = stats
+    if stats["passed_through"]:
+        bindings.set_status(obj, 'WARNING', "Passing the mesh through: no finite correction exists at this pose (a "
+                                            "joint folded onto itself?)")
+        return offsets.write_zeros(obj, modifier, bound)
     displacement = stats["max_displacement"]
     if not displacement <= bound.displacement_limit:  # also catches NaN
         # A safety net, not a feature: never show a blown-up mesh to the animator.
@@ -283,6 +297,17 @@ def correct_object(obj, depsgraph, check_topology=False):
         # not correct them (they are in no region), but measures them where Blender put them.
         warnings.append("%d vertices without weights move by bone envelopes, which the correction leaves alone "
                         "(weight them, or turn off Bind To: Bone Envelopes)" % bound.unweighted_vertices)
+    if stats["unskinned_distance"] > 0.0:
+        warnings.append("the mesh entering Volume Preservation is not the skinning of the bound mesh by these bones "
+                        "(off by up to %.3g): measured the slow way; press Bind if the weights or the rig changed"
+                        % stats["unskinned_distance"])
+    if bound.stray_vertex is not None:
+        vertex, distance = bound.stray_vertex
+        warnings.append("vertex %d lies %.3g away from the armature, a stray? Its region's volume is measured "
+                        "wrong; move it back or delete it, then Bind" % (vertex, distance))
+    if stats.get("skipped_regions"):
+        warnings.append("%d region(s) of a bone scaled to zero left as they are (nothing to restore)"
+                        % stats["skipped_regions"])
     flipped = bound.binding.flipped_edge_count
     if flipped:
         warnings.append("%d edges join faces whose normals point opposite ways, where the correction is weak or "

@@ -152,14 +152,14 @@ def ensure_node_group():
 
 def repair_modifiers(objects):
     """Gives every Volume Preservation modifier a current node group (after loading a file made with
-    another version of the add-on, or whose group was edited by hand). Returns how many changed."""
+    another version of the add-on, or whose group was edited by hand or deleted). Returns how many
+    changed."""
     repaired = 0
     for obj in objects:
         if obj.library is not None:
             continue
         for modifier in obj.modifiers:
-            if modifier.type == 'NODES' and is_our_node_group(modifier.node_group) and not is_current(
-                    modifier.node_group):
+            if is_our_modifier(modifier) and not is_current(modifier.node_group):
                 modifier.node_group = ensure_node_group()
                 repaired += 1
     if repaired:
@@ -168,7 +168,14 @@ def repair_modifiers(objects):
 
 
 def is_our_modifier(modifier):
-    return modifier.type == 'NODES' and is_our_node_group(modifier.node_group)
+    """A Geometry Nodes modifier with our node group, or with none and our name: its group was deleted
+    (Outliner > Blender File > Node Groups > Delete leaves the modifier without one), and it is still
+    the object's Volume Preservation, to repair (repair_modifiers) or remove."""
+    if modifier.type != 'NODES':
+        return False
+    if modifier.node_group is None:
+        return modifier.name == names.MODIFIER_NAME or modifier.name.startswith(names.MODIFIER_NAME + ".")
+    return is_our_node_group(modifier.node_group)
 
 
 def find_modifier(obj):

@@ -201,6 +201,7 @@ class OBJECT_OT_lvp_bind(bpy.types.Operator):
             _report_errors(self, errors)
             return {'CANCELLED'}
         for obj, bound in plans:
+            node_group.repair_modifiers([obj])  # a node group deleted or edited by hand is rebuilt
             bindings.new_bind_record(obj, bound)
             if obj.lvp.display != 'NONE':
                 display.update_display(obj, context)

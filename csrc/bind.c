@@ -70,7 +70,7 @@ void lvp_free(lvp_binding *binding)
 	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
 	    binding->part_uniform, binding->part_sum, binding->part_gain, binding->stretch_offsets, binding->stretch_bones,
 	    binding->stretch_centre, binding->stretch_linear, binding->bone_entry, binding->stretch_offset,
-	    binding->stretch_regions, binding->stretch_change, binding->bone_stretch, binding->bone_stretch_valid,
+	    binding->stretch_regions, binding->stretch_change, binding->bone_stretch, binding->bone_stretch_invertible,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -124,6 +124,7 @@ static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 /* The internal bones: each a copy of its caller's bone (binding.h). */
 static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
 {
+	binding->skeleton_reach = 0.0;
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
 		int32_t source = lvp__caller_bone(binding, i);
 		binding->rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
@@ -132,6 +133,8 @@ static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleto
 		binding->heads[i] = lvp__load(skeleton->heads + 3 * source);
 		binding->tails[i] = lvp__load(skeleton->tails + 3 * source);
 		binding->bone_length[i] = lvp__length(lvp__sub(binding->tails[i], binding->heads[i]));
+		binding->skeleton_reach =
+		    fmax(binding->skeleton_reach, fmax(lvp__length(binding->heads[i]), lvp__length(binding->tails[i])));
 	}
 }
 

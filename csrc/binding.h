@@ -117,6 +117,7 @@ struct lvp_binding {
 	/* ---- region origin and reference volume ---- */
 	double rest_volume;          /* signed volume of the bind rest mesh */
 	double size;                 /* diagonal of the rest bounding box */
+	double skeleton_reach;       /* the farthest rest head or tail from the mesh's origin */
 	lvp__vec3 global_origin;     /* global mode: rest centroid, to keep the sums well conditioned */
 	lvp__region_sums *rest_totals; /* region_count: the region sums of the bind rest, about each bone's rest origin */
 	double *reference_volume;    /* region_count: V_ref,s for the tolerance (0 = empty region) */
@@ -179,7 +180,7 @@ struct lvp_binding {
 	lvp__vec3 *stretch_centre; /* per entry: where the pair's relative stretch is taken about (rest) */
 	lvp__mat4 *stretch_linear; /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates (its 3x3) */
 	lvp__mat4 *bone_stretch;  /* bone_count*2, this frame: each bone's stretch U and U^-1 in the rigid frame */
-	uint8_t *bone_stretch_valid; /* bone_count, this frame: bone_stretch is set (the skin is not singular) */
+	uint8_t *bone_stretch_invertible; /* bone_count, this frame: U^-1 is set (U is, always) */
 	int32_t *bone_entry;      /* LVP__STRETCH_GROUPS*bone_count: scratch per group, -1 between uses (the
 	                           * entry of each bone for the region at hand) */
 	float *stretch_offset;    /* slot_count*3: scratch, y - x at each corner of each stretched region */
@@ -225,6 +226,10 @@ struct lvp_binding {
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map:
 	 * cleared by whatever changes one of them otherwise (frame_map.c, lvp__frame_map). */
 	bool frame_map_current;
+	/* This frame, the vertices one bone class carries were found elsewhere than that class puts
+	 * them (lvp__rigid_vertices_hold): every vertex is taken as dynamic, measured from the
+	 * positions given, and none is carried in closed form. */
+	bool rigid_shortcut_off;
 	/* Pieces of the dynamic triangles for the mesh pass (local_volume.c, lvp__piece_loop);
 	 * capacity triangle_count / LVP__GRAIN + region_count + 2. */
 	int32_t *piece_first;    /* piece_count + 1 into dynamic_triangles */
@@ -400,6 +405,11 @@ void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, 
  * classes and the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions:
  * this frame's rest, or NULL for the bind rest. */
 void lvp__frame_map(lvp_binding *binding, const float *rest_positions);
+/* Whether positions put the vertices that the frame map found carried rigidly where their
+ * bone class carries them (checked on a sample, at most LVP__RIGID_SAMPLES a region); r_off:
+ * the largest distance found. The closed-form shortcuts of the measurement rest on it. */
+bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions, const float *rest_positions,
+                              double *r_off);
 
 /* region_system.c */
 /* The coupling of the regions, their solve order and the system's storage (binding.h); after

@@ -715,10 +715,23 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	int32_t n = binding->vertex_count;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
 	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
+	if (binding->rigid_shortcut_off) { /* the frame before had it off: the classes come back */
+		binding->rigid_shortcut_off = false;
+		binding->frame_map_current = binding->dynamic_set_current = false;
+	}
 	lvp__frame_map(binding, rest_positions);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
+	/* The measurement carries the rigid vertices' part of each region in closed form, from the
+	 * rest and the bones (local_volume.c): right only where the positions are that skinning.
+	 * Where they are not (bone frames that are not what moved the mesh, weights that changed
+	 * since the bind), the frame is measured from the positions alone, and says so. */
+	if (!lvp__rigid_vertices_hold(binding, positions, rest_positions, &stats.unskinned_distance)) {
+		binding->rigid_shortcut_off = true;
+		binding->frame_map_current = binding->dynamic_set_current = false;
+		lvp__frame_map(binding, rest_positions);
+	}
 	stats.worst_region = -1;
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 

@@ -96,8 +96,12 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 		float dx = d[0] - blend[0], dy = d[1] - blend[1], dz = d[2] - blend[2];
 		spread += weights[e] * sqrtf(dx * dx + dy * dy + dz * dz);
 	}
-	/* Bones that agree up to float rounding of their matrices move the vertex rigidly. */
-	return spread < (float)(1e-6 * binding->size) ? 0.0f : spread;
+	/* Bones that agree up to float rounding of their matrices move the vertex rigidly. The rounding
+	 * is relative to the point and to the skin's translations (of the order of the bones' distance
+	 * from the origin); not to the whole mesh's size, which one stray vertex far away would make
+	 * so large that every vertex looked rigid and nothing was corrected. */
+	float noise = (float)(1e-6 * binding->skeleton_reach) + 1e-6f * sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+	return spread < noise ? 0.0f : spread;
 }
 
 /* The skin classes of vertex k's bones (with weight), each with the sum of their weights:
@@ -158,7 +162,7 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 	lvp_binding *binding = c->binding;
 	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
-		int32_t vertex_class = lvp__vertex_class(binding, k);
+		int32_t vertex_class = binding->rigid_shortcut_off ? -1 : lvp__vertex_class(binding, k);
 		changed = changed || binding->vertex_class[k] != vertex_class;
 		binding->vertex_class[k] = vertex_class;
 		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, vertex_class);
@@ -178,6 +182,40 @@ static void lvp__frame_map_dynamic_loop(void *context, int32_t begin, int32_t en
 		int32_t k = binding->dynamic_vertices[v];
 		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, binding->vertex_class[k]);
 	}
+}
+
+/* Vertices checked per region by lvp__rigid_vertices_hold, spread over its vertices. */
+#define LVP__RIGID_SAMPLES 8
+
+bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions, const float *rest_positions,
+                              double *r_off)
+{
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
+	double largest = 0.0;
+	bool hold = true;
+	if (binding->mode != LVP_MODE_LOCAL) {
+		*r_off = 0.0;
+		return true;
+	}
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		int32_t first = binding->region_vertex_offsets[r], count = binding->region_vertex_offsets[r + 1] - first;
+		int32_t step = count > LVP__RIGID_SAMPLES ? count / LVP__RIGID_SAMPLES : 1;
+		for (int32_t i = 0; i < count; i += step) {
+			int32_t k = binding->region_vertices[first + i], c = binding->vertex_class[k];
+			if (binding->vertex_dynamic[k] || c < 0)
+				continue;
+			lvp__vec3 x = lvp__load(rest + 3 * k), expected = lvp__transform_point(&binding->skin[c], x);
+			double off = lvp__length(lvp__sub(lvp__load(positions + 3 * k), expected));
+			/* Float rounding of Blender's skinning is of 1e-7 of the point's and the bones' size;
+			 * a frame that is not this skinning is off by far more. */
+			double allowed = 1e-4 * (binding->skeleton_reach + lvp__length(x) + lvp__length(expected));
+			largest = fmax(largest, off);
+			if (!(off <= allowed))
+				hold = false;
+		}
+	}
+	*r_off = hold ? 0.0 : largest;
+	return hold;
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which

@@ -188,12 +188,19 @@
  *   - Zero-length bones are treated as points: distances go to the head; they never receive
  *     automatic weights and take no part in fold-over detection.
  *   - A posed bone matrix that is singular (a bone scaled to zero) leaves its region
- *     uncorrected for that frame, and the frame's stats count it.
+ *     uncorrected for that frame, and the frame's stats count it. The regions it blends with
+ *     are corrected as at a vanishing scale (its stretch against them is U = 0): the band that
+ *     collapses with it is not made up for.
  *   - Regions whose map is zero everywhere (fully rigid) cannot move and are left as they are.
  *   - Poses folded onto themselves (a joint bent near 180 degrees): a step moves a vertex by at
  *     most a quarter of the mesh's size, a step that makes the regions' volumes worse is undone and ends
  *     the iteration, and if anything still went non-finite the frame is passed through
  *     unchanged with stats.passed_through set.
+ *   - Positions that are not the skinning of the rest by the bound weights and the given bones
+ *     (bone frames other than those that moved the mesh, weights changed since the bind): a
+ *     sample of the vertices one bone class carries is checked every frame, and where one is off
+ *     by more than float rounding the frame is measured from the positions alone (slower: every
+ *     triangle is measured) and stats.unskinned_distance says by how much.
  *
  * THREADS AND MEMORY
  *
@@ -477,11 +484,16 @@ typedef struct lvp_frame_stats {
 	int32_t iterations;       /* correction steps done, fold-over rounds included */
 	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's
 	                             region in each separate part counts once */
-	int32_t skipped_regions;  /* regions left as they were: singular posed bone, or map all zero */
+	int32_t skipped_regions;  /* regions left as they were: their posed bone is singular (scaled to zero) */
 	int32_t folded_vertices;  /* vertices moved back to a contact surface */
 	double max_displacement;  /* largest |offset| written */
 	int32_t passed_through;   /* 1 when no finite correction was found (a pose folded onto itself):
 	                             the input was written back unchanged */
+	double unskinned_distance; /* 0, or how far the positions put a vertex that one bone carries from
+	                              where that bone puts it, when that is more than float rounding:
+	                              the positions are not the skinning of the rest by these bones and
+	                              the bound weights (see lvp_correct), and the frame was measured
+	                              from the positions alone, without the closed form for rigid parts */
 } lvp_frame_stats;
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what

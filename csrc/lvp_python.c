@@ -1060,14 +1060,15 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 		lvp_py__raise(result, &diag, lvp_py__frame_renames);
 		goto done;
 	}
-	dictionary = Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d}", "volume_rest", stats.volume_rest,
-	                           "volume_before", stats.volume_before, "volume_after", stats.volume_after,
+	dictionary = Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d}", "volume_rest",
+	                           stats.volume_rest, "volume_before", stats.volume_before, "volume_after", stats.volume_after,
 	                           "worst_region", (int)stats.worst_region, "worst_region_change_before",
 	                           stats.worst_region_change_before, "worst_region_change_after",
 	                           stats.worst_region_change_after, "iterations", (int)stats.iterations, "active_regions",
 	                           (int)stats.active_regions, "skipped_regions", (int)stats.skipped_regions,
 	                           "folded_vertices", (int)stats.folded_vertices, "max_displacement",
-	                           stats.max_displacement);
+	                           stats.max_displacement, "passed_through", (int)stats.passed_through,
+	                           "unskinned_distance", stats.unskinned_distance);
 done:
 	lvp_py__release_buffers(&buffers);
 	lvp_py__leave(self);

@@ -61,9 +61,9 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 	binding->stretch_offset = malloc(sizeof(float) * 3 * slots);
 	binding->stretch_regions = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	binding->bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
-	binding->bone_stretch_valid = calloc((size_t)(bones > 0 ? bones : 1), 1);
+	binding->bone_stretch_invertible = calloc((size_t)(bones > 0 ? bones : 1), 1);
 	if (!binding->stretch_offsets || !binding->bone_entry || !binding->stretch_change || !binding->stretch_offset ||
-	    !binding->stretch_regions || !binding->bone_stretch || !binding->bone_stretch_valid)
+	    !binding->stretch_regions || !binding->bone_stretch || !binding->bone_stretch_invertible)
 		return lvp__stretch_out_of_memory(r_diag);
 	for (int32_t i = 0; i < LVP__STRETCH_GROUPS * bones; ++i)
 		binding->bone_entry[i] = -1;
@@ -116,13 +116,12 @@ static lvp__mat4 lvp__rigid_skin(const lvp_binding *binding, int32_t i, const lv
 }
 
 /* Whether the bones' skins, in the rigid frame, may stretch some bone against another: false when
- * each is a rotation times one common scale (A^T A = c I for all of them, the same c). */
+ * each is a rotation times one common scale (A^T A = c I for all of them, the same c). A bone
+ * scaled to zero counts (c = 0): its region is skipped, but it stretches its neighbours. */
 static bool lvp__some_stretch(const lvp_binding *binding, const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
 {
 	double common = -1.0;
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
-		if (binding->region_skipped[i]) /* scaled to zero: its region is left alone */
-			continue;
 		lvp__mat4 skin = lvp__rigid_skin(binding, i, to_rigid, from_rigid);
 		const double *m = skin.m;
 		lvp__vec3 c0 = lvp__v(m[0], m[4], m[8]), c1 = lvp__v(m[1], m[5], m[9]), c2 = lvp__v(m[2], m[6], m[10]);
@@ -143,7 +142,8 @@ static bool lvp__some_stretch(const lvp_binding *binding, const lvp__mat4 *to_ri
 /* Bone i's stretch U_i and its inverse (bone_stretch[2i], [2i+1]): the polar decomposition A = Q U
  * of its skin in the rigid frame (lvp__split_rotation, the one dual quaternion skinning uses).
  * Blender applies a bone's scale before its rotation (and a child's inherited scale with it), so
- * U_i is the bone's scale and Q_i its turn. Returns false for a singular skin. */
+ * U_i is the bone's scale and Q_i its turn. U_i is always set, also for a bone scaled to zero
+ * (U_i = 0); returns whether U_i^-1 is (false for a singular skin). */
 static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *to_rigid,
                               const lvp__mat4 *from_rigid)
 {
@@ -332,22 +332,22 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 		return false;
 	}
 	for (int32_t i = 0; i < binding->bone_count; ++i)
-		binding->bone_stretch_valid[i] =
-		    !binding->region_skipped[i] && lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
-	/* Each pair's relative stretch (zero for the pairs that have none), and the regions with some. */
+		binding->bone_stretch_invertible[i] = lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
+	/* Each pair's relative stretch (zero for the pairs that have none), and the regions with some.
+	 * A region is seen from its own bone, which must be invertible (a region whose bone is scaled
+	 * to zero is skipped: correction.c); the bones it blends with need not be. A bone scaled to
+	 * zero stretches its neighbours' reference by U_b = 0, the limit of a small scale: the band
+	 * that collapses with it is what the animator asked for, not a loss for the neighbour to
+	 * make up (which would balloon it by the collapsed part's whole volume). */
 	int32_t stretched = 0;
 	for (int32_t r = 0; r < s; ++r) {
 		binding->stretch_change[r] = 0.0;
-		if (!binding->bone_stretch_valid[r])
+		if (binding->region_skipped[r] || !binding->bone_stretch_invertible[r])
 			continue;
 		bool any = false;
 		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e) {
 			int32_t bone = binding->stretch_bones[e];
-			lvp__mat4 *u_minus_i = &binding->stretch_linear[e];
-			if (binding->bone_stretch_valid[bone])
-				any = lvp__relative_stretch(u_minus_i, binding, r, bone, &to_rigid, &from_rigid) || any;
-			else
-				memset(u_minus_i, 0, sizeof(*u_minus_i));
+			any = lvp__relative_stretch(&binding->stretch_linear[e], binding, r, bone, &to_rigid, &from_rigid) || any;
 		}
 		if (any)
 			binding->stretch_regions[stretched++] = r;

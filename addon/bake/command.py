@@ -46,6 +46,16 @@ class Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
+def _job_count(text):
+    try:
+        count = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("%r is not a whole number" % text) from None
+    if count < 1:
+        raise argparse.ArgumentTypeError("must be 1 or more, not %d" % count)
+    return count
+
+
 def make_parser():
     parser = Parser(
         prog="blender -b FILE.blend -c %s" % COMMAND,
@@ -58,7 +68,7 @@ def make_parser():
     parser.add_argument("--output", required=True, metavar="DIR",
                         help="directory for <object>.pc2 (or a .pc2 file name when baking one object); "
                              "// is relative to the .blend")
-    parser.add_argument("--jobs", type=int, default=1, metavar="N",
+    parser.add_argument("--jobs", type=_job_count, default=1, metavar="N",
                         help="Blender processes baking at once, each on a slice of the frames (default 1)")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--chunk", action="store_true",
@@ -113,8 +123,6 @@ def _frames(arguments, scene):
 
 def _run(arguments):
     scene = bpy.context.scene
-    if arguments.jobs < 1:
-        raise UsageError("--jobs must be 1 or more")
     frames = _frames(arguments, scene)
     objects = find_objects(scene, arguments.objects)
     if not bpy.data.filepath and (arguments.jobs > 1 or arguments.chunk or arguments.merge):

@@ -276,6 +276,15 @@ def evaluated_positions(obj, depsgraph=None, first=None):
     return positions
 
 
+def captured_positions(obj, depsgraph=None):
+    """What entered the Volume Preservation modifier (its "lvp_position" attribute) on the original
+    vertices, the first of the evaluated mesh, float32[3N]."""
+    mesh = evaluated_mesh(obj, depsgraph)
+    positions = array('f', bytes(12 * len(mesh.vertices)))
+    mesh.attributes["lvp_position"].data.foreach_get("vector", positions)
+    return positions[:3 * len(obj.data.vertices)]
+
+
 def mesh_positions(mesh):
     positions = array('f', bytes(12 * len(mesh.vertices)))
     mesh.vertices.foreach_get("co", positions)

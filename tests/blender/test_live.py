@@ -505,9 +505,10 @@ class TestDuplicates(CylinderTestCase):
         duplicate.lvp.bind_id = ""  # the copy passes the mesh through ("Not bound")
         # Called directly: through the handlers, the original would be corrected again after a write
         # into its offsets object, and hide it.
-        written = self.addon.live.correct_object(duplicate, bpy.context.evaluated_depsgraph_get())
+        self.addon.live.correct_object(duplicate, bpy.context.evaluated_depsgraph_get())
         self.assertStatusContains(duplicate, "Not bound")
-        self.assertFalse(written)
+        self.assertIsNone(helpers.offsets_object(duplicate), "the copy passes through: it names no offsets object")
+        self.assertIsNotNone(helpers.offsets_object(self.obj), "the original keeps its offsets object")
         self.assertEqual(helpers.offsets_of(self.obj), offsets, "the copy wrote into the original's offsets")
 
     def test_copy_gets_its_own_offsets_object(self):

@@ -603,6 +603,78 @@ static void test_scaled_bone_that_bends(void)
 		}
 }
 
+/* A bone scaled to exactly zero (an animator's way of hiding a part) is the limit of a small
+ * scale: its region is skipped, having nothing left to restore, and the neighbouring region is
+ * corrected for its bend only, as at a scale of 1e-3. Before, the neighbour was corrected to its
+ * rest volume and took the collapsed part's whole volume (largest offset 0.58 on a radius of 0.5,
+ * the region +132 %). The cylinder bent 60 degrees, its upper bone scaled about its head. */
+static void test_bone_scaled_to_zero(void)
+{
+	const double scales[] = {1e-3, 1e-6, 0.0};
+	float *offsets[3];
+	int32_t n = 0;
+	for (int i = 0; i < 3; ++i) {
+		posed_cylinder c = make_bent_cylinder(60.0);
+		scale_upper_bone(&c, scales[i], scales[i], scales[i]);
+		n = c.rig.vertex_count;
+		lvp_diagnostic diag;
+		lvp_binding *binding = bind_rig(&c.rig, lvp_bind_default_options());
+		offsets[i] = malloc(sizeof(float) * 3 * (size_t)n);
+		lvp_frame_stats stats;
+		CHECK_OK(lvp_correct(NULL, offsets[i], binding, c.skinned, c.posed, NULL, NULL, &stats, &diag), diag);
+		double largest = largest_length(offsets[i], n);
+		printf("  upper bone scaled %g: %d region(s) skipped, largest offset %.4f (%.2f %% of the radius), worst "
+		       "region %+.3g %% after\n",
+		       scales[i], (int)stats.skipped_regions, largest, 100.0 * largest / 0.5,
+		       100.0 * stats.worst_region_change_after);
+		CHECK(stats.skipped_regions == (scales[i] == 0.0 ? 1 : 0));
+		CHECK(largest < 0.1 * 0.5);
+		lvp_free(binding);
+		free_cylinder(&c);
+	}
+	double apart = 0.0;
+	for (int32_t k = 0; k < 3 * n; ++k)
+		apart = fmax(apart, fabs(offsets[2][k] - offsets[1][k]));
+	printf("  scale 0 against 1e-6: offsets %.2e apart\n", apart);
+	CHECK(apart < 1e-3 * 0.5);
+	for (int i = 0; i < 3; ++i)
+		free(offsets[i]);
+}
+
+/* lvp_correct's contract is that the positions are the skinning of the rest by the bound weights
+ * and the given bones; the measurement carries the rigid parts in closed form on it. Bone frames
+ * other than those that moved the mesh (an importer's rig whose frames differ from the
+ * deformation's, a mesh evaluated before its new weights) broke it silently: the volume reported
+ * was not the volume of the positions given. The positions of the cylinder bent 60 degrees, with
+ * the bones of 50 degrees: the frame is measured from the positions alone, its volume before is
+ * theirs, and stats say how far off the bones put a rigid vertex. With the right bones nothing is
+ * flagged and the offsets are those of a correction with nothing amiss. */
+static void test_positions_that_are_not_the_skinning(void)
+{
+	posed_cylinder bent = make_bent_cylinder(60.0), other = make_bent_cylinder(50.0);
+	int32_t n = bent.rig.vertex_count;
+	lvp_binding *binding = bind_rig(&bent.rig, lvp_bind_default_options());
+	float *offsets = malloc(sizeof(float) * 3 * (size_t)n);
+	lvp_frame_stats stats;
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_correct(NULL, offsets, binding, bent.skinned, other.posed, NULL, NULL, &stats, &diag), diag);
+	double actual = volume(bent.skinned, &bent.rig);
+	printf("  positions of 60 degrees, bones of 50: a rigid vertex off by %.3f; volume before %.6f, of the "
+	       "positions %.6f\n",
+	       stats.unskinned_distance, stats.volume_before, actual);
+	CHECK(stats.unskinned_distance > 0.1);
+	CHECK(fabs(stats.volume_before / actual - 1.0) < 1e-6);
+	CHECK_OK(lvp_correct(NULL, offsets, binding, bent.skinned, bent.posed, NULL, NULL, &stats, &diag), diag);
+	printf("  the same positions with their own bones: off by %g, volume before %.6f\n", stats.unskinned_distance,
+	       stats.volume_before);
+	CHECK(stats.unskinned_distance == 0.0);
+	CHECK(fabs(stats.volume_before / actual - 1.0) < 1e-6);
+	free(offsets);
+	lvp_free(binding);
+	free_cylinder(&bent);
+	free_cylinder(&other);
+}
+
 /* A mesh scaled unevenly against its armature after the bind (in Blender: the object's scale
  * changed to 1.3 x 0.8 x 1): in the mesh's coordinates each bone's skin is W G W^-1, a bend
  * that looks like a shear, and the posed frames are W G W^-1 times the rest frames. Told the
@@ -785,6 +857,8 @@ int main(void)
 	RUN(test_regions_that_cannot_be_told_apart);
 	RUN(test_scaled_bone_is_not_undone);
 	RUN(test_scaled_bone_that_bends);
+	RUN(test_bone_scaled_to_zero);
+	RUN(test_positions_that_are_not_the_skinning);
 	RUN(test_rigid_space);
 	RUN(test_separate_parts_keep_their_own_volume);
 	return check_failures() != 0;

@@ -39,7 +39,12 @@ lvp_result lvp__fail(lvp_diagnostic *r_diag, lvp_result result, const char *argu
 		r_diag->argument = argument;
 		r_diag->index = index;
 		va_start(args, format);
+#if defined(__MINGW32__)
+		/* msvcrt.dll's vsnprintf, which MinGW calls by default, knows no %zu (lvp_internal.h). */
+		__mingw_vsnprintf(r_diag->message, sizeof(r_diag->message), format, args);
+#else
 		vsnprintf(r_diag->message, sizeof(r_diag->message), format, args);
+#endif
 		va_end(args);
 	}
 	return result;

@@ -13,10 +13,15 @@
 
 /* ---- diagnostics ---------------------------------------------------------------------- */
 
-/* Fills r_diag (when not NULL) and returns result. The message is printf-formatted. */
+/* Fills r_diag (when not NULL) and returns result. The message is printf-formatted, by C99's rules
+ * (%zu included) on every platform: GCC for MinGW checks a plain `printf` format by the rules of
+ * Microsoft's old msvcrt.dll, which has no %zu, so there the check is `gnu_printf`, and common.c
+ * formats with MinGW's own C99 vsnprintf to match. */
 lvp_result lvp__fail(lvp_diagnostic *r_diag, lvp_result result, const char *argument, int64_t index,
                      const char *format, ...)
-#if defined(__GNUC__)
+#if defined(__MINGW32__)
+    __attribute__((format(gnu_printf, 5, 6)))
+#elif defined(__GNUC__)
     __attribute__((format(printf, 5, 6)))
 #endif
     ;

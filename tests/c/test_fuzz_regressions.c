@@ -6,6 +6,10 @@
  * tests/fuzz/regressions/ under a name that says what it broke. `./build.sh test` runs it
  * twice: built by gcc with the other C tests, and by clang as the fuzzer is (build.sh,
  * run_fuzz_regressions_clang), whose UBSan also flags a zero offset applied to a null pointer.
+ *
+ * Each input runs in a child process, so that one that still crashes is reported by name and the
+ * others still run: a fork on POSIX systems; on Windows, which has no fork, this program again with
+ * `--replay FILE` (which replays that one file and exits).
  */
 #include "support/check.h"
 #include "support/test_meshes.h"
@@ -15,8 +19,57 @@
 #include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(_WIN32)
+#include <process.h>
+#include <windows.h>
+#else
 #include <sys/wait.h>
 #include <unistd.h>
+#endif
+
+/* Replays one input in a child process. Returns 0 when the child finished normally; otherwise
+ * fills r_how ("exit status 1", "signal 6") and returns -1. Returns 1 when no child could be
+ * started, and the caller replays the input in this process instead. */
+static int replay_in_child(const char *path, const uint8_t *data, size_t size, char *r_how, size_t how_size)
+{
+#if defined(_WIN32)
+	(void)data;
+	(void)size;
+	char self[MAX_PATH];
+	DWORD length = GetModuleFileNameA(NULL, self, sizeof(self));
+	if (length == 0 || length >= sizeof(self))
+		return 1;
+	/* _spawnv joins its arguments with spaces: quote them (no Windows path holds a quote). */
+	char quoted_self[MAX_PATH + 2], quoted_path[1024 + 2];
+	snprintf(quoted_self, sizeof(quoted_self), "\"%s\"", self);
+	snprintf(quoted_path, sizeof(quoted_path), "\"%s\"", path);
+	const char *arguments[] = {quoted_self, "--replay", quoted_path, NULL};
+	intptr_t status = _spawnv(_P_WAIT, self, arguments);
+	if (status == -1)
+		return 1;
+	if (status == 0)
+		return 0;
+	/* A crash ends the child with its exception code (0xC0000005 for an access violation). */
+	snprintf(r_how, how_size, "exit status 0x%lx", (unsigned long)status);
+	return -1;
+#else
+	pid_t child = fork();
+	if (child == 0) {
+		fuzz_run(data, size);
+		fflush(stdout);
+		_exit(0);
+	}
+	int status = 0;
+	if (child < 0 || waitpid(child, &status, 0) != child)
+		return 1;
+	(void)path;
+	if (WIFEXITED(status) && WEXITSTATUS(status) == 0)
+		return 0;
+	snprintf(r_how, how_size, "%s %d", WIFSIGNALED(status) ? "signal" : "exit status",
+	         WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
+	return -1;
+#endif
+}
 
 static int compare_names(const void *a, const void *b)
 {
@@ -62,22 +115,16 @@ static int replay_directory(const char *directory)
 			printf("  %s (%zu bytes)\n", path, size);
 			fflush(stdout);
 			fflush(stderr);
-			/* Each input runs in a child, so that one that still crashes (ASan, UBSan or a
-			 * contract check abort) is reported by name and the others still run. */
-			pid_t child = fork();
-			if (child == 0) {
-				fuzz_run((const uint8_t *)data, size);
-				fflush(stdout);
-				_exit(0);
-			}
-			int status = 0;
-			if (child < 0 || waitpid(child, &status, 0) != child) {
-				fuzz_run((const uint8_t *)data, size); /* no fork: run it here */
-			} else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-				fprintf(stderr, "  FAIL %s: still crashes (%s %d); replay it with the fuzzer: "
+			/* In a child, so that one that still crashes (ASan, UBSan or a contract check
+			 * abort) is reported by name and the others still run. */
+			char how[64] = "";
+			int outcome = replay_in_child(path, (const uint8_t *)data, size, how, sizeof(how));
+			if (outcome > 0) {
+				fuzz_run((const uint8_t *)data, size); /* no child process: run it here */
+			} else if (outcome < 0) {
+				fprintf(stderr, "  FAIL %s: still crashes (%s); replay it with the fuzzer: "
 				                "build/fuzz/fuzz_lvp tests/%s\n",
-				        path, WIFSIGNALED(status) ? "signal" : "exit status",
-				        WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status), path);
+				        path, how, path);
 				++check__failures;
 			}
 			++replayed;
@@ -107,8 +154,23 @@ static void test_empty_and_tiny_inputs(void)
 		fuzz_run(bytes, n);
 }
 
-int main(void)
+/* `--replay FILE`: the child of replay_in_child where there is no fork. */
+static int replay_one(const char *path)
 {
+	size_t size = 0;
+	char *data = test_read_file(path, &size);
+	if (!data)
+		return 2;
+	fuzz_run((const uint8_t *)data, size);
+	free(data);
+	fflush(stdout);
+	return 0;
+}
+
+int main(int argc, char **argv)
+{
+	if (argc == 3 && strcmp(argv[1], "--replay") == 0)
+		return replay_one(argv[2]);
 	RUN(test_regressions_replay);
 	RUN(test_seed_corpus_replays);
 	RUN(test_empty_and_tiny_inputs);

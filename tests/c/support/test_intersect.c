@@ -23,7 +23,14 @@
  */
 #include "support/test_meshes.h"
 
+/* GMP's rationals. The Windows and ARM test builds have no GMP library to link: they compile GMP's
+ * own mini-gmp (mini-gmp.c, mini-mpq.c from Debian's gmp source) with LVP_TEST_MINI_GMP, which
+ * has every mpq_ function used here, exactly (but not mpq_inits / mpq_clears). */
+#if defined(LVP_TEST_MINI_GMP)
+#include "mini-mpq.h"
+#else
 #include <gmp.h>
+#endif
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -46,7 +53,9 @@ static int test__orient3d_exact(const double *a, const double *b, const double *
 	const double *rows[3] = {a, b, c};
 	for (int i = 0; i < 9; ++i)
 		mpq_init(m[i]);
-	mpq_inits(t, u, det, NULL);
+	mpq_init(t);
+	mpq_init(u);
+	mpq_init(det);
 	for (int r = 0; r < 3; ++r)
 		for (int k = 0; k < 3; ++k) {
 			mpq_set_d(t, rows[r][k]);
@@ -65,7 +74,9 @@ static int test__orient3d_exact(const double *a, const double *b, const double *
 	int s = test__sign_mpq(det);
 	for (int i = 0; i < 9; ++i)
 		mpq_clear(m[i]);
-	mpq_clears(t, u, det, NULL);
+	mpq_clear(t);
+	mpq_clear(u);
+	mpq_clear(det);
 	return s;
 }
 
@@ -107,7 +118,8 @@ static int test__orient2d(const double *a, const double *b, const double *c, int
 	mpq_t x[4], t, u;
 	for (int k = 0; k < 4; ++k)
 		mpq_init(x[k]);
-	mpq_inits(t, u, NULL);
+	mpq_init(t);
+	mpq_init(u);
 	const double *pairs[4][2] = {{a, c}, {b, c}, {a, c}, {b, c}};
 	const int axes[4] = {i, j, j, i};
 	for (int k = 0; k < 4; ++k) {
@@ -121,7 +133,8 @@ static int test__orient2d(const double *a, const double *b, const double *c, int
 	int s = test__sign_mpq(t);
 	for (int k = 0; k < 4; ++k)
 		mpq_clear(x[k]);
-	mpq_clears(t, u, NULL);
+	mpq_clear(t);
+	mpq_clear(u);
 	return s;
 }
 

@@ -47,14 +47,16 @@ case "$BLENDER_VERSION" in
 4.3)
 	SUITE=trixie
 	CHROOT="${LVP_BLENDER43_CHROOT:-$CACHE/trixie-blender}"
-	PACKAGES=(blender)
+	# numpy: Blender's FBX and glTF add-ons import it (Blender's own builds bundle it).
+	PACKAGES=(blender python3-numpy)
 	;;
 5.2)
 	SUITE=sid
 	CHROOT="${LVP_BLENDER52_CHROOT:-$CACHE/sid-blender}"
 	# Blender 5.2's extension manager (bl_pkg, which `blender --command extension` needs) imports
-	# cattrs and requests; Blender's own builds bundle them, Debian's package does not depend on them.
-	PACKAGES=(blender python3-cattr python3-requests)
+	# cattrs and requests, its FBX and glTF add-ons numpy; Blender's own builds bundle them, Debian's
+	# package does not depend on them.
+	PACKAGES=(blender python3-numpy python3-cattr python3-requests)
 	;;
 -h | --help | help)
 	sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'

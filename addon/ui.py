@@ -34,14 +34,17 @@ class LVP_UL_region_restrictions(bpy.types.UIList):
         row.prop(item, "bones", text="")
 
 
-class LVP_PT_volume_preservation(bpy.types.Panel):
+class _InModifierTab:
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "modifier"
+
+
+class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
     """Local Volume Preservation: settings, bind and remove, baking"""
 
     bl_label = "Volume Preservation"
     bl_idname = "LVP_PT_volume_preservation"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "modifier"
 
     @classmethod
     def poll(cls, context):
@@ -95,19 +98,22 @@ class LVP_PT_volume_preservation(bpy.types.Panel):
         row.operator("object.lvp_auto_weights", text="Auto Weights", icon='GROUP_VERTEX')
 
 
-class LVP_PT_statistics(bpy.types.Panel):
+class _SubPanel(_InModifierTab):
+    """A sub-panel of the Volume Preservation panel, shown once the object has the modifier."""
+
+    bl_parent_id = "LVP_PT_volume_preservation"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.object
+        return obj is not None and obj.type == 'MESH' and node_group.find_modifier(obj) is not None
+
+
+class LVP_PT_statistics(_SubPanel, bpy.types.Panel):
     """What the correction did at the current frame"""
 
     bl_label = "Statistics"
     bl_idname = "LVP_PT_statistics"
-    bl_parent_id = "LVP_PT_volume_preservation"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "modifier"
-
-    @classmethod
-    def poll(cls, context):
-        return node_group.find_modifier(context.object) is not None
 
     def draw(self, context):
         layout = self.layout
@@ -150,20 +156,12 @@ def _figures(layout, name, *values):
         row.label(text=value)
 
 
-class LVP_PT_region_restrictions(bpy.types.Panel):
+class LVP_PT_region_restrictions(_SubPanel, bpy.types.Panel):
     """Regions whose flesh is measured from chosen bones only (paper Fig. 11: the belly from the spine)"""
 
     bl_label = "Region Restrictions"
     bl_idname = "LVP_PT_region_restrictions"
-    bl_parent_id = "LVP_PT_volume_preservation"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "modifier"
     bl_options = {'DEFAULT_CLOSED'}
-
-    @classmethod
-    def poll(cls, context):
-        return node_group.find_modifier(context.object) is not None
 
     def draw(self, context):
         layout = self.layout

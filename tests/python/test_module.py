@@ -154,7 +154,7 @@ def volume(positions, triangles):
 STATS_KEYS = {
     'volume_rest', 'volume_before', 'volume_after', 'worst_region', 'worst_region_change_before',
     'worst_region_change_after', 'iterations', 'active_regions', 'skipped_regions', 'folded_vertices',
-    'max_displacement',
+    'max_displacement', 'passed_through', 'unskinned_distance',
 }
 
 

@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # build.sh - the one entry point: build, test, bench, fuzz, demo, package.
 #
-#   ./build.sh            build the core, the Python module and both packages (dist/)
-#   ./build.sh test       C tests (ASan+UBSan), module tests, headless-Blender tests
+#   ./build.sh            build the core, the Python module for every platform and the packages (dist/):
+#                         the add-on folder (this machine's module) and one extension zip per platform
+#   ./build.sh test       C tests (ASan+UBSan), module tests, the other platforms' tests (wine, qemu),
+#                         headless-Blender tests
+#   ./build.sh test-platforms [PART...]  only the other platforms' tests (tests/platforms/run.sh)
 #   ./build.sh bench      benchmarks (core, then Blender)
 #   ./build.sh fuzz [s]   libFuzzer over bind and the per-frame call for s seconds (default 60)
 #   ./build.sh demo       renders the demo scenes into demo/out/
@@ -27,6 +30,11 @@ CC="${CC:-gcc}"
 CFLAGS_COMMON=(-std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wno-unused-function)
 CFLAGS_RELEASE=(-O3 -fPIC -fno-math-errno -fvisibility=hidden)
 CFLAGS_SANITIZE=(-O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer)
+
+# The modules and zips of every platform, and their tests: HOST_EXTENSION_ZIP, build_platform_modules,
+# build_platform_packages, run_platform_tests.
+source "$ROOT/platforms.sh"
+source "$ROOT/tests/platforms/run.sh"
 
 log() { printf '\033[1m[build]\033[0m %s\n' "$*" >&2; }
 die() { printf '\033[31m[build] error:\033[0m %s\n' "$*" >&2; exit 1; }
@@ -85,21 +93,12 @@ build_core_library() {
 	ar rcs "$BUILD/liblvp.a" "${objects[@]}"
 }
 
+# dist/: the add-on folder with this machine's module, and one extension zip per platform, each with
+# its own module (platforms.sh). The module build/_lvp.abi3.so of build_module, Debian's gcc, is for
+# the tests here only: it needs glibc 2.34.
 build_packages() {
-	[ -d "$ROOT/addon" ] || { log "no addon/ yet: skipping packages"; return 0; }
-	local folder="$DIST/$ADDON_ID"
-	rm -rf "$folder"
-	mkdir -p "$folder"
-	cp -r "$ROOT/addon/." "$folder/"
-	find "$folder" -name '__pycache__' -prune -exec rm -rf {} +
-	cp "$BUILD/_lvp.abi3.so" "$folder/"
-	cp "$ROOT/blender_manifest.toml" "$folder/"
-	[ -f "$ROOT/LICENSE" ] && cp "$ROOT/LICENSE" "$folder/"
-	ensure_packages zip
-	local zip="$DIST/$ADDON_ID-$VERSION.zip"
-	rm -f "$zip"
-	(cd "$folder" && zip -q -r "$zip" .)
-	log "packages: $folder and $zip"
+	build_platform_modules
+	build_platform_packages
 }
 
 cmd_build() {
@@ -169,6 +168,7 @@ cmd_test() {
 	local failed=0
 	run_c_tests || failed=1
 	run_module_tests || failed=1
+	run_platform_tests || failed=1
 	if [ -x "$ROOT/tests/blender/run.sh" ]; then
 		"$ROOT/tests/blender/run.sh" || failed=1
 	fi
@@ -209,9 +209,10 @@ main() {
 	shift || true
 	case "$command" in
 	build) cmd_build ;;
-	package) build_module && build_packages ;;
+	package) build_packages ;;
 	test) cmd_test ;;
 	test-c) run_c_test_alone "$@" ;;
+	test-platforms) run_platform_tests "$@" ;;
 	fuzz) cmd_fuzz "$@" ;;
 	bench) cmd_bench ;;
 	demo)
@@ -219,7 +220,7 @@ main() {
 		cmd_build
 		"$ROOT/demo/run.sh"
 		;;
-	*) die "unknown command '$command' (build, test, test-c NAME, bench, fuzz [seconds], demo, package)" ;;
+	*) die "unknown command '$command' (build, test, test-c NAME, test-platforms [PART...], bench, fuzz [seconds], demo, package)" ;;
 	esac
 }
 

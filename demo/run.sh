@@ -34,7 +34,7 @@ export BLENDER_USER_EXTENSIONS="$TMP/user/extensions"
 export LVP_TEST_TMP="$TMP"
 export LVP_REPO="$REPO"
 export LVP_ADDON_DIR="$DIST/$ADDON_ID"
-export LVP_EXTENSION_ZIP="$DIST/$ADDON_ID-$VERSION.zip"
+export LVP_EXTENSION_ZIP="$HOST_EXTENSION_ZIP"
 
 log "rendering with $BLENDER (Cycles on the CPU)"
 # Blender's per-frame render lines are left out; everything the demo prints is kept.

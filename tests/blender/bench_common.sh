@@ -29,7 +29,7 @@ bench_in_each_blender() {
 		export LVP_REPO="$ROOT"
 		export LVP_TEST_TMP="$run_tmp"
 		export LVP_ADDON_DIR="${LVP_ADDON_DIR:-$DIST/$ADDON_ID}"
-		export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$DIST/$ADDON_ID-$VERSION.zip}"
+		export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$HOST_EXTENSION_ZIP}"
 
 		local blenders=(3.4) selection status=0
 		[ "${LVP_SKIP_BLENDER43:-0}" = 1 ] || blenders+=(4.3)

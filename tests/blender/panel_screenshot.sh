@@ -20,7 +20,7 @@ run_tmp="$(mktemp -d /tmp/lvp-screenshot.XXXXXX)"
 chmod 755 "$run_tmp"
 trap 'rm -rf "$run_tmp"' EXIT
 export BLENDER_USER_RESOURCES="$run_tmp/user" LVP_TEST_TMP="$run_tmp" LVP_REPO="$ROOT"
-export LVP_ADDON_DIR="$DIST/$ADDON_ID" LVP_EXTENSION_ZIP="$DIST/$ADDON_ID-$VERSION.zip"
+export LVP_ADDON_DIR="$DIST/$ADDON_ID" LVP_EXTENSION_ZIP="$HOST_EXTENSION_ZIP"
 
 CHROOT_BLENDER="$HERE/blender_chroot.sh"
 "$CHROOT_BLENDER" 5.2 ensure >/dev/null

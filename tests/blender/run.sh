@@ -131,7 +131,7 @@ export BLENDER_USER_DATAFILES="${BLENDER_USER_DATAFILES:-$BLENDER_USER_RESOURCES
 export BLENDER_USER_EXTENSIONS="${BLENDER_USER_EXTENSIONS:-$BLENDER_USER_RESOURCES/extensions}"
 export LVP_RUN_TMP="$RUN_TMP"
 export LVP_ADDON_DIR="${LVP_ADDON_DIR:-$DIST/$ADDON_ID}"
-export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$DIST/$ADDON_ID-$VERSION.zip}"
+export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$HOST_EXTENSION_ZIP}" # this machine's zip (platforms.sh)
 [ -f "$LVP_EXTENSION_ZIP" ] || LVP_EXTENSION_ZIP=""
 
 # ---- running ------------------------------------------------------------------------------

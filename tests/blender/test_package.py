@@ -37,11 +37,18 @@ class TestPackage(helpers.AddonTestCase):
             self.assertEqual(module.__name__, "bl_ext.%s.local_volume_preservation" % helpers.EXTENSION_REPO)
             self.assertFalse(module_file.startswith(os.path.realpath(helpers.addon_dir())),
                              "on 4.2+ the add-on must come from the installed zip, not the folder")
+            # This machine's zip of the five (build.sh names them as `extension build --split-platforms`
+            # does): the Linux x86-64 module alone, and a manifest that declares that platform alone.
+            self.assertTrue(helpers.extension_zip().endswith("-linux_x64.zip"), helpers.extension_zip())
             with zipfile.ZipFile(helpers.extension_zip()) as archive:
                 names = archive.namelist()
             for required in ("blender_manifest.toml", "__init__.py", "_lvp.abi3.so"):
                 self.assertIn(required, names)
-            self.assertTrue(os.path.isfile(os.path.join(os.path.dirname(module_file), "blender_manifest.toml")))
+            self.assertEqual([name for name in names if name.startswith("_lvp.")], ["_lvp.abi3.so"])
+            installed_manifest = os.path.join(os.path.dirname(module_file), "blender_manifest.toml")
+            self.assertTrue(os.path.isfile(installed_manifest))
+            with open(installed_manifest, encoding="utf-8") as file:
+                self.assertIn('platforms = ["linux-x64"]\n', file.read())
         else:
             self.assertEqual(module.__name__, "local_volume_preservation")
             self.assertEqual(os.path.dirname(module_file), os.path.realpath(helpers.addon_dir()))

@@ -32,7 +32,7 @@ COMMANDS = {
     "mkdir -p ~/.config/blender/3.4/scripts/addons": ("readme-blender", "3.4"),
     "cp -r dist/local_volume_preservation ~/.config/blender/3.4/scripts/addons/": ("readme-blender", "3.4"),
     "blender --command extension install-file --repo user_default --enable "
-    "dist/local_volume_preservation-{version}.zip": ("readme-blender", "4.2+"),
+    "dist/local_volume_preservation-{version}-linux_x64.zip": ("readme-blender", "4.2+"),
     "blender -b shot.blend -c lvp_bake --objects Character --frames 1-250 --output /path/to/cache --jobs 2":
         ("readme-blender", "4.2+"),
     "blender -b shot.blend --python dist/local_volume_preservation/bake/lvp_bake.py -- --objects Character "

@@ -167,15 +167,24 @@ class TestReadmeContent(unittest.TestCase):
 
     def test_package_paths_match_build_sh(self):
         build = read("build.sh")
+        platforms_sh = read("platforms.sh")
         self.assertIn('ADDON_ID="local_volume_preservation"', build)
-        self.assertIn('local zip="$DIST/$ADDON_ID-$VERSION.zip"', build)
-        self.assertIn('local folder="$DIST/$ADDON_ID"', build)
+        self.assertIn('"$DIST/$ADDON_ID-$VERSION-$1.zip"', platforms_sh)
+        self.assertIn('local folder="$DIST/$ADDON_ID"', platforms_sh)
+        platforms = re.search(r"^PLATFORMS=\(([^)]*)\)", platforms_sh, re.M).group(1).split()
+        self.assertEqual(sorted(platforms), ["linux_arm64", "linux_x64", "macos_arm64", "macos_x64", "windows_x64"])
         version = readme_commands.version()
         self.assertIn("`dist/local_volume_preservation/`", self.text)
-        self.assertIn("`dist/local_volume_preservation-%s.zip`" % version, self.text)
-        self.assertEqual(re.findall(r"local_volume_preservation-([0-9][^ `/]*)\.zip", self.text),
-                         [version] * len(re.findall(r"local_volume_preservation-([0-9][^ `/]*)\.zip", self.text)),
-                         "every zip name in README should carry the version of blender_manifest.toml")
+        install = self.text.split("## Installing it in Blender", 1)[1].split("\n## ", 1)[0]
+        for platform in platforms:
+            self.assertIn("`dist/local_volume_preservation-%s-%s.zip`" % (version, platform), install,
+                          "README's install section does not say which zip is for %s" % platform)
+        names = re.findall(r"local_volume_preservation-([^ `/]*)\.zip", self.text)
+        self.assertTrue(names)
+        for name in names:
+            self.assertIn(name, ["%s-%s" % (version, platform) for platform in platforms],
+                          "every zip name in README should be one that build.sh writes: the version of "
+                          "blender_manifest.toml and a platform of platforms.sh")
 
     def test_every_setting_is_documented(self):
         properties = settings_properties()

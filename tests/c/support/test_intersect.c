@@ -23,9 +23,9 @@
  */
 #include "support/test_meshes.h"
 
-/* GMP's rationals. The Windows and ARM test builds have no GMP library to link: they compile GMP's
- * own mini-gmp (mini-gmp.c, mini-mpq.c from Debian's gmp source) with LVP_TEST_MINI_GMP, which
- * has every mpq_ function used here, exactly (but not mpq_inits / mpq_clears). */
+/* GMP's rationals. The Windows test build has no GMP library to link: it compiles GMP's own
+ * mini-gmp (mini-gmp.c, mini-mpq.c from Debian's gmp source) with LVP_TEST_MINI_GMP, which has
+ * every mpq_ function used here, exactly (but not mpq_inits / mpq_clears). */
 #if defined(LVP_TEST_MINI_GMP)
 #include "mini-mpq.h"
 #else

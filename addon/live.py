@@ -161,108 +161,150 @@ def is_main_thread():
     return threading.current_thread() is threading.main_thread()
 
 
+class PassThrough(Exception):
+    """Why obj's mesh is shown as plain skinning this frame. message: the object's status, or None
+    when the binding code already set it (bindings.ensure, rebind, refresh_map)."""
+
+    def __init__(self, message=None, level='ERROR'):
+        super().__init__(message)
+        self.message = message
+        self.level = level
+
+
 def correct_object(obj, depsgraph, check_topology=False):
     """Corrects obj as evaluated in depsgraph. Returns whether its offsets object was written.
 
-    Never raises for bad input: every problem becomes the object's status and a pass-through.
+    Never raises for bad input: every problem becomes the object's status and a pass-through (zero
+    offsets), so that the panel always says what is shown. The stages, in order: whether to touch
+    the object at all (_paused), the binding (_current_binding), where the offsets go (_holder), the
+    rig (_armature), the binding following the object's changes, the evaluated positions and bones,
+    the core, and the status of what was written (_status_of_correction).
     """
     modifier = node_group.find_modifier(obj)
     if modifier is None:
         return False
-    if not node_group.is_current(modifier.node_group):
+    if not node_group.is_current(modifier.node_group) and is_main_thread():
         # Deleted or edited by hand: what it does is no longer the correction the panel reports.
-        if not is_main_thread():
-            bindings.set_status(obj, 'ERROR', "Passing the mesh through: the modifier's node group was deleted or "
-                                              "edited; it is rebuilt at the next frame shown in the viewport")
-            return False
         node_group.repair_modifiers([obj])
         modifier = node_group.find_modifier(obj)
     if check_topology:
         # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
         bindings.note_mesh_changed(obj)
-    mesh = obj.data
+    paused = _paused(obj, modifier, depsgraph)
+    if paused is not None:
+        bindings.set_status(obj, *paused)
+        return False
+    bound = None
+    try:
+        bound = _current_binding(obj, depsgraph, check_topology)
+        holder = _holder(obj, modifier, bound)
+        armature_modifier, armature_object = _armature(obj, depsgraph)
+        previous_bound, previous_map = bound, bound.map_key
+        bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+        if bound is None:
+            raise PassThrough()
+        bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
+        if bound is None:
+            raise PassThrough()
+        if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
+                                 obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
+            display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
+        _read_pose(obj, depsgraph, bound, armature_object)
+        stats = _correct(obj, bound, check_topology)
+    except PassThrough as why:
+        if why.message is not None:
+            bindings.set_status(obj, why.level, why.message)
+        return offsets.write_zeros(obj, modifier, bound)
+    bindings.set_status(obj, *_status_of_correction(obj, depsgraph, bound, stats, armature_modifier))
+    return offsets.write(holder, bound.offsets, bound)
+
+
+def _paused(obj, modifier, depsgraph):
+    """(level, status) when obj is left as it is this time (nothing written), else None."""
+    if not node_group.is_current(modifier.node_group):  # only off the main thread, which cannot repair it
+        return 'ERROR', ("The modifier's node group was deleted or edited: it is rebuilt at the next frame shown "
+                         "in the viewport")
     if obj.mode in {'EDIT', 'SCULPT'}:
         # Those modes own the mesh data while they run; writing it from a handler would fight them.
-        bindings.set_status(obj, 'INFO', "Paused in %s Mode" % obj.mode.title())
-        return False
+        return 'INFO', "Paused in %s Mode" % obj.mode.title()
     if not node_group.modifier_enabled(modifier, depsgraph.mode):
-        bindings.set_status(obj, 'INFO', "The modifier is disabled in the %s" %
-                            ("render" if depsgraph.mode == 'RENDER' else "viewport"))
-        return False
+        return 'INFO', "The modifier is disabled in the %s" % _mode_name(depsgraph)
+    return None
 
+
+def _mode_name(depsgraph):
+    return "render" if depsgraph.mode == 'RENDER' else "viewport"
+
+
+def _current_binding(obj, depsgraph, check_topology):
+    """obj's binding, when it still maps onto the mesh vertex for vertex."""
     bound = bindings.ensure(obj, depsgraph)
     if bound is None:
-        return offsets.write_zeros(obj, modifier)
+        raise PassThrough()
     # The counts are cheap to compare every frame; the whole topology is read when the mesh changed.
     # What was found holds until the mesh changes again (undone, the binding follows again) or the
     # artist binds: a changed topology is never left for a later frame to forget.
+    mesh = obj.data
     counts_changed = mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0]
     if counts_changed or check_topology:
         bound.topology_changed = counts_changed or mesh_data.topology_signature(mesh) != bound.topology
     if bound.topology_changed:
-        bindings.set_status(obj, 'ERROR', bindings.REBIND_NEEDED)
-        return offsets.write_zeros(obj, modifier)
+        raise PassThrough(bindings.REBIND_NEEDED)
+    return bound
+
+
+def _holder(obj, modifier, bound):
+    """The offsets object obj writes (made when it has none of its own, on the main thread)."""
     holder = offsets.usable_offsets_object(obj, modifier, bound.vertex_count)
     if holder is None:
         if not is_main_thread():
-            bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has no offsets object of its own, which "
-                                              "is made on the main thread (render once from the viewport, or "
-                                              "press Bind)" % obj.name)
-            return offsets.write_zeros(obj, modifier, bound)
+            raise PassThrough("Passing the mesh through: %s has no offsets object of its own, which is made on the "
+                              "main thread (render once from the viewport, or press Bind)" % obj.name)
         holder = offsets.new_offsets_object(obj, modifier, bound.vertex_count)
         bound.written = None
     if node_group.count_modifiers(obj) > 1:
         # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s has more than one Volume Preservation "
-                                          "modifier; remove the copies" % obj.name)
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("Passing the mesh through: %s has more than one Volume Preservation modifier; remove "
+                          "the copies" % obj.name)
+    return holder
+
+
+def _armature(obj, depsgraph):
+    """(Armature modifier, armature object) that pose the mesh entering Volume Preservation."""
     armature_modifier = node_group.find_armature_modifier(obj)
     if armature_modifier is None:
-        bindings.set_status(obj, 'ERROR', "No Armature modifier before Volume Preservation: move Volume Preservation "
-                                          "right after the Armature modifier, or remove it")
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("No Armature modifier before Volume Preservation: move Volume Preservation right after "
+                          "the Armature modifier, or remove it")
     armature_object = armature_modifier.object
     if armature_object is None or armature_object.type != 'ARMATURE':
-        bindings.set_status(obj, 'ERROR', "The Armature modifier %r has no armature object: set its Object field"
-                            % armature_modifier.name)
-        return offsets.write_zeros(obj, modifier, bound)
-
+        raise PassThrough("The Armature modifier %r has no armature object: set its Object field"
+                          % armature_modifier.name)
     if not node_group.modifier_enabled(armature_modifier, depsgraph.mode):
         # The mesh enters Volume Preservation unposed: the bones' pose is not what it shows.
-        bindings.set_status(obj, 'INFO', "Passing the mesh through: the Armature modifier %r is disabled in the %s, "
-                                         "so the mesh is not posed" % (armature_modifier.name, "render" if
-                                                                        depsgraph.mode == 'RENDER' else "viewport"))
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("Passing the mesh through: the Armature modifier %r is disabled in the %s, so the mesh is "
+                          "not posed" % (armature_modifier.name, _mode_name(depsgraph)), 'INFO')
     unfollowed = skeleton.unfollowed_armature_setting(armature_modifier)
     if unfollowed is not None:
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + unfollowed)
-        return offsets.write_zeros(obj, modifier, bound)
-    previous_bound, previous_map = bound, bound.map_key
-    bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
-    if bound is None:
-        return offsets.write_zeros(obj, modifier)
-    bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
-    if bound is None:
-        return offsets.write_zeros(obj, modifier)
-    if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
-                             obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
-        display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
+        raise PassThrough("Passing the mesh through: " + unfollowed)
+    return armature_modifier, armature_object
 
-    obj_eval = obj.evaluated_get(depsgraph)
-    armature_eval = armature_object.evaluated_get(depsgraph)
+
+def _read_pose(obj, depsgraph, bound, armature_object):
+    """The positions entering Volume Preservation and the posed bones, into bound."""
     problem = evaluated_problem(obj, depsgraph, bound)
     if problem is not None:
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: " + problem)
-        return offsets.write_zeros(obj, modifier, bound)
-    skeleton_problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj_eval, armature_eval)
-    if skeleton_problem is not None:
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % skeleton_problem)
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("Passing the mesh through: " + problem)
+    problem = bound.skeleton.posed_matrices(bound.bone_matrices, obj.evaluated_get(depsgraph),
+                                            armature_object.evaluated_get(depsgraph))
+    if problem is not None:
+        raise PassThrough("Passing the mesh through: " + problem)
 
+
+def _correct(obj, bound, check_topology):
+    """The core's correction of bound.positions into bound.offsets; its statistics."""
     rest_positions = None
-    if mesh.shape_keys is not None:
+    if obj.data.shape_keys is not None:
         rest_positions = _shape_key_rest(obj, bound, check_topology)
-
     settings = obj.lvp
     try:
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
@@ -270,22 +312,31 @@ def correct_object(obj, depsgraph, check_topology=False):
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=settings.fold_over and bound.mode == 'LOCAL')
     except (ValueError, MemoryError) as error:
-        bindings.set_status(obj, 'ERROR', "Passing the mesh through: %s" % error)
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     bound.stats = stats
     if stats["passed_through"]:
-        bindings.set_status(obj, 'WARNING', "Passing the mesh through: no finite correction exists at this pose (a "
-                                            "joint folded onto itself?)")
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("Passing the mesh through: no finite correction exists at this pose (a joint folded onto "
+                          "itself?)", 'WARNING')
+    rest = stats["volume_rest"]
+    if stats["unskinned_distance"] > 0.0 and abs(stats["volume_after"] - rest) > abs(stats["volume_before"] - rest):
+        # Positions that are not the bound skinning (an evaluation older than the weights) are measured
+        # right, but the map and the regions are the binding's: when that made things worse, show none.
+        raise PassThrough("Passing the mesh through: the mesh entering Volume Preservation is not the skinning of "
+                          "the bound mesh by these bones (off by up to %.3g); press Bind if the weights or the rig "
+                          "changed" % stats["unskinned_distance"], 'WARNING')
     displacement = stats["max_displacement"]
     if not displacement <= bound.displacement_limit:  # also catches NaN
         # A safety net, not a feature: never show a blown-up mesh to the animator.
-        bindings.set_status(obj, 'WARNING', "The correction diverged at this pose (largest offset %.3g, above %.3g, "
-                                            "a quarter of the mesh size): showing plain skinning for this frame"
-                            % (displacement, bound.displacement_limit))
-        return offsets.write_zeros(obj, modifier, bound)
+        raise PassThrough("The correction diverged at this pose (largest offset %.3g, above %.3g, a quarter of the "
+                          "mesh size): showing plain skinning for this frame"
+                          % (displacement, bound.displacement_limit), 'WARNING')
+    return stats
+
+
+def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
+    """(level, message) of a frame corrected with stats: "Correcting", and what holds it back."""
     warnings = []
     unseen = node_group.modifiers_before(obj, armature_modifier, depsgraph.mode)
     if unseen:
@@ -313,12 +364,9 @@ def correct_object(obj, depsgraph, check_topology=False):
         warnings.append("%d edges join faces whose normals point opposite ways, where the correction is weak or "
                         "missing (Edit Mode > Mesh > Normals > Recalculate Outside, then Bind)" % flipped)
     if warnings:
-        bindings.set_status(obj, 'WARNING', "Correcting, but " + "; and ".join(warnings))
-    elif bound.inputs_changed_at is not None:
-        bindings.set_status(obj, 'INFO', "Correcting (the weights and the rest mesh are read again when the changes "
-                                         "pause)")
-    elif bound.rebound_because is not None:
-        bindings.set_status(obj, 'INFO', "Correcting (bound again by itself: %s)" % bound.rebound_because)
-    else:
-        bindings.set_status(obj, 'INFO', "Correcting")
-    return offsets.write(holder, bound.offsets, bound)
+        return 'WARNING', "Correcting, but " + "; and ".join(warnings)
+    if bound.inputs_changed_at is not None:
+        return 'INFO', "Correcting (the weights and the rest mesh are read again when the changes pause)"
+    if bound.rebound_because is not None:
+        return 'INFO', "Correcting (bound again by itself: %s)" % bound.rebound_because
+    return 'INFO', "Correcting"

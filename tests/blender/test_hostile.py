@@ -108,6 +108,10 @@ class TestEveryStateSaysWhatIsShown(HostileTestCase):
             for group in obj.vertex_groups:
                 group.add(list(range(len(obj.data.vertices))), 0.0, 'REPLACE')
 
+        def remove_group():
+            obj.vertex_groups.remove(obj.vertex_groups["Upper"])
+            obj.update_tag()  # as the interface's operator does (the Python call alone leaves the evaluated copy)
+
         def painted_without_group():
             obj.lvp.effect = 'PAINTED'
             obj.lvp.painted_vertex_group = "Nowhere"
@@ -121,7 +125,7 @@ class TestEveryStateSaysWhatIsShown(HostileTestCase):
             "a Decimate after it": add_after('DECIMATE', ratio=0.5),
             "a Subdivision Surface after it": add_after('SUBSURF', levels=1),
             "a Mask before the Armature modifier": add_mask_before,
-            "the Upper vertex group deleted": lambda: obj.vertex_groups.remove(obj.vertex_groups["Upper"]),
+            "the Upper vertex group deleted": remove_group,
             "every weight zero": zero_weights,
             "Preserve Volume turned on": lambda: setattr(self.armature_modifier(), "use_deform_preserve_volume", True),
             "a bone renamed": lambda: setattr(rig.data.bones["Upper"], "name", "Renamed"),

@@ -367,7 +367,7 @@ def bind(obj, depsgraph=None, inputs=None):
                                mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton, inputs))
     except ValueError as error:
         message = str(error)
-        if "closed" in message:
+        if getattr(error, "code", None) == "mesh_not_closed":
             message = ("The Global effect needs a closed mesh and %s has holes: use Organic (per region), or "
                        "close the mesh. (%s)" % (obj.name, message))
         raise BindError("Cannot bind %s: %s" % (obj.name, message)) from None

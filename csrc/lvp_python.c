@@ -426,11 +426,28 @@ static void lvp_py__raise(lvp_result result, const lvp_diagnostic *diag, const l
 	lvp_py__rewrite(message, sizeof(message), diag->message[0] ? diag->message : lvp_result_name(result),
 	                diag->argument, name);
 	size_t name_length = name ? strlen(name) : 0;
-	if (type == PyExc_ValueError && name &&
-	    !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length])))
-		PyErr_Format(type, "%s: %s", name, message);
-	else
-		PyErr_SetString(type, message);
+	PyObject *text = type == PyExc_ValueError && name &&
+	                         !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length]))
+	                     ? PyUnicode_FromFormat("%s: %s", name, message)
+	                     : PyUnicode_FromString(message);
+	PyObject *exception = text ? PyObject_CallFunctionObjArgs(type, text, NULL) : NULL;
+	Py_XDECREF(text);
+	if (!exception)
+		return; /* the failure to make it is the error set */
+	/* What went wrong, for code to branch on (the text is for people): the core's result without
+	 * its prefix ("mesh_not_closed") and the Python name of the argument at fault, or None. */
+	const char *code = lvp_result_name(result);
+	const char *prefix = "lvp_error_";
+	if (strncmp(code, prefix, strlen(prefix)) == 0)
+		code += strlen(prefix);
+	PyObject *code_object = PyUnicode_FromString(code);
+	PyObject *argument_object = name ? PyUnicode_FromString(name) : (Py_INCREF(Py_None), Py_None);
+	if (code_object && argument_object && PyObject_SetAttrString(exception, "code", code_object) == 0 &&
+	    PyObject_SetAttrString(exception, "argument", argument_object) == 0)
+		PyErr_SetObject(type, exception);
+	Py_XDECREF(code_object);
+	Py_XDECREF(argument_object);
+	Py_DECREF(exception);
 }
 
 /* ---- results as array.array -------------------------------------------------------------------------- */

@@ -656,6 +656,21 @@ class TestErrors(unittest.TestCase):
             matrices[20] = math.nan
             self.assertValueErrorNames('skin_matrices', function, **dict(arguments, skin_matrices=matrices))
 
+    def test_errors_carry_their_code(self):
+        """A core error says what went wrong for code too, not only for people: .code (the core's result
+        without its prefix) and .argument (the Python name at fault, or None)."""
+        tube = Tube()
+        values = array.array('f', tube.weight_values)
+        values[5] = -0.5
+        with self.assertRaises(ValueError) as caught:
+            _lvp.skin_linear(zeros('f', 3 * tube.vertex_count), tube.positions, tube.weight_offsets,
+                             tube.weight_bones, values, tube.skin_matrices(0.5))
+        self.assertEqual((caught.exception.code, caught.exception.argument), ('negative_weight', 'weight_values'))
+        opened = array.array('i', tube.triangles[3:])  # one triangle less: a hole
+        with self.assertRaises(ValueError) as caught:
+            _lvp.Binding(tube.positions, opened, None, None, None, None, None, None, mode='GLOBAL', map='UNIFORM')
+        self.assertEqual(caught.exception.code, 'mesh_not_closed', str(caught.exception))
+
     def test_auto_weights(self):
         tube = Tube()
         arguments = {'positions': tube.positions, 'triangles': tube.triangles, 'rest_matrices': tube.rest_matrices,

@@ -35,9 +35,10 @@ def extension_zip():
     path = os.environ.get("LVP_EXTENSION_ZIP")
     if path:
         return path
+    # This machine's zip (Linux x86-64: the one whose module loads here), the newest.
     folder = os.path.join(REPO, "dist")
     zips = [os.path.join(folder, name) for name in os.listdir(folder)
-            if name.startswith(ADDON_ID + "-") and name.endswith(".zip")] if os.path.isdir(folder) else []
+            if name.startswith(ADDON_ID + "-") and name.endswith("-linux_x64.zip")] if os.path.isdir(folder) else []
     return max(zips, key=os.path.getmtime) if zips else ""
 
 

@@ -9,7 +9,7 @@ TEST_NAME is a unittest name: test_module, test_module.TestClass or
 test_module.TestClass.test_method. Options:
 
     --addon-dir DIR       the built add-on folder (default: dist/local_volume_preservation)
-    --extension-zip ZIP   the built extension zip (default: newest dist/local_volume_preservation-*.zip)
+    --extension-zip ZIP   the built extension zip (default: the newest dist/local_volume_preservation-*-linux_x64.zip)
     --addon-on-path MODE  put the add-on folder's parent on sys.path so that
                           `import local_volume_preservation` works: auto (default: only on
                           Blender < 4.2, where the folder is how the add-on is installed; on
@@ -76,7 +76,8 @@ def parse_args(argv):
 
 
 def newest_zip():
-    zips = glob.glob(os.path.join(REPO, "dist", ADDON_ID + "-*.zip"))
+    """This machine's extension zip (Linux x86-64: the one whose module loads here), the newest."""
+    zips = glob.glob(os.path.join(REPO, "dist", ADDON_ID + "-*-linux_x64.zip"))
     return max(zips, key=os.path.getmtime) if zips else ""
 
 

@@ -348,7 +348,12 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
         # not correct them (they are in no region), but measures them where Blender put them.
         warnings.append("%d vertices without weights move by bone envelopes, which the correction leaves alone "
                         "(weight them, or turn off Bind To: Bone Envelopes)" % bound.unweighted_vertices)
-    if stats["unskinned_distance"] > 0.0:
+    if obj.parent is not None and obj.parent.type == 'ARMATURE' and obj.parent_type == 'ARMATURE':
+        # Blender deforms an object parented with Armature Deform by a modifier of its own, before the
+        # stack's: with an Armature modifier too, the mesh is deformed twice.
+        warnings.append("its parent armature deforms it too (Object Properties > Relations > Parent Type: Armature), "
+                        "before the Armature modifier does: set Parent Type to Object")
+    elif stats["unskinned_distance"] > 0.0:
         warnings.append("the mesh entering Volume Preservation is not the skinning of the bound mesh by these bones "
                         "(off by up to %.3g): measured the slow way; press Bind if the weights or the rig changed"
                         % stats["unskinned_distance"])

@@ -133,6 +133,7 @@ class TestEveryStateSaysWhatIsShown(HostileTestCase):
             "the Global effect": lambda: setattr(obj.lvp, "effect", 'GLOBAL'),
             "Fold-Over Prevention": lambda: setattr(obj.lvp, "fold_over", True),
             "the object scaled": lambda: setattr(obj, "scale", (1.5, 1.0, 0.7)),
+            "parented with Armature Deform as well": lambda: setattr(obj, "parent_type", 'ARMATURE'),
         }
 
     def test_each_action(self):
@@ -147,6 +148,19 @@ class TestEveryStateSaysWhatIsShown(HostileTestCase):
                     self.scene.frame_set(frame)
                     if self.addon.node_group.find_modifier(self.obj).show_viewport:
                         self.assertNeverSilentlyWrong(message="%s, frame %d" % (name, frame))
+
+
+class TestDeformedTwice(HostileTestCase):
+    """Parented with Armature Deform and an Armature modifier as well (what some imports and old files
+    have): Blender deforms the mesh twice, and the positions are not the bound skinning."""
+
+    def test_parent_deform_and_armature_modifier(self):
+        self.obj.parent_type = 'ARMATURE'
+        self.show_frame(10)
+        level, status = self.assertNeverSilentlyWrong(message="deformed twice")
+        self.assertEqual(level, 'WARNING')
+        self.assertIn("Parent Type to Object", status)
+        self.assertGreater(self.addon.bindings.entry(self.obj).stats["unskinned_distance"], 0.1)
 
 
 class TestTopologyEdits(HostileTestCase):

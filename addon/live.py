@@ -183,8 +183,12 @@ def correct_object(obj, depsgraph, check_topology=False):
     modifier = node_group.find_modifier(obj)
     if modifier is None:
         return False
-    if not node_group.is_current(modifier.node_group) and is_main_thread():
+    if not node_group.is_current(modifier.node_group):
         # Deleted or edited by hand: what it does is no longer the correction the panel reports.
+        if not is_main_thread():
+            bindings.set_status(obj, 'ERROR', "The modifier's node group was deleted or edited: it is rebuilt at "
+                                              "the next frame shown in the viewport")
+            return False
         node_group.repair_modifiers([obj])
         modifier = node_group.find_modifier(obj)
     if check_topology:
@@ -221,9 +225,6 @@ def correct_object(obj, depsgraph, check_topology=False):
 
 def _paused(obj, modifier, depsgraph):
     """(level, status) when obj is left as it is this time (nothing written), else None."""
-    if not node_group.is_current(modifier.node_group):  # only off the main thread, which cannot repair it
-        return 'ERROR', ("The modifier's node group was deleted or edited: it is rebuilt at the next frame shown "
-                         "in the viewport")
     if obj.mode in {'EDIT', 'SCULPT'}:
         # Those modes own the mesh data while they run; writing it from a handler would fight them.
         return 'INFO', "Paused in %s Mode" % obj.mode.title()
@@ -323,9 +324,7 @@ def _correct(obj, bound, check_topology):
     if stats["unskinned_distance"] > 0.0 and abs(stats["volume_after"] - rest) > abs(stats["volume_before"] - rest):
         # Positions that are not the bound skinning (an evaluation older than the weights) are measured
         # right, but the map and the regions are the binding's: when that made things worse, show none.
-        raise PassThrough("Passing the mesh through: the mesh entering Volume Preservation is not the skinning of "
-                          "the bound mesh by these bones (off by up to %.3g); press Bind if the weights or the rig "
-                          "changed" % stats["unskinned_distance"], 'WARNING')
+        raise PassThrough("Passing the mesh through: " + _not_the_bound_skinning(obj, stats), 'WARNING')
     displacement = stats["max_displacement"]
     if not displacement <= bound.displacement_limit:  # also catches NaN
         # A safety net, not a feature: never show a blown-up mesh to the animator.
@@ -333,6 +332,22 @@ def _correct(obj, bound, check_topology):
                           "mesh size): showing plain skinning for this frame"
                           % (displacement, bound.displacement_limit), 'WARNING')
     return stats
+
+
+def _deformed_by_parent(obj):
+    """Whether Blender deforms obj by its parent armature (Parent Type: Armature), with a modifier of
+    its own before the stack's: with an Armature modifier too, the mesh is deformed twice."""
+    return obj.parent is not None and obj.parent.type == 'ARMATURE' and obj.parent_type == 'ARMATURE'
+
+
+def _not_the_bound_skinning(obj, stats):
+    """What the core found (stats.unskinned_distance) when the positions are not the bound skinning,
+    with its likeliest cause and fix."""
+    if _deformed_by_parent(obj):
+        return ("its parent armature deforms it too (Object Properties > Relations > Parent Type: Armature), "
+                "before the Armature modifier does: set Parent Type to Object")
+    return ("the mesh entering Volume Preservation is not the skinning of the bound mesh by these bones (off by up "
+            "to %.3g): press Bind if the weights or the rig changed" % stats["unskinned_distance"])
 
 
 def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
@@ -348,15 +363,9 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
         # not correct them (they are in no region), but measures them where Blender put them.
         warnings.append("%d vertices without weights move by bone envelopes, which the correction leaves alone "
                         "(weight them, or turn off Bind To: Bone Envelopes)" % bound.unweighted_vertices)
-    if obj.parent is not None and obj.parent.type == 'ARMATURE' and obj.parent_type == 'ARMATURE':
-        # Blender deforms an object parented with Armature Deform by a modifier of its own, before the
-        # stack's: with an Armature modifier too, the mesh is deformed twice.
-        warnings.append("its parent armature deforms it too (Object Properties > Relations > Parent Type: Armature), "
-                        "before the Armature modifier does: set Parent Type to Object")
-    elif stats["unskinned_distance"] > 0.0:
-        warnings.append("the mesh entering Volume Preservation is not the skinning of the bound mesh by these bones "
-                        "(off by up to %.3g): measured the slow way; press Bind if the weights or the rig changed"
-                        % stats["unskinned_distance"])
+    if stats["unskinned_distance"] > 0.0 or _deformed_by_parent(obj):
+        slow = " (measured the slow way)" if stats["unskinned_distance"] > 0.0 else ""
+        warnings.append(_not_the_bound_skinning(obj, stats) + slow)
     if bound.stray_vertex is not None:
         vertex, distance = bound.stray_vertex
         warnings.append("vertex %d lies %.3g away from the armature, a stray? Its region's volume is measured "

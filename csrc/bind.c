@@ -39,38 +39,38 @@ void lvp_free(lvp_binding *binding)
 		return;
 	lvp__pool_destroy(binding->pool);
 	void *arrays[] = {
-	    binding->rest_positions, binding->triangles, binding->triangle_original, binding->triangle_region,
-	    binding->region_triangle_offsets, binding->weight_offsets, binding->weight_bones, binding->weight_values,
-	    binding->max_weight, binding->vertex_region, binding->rest_matrices, binding->rest_inverse, binding->rest_det,
-	    binding->heads, binding->tails, binding->bone_length, binding->rest_totals, binding->reference_volume,
-	    binding->slot_offsets, binding->slot_region, binding->vertex_corner_offsets, binding->vertex_triangles,
-	    binding->vertex_corner_slot, binding->origin_float, binding->skin_class, binding->triangle_gradient,
-	    binding->triangle_volume6, binding->triangle_dirty, binding->dirty_triangles, binding->vertex_dirty,
-	    binding->dirty_vertices, binding->moved, binding->step_backup, binding->corner_slot, binding->border_offsets,
-	    binding->border_edges, binding->border_slots, binding->border_gradient, binding->border_rest,
-	    binding->cap_edges, binding->gamma, binding->frame_gamma, binding->log_gamma, binding->distance,
-	    binding->region_bone_offsets,
-	    binding->region_bones, binding->region_movable, binding->step_mu, binding->neighbour_offsets,
-	    binding->neighbour_bones, binding->neighbour_contact, binding->region_vertex_offsets, binding->region_vertices,
-	    binding->work_positions,
-	    binding->normals, binding->vertex_g, binding->slot_gradient, binding->slot_g, binding->frozen, binding->sums,
-	    binding->origin, binding->change, binding->target, binding->uniform_gain, binding->total_gain,
-	    binding->frame_totals, binding->kappa, binding->vertex_class, binding->vertex_dynamic, binding->chunk_changed,
-	    binding->chunk_moved, binding->dynamic_triangles, binding->region_dynamic_offsets, binding->dynamic_vertices,
-	    binding->static_rest, binding->piece_first, binding->piece_region, binding->piece_sums,
-	    binding->static_count, binding->posed, binding->posed_inverse, binding->skin, binding->skin_displacement,
-	    binding->posed_heads, binding->posed_tails, binding->region_skipped, binding->region_touched, binding->active,
-	    binding->active_index, binding->coupling_offsets, binding->coupling, binding->solve_order,
-	    binding->system_profile.first, binding->system_profile.lower, binding->system_profile.upper,
-	    binding->normal_profile.first, binding->normal_profile.lower, binding->normal_profile.upper, binding->system,
-	    binding->factor, binding->normal, binding->assembly, binding->rhs, binding->solution, binding->row_values,
-	    binding->row_last, binding->still, binding->system_place, binding->mu,
-	    binding->region_corner_offsets, binding->region_corners, binding->region_state, binding->triangle_static,
-	    binding->bone_source, binding->region_part, binding->vertex_part, binding->cap_part_offsets,
-	    binding->part_bind_volume, binding->part_rest_volume, binding->part_scale, binding->part_change,
-	    binding->part_uniform, binding->part_sum, binding->part_gain, binding->stretch_offsets, binding->stretch_bones,
-	    binding->stretch_centre, binding->stretch_linear, binding->bone_entry, binding->stretch_offset,
-	    binding->stretch_regions, binding->stretch_change, binding->bone_stretch, binding->bone_stretch_invertible,
+	    binding->rest_positions, binding->mesh.triangles, binding->mesh.triangle_original, binding->mesh.triangle_region,
+	    binding->mesh.region_triangle_offsets, binding->rig.weight_offsets, binding->rig.weight_bones, binding->rig.weight_values,
+	    binding->mesh.max_weight, binding->mesh.vertex_region, binding->rig.rest_matrices, binding->rig.rest_inverse, binding->rig.rest_det,
+	    binding->rig.heads, binding->rig.tails, binding->rig.bone_length, binding->measure.rest_totals, binding->measure.reference_volume,
+	    binding->mesh.slot_offsets, binding->mesh.slot_region, binding->mesh.vertex_corner_offsets, binding->mesh.vertex_triangles,
+	    binding->mesh.vertex_corner_slot, binding->measure.origin_float, binding->frame_map.skin_class, binding->measure.triangle_gradient,
+	    binding->measure.triangle_volume6, binding->measure.triangle_dirty, binding->measure.dirty_triangles, binding->measure.vertex_dirty,
+	    binding->measure.dirty_vertices, binding->step.moved, binding->step.backup, binding->mesh.corner_slot, binding->borders.offsets,
+	    binding->borders.edges, binding->borders.slots, binding->borders.gradient, binding->borders.rest,
+	    binding->borders.cap_edges, binding->map.gamma, binding->frame_map.gamma, binding->map.log_gamma, binding->map.distance,
+	    binding->map.region_bone_offsets,
+	    binding->map.region_bones, binding->step.region_movable, binding->step.applied_mu, binding->mesh.neighbour_offsets,
+	    binding->mesh.neighbour_bones, binding->fold.contact, binding->mesh.region_vertex_offsets, binding->mesh.region_vertices,
+	    binding->step.positions,
+	    binding->measure.normals, binding->measure.vertex_g, binding->measure.slot_gradient, binding->measure.slot_g, binding->fold.held, binding->measure.sums,
+	    binding->measure.origin, binding->step.change, binding->step.target, binding->step.uniform_gain, binding->step.total_gain,
+	    binding->measure.frame_totals, binding->rig.kappa, binding->frame_map.vertex_class, binding->frame_map.vertex_dynamic, binding->frame_map.chunk_changed,
+	    binding->step.chunk_moved, binding->dynamic.triangles, binding->dynamic.region_offsets, binding->dynamic.vertices,
+	    binding->dynamic.static_rest, binding->measure.piece_first, binding->measure.piece_region, binding->measure.piece_sums,
+	    binding->dynamic.static_count, binding->rig.posed, binding->rig.posed_inverse, binding->rig.skin, binding->frame_map.skin_displacement,
+	    binding->rig.posed_heads, binding->rig.posed_tails, binding->rig.region_skipped, binding->step.region_touched, binding->step.active,
+	    binding->step.active_index, binding->system.coupling_offsets, binding->system.coupling, binding->system.solve_order,
+	    binding->system.profile.first, binding->system.profile.lower, binding->system.profile.upper,
+	    binding->system.normal_profile.first, binding->system.normal_profile.lower, binding->system.normal_profile.upper, binding->system.matrix,
+	    binding->system.factor, binding->system.normal, binding->system.assembly, binding->system.rhs, binding->system.solution, binding->system.row_values,
+	    binding->system.row_last, binding->system.still, binding->system.place, binding->step.mu,
+	    binding->mesh.region_corner_offsets, binding->mesh.region_corners, binding->dynamic.region_state, binding->dynamic.triangle_static,
+	    binding->rig.bone_source, binding->parts.region_part, binding->parts.vertex_part, binding->borders.cap_part_offsets,
+	    binding->parts.bind_volume, binding->parts.rest_volume, binding->parts.scale, binding->parts.change,
+	    binding->parts.uniform, binding->step.part_total, binding->step.part_gain, binding->stretch.offsets, binding->stretch.bones,
+	    binding->stretch.centre, binding->stretch.linear, binding->stretch.bone_entry, binding->stretch.corner_offset,
+	    binding->stretch.regions, binding->stretch.change, binding->stretch.bone_stretch, binding->stretch.bone_stretch_invertible,
 	};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
@@ -110,31 +110,31 @@ static bool lvp__map_needs_skeleton(lvp_map map)
 static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 {
 	int32_t n = binding->vertex_count;
-	memcpy(binding->weight_offsets, weights->offsets, sizeof(int32_t) * (size_t)(n + 1));
+	memcpy(binding->rig.weight_offsets, weights->offsets, sizeof(int32_t) * (size_t)(n + 1));
 	for (int32_t k = 0; k < n; ++k) {
 		int32_t begin = weights->offsets[k], end = weights->offsets[k + 1];
 		double sum = 0.0;
 		for (int32_t e = begin; e < end; ++e)
 			sum += weights->values[e];
 		for (int32_t e = begin; e < end; ++e)
-			binding->weight_values[e] = sum > 0.0 ? (float)(weights->values[e] / sum) : 0.0f;
+			binding->rig.weight_values[e] = sum > 0.0 ? (float)(weights->values[e] / sum) : 0.0f;
 	}
 }
 
 /* The internal bones: each a copy of its caller's bone (binding.h). */
 static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
 {
-	binding->skeleton_reach = 0.0;
+	binding->rig.reach = 0.0;
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
 		int32_t source = lvp__caller_bone(binding, i);
-		binding->rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
-		lvp__mat4_invert_affine(&binding->rest_inverse[i], &binding->rest_matrices[i]); /* checked before */
-		binding->rest_det[i] = lvp__mat4_det3(&binding->rest_matrices[i]);
-		binding->heads[i] = lvp__load(skeleton->heads + 3 * source);
-		binding->tails[i] = lvp__load(skeleton->tails + 3 * source);
-		binding->bone_length[i] = lvp__length(lvp__sub(binding->tails[i], binding->heads[i]));
-		binding->skeleton_reach =
-		    fmax(binding->skeleton_reach, fmax(lvp__length(binding->heads[i]), lvp__length(binding->tails[i])));
+		binding->rig.rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
+		lvp__mat4_invert_affine(&binding->rig.rest_inverse[i], &binding->rig.rest_matrices[i]); /* checked before */
+		binding->rig.rest_det[i] = lvp__mat4_det3(&binding->rig.rest_matrices[i]);
+		binding->rig.heads[i] = lvp__load(skeleton->heads + 3 * source);
+		binding->rig.tails[i] = lvp__load(skeleton->tails + 3 * source);
+		binding->rig.bone_length[i] = lvp__length(lvp__sub(binding->rig.tails[i], binding->rig.heads[i]));
+		binding->rig.reach =
+		    fmax(binding->rig.reach, fmax(lvp__length(binding->rig.heads[i]), lvp__length(binding->rig.tails[i])));
 	}
 }
 
@@ -190,11 +190,11 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	binding->mode = options->mode;
 	binding->vertex_count = vertex_count;
 	binding->triangle_count = triangle_count;
-	binding->weight_bones = parts.weight_bones;
-	binding->bone_source = parts.bone_source;
-	binding->region_part = parts.bone_part; /* regions are internal bones in local mode */
-	binding->vertex_part = parts.vertex_part;
-	binding->part_count = parts.part_count;
+	binding->rig.weight_bones = parts.weight_bones;
+	binding->rig.bone_source = parts.bone_source;
+	binding->parts.region_part = parts.bone_part; /* regions are internal bones in local mode */
+	binding->parts.vertex_part = parts.vertex_part;
+	binding->parts.count = parts.part_count;
 	binding->caller_bone_count = has_skeleton ? skeleton->bone_count : 0;
 	binding->bone_count = has_skeleton ? parts.bone_count : 0;
 	binding->region_count = options->mode == LVP_MODE_LOCAL ? binding->bone_count : 1;
@@ -204,91 +204,91 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	size_t e = has_skeleton ? (size_t)weights->offsets[vertex_count] : 0;
 
 	binding->rest_positions = lvp__alloc(n * 3, sizeof(float), &ok);
-	binding->triangles = lvp__alloc(f * 3, sizeof(int32_t), &ok);
-	binding->triangle_original = lvp__alloc(f, sizeof(int32_t), &ok);
-	binding->triangle_region = lvp__alloc(f, sizeof(int32_t), &ok);
-	binding->region_triangle_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
-	binding->max_weight = lvp__alloc(n, sizeof(float), &ok);
-	binding->vertex_region = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->mesh.triangles = lvp__alloc(f * 3, sizeof(int32_t), &ok);
+	binding->mesh.triangle_original = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->mesh.triangle_region = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->mesh.region_triangle_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->mesh.max_weight = lvp__alloc(n, sizeof(float), &ok);
+	binding->mesh.vertex_region = lvp__alloc(n, sizeof(int32_t), &ok);
 	if (has_skeleton) {
-		binding->weight_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
-		binding->weight_values = lvp__alloc(e, sizeof(float), &ok);
-		binding->rest_matrices = lvp__alloc(b, sizeof(lvp__mat4), &ok);
-		binding->rest_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
-		binding->rest_det = lvp__alloc(b, sizeof(double), &ok);
-		binding->heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
-		binding->tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
-		binding->bone_length = lvp__alloc(b, sizeof(double), &ok);
-		binding->posed = lvp__alloc(b, sizeof(lvp__mat4), &ok);
-		binding->posed_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
-		binding->skin = lvp__alloc(b, sizeof(lvp__mat4), &ok);
-		binding->skin_displacement = lvp__alloc(b * 12, sizeof(float), &ok);
-		binding->posed_heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
-		binding->posed_tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->rig.weight_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
+		binding->rig.weight_values = lvp__alloc(e, sizeof(float), &ok);
+		binding->rig.rest_matrices = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rig.rest_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rig.rest_det = lvp__alloc(b, sizeof(double), &ok);
+		binding->rig.heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->rig.tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->rig.bone_length = lvp__alloc(b, sizeof(double), &ok);
+		binding->rig.posed = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rig.posed_inverse = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->rig.skin = lvp__alloc(b, sizeof(lvp__mat4), &ok);
+		binding->frame_map.skin_displacement = lvp__alloc(b * 12, sizeof(float), &ok);
+		binding->rig.posed_heads = lvp__alloc(b, sizeof(lvp__vec3), &ok);
+		binding->rig.posed_tails = lvp__alloc(b, sizeof(lvp__vec3), &ok);
 	}
-	binding->rest_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
-	binding->reference_volume = lvp__alloc(s, sizeof(double), &ok);
-	binding->slot_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
-	binding->corner_slot = lvp__alloc(f * 3, sizeof(int32_t), &ok);
-	binding->gamma = lvp__alloc(n, sizeof(float), &ok);
-	binding->frame_gamma = lvp__alloc(n, sizeof(float), &ok);
-	binding->distance = lvp__alloc(n, sizeof(float), &ok);
-	binding->log_gamma = lvp__alloc(n, sizeof(double), &ok);
-	binding->region_movable = lvp__alloc(s, sizeof(uint8_t), &ok);
-	binding->step_mu = lvp__alloc(s, sizeof(double), &ok);
-	binding->region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
-	binding->region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
-	binding->work_positions = lvp__alloc(n * 3, sizeof(float), &ok);
-	binding->normals = lvp__alloc(n * 3, sizeof(float), &ok);
-	binding->vertex_g = lvp__alloc(n, sizeof(float), &ok);
-	binding->triangle_gradient = lvp__alloc(f * 3, sizeof(float), &ok);
-	binding->triangle_volume6 = lvp__alloc(f, sizeof(float), &ok);
-	binding->triangle_dirty = lvp__alloc(f, sizeof(uint8_t), &ok);
-	binding->dirty_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
-	binding->vertex_dirty = lvp__alloc(n, sizeof(uint8_t), &ok);
-	binding->dirty_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
-	binding->moved = lvp__alloc(n, sizeof(int32_t), &ok);
-	binding->step_backup = lvp__alloc(n * 3, sizeof(float), &ok);
-	binding->frozen = lvp__alloc(n, sizeof(uint8_t), &ok);
-	binding->sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
-	binding->origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);
-	binding->origin_float = lvp__alloc((s + 1) * 3, sizeof(float), &ok);
-	binding->skin_class = lvp__alloc(b, sizeof(int32_t), &ok);
-	binding->change = lvp__alloc(s, sizeof(double), &ok);
-	binding->target = lvp__alloc(s, sizeof(double), &ok);
-	binding->uniform_gain = lvp__alloc(s, sizeof(double), &ok);
-	binding->total_gain = lvp__alloc(s, sizeof(double), &ok);
-	binding->kappa = lvp__alloc(s, sizeof(double), &ok);
-	binding->frame_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
-	binding->vertex_class = lvp__alloc(n, sizeof(int32_t), &ok);
-	binding->vertex_dynamic = lvp__alloc(n, sizeof(uint8_t), &ok);
-	binding->chunk_changed = lvp__alloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
-	binding->chunk_moved = lvp__alloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
-	binding->dynamic_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
-	binding->region_dynamic_offsets = lvp__alloc(s + 2, sizeof(int32_t), &ok);
-	binding->region_state = lvp__alloc(s + 1, sizeof(uint8_t), &ok);
-	binding->triangle_static = lvp__alloc(f, sizeof(uint8_t), &ok);
-	binding->dynamic_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
-	binding->static_rest = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	binding->measure.rest_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	binding->measure.reference_volume = lvp__alloc(s, sizeof(double), &ok);
+	binding->mesh.slot_offsets = lvp__alloc(n + 1, sizeof(int32_t), &ok);
+	binding->mesh.corner_slot = lvp__alloc(f * 3, sizeof(int32_t), &ok);
+	binding->map.gamma = lvp__alloc(n, sizeof(float), &ok);
+	binding->frame_map.gamma = lvp__alloc(n, sizeof(float), &ok);
+	binding->map.distance = lvp__alloc(n, sizeof(float), &ok);
+	binding->map.log_gamma = lvp__alloc(n, sizeof(double), &ok);
+	binding->step.region_movable = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->step.applied_mu = lvp__alloc(s, sizeof(double), &ok);
+	binding->mesh.region_vertex_offsets = lvp__alloc(s + 1, sizeof(int32_t), &ok);
+	binding->mesh.region_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->step.positions = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->measure.normals = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->measure.vertex_g = lvp__alloc(n, sizeof(float), &ok);
+	binding->measure.triangle_gradient = lvp__alloc(f * 3, sizeof(float), &ok);
+	binding->measure.triangle_volume6 = lvp__alloc(f, sizeof(float), &ok);
+	binding->measure.triangle_dirty = lvp__alloc(f, sizeof(uint8_t), &ok);
+	binding->measure.dirty_triangles = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->measure.vertex_dirty = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->measure.dirty_vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->step.moved = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->step.backup = lvp__alloc(n * 3, sizeof(float), &ok);
+	binding->fold.held = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->measure.sums = lvp__alloc(s + 1, sizeof(lvp__region_sums), &ok);
+	binding->measure.origin = lvp__alloc(s, sizeof(lvp__vec3), &ok);
+	binding->measure.origin_float = lvp__alloc((s + 1) * 3, sizeof(float), &ok);
+	binding->frame_map.skin_class = lvp__alloc(b, sizeof(int32_t), &ok);
+	binding->step.change = lvp__alloc(s, sizeof(double), &ok);
+	binding->step.target = lvp__alloc(s, sizeof(double), &ok);
+	binding->step.uniform_gain = lvp__alloc(s, sizeof(double), &ok);
+	binding->step.total_gain = lvp__alloc(s, sizeof(double), &ok);
+	binding->rig.kappa = lvp__alloc(s, sizeof(double), &ok);
+	binding->measure.frame_totals = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
+	binding->frame_map.vertex_class = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->frame_map.vertex_dynamic = lvp__alloc(n, sizeof(uint8_t), &ok);
+	binding->frame_map.chunk_changed = lvp__alloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
+	binding->step.chunk_moved = lvp__alloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
+	binding->dynamic.triangles = lvp__alloc(f, sizeof(int32_t), &ok);
+	binding->dynamic.region_offsets = lvp__alloc(s + 2, sizeof(int32_t), &ok);
+	binding->dynamic.region_state = lvp__alloc(s + 1, sizeof(uint8_t), &ok);
+	binding->dynamic.triangle_static = lvp__alloc(f, sizeof(uint8_t), &ok);
+	binding->dynamic.vertices = lvp__alloc(n, sizeof(int32_t), &ok);
+	binding->dynamic.static_rest = lvp__alloc(s, sizeof(lvp__region_sums), &ok);
 	size_t pieces = f / LVP__GRAIN + s + 2;
-	binding->piece_first = lvp__alloc(pieces + 1, sizeof(int32_t), &ok);
-	binding->piece_region = lvp__alloc(pieces, sizeof(int32_t), &ok);
-	binding->piece_sums = lvp__alloc(pieces, sizeof(lvp__region_sums), &ok);
-	binding->static_count = lvp__alloc(s, sizeof(int32_t), &ok);
-	binding->region_skipped = lvp__alloc(s, sizeof(uint8_t), &ok);
-	binding->region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
-	binding->active = lvp__alloc(s, sizeof(int32_t), &ok);
-	binding->active_index = lvp__alloc(s, sizeof(int32_t), &ok);
-	binding->mu = lvp__alloc(s, sizeof(double), &ok);
-	size_t parts_count = (size_t)binding->part_count;
-	binding->cap_part_offsets = lvp__alloc(parts_count + 1, sizeof(int32_t), &ok);
-	binding->part_bind_volume = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_rest_volume = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_scale = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_change = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_uniform = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_sum = lvp__alloc(parts_count, sizeof(double), &ok);
-	binding->part_gain = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->measure.piece_first = lvp__alloc(pieces + 1, sizeof(int32_t), &ok);
+	binding->measure.piece_region = lvp__alloc(pieces, sizeof(int32_t), &ok);
+	binding->measure.piece_sums = lvp__alloc(pieces, sizeof(lvp__region_sums), &ok);
+	binding->dynamic.static_count = lvp__alloc(s, sizeof(int32_t), &ok);
+	binding->rig.region_skipped = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->step.region_touched = lvp__alloc(s, sizeof(uint8_t), &ok);
+	binding->step.active = lvp__alloc(s, sizeof(int32_t), &ok);
+	binding->step.active_index = lvp__alloc(s, sizeof(int32_t), &ok);
+	binding->step.mu = lvp__alloc(s, sizeof(double), &ok);
+	size_t parts_count = (size_t)binding->parts.count;
+	binding->borders.cap_part_offsets = lvp__alloc(parts_count + 1, sizeof(int32_t), &ok);
+	binding->parts.bind_volume = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->parts.rest_volume = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->parts.scale = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->parts.change = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->parts.uniform = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->step.part_total = lvp__alloc(parts_count, sizeof(double), &ok);
+	binding->step.part_gain = lvp__alloc(parts_count, sizeof(double), &ok);
 	if (!ok) {
 		lvp_free(binding);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
@@ -296,7 +296,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		                 (int)triangle_count);
 	}
 	memcpy(binding->rest_positions, rest_positions, sizeof(float) * n * 3);
-	memcpy(binding->triangles, triangles, sizeof(int32_t) * f * 3);
+	memcpy(binding->mesh.triangles, triangles, sizeof(int32_t) * f * 3);
 	if (has_skeleton) {
 		lvp__copy_weights(binding, weights);
 		lvp__copy_skeleton(binding, skeleton);
@@ -317,7 +317,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 	}
 	lvp__reference_volumes(binding);
 	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);
-	lvp__part_volumes(binding, binding->rest_positions, binding->part_bind_volume);
+	lvp__volumes_of_parts(binding, binding->rest_positions, binding->parts.bind_volume);
 	lvp__vec3 lo = lvp__load(rest_positions), hi = lo;
 	for (int32_t k = 1; k < vertex_count; ++k) {
 		lvp__vec3 p = lvp__load(rest_positions + 3 * k);
@@ -325,7 +325,7 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		hi = lvp__v(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
 	}
 	binding->size = lvp__length(lvp__sub(hi, lo));
-	lvp__rest_constants(binding, NULL, binding->rest_totals);
+	lvp__rest_constants(binding, NULL, binding->measure.rest_totals);
 	lvp__frame_rest(binding, NULL);
 	*r_binding = binding;
 	return lvp_success;
@@ -340,7 +340,7 @@ lvp_result lvp_set_map(lvp_binding *binding, const lvp_map_options *map, lvp_dia
 	if (binding->bone_count == 0 && lvp__map_needs_skeleton(map->map))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "map.map", -1,
 		                 "this binding has no skeleton; only UNIFORM and PAINTED maps are possible.");
-	binding->frame_map_current = false; /* the flags depend on the map */
+	binding->frame_map.current = false; /* the flags depend on the map */
 	return lvp__build_map(binding, map, r_diag);
 }
 
@@ -365,7 +365,7 @@ int32_t lvp_region_count(const lvp_binding *binding)
 
 int32_t lvp_flipped_edge_count(const lvp_binding *binding)
 {
-	return binding ? binding->flipped_edge_count : 0;
+	return binding ? binding->borders.flipped_edge_count : 0;
 }
 
 void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions, int32_t *r_triangle_regions)
@@ -375,15 +375,15 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
 	/* Regions are internal bones in local mode: answered as the caller's bones (binding.h). */
 	if (r_vertex_regions)
 		for (int32_t k = 0; k < binding->vertex_count; ++k)
-			r_vertex_regions[k] = lvp__caller_bone(binding, binding->vertex_region[k]);
+			r_vertex_regions[k] = lvp__caller_bone(binding, binding->mesh.vertex_region[k]);
 	if (r_triangle_regions)
 		for (int32_t t = 0; t < binding->triangle_count; ++t)
-			r_triangle_regions[binding->triangle_original[t]] = lvp__caller_bone(binding, binding->triangle_region[t]);
+			r_triangle_regions[binding->mesh.triangle_original[t]] = lvp__caller_bone(binding, binding->mesh.triangle_region[t]);
 }
 
 void lvp_get_correction_map(const lvp_binding *binding, float *r_map)
 {
 	if (!binding || !r_map)
 		return;
-	memcpy(r_map, binding->gamma, sizeof(float) * (size_t)binding->vertex_count);
+	memcpy(r_map, binding->map.gamma, sizeof(float) * (size_t)binding->vertex_count);
 }

@@ -27,7 +27,7 @@
 
 /* The region system is summed over the dynamic vertices in at most LVP__ASSEMBLY_CHUNKS chunks
  * of at least LVP__GRAIN vertices, cut where the dynamic vertex count alone says (not the
- * thread count), each into its own block of binding->assembly: the sums, then one gain per
+ * thread count), each into its own block of binding->system.assembly: the sums, then one gain per
  * column of the system and a spare one, a cache line apart from the next block. The blocks are
  * added in chunk order. The sums of a system of up to LVP__ROWS_ASSEMBLY regions are (count +
  * 1)^2, row by row with a spare row and column, which the assembly indexes with one load per
@@ -74,225 +74,281 @@ typedef struct lvp__system_place {
 	int32_t index, first, lower, upper;
 } lvp__system_place;
 
-struct lvp_binding {
-	lvp_mode mode;
-	lvp__pool *pool; /* worker threads, NULL for one thread */
-	/* bone_count counts the internal bones (parts.c): the caller's, then, when several separate
-	 * parts of the mesh bend, a copy of each bone for every part after the first that uses it.
-	 * Every array below indexed by bone or region is over the internal bones; the public API
-	 * answers in the caller's bones (bind.c, correction.c). */
-	int32_t vertex_count, triangle_count, bone_count, region_count;
-	int32_t caller_bone_count;
-	int32_t *bone_source;    /* bone_count: the caller's bone of each internal bone; NULL when none is a copy */
-	/* Separate parts: the whole-mesh step of lvp.h (ALGORITHM, 5) restores each part's volume
-	 * (correction.c). Part 0: all that is on the caller's bones (the first part that bends, parts
-	 * one bone carries, triangles without region); then each split part. */
-	int32_t part_count;      /* 1 when nothing is split */
-	int32_t *region_part;    /* region_count: the part of each region, or NULL (all part 0) */
-	int32_t *vertex_part;    /* vertex_count, or NULL */
-	int32_t *cap_part_offsets; /* part_count+1 into cap_edges, which are sorted by the part of their hole */
+/* ---- the stages' data ------------------------------------------------------------------------
+ * Each stage of the method keeps its data in a struct of its own, allocated and freed by the
+ * file that implements it (lvp__<stage>_alloc at bind, lvp__<stage>_free): bind-time constants,
+ * then what it works out each frame. Arrays "per region" have region_count entries, "per bone"
+ * bone_count (the internal bones, see lvp_binding), "per vertex" vertex_count. A stage reads
+ * the others' data; it writes only its own, and a cache that depends on another stage's data is
+ * marked stale through the owner's function (lvp__frame_map_stale, lvp__dynamic_set_stale). */
 
-	/* ---- rest mesh (copied) ---- */
-	float *rest_positions;  /* vertex_count*3 */
-	int32_t *triangles;     /* triangle_count*3, SORTED BY REGION (region -1 last) */
-	int32_t *triangle_original; /* sorted position -> caller's triangle index */
-	int32_t *triangle_region;   /* per sorted triangle */
-	int32_t *region_triangle_offsets; /* region_count+1 into the sorted triangles; the
-	                                     triangles after offsets[region_count] have no region */
-
-	/* ---- weights, normalized by their sum (copied) ---- */
-	int32_t *weight_offsets; /* vertex_count+1, or NULL without weights */
-	int32_t *weight_bones;
+/* The rig (rig.c): the weights and the bones as bound, and this frame's bones. */
+typedef struct lvp__rig {
+	/* Weights normalized by their sum, as Blender's Armature modifier normalizes them. */
+	int32_t *weight_offsets;  /* vertex_count+1, or NULL without weights */
+	int32_t *weight_bones;    /* internal bones */
 	float *weight_values;
-	float *max_weight;       /* vertex_count: w_k = max_i omega_ki (0 without weight) */
-	int32_t *vertex_region;  /* vertex_count, -1 = none */
-
-	/* ---- skeleton (copied; bone_count may be 0 in global mode) ---- */
-	lvp__mat4 *rest_matrices;
-	lvp__mat4 *rest_inverse;
-	double *rest_det;        /* det of the rest matrices' 3x3 part */
+	int32_t *bone_source;     /* per bone: its caller's bone; NULL when none is a copy */
+	lvp__mat4 *rest_matrices, *rest_inverse;
+	double *rest_det;         /* det of the rest matrices' 3x3 part */
 	lvp__vec3 *heads, *tails;
 	double *bone_length;
+	double reach;             /* the farthest rest head or tail from the mesh's origin */
+	/* This frame (lvp__prepare_frame): */
+	lvp__mat4 *posed, *posed_inverse;
+	lvp__mat4 *skin;          /* posed * rest^-1 */
+	lvp__vec3 *posed_heads, *posed_tails;
+	double *kappa;            /* per region: det(rest) / det(posed) of its bone */
+	uint8_t *region_skipped;  /* per region: its bone is scaled to zero (lvp.h, the documented fallback) */
+} lvp__rig;
 
-	/* ---- region origin and reference volume ---- */
-	double rest_volume;          /* signed volume of the bind rest mesh */
-	double size;                 /* diagonal of the rest bounding box */
-	double skeleton_reach;       /* the farthest rest head or tail from the mesh's origin */
-	lvp__vec3 global_origin;     /* global mode: rest centroid, to keep the sums well conditioned */
-	lvp__region_sums *rest_totals; /* region_count: the region sums of the bind rest, about each bone's rest origin */
-	double *reference_volume;    /* region_count: V_ref,s for the tolerance (0 = empty region) */
-
-	/* ---- slots: the distinct regions of the triangles around each vertex ---- */
-	int32_t *slot_offsets;   /* vertex_count+1 */
-	int32_t *slot_region;    /* slot -> region (-1 for triangles without region) */
-	int32_t *corner_slot;    /* sorted triangle corner -> slot */
+/* The bound mesh as the method walks it (segmentation.c): regions, triangles sorted by region,
+ * and the adjacency every stage uses. */
+typedef struct lvp__mesh {
+	int32_t *triangles;       /* triangle_count*3, SORTED BY REGION (region -1 last) */
+	int32_t *triangle_original; /* sorted position -> caller's triangle index */
+	int32_t *triangle_region;   /* per sorted triangle */
+	int32_t *region_triangle_offsets; /* region_count+1 into the sorted triangles; the triangles
+	                                     after offsets[region_count] have no region */
+	int32_t *vertex_region;   /* per vertex, -1 = none */
+	float *max_weight;        /* per vertex: w_k = max_i omega_ki (0 without weight) */
+	/* Slots: the distinct regions of the triangles around each vertex. */
+	int32_t *slot_offsets;    /* vertex_count+1 */
+	int32_t *slot_region;     /* slot -> region (-1 for triangles without region) */
+	int32_t *corner_slot;     /* sorted triangle corner -> slot */
 	int32_t slot_count;
 	int32_t *vertex_corner_offsets; /* vertex_count+1: the sorted-triangle corners around each vertex */
 	int32_t *vertex_triangles;      /* per such corner: its triangle */
 	int32_t *vertex_corner_slot;    /* per such corner: the vertex's slot for that triangle */
-
-	/* ---- the distinct corner vertices of each region's triangles (a region is static in a
-	 * frame when all of them are: lvp__dynamic_set then skips its triangles unread) ---- */
+	/* The distinct corner vertices of each region's triangles (a region is static in a frame
+	 * when all of them are: lvp__find_dynamic_set then skips its triangles unread). */
 	int32_t *region_corner_offsets; /* region_count+1 */
 	int32_t *region_corners;
+	int32_t *region_vertex_offsets; /* region_count+1: each region's vertices */
+	int32_t *region_vertices;
+	int32_t *neighbour_offsets; /* region_count+1: the bones sharing influence with each region */
+	int32_t *neighbour_bones;
+} lvp__mesh;
 
-	/* ---- region borders: half-edges whose side quad does not cancel ---- */
-	int32_t *border_offsets; /* region_count+1 */
-	int32_t *border_edges;   /* 2 per border half-edge: a, b in the triangle's orientation */
-	int32_t *border_slots;   /* 2 per border half-edge: the slots of a and b for the region */
-	float *border_gradient;  /* 6 per border half-edge: this frame's border terms of the region's
-	                            volume gradient at a and at b (world, lvp__region_changes) */
-	lvp__vec3 *border_rest;  /* 2 per border half-edge: with A, B its ends at rest in the region's rest
-	                            frame, A + B and A x B (all its side quad needs of the rest,
-	                            lvp__side_quad6; lvp__frame_rest) */
-	bool border_rest_is_bind; /* border_rest holds the bind rest, not a frame's own */
-
-	/* ---- the mesh's own holes (surplus half-edges over the whole mesh) ---- */
-	int32_t *cap_edges;      /* 2 per half-edge */
-	int32_t cap_edge_count;
-	int32_t flipped_edge_count; /* edges of two triangles wound against each other */
-
-	/* ---- correction map and how region multipliers reach vertices ---- */
-	lvp_map_options map;     /* map kind, alpha, beta (pointers cleared after copy) */
-	float *gamma;            /* vertex_count, normalized to max 1 */
-	float *frame_gamma;      /* vertex_count: this frame's map, gamma times deformation weighting */
-	float *distance;         /* vertex_count: rest distance to the nearest (allowed) bone */
-	double *log_gamma;       /* vertex_count: the map before normalization, as a logarithm */
+/* The bind map (map.c): gamma of lvp.h, and how region multipliers reach vertices. */
+typedef struct lvp__map {
+	lvp_map_options options;  /* map kind, alpha, beta (pointers cleared after copy) */
+	float *gamma;             /* per vertex, normalized to max 1 */
+	float *distance;          /* per vertex: rest distance to the nearest (allowed) bone */
+	double *log_gamma;        /* per vertex: the map before normalization, as a logarithm */
 	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
 	int32_t *region_bones;
 	/* What reaches a vertex: rho_k = gamma_k g_k sum_t phi_kt mu_t over its support
 	 * (correction.c, lvp__vertex_support): with a soft map the bones of its weights, phi = the
 	 * weight; with the boundary fade, or in global mode, its one region, phi = 1. */
 	bool soft_support;
-	uint8_t *region_movable;  /* region_count: some vertex of its support can move this frame */
-	int32_t movable_entries;  /* this frame's support entries of vertices that can move */
+} lvp__map;
 
-	/* ---- fold-over: neighbouring bones of each region, and each region's vertices ---- */
-	int32_t *neighbour_offsets; /* region_count+1 */
-	int32_t *neighbour_bones;
-	uint8_t *neighbour_contact; /* per neighbour entry, this frame: LVP__CONTACT_* (foldover.c) */
-	int32_t *region_vertex_offsets; /* region_count+1 */
-	int32_t *region_vertices;
-
-	/* ---- bones stretched against the bones they blend with (stretch.c) ---- */
-	int32_t *stretch_offsets; /* region_count+1 (local mode) */
-	int32_t *stretch_bones;   /* per entry: a bone other than the region's weighting a corner of its triangles */
-	lvp__vec3 *stretch_centre; /* per entry: where the pair's relative stretch is taken about (rest) */
-	lvp__mat4 *stretch_linear; /* per entry, this frame: U_r^-1 U_b - I in the mesh's coordinates (its 3x3) */
-	lvp__mat4 *bone_stretch;  /* bone_count*2, this frame: each bone's stretch U and U^-1 in the rigid frame */
-	uint8_t *bone_stretch_invertible; /* bone_count, this frame: U^-1 is set (U is, always) */
-	int32_t *bone_entry;      /* LVP__STRETCH_GROUPS*bone_count: scratch per group, -1 between uses (the
-	                           * entry of each bone for the region at hand) */
-	float *stretch_offset;    /* slot_count*3: scratch, y - x at each corner of each stretched region */
-	int32_t *stretch_regions; /* region_count, this frame: the stretched regions, in order */
-	int32_t stretch_group_first[LVP__STRETCH_GROUPS + 1]; /* this frame: groups of stretch_regions */
-	int32_t stretch_group_count;
-	double *stretch_change;   /* region_count: the reference change of this frame (zero without stretch) */
-	bool stretch_frame;       /* some pair is stretched this frame */
-
-	/* ---- per-frame work memory ---- */
-	float *work_positions;   /* vertex_count*3 */
-	float *normals;          /* vertex_count*3 */
-	float *vertex_g;         /* vertex_count: g_k = <n_k, grad_k V> */
-	float *slot_gradient;    /* slot_count*3 */
-	float *slot_g;           /* slot_count: <n_k, part of grad_k V from the slot's region> */
-	bool vertex_terms_current; /* normals, g and slot gradients gathered for the last mesh pass */
-	float *triangle_gradient; /* triangle_count*3: cr / 6 of the last pass */
-	float *triangle_volume6;  /* triangle_count: (p0 - o) . cr of the last pass (a float product) */
-	uint8_t *triangle_dirty;  /* triangle_count, kept zero between uses */
-	int32_t *dirty_triangles; /* triangle_count */
-	uint8_t *vertex_dirty;    /* vertex_count, kept zero between uses */
-	int32_t *dirty_vertices;  /* vertex_count */
-	int32_t *moved;           /* vertex_count: vertices moved by the last step */
-	float *step_backup;       /* vertex_count*3: their positions before it, in the same order */
-	int32_t moved_count;
-	int32_t *chunk_moved;     /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
-	uint8_t *frozen;         /* vertex_count, kept zero between uses */
-	lvp__region_sums *sums;  /* region_count + 1 (the last: triangles without region, origin 0) */
-	/* The dynamic set (local_volume.c): what a pass visits. A triangle whose three corners follow
-	 * its region's bone rigidly is static: its terms are its rest terms moved by the bone. */
-	int32_t *vertex_class;   /* vertex_count: the skin class all its bones share this frame, or -1 */
-	uint8_t *vertex_dynamic; /* vertex_count: not rigid, movable by the map, or moved by fold-over */
-	int32_t *dynamic_triangles; /* triangle_count: the dynamic ones, in sorted order */
-	int32_t *region_dynamic_offsets; /* region_count+2 into dynamic_triangles (the last range: no region) */
-	uint8_t *region_state;    /* region_count+1: all dynamic, all static or mixed (local_volume.c) */
-	uint8_t *triangle_static; /* triangle_count: per triangle of a mixed region */
-	int32_t *dynamic_vertices; /* vertex_count: the dynamic vertices */
-	int32_t dynamic_vertex_count;
-	/* The set above is the bind rest's for the current vertex_dynamic, vertex_class, skin_class
-	 * and region_skipped (kept from frame to frame while they stay; lvp__dynamic_set). */
-	bool dynamic_set_current;
+/* This frame's map and the vertices' classes (frame_map.c). */
+typedef struct lvp__frame_map {
+	float *gamma;             /* per vertex: the bind map times the deformation weighting */
+	int32_t *skin_class;      /* per bone: bones with equal skin matrices this frame share a class */
+	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
+	int32_t *vertex_class;    /* per vertex: the skin class all its bones share this frame, or -1 */
+	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map, or moved by fold-over */
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
-	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map:
-	 * cleared by whatever changes one of them otherwise (frame_map.c, lvp__frame_map). */
-	bool frame_map_current;
+	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
+	 * lvp__frame_map_stale clears it when something else changes one of them. */
+	bool current;
 	/* This frame, the vertices one bone class carries were found elsewhere than that class puts
 	 * them (lvp__rigid_vertices_hold): every vertex is taken as dynamic, measured from the
 	 * positions given, and none is carried in closed form. */
 	bool rigid_shortcut_off;
-	/* Pieces of the dynamic triangles for the mesh pass (local_volume.c, lvp__piece_loop);
-	 * capacity triangle_count / LVP__GRAIN + region_count + 2. */
-	int32_t *piece_first;    /* piece_count + 1 into dynamic_triangles */
-	int32_t *piece_region;   /* region of each piece (region_count: triangles without region) */
+} lvp__frame_map;
+
+/* Region borders and the mesh's own holes (borders.c). */
+typedef struct lvp__borders {
+	/* Half-edges whose side quad does not cancel: */
+	int32_t *offsets;         /* region_count+1 */
+	int32_t *edges;           /* 2 per border half-edge: a, b in the triangle's orientation */
+	int32_t *slots;           /* 2 per border half-edge: the slots of a and b for the region */
+	float *gradient;          /* 6 per border half-edge: this frame's border terms of the region's
+	                             volume gradient at a and at b (world, lvp__region_changes) */
+	lvp__vec3 *rest;          /* 2 per border half-edge: with A, B its ends at rest in the region's rest
+	                             frame, A + B and A x B (all its side quad needs of the rest,
+	                             lvp__side_quad6; lvp__frame_rest) */
+	bool rest_is_bind;        /* rest holds the bind rest, not a frame's own */
+	/* The holes (surplus half-edges over the whole mesh): */
+	int32_t *cap_edges;       /* 2 per half-edge, sorted by the part of their hole */
+	int32_t cap_edge_count;
+	int32_t *cap_part_offsets; /* part count+1 into cap_edges */
+	int32_t flipped_edge_count; /* edges of two triangles wound against each other */
+} lvp__borders;
+
+/* The dynamic set (dynamic_set.c): what a mesh pass visits. A triangle whose three corners
+ * follow its region's bone rigidly is static: its terms are its rest terms moved by the bone. */
+typedef struct lvp__dynamic_set {
+	int32_t *triangles;       /* triangle_count: the dynamic ones, in sorted order */
+	int32_t *region_offsets;  /* region_count+2 into triangles (the last range: no region) */
+	uint8_t *region_state;    /* region_count+1: all dynamic, all static or mixed */
+	uint8_t *triangle_static; /* per triangle of a mixed region */
+	int32_t *vertices;        /* the dynamic vertices */
+	int32_t vertex_count;
+	lvp__region_sums *static_rest; /* per region: rest sums of the static triangles */
+	int32_t *static_count;    /* per region: how many static triangles */
+	/* The set is the bind rest's for the current vertex_dynamic, vertex_class, skin_class and
+	 * region_skipped (kept from frame to frame while they stay; lvp__dynamic_set_stale). */
+	bool current;
+} lvp__dynamic_set;
+
+/* Measuring (local_volume.c): the mesh pass, the region sums and changes, the vertex terms. */
+typedef struct lvp__measure {
+	lvp__region_sums *rest_totals;  /* per region: the sums of the bind rest, about each bone's rest origin */
+	lvp__region_sums *frame_totals; /* per region: the same of the frame's own rest, when given */
+	double *reference_volume;  /* per region: V_ref,s for the tolerance (0 = empty region) */
+	lvp__vec3 global_origin;   /* global mode: rest centroid, to keep the sums well conditioned */
+	/* This frame: */
+	lvp__vec3 *origin;         /* per region: its bone frame's origin, rounded to float */
+	float *origin_float;       /* (region_count + 1)*3: the same in float, last = 0 (no region) */
+	lvp__region_sums *sums;    /* region_count + 1 (the last: triangles without region, origin 0) */
+	/* Pieces of the dynamic triangles for the pass (lvp__piece_loop); capacity
+	 * triangle_count / LVP__GRAIN + region_count + 2. */
+	int32_t *piece_first;      /* piece_count + 1 into the dynamic triangles */
+	int32_t *piece_region;     /* region of each piece (region_count: triangles without region) */
 	lvp__region_sums *piece_sums; /* each piece's sums (area6: the sum of cr / 6) */
 	int32_t piece_count;
-	lvp__region_sums *static_rest; /* region_count: rest sums of the static triangles */
-	int32_t *static_count;   /* region_count: how many static triangles */
-	lvp__vec3 *origin;       /* region_count: this frame's origin of each region's bone frame */
-	float *origin_float;     /* (region_count + 1)*3: the same in float, last = 0 (no region) */
-	int32_t *skin_class;     /* bone_count: bones with equal skin matrices this frame share a class */
-	double *change;          /* region_count: V_s - V_s,rest in rest-world units */
-	double *target;          /* region_count: the change a region is corrected to (correction.c,
-	                            lvp__correct_volumes): stretch_change (zero where no bone is stretched
-	                            against another), plus its part of the whole mesh's fix */
-	double *uniform_gain;    /* region_count: per active region, what equal multipliers of all
-	                            active regions do to its volume (its row of the system) */
-	double *total_gain;      /* region_count: per active region, what its multiplier does to the
-	                            whole mesh's volume (sum_k g_k gamma_k g_k phi_kt) */
-	/* Per part (part_count each; correction.c): */
-	double *part_bind_volume; /* its volume, holes capped, at the bind rest */
-	double *part_rest_volume; /* the same at this frame's rest */
-	double *part_scale;      /* what its change is measured against */
-	double *part_change;     /* its change at the last measurement (lvp__part_changes) */
-	double *part_uniform;    /* the uniform multiplier of the last step (0 when not spreading) */
-	double *part_sum, *part_gain; /* scratch */
-	bool spread_total;       /* steps also restore each part's volume (lvp__correct_volumes) */
-	lvp__region_sums *frame_totals; /* region_count: rest_totals of the frame's own rest, when given */
-	double *kappa;           /* region_count: det(rest)/det(posed) */
-	lvp__mat4 *posed;        /* bone_count */
-	lvp__mat4 *posed_inverse;
-	lvp__mat4 *skin;         /* bone_count: posed * rest^-1 */
-	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
-	lvp__vec3 *posed_heads, *posed_tails;
-	uint8_t *region_skipped; /* region_count */
-	uint8_t *region_touched; /* region_count: corrected at least once this frame */
-	int32_t *active;         /* region_count: active region list */
-	int32_t *active_index;   /* region_count: region -> index in the active list, or -1 */
-	/* The region system of a step (region_system.c): the regions coupled with each (both ways),
-	 * the order it is solved in, and its profile over the step's active regions (active[i] is
-	 * row and column i). */
+	float *triangle_gradient;  /* triangle_count*3: cr / 6 of the last pass */
+	float *triangle_volume6;   /* triangle_count: (p0 - o) . cr of the last pass (a float product) */
+	float *normals;            /* vertex_count*3 */
+	float *vertex_g;           /* per vertex: g_k = <n_k, grad_k V> */
+	float *slot_gradient;      /* slot_count*3 */
+	float *slot_g;             /* per slot: <n_k, part of grad_k V from the slot's region> */
+	bool vertex_terms_current; /* normals, g and slot gradients gathered for the last mesh pass */
+	/* The update pass's lists, the flags kept zero between uses: */
+	uint8_t *triangle_dirty;
+	int32_t *dirty_triangles;
+	uint8_t *vertex_dirty;
+	int32_t *dirty_vertices;
+} lvp__measure;
+
+/* The region system of a correction step (region_system.c): the regions coupled with each (both
+ * ways), the order it is solved in, and its profile over the step's active regions (the step's
+ * active[i] is row and column i). */
+typedef struct lvp__region_system {
 	int32_t *coupling_offsets; /* region_count+1 */
 	int32_t *coupling;
-	int32_t *solve_order;    /* region_count: the regions in the order the system is solved in */
-	int32_t system_capacity; /* cells of system and factor (at most LVP__SYSTEM_CELLS) */
-	int32_t normal_capacity; /* cells of normal */
-	lvp__profile system_profile; /* this step's; its arrays region_count */
+	int32_t *solve_order;      /* per region: the regions in the order the system is solved in */
+	int32_t capacity;          /* cells of matrix and factor (at most LVP__SYSTEM_CELLS) */
+	int32_t normal_capacity;   /* cells of normal */
+	lvp__profile profile;      /* this step's; its arrays region_count */
 	lvp__profile normal_profile; /* of the least-squares normal equations; region_count */
-	lvp__system_place *system_place; /* region_count: this step's (lvp__system_cell) */
-	double *system;          /* system_capacity: the summed system */
-	double *factor;          /* system_capacity: its LU */
-	double *normal;          /* normal_capacity: the normal equations, when the LU fails */
-	double *assembly;        /* LVP__ASSEMBLY_CHUNKS blocks of assembly_block doubles */
-	size_t assembly_block;   /* LVP__ASSEMBLY_BLOCK(system_capacity, region_count) */
-	int32_t assembly_chunks; /* the blocks of the last assembly */
-	double *rhs;             /* region_count: the system's right-hand side */
-	double *solution;        /* region_count: its solution */
-	double *row_values;      /* region_count: scratch (one row of the system) */
-	int32_t *row_last;       /* region_count: scratch (each row's last nonzero column) */
-	uint8_t *still;          /* region_count: scratch (the rows taken out of the system) */
-	double *mu;              /* region_count */
-	double *step_mu;         /* region_count: mu of the regions a step applies, else 0 (kept zero) */
+	lvp__system_place *place;  /* per region: this step's (lvp__system_cell) */
+	double *matrix;            /* capacity: the summed system */
+	double *factor;            /* capacity: its LU */
+	double *normal;            /* normal_capacity: the normal equations, when the LU fails */
+	double *assembly;          /* LVP__ASSEMBLY_CHUNKS blocks of assembly_block doubles */
+	size_t assembly_block;     /* LVP__ASSEMBLY_BLOCK(capacity, region_count) */
+	int32_t assembly_chunks;   /* the blocks of the last assembly */
+	double *column_gain;       /* region_count: the summed gains of the last assembly, by column */
+	double *rhs;               /* region_count: the right-hand side */
+	double *solution;          /* region_count */
+	double *row_values;        /* region_count: scratch (one row of the system) */
+	int32_t *row_last;         /* region_count: scratch (each row's last nonzero column) */
+	uint8_t *still;            /* region_count: scratch (the rows taken out of the system) */
+} lvp__region_system;
+
+/* Bones stretched against the bones they blend with (stretch.c). */
+typedef struct lvp__stretch {
+	int32_t *offsets;          /* region_count+1 (local mode) */
+	int32_t *bones;            /* per entry: a bone other than the region's weighting a corner of its triangles */
+	lvp__vec3 *centre;         /* per entry: where the pair's relative stretch is taken about (rest) */
+	/* This frame: */
+	lvp__mat4 *linear;         /* per entry: U_r^-1 U_b - I in the mesh's coordinates (its 3x3) */
+	lvp__mat4 *bone_stretch;   /* bone_count*2: each bone's stretch U and U^-1 in the rigid frame */
+	uint8_t *bone_stretch_invertible; /* per bone: U^-1 is set (U is, always) */
+	int32_t *bone_entry;       /* LVP__STRETCH_GROUPS*bone_count: scratch per group, -1 between uses (the
+	                            * entry of each bone for the region at hand) */
+	float *corner_offset;      /* slot_count*3: scratch, y - x at each corner of each stretched region */
+	int32_t *regions;          /* the stretched regions, in order */
+	int32_t group_first[LVP__STRETCH_GROUPS + 1]; /* groups of regions */
+	int32_t group_count;
+	double *change;            /* per region: the reference change (zero without stretch) */
+	bool any;                  /* some pair is stretched */
+} lvp__stretch;
+
+/* Fold-over prevention (foldover.c). */
+typedef struct lvp__fold {
+	uint8_t *contact;          /* per neighbour entry (lvp__mesh), this frame: LVP__CONTACT_* */
+	uint8_t *held;             /* per vertex: moved back to a contact surface and held there, kept
+	                              zero between frames */
+} lvp__fold;
+
+/* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 5) restores each
+ * part's volume (correction.c). Part 0: all that is on the caller's bones (the first part that
+ * bends, parts one bone carries, triangles without region); then each split part. */
+typedef struct lvp__part_volumes {
+	int32_t count;             /* 1 when nothing is split */
+	int32_t *region_part;      /* per region: its part, or NULL (all part 0) */
+	int32_t *vertex_part;      /* per vertex, or NULL */
+	double *bind_volume;       /* per part: its volume, holes capped, at the bind rest */
+	/* This frame: */
+	double *rest_volume;       /* the same at this frame's rest */
+	double *scale;             /* what its change is measured against */
+	double *change;            /* its change at the last measurement (lvp__part_changes) */
+	double *uniform;           /* the uniform multiplier of the last step (0 when not spreading) */
+} lvp__part_volumes;
+
+/* The correction steps of a frame (correction.c). */
+typedef struct lvp__step {
+	float *positions;          /* vertex_count*3: the frame's positions as the steps move them */
+	int32_t *moved;            /* per vertex: vertices moved by the last step */
+	float *backup;             /* vertex_count*3: their positions before it, in the same order */
+	int32_t moved_count;
+	int32_t *chunk_moved;      /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
+	double *change;            /* per region: V_s - V_s,rest in rest-world units */
+	double *target;            /* per region: the change a region is corrected to (lvp__correct_volumes):
+	                              the stretch's change, plus its part of the whole mesh's fix */
+	double *uniform_gain;      /* per active region: what equal multipliers of all active regions do
+	                              to its volume (its row of the system) */
+	double *total_gain;        /* per active region: what its multiplier does to the whole mesh's
+	                              volume (sum_k g_k gamma_k g_k phi_kt) */
+	double *diagonal;          /* per active region: its diagonal of the system (the per-region step) */
+	uint8_t *region_movable;   /* per region: some vertex of its support can move this frame */
+	int32_t movable_entries;   /* support entries of vertices that can move */
+	uint8_t *region_touched;   /* per region: corrected at least once this frame */
+	int32_t *active;           /* the active regions */
+	int32_t *active_index;     /* per region: its index in active, or -1 */
+	double *mu;                /* per region: its multiplier of the last step */
+	double *applied_mu;        /* per region: mu of the regions a step applies, else 0 (kept zero) */
+	bool spread_total;         /* steps also restore each part's volume (lvp__correct_volumes) */
+	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers */
+} lvp__step;
+
+struct lvp_binding {
+	lvp_mode mode;
+	lvp__pool *pool; /* worker threads, NULL for one thread */
+	/* bone_count counts the internal bones (parts.c): the caller's, then, when several separate
+	 * parts of the mesh bend, a copy of each bone for every part after the first that uses it.
+	 * Every array indexed by bone or region is over the internal bones; the public API answers in
+	 * the caller's bones (bind.c, correction.c). */
+	int32_t vertex_count, triangle_count, bone_count, region_count;
+	int32_t caller_bone_count;
+	float *rest_positions;  /* vertex_count*3: the bind rest (copied) */
+	double rest_volume;     /* its signed volume, holes capped */
+	double size;            /* the diagonal of its bounding box */
+
+	lvp__rig rig;
+	lvp__mesh mesh;
+	lvp__map map;
+	lvp__frame_map frame_map;
+	lvp__borders borders;
+	lvp__dynamic_set dynamic;
+	lvp__measure measure;
+	lvp__region_system system;
+	lvp__stretch stretch;
+	lvp__fold fold;
+	lvp__part_volumes parts;
+	lvp__step step;
 };
+
+/* calloc of count items (at least one) for a stage's _alloc: on failure (or when *ok is already
+ * false) NULL and *ok false; the binding is then freed by lvp_bind. */
+void *lvp__calloc(size_t count, size_t size, bool *ok);
 
 /* parts.c */
 /* The internal bones of a mesh whose separate parts bend (binding.h). Arrays are malloc'ed; the
@@ -317,21 +373,21 @@ void lvp__parts_free(lvp__parts *parts);
 /* The caller's bone (or region, in local mode) of internal bone i. */
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {
-	return binding->bone_source && i >= 0 ? binding->bone_source[i] : i;
+	return binding->rig.bone_source && i >= 0 ? binding->rig.bone_source[i] : i;
 }
 
 /* Whether vertex k follows the bone of skin class bone_class rigidly this frame (it does not move
  * in this frame's correction, and rest and posed agree in that bone's frame). */
 static inline bool lvp__carried_rigidly(const lvp_binding *binding, int32_t k, int32_t bone_class)
 {
-	return !binding->vertex_dynamic[k] && binding->vertex_class[k] == bone_class;
+	return !binding->frame_map.vertex_dynamic[k] && binding->frame_map.vertex_class[k] == bone_class;
 }
 
 /* The slot of vertex k for region r (it exists when k is on one of r's triangles), or -1. */
 static inline int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int32_t r)
 {
-	for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
-		if (binding->slot_region[slot] == r)
+	for (int32_t slot = binding->mesh.slot_offsets[k]; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
+		if (binding->mesh.slot_region[slot] == r)
 			return slot;
 	return -1;
 }
@@ -339,7 +395,7 @@ static inline int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int3
 /* The part of region r (-1: the triangles without region, which count in part 0). */
 static inline int32_t lvp__region_part(const lvp_binding *binding, int32_t r)
 {
-	return binding->region_part && r >= 0 ? binding->region_part[r] : 0;
+	return binding->parts.region_part && r >= 0 ? binding->parts.region_part[r] : 0;
 }
 
 /* segmentation.c */
@@ -352,7 +408,7 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
 lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Which triangles and vertices a pass visits (binding.h), from vertex_class and vertex_dynamic;
  * with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
-void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
+void lvp__find_dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
                       bool all_dynamic);
 /* One pass over the dynamic triangles at `positions`: their terms and the region sums. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions);
@@ -397,14 +453,14 @@ double lvp__volume_of(const lvp_binding *binding, const float *positions);
 double lvp__pass_volume(const lvp_binding *binding, const float *positions);
 /* The same two per part (binding.h): r_volumes has part_count entries. Each part's holes are
  * capped from their own apex; the triangles without region count in part 0. */
-void lvp__part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
+void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, double *r_volumes);
 void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
 
 /* frame_map.c */
 /* This frame's frame_gamma (the bind map times the deformation weighting), the bones' skin
  * classes and the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions:
  * this frame's rest, or NULL for the bind rest. */
-void lvp__frame_map(lvp_binding *binding, const float *rest_positions);
+void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions);
 /* Whether positions put the vertices that the frame map found carried rigidly where their
  * bone class carries them (checked on a sample, at most LVP__RIGID_SAMPLES a region); r_off:
  * the largest distance found. The closed-form shortcuts of the measurement rest on it. */
@@ -431,14 +487,14 @@ static inline int32_t lvp__system_cell(lvp__system_place row, lvp__system_place 
 /* Whether this step's system is assembled row by row (binding.h, LVP__ROWS_ASSEMBLY). */
 static inline bool lvp__assembled_by_rows(const lvp_binding *binding)
 {
-	return binding->system_profile.count <= LVP__ROWS_ASSEMBLY;
+	return binding->system.profile.count <= LVP__ROWS_ASSEMBLY;
 }
 /* Where the gains start in an assembly block of this step (binding.h, LVP__ASSEMBLY_CHUNKS): after
  * the (count + 1)^2 sums row by row, or the profile's cells and a spare one. */
 static inline size_t lvp__assembly_gains_at(const lvp_binding *binding)
 {
-	size_t stride = (size_t)binding->system_profile.count + 1;
-	return lvp__assembled_by_rows(binding) ? stride * stride : (size_t)binding->system_profile.cells + 1;
+	size_t stride = (size_t)binding->system.profile.count + 1;
+	return lvp__assembled_by_rows(binding) ? stride * stride : (size_t)binding->system.profile.cells + 1;
 }
 /* system: the sums of the chunks' blocks of the last assembly, added in chunk order. */
 void lvp__sum_system(lvp_binding *binding);
@@ -457,7 +513,7 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 /* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 5). */
 lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* This frame's stretch_change, zero for every region when no bone is stretched (needs
- * lvp__prepare_frame and this frame's dynamic set, lvp__dynamic_set); sets and returns
+ * lvp__prepare_frame and this frame's dynamic set, lvp__find_dynamic_set); sets and returns
  * stretch_frame.
  * rest_positions: this frame's rest, or NULL for the bind rest; rigid_space: see lvp.h
  * (lvp_frame_options), checked. */

@@ -62,30 +62,28 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, cons
 		return result;
 
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->region_skipped[r])
-			binding->dynamic_set_current = false; /* the dynamic set depends on it (local_volume.c) */
-		binding->region_skipped[r] = 0;
-		binding->kappa[r] = 1.0;
+		if (binding->rig.region_skipped[r])
+			binding->dynamic.current = false; /* the dynamic set depends on it (local_volume.c) */
+		binding->rig.region_skipped[r] = 0;
+		binding->rig.kappa[r] = 1.0;
 	}
 	if (bone_matrices && b > 0) {
 		/* The internal bones past the caller's are copies (binding.h): the same matrices. */
 		for (int32_t i = 0; i < binding->bone_count; ++i) {
 			int32_t source = lvp__caller_bone(binding, i);
-			binding->posed[i] = lvp__mat4_load(bone_matrices + 16 * source);
-			binding->skin[i] = lvp__mat4_mul(&binding->posed[i], &binding->rest_inverse[i]);
-			binding->posed_heads[i] = lvp__transform_point(&binding->skin[i], binding->heads[i]);
-			binding->posed_tails[i] = lvp__transform_point(&binding->skin[i], binding->tails[i]);
-			bool invertible = lvp__mat4_invert_affine(&binding->posed_inverse[i], &binding->posed[i]);
+			binding->rig.posed[i] = lvp__mat4_load(bone_matrices + 16 * source);
+			binding->rig.skin[i] = lvp__mat4_mul(&binding->rig.posed[i], &binding->rig.rest_inverse[i]);
+			binding->rig.posed_heads[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.heads[i]);
+			binding->rig.posed_tails[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.tails[i]);
+			bool invertible = lvp__mat4_invert_affine(&binding->rig.posed_inverse[i], &binding->rig.posed[i]);
 			if (binding->mode != LVP_MODE_LOCAL)
 				continue;
-			const double *m = binding->posed[i].m;
-			binding->origin[i] = lvp__v(m[3], m[7], m[11]);
 			if (invertible)
-				binding->kappa[i] = binding->rest_det[i] / lvp__mat4_det3(&binding->posed[i]);
+				binding->rig.kappa[i] = binding->rig.rest_det[i] / lvp__mat4_det3(&binding->rig.posed[i]);
 			else
-				binding->region_skipped[i] = 1; /* a bone scaled to zero: documented fallback */
+				binding->rig.region_skipped[i] = 1; /* a bone scaled to zero: documented fallback */
 			if (!invertible)
-				binding->dynamic_set_current = false;
+				binding->dynamic.current = false;
 		}
 	}
 	return lvp_success;
@@ -99,21 +97,21 @@ static void lvp__move_vertex(lvp_binding *binding, int32_t k, float rho, int32_t
 {
 	float limit = (float)(0.25 * binding->size);
 	rho = rho > limit ? limit : (rho < -limit ? -limit : rho);
-	float *p = binding->work_positions + 3 * k, *backup = binding->step_backup + 3 * slot;
+	float *p = binding->step.positions + 3 * k, *backup = binding->step.backup + 3 * slot;
 	backup[0] = p[0];
 	backup[1] = p[1];
 	backup[2] = p[2];
-	p[0] += rho * binding->normals[3 * k];
-	p[1] += rho * binding->normals[3 * k + 1];
-	p[2] += rho * binding->normals[3 * k + 2];
-	binding->moved[slot] = k;
+	p[0] += rho * binding->measure.normals[3 * k];
+	p[1] += rho * binding->measure.normals[3 * k + 1];
+	p[2] += rho * binding->measure.normals[3 * k + 2];
+	binding->step.moved[slot] = k;
 }
 
 /* Puts the vertices of the last step back where they were. */
 static void lvp__undo_step(lvp_binding *binding)
 {
-	for (int32_t i = 0; i < binding->moved_count; ++i)
-		memcpy(binding->work_positions + 3 * binding->moved[i], binding->step_backup + 3 * i, sizeof(float) * 3);
+	for (int32_t i = 0; i < binding->step.moved_count; ++i)
+		memcpy(binding->step.positions + 3 * binding->step.moved[i], binding->step.backup + 3 * i, sizeof(float) * 3);
 }
 
 /* The support of vertex k (binding.h, soft_support): the regions whose multipliers reach it,
@@ -130,13 +128,13 @@ static inline lvp__support lvp__vertex_support(const lvp_binding *binding, int32
 	static const int32_t global_region = 0;
 	static const float one = 1.0f;
 	lvp__support support;
-	if (binding->soft_support) {
-		int32_t begin = binding->weight_offsets[k];
-		support.regions = binding->weight_bones + begin;
-		support.phi = binding->weight_values + begin;
-		support.count = binding->weight_offsets[k + 1] - begin;
+	if (binding->map.soft_support) {
+		int32_t begin = binding->rig.weight_offsets[k];
+		support.regions = binding->rig.weight_bones + begin;
+		support.phi = binding->rig.weight_values + begin;
+		support.count = binding->rig.weight_offsets[k + 1] - begin;
 	} else {
-		support.regions = binding->mode == LVP_MODE_LOCAL ? binding->vertex_region + k : &global_region;
+		support.regions = binding->mode == LVP_MODE_LOCAL ? binding->mesh.vertex_region + k : &global_region;
 		support.phi = &one;
 		support.count = 1;
 	}
@@ -146,7 +144,7 @@ static inline lvp__support lvp__vertex_support(const lvp_binding *binding, int32
 /* Whether vertex k can move in a step: the frame's map lets it, and fold-over does not hold it. */
 static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
 {
-	return binding->frame_gamma[k] > 0.0f && !binding->frozen[k];
+	return binding->frame_map.gamma[k] > 0.0f && !binding->fold.held[k];
 }
 
 /* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t
@@ -155,10 +153,10 @@ static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
 static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = context;
-	const double *step_mu = binding->step_mu;
+	const double *step_mu = binding->step.applied_mu;
 	int32_t written = begin;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic_vertices[v];
+		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
@@ -166,11 +164,11 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 		for (int32_t i = 0; i < support.count; ++i)
 			if (support.phi[i] > 0.0f)
 				sum += support.phi[i] * step_mu[support.regions[i]];
-		float rho = (float)((double)binding->frame_gamma[k] * binding->vertex_g[k] * sum);
+		float rho = (float)((double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * sum);
 		if (rho != 0.0f)
 			lvp__move_vertex(binding, k, rho, written++);
 	}
-	binding->chunk_moved[begin / LVP__GRAIN] = written - begin;
+	binding->step.chunk_moved[begin / LVP__GRAIN] = written - begin;
 }
 
 /* Moves work_positions by the multipliers of the given regions (in mu[]), remembering the step
@@ -180,24 +178,24 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
 {
 	for (int32_t j = 0; j < count; ++j)
-		binding->step_mu[regions[j]] = binding->mu[regions[j]];
-	int32_t dynamic = binding->dynamic_vertex_count, chunks = (dynamic + LVP__GRAIN - 1) / LVP__GRAIN;
+		binding->step.applied_mu[regions[j]] = binding->step.mu[regions[j]];
+	int32_t dynamic = binding->dynamic.vertex_count, chunks = (dynamic + LVP__GRAIN - 1) / LVP__GRAIN;
 	for (int32_t i = 0; i < chunks; ++i)
-		binding->chunk_moved[i] = -1; /* a serial run is one call over all chunks */
+		binding->step.chunk_moved[i] = -1; /* a serial run is one call over all chunks */
 	lvp__parallel_for(LVP__POOL_FOR(binding, dynamic), lvp__apply_loop, binding, dynamic, LVP__GRAIN);
-	binding->moved_count = 0;
+	binding->step.moved_count = 0;
 	for (int32_t i = 0; i < chunks; ++i) {
-		int32_t moved = binding->chunk_moved[i], first = i * LVP__GRAIN, to = binding->moved_count;
+		int32_t moved = binding->step.chunk_moved[i], first = i * LVP__GRAIN, to = binding->step.moved_count;
 		if (moved <= 0)
 			continue;
 		if (first != to) {
-			memmove(binding->moved + to, binding->moved + first, sizeof(int32_t) * (size_t)moved);
-			memmove(binding->step_backup + 3 * to, binding->step_backup + 3 * first, sizeof(float) * 3 * (size_t)moved);
+			memmove(binding->step.moved + to, binding->step.moved + first, sizeof(int32_t) * (size_t)moved);
+			memmove(binding->step.backup + 3 * to, binding->step.backup + 3 * first, sizeof(float) * 3 * (size_t)moved);
 		}
-		binding->moved_count += moved;
+		binding->step.moved_count += moved;
 	}
 	for (int32_t j = 0; j < count; ++j)
-		binding->step_mu[regions[j]] = 0.0;
+		binding->step.applied_mu[regions[j]] = 0.0;
 }
 
 typedef struct lvp__assembly_context {
@@ -211,29 +209,29 @@ typedef struct lvp__assembly_context {
 static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, int32_t end)
 {
 	for (int32_t j = begin; j < end; ++j)
-		binding->mu[binding->active[j]] = binding->total_gain[binding->active[j]] = 0.0;
-	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
-		int32_t k = binding->dynamic_vertices[v];
+		binding->step.mu[binding->step.active[j]] = binding->step.total_gain[binding->step.active[j]] = 0.0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
-		double g = binding->vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+		double g = binding->measure.vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g;
 		for (int32_t i = 0; i < support.count; ++i) {
 			int32_t t = support.regions[i];
-			int32_t j = binding->active_index[t];
+			int32_t j = binding->step.active_index[t];
 			if (j < begin || j >= end)
 				continue;
 			double weight = gain * support.phi[i];
-			binding->total_gain[t] += weight * g;
-			for (int32_t slot = binding->slot_offsets[k]; slot < binding->slot_offsets[k + 1]; ++slot)
-				if (binding->slot_region[slot] == t)
-					binding->mu[t] += binding->kappa[t] * binding->slot_g[slot] * weight;
+			binding->step.total_gain[t] += weight * g;
+			for (int32_t slot = binding->mesh.slot_offsets[k]; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
+				if (binding->mesh.slot_region[slot] == t)
+					binding->step.mu[t] += binding->rig.kappa[t] * binding->measure.slot_g[slot] * weight;
 		}
 	}
 }
 
 /* The region system's partial sums over the dynamic vertices [first, last), into one block of
- * binding->assembly (binding.h): row s, column t gathers what region t's multiplier does to region
+ * binding->system.assembly (binding.h): row s, column t gathers what region t's multiplier does to region
  * s, sum_k kappa_s <n_k, grad_k V_s> gamma_k g_k phi_kt, for the regions of the system (by their
  * place in it, binding.h); the gains, sum_k gamma_k g_k^2 phi_kt, what each column's multiplier
  * does to the whole mesh. Whatever falls outside the system (a region not active, or past the
@@ -243,14 +241,14 @@ static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, i
 static inline void lvp__assemble_range(const lvp_binding *binding, double *sums, int32_t first, int32_t last,
                                        bool by_rows)
 {
-	int32_t dense = binding->system_profile.count, cells = binding->system_profile.cells, stride = dense + 1;
+	int32_t dense = binding->system.profile.count, cells = binding->system.profile.cells, stride = dense + 1;
 	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
 	 * change what the binding points to. */
-	const lvp__system_place *place = binding->system_place;
-	const int32_t *dynamic = binding->dynamic_vertices;
-	const int32_t *slot_offsets = binding->slot_offsets, *slot_region = binding->slot_region;
-	const float *slot_g = binding->slot_g, *vertex_g = binding->vertex_g;
-	const double *kappa = binding->kappa;
+	const lvp__system_place *place = binding->system.place;
+	const int32_t *dynamic = binding->dynamic.vertices;
+	const int32_t *slot_offsets = binding->mesh.slot_offsets, *slot_region = binding->mesh.slot_region;
+	const float *slot_g = binding->measure.slot_g, *vertex_g = binding->measure.vertex_g;
+	const double *kappa = binding->rig.kappa;
 	const lvp__system_place outside = {dense, INT32_MAX, 0, 0}; /* the triangles without region */
 	double *gains = sums + lvp__assembly_gains_at(binding);
 	memset(sums, 0, sizeof(double) * (size_t)(gains + stride - sums));
@@ -259,7 +257,7 @@ static inline void lvp__assemble_range(const lvp_binding *binding, double *sums,
 		if (!lvp__can_move(binding, k))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
-		double g = vertex_g[k], gain = (double)binding->frame_gamma[k] * g;
+		double g = vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g;
 		for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
 			int32_t s = slot_region[slot];
 			lvp__system_place row = s >= 0 ? place[s] : outside;
@@ -289,9 +287,9 @@ static void lvp__assemble_chunks(void *context, int32_t begin, int32_t end)
 	const lvp__assembly_context *c = context;
 	const lvp_binding *binding = c->binding;
 	for (int32_t chunk = begin; chunk < end; ++chunk) {
-		double *sums = binding->assembly + (size_t)chunk * binding->assembly_block;
+		double *sums = binding->system.assembly + (size_t)chunk * binding->system.assembly_block;
 		int32_t first = chunk * c->chunk_size, last = first + c->chunk_size;
-		last = last < binding->dynamic_vertex_count ? last : binding->dynamic_vertex_count;
+		last = last < binding->dynamic.vertex_count ? last : binding->dynamic.vertex_count;
 		if (lvp__assembled_by_rows(binding))
 			lvp__assemble_range(binding, sums, first, last, true);
 		else
@@ -305,16 +303,16 @@ static double lvp__error_norm(lvp_binding *binding);
  * the last measurement: part_change. */
 static void lvp__part_changes(lvp_binding *binding)
 {
-	lvp__pass_part_volumes(binding, binding->work_positions, binding->part_change);
-	for (int32_t p = 0; p < binding->part_count; ++p)
-		binding->part_change[p] -= binding->part_rest_volume[p];
+	lvp__pass_part_volumes(binding, binding->step.positions, binding->parts.change);
+	for (int32_t p = 0; p < binding->parts.count; ++p)
+		binding->parts.change[p] -= binding->parts.rest_volume[p];
 }
 
 /* Whether some part is off its rest volume by more than the tolerance (after lvp__part_changes). */
 static bool lvp__parts_off(const lvp_binding *binding, double tolerance)
 {
-	for (int32_t p = 0; p < binding->part_count; ++p)
-		if (fabs(binding->part_change[p]) > tolerance * binding->part_scale[p])
+	for (int32_t p = 0; p < binding->parts.count; ++p)
+		if (fabs(binding->parts.change[p]) > tolerance * binding->parts.scale[p])
 			return true;
 	return false;
 }
@@ -323,8 +321,8 @@ static bool lvp__parts_off(const lvp_binding *binding, double tolerance)
 static double lvp__parts_error(const lvp_binding *binding)
 {
 	double sum = 0.0;
-	for (int32_t p = 0; p < binding->part_count; ++p) {
-		double off = binding->part_change[p] / binding->part_scale[p];
+	for (int32_t p = 0; p < binding->parts.count; ++p) {
+		double off = binding->parts.change[p] / binding->parts.scale[p];
 		sum += off * off;
 	}
 	return sum;
@@ -338,19 +336,19 @@ static double lvp__parts_error(const lvp_binding *binding)
 static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
 {
 	lvp__part_changes(binding);
-	double *total = binding->part_sum, *gain = binding->part_gain;
-	for (int32_t p = 0; p < binding->part_count; ++p) {
-		total[p] = binding->part_change[p];
+	double *total = binding->step.part_total, *gain = binding->step.part_gain;
+	for (int32_t p = 0; p < binding->parts.count; ++p) {
+		total[p] = binding->parts.change[p];
 		gain[p] = 0.0;
 	}
 	for (int32_t i = 0; i < m; ++i) {
-		int32_t t = binding->active[i], p = lvp__region_part(binding, t);
-		total[p] += binding->total_gain[t] * binding->mu[t];
-		gain[p] += binding->total_gain[t];
+		int32_t t = binding->step.active[i], p = lvp__region_part(binding, t);
+		total[p] += binding->step.total_gain[t] * binding->step.mu[t];
+		gain[p] += binding->step.total_gain[t];
 	}
-	for (int32_t p = 0; p < binding->part_count; ++p) {
+	for (int32_t p = 0; p < binding->parts.count; ++p) {
 		double mu = gain[p] > 0.0 ? -total[p] / gain[p] : 0.0;
-		binding->part_uniform[p] = isfinite(mu) ? mu : 0.0;
+		binding->parts.uniform[p] = isfinite(mu) ? mu : 0.0;
 	}
 }
 
@@ -358,76 +356,76 @@ static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
  * multipliers do to each (uniform_gain). Returns the error norm of the measured state. */
 static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 {
-	const int32_t *active = binding->active;
+	const int32_t *active = binding->step.active;
 	int32_t dense = lvp__system_layout(binding, m);
 	for (int32_t i = 0; i < m; ++i)
-		binding->region_touched[active[i]] = 1;
+		binding->step.region_touched[active[i]] = 1;
 
 	/* Assemble in chunks of the dynamic vertices (binding.h), split over the worker threads,
 	 * then add the chunks' blocks in order. */
-	int32_t dynamic = binding->dynamic_vertex_count;
+	int32_t dynamic = binding->dynamic.vertex_count;
 	int32_t chunk_size = (dynamic + LVP__ASSEMBLY_CHUNKS - 1) / LVP__ASSEMBLY_CHUNKS;
 	chunk_size = chunk_size > LVP__GRAIN ? chunk_size : LVP__GRAIN;
 	int32_t chunks = (dynamic + chunk_size - 1) / chunk_size;
 	lvp__assembly_context context = {binding, chunk_size};
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->movable_entries), lvp__assemble_chunks, &context, chunks, 1);
-	binding->assembly_chunks = chunks;
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->step.movable_entries), lvp__assemble_chunks, &context, chunks, 1);
+	binding->system.assembly_chunks = chunks;
 	lvp__sum_system(binding);
-	double *gains = binding->rhs; /* rhs is free until the solve */
+	double *gains = binding->system.rhs; /* rhs is free until the solve */
 	memset(gains, 0, sizeof(double) * (size_t)dense);
 	size_t gains_at = lvp__assembly_gains_at(binding);
 	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
-		const double *sums = binding->assembly + (size_t)chunk * binding->assembly_block + gains_at;
+		const double *sums = binding->system.assembly + (size_t)chunk * binding->system.assembly_block + gains_at;
 		for (int32_t j = 0; j < dense; ++j)
 			gains[j] += sums[j];
 	}
 	for (int32_t j = 0; j < dense; ++j)
-		binding->total_gain[active[j]] = gains[j];
+		binding->step.total_gain[active[j]] = gains[j];
 	if (m > dense)
 		lvp__assemble_diagonals(binding, dense, m);
 	/* What equal multipliers do to each region: its row of the system (past the regions the
 	 * system holds, its diagonal, kept in mu[] by the assembly). */
 	lvp__system_row_sums(binding, gains);
 	for (int32_t i = 0; i < m; ++i)
-		binding->uniform_gain[active[i]] = i < dense ? gains[i] : binding->mu[active[i]];
+		binding->step.uniform_gain[active[i]] = i < dense ? gains[i] : binding->step.mu[active[i]];
 	return lvp__error_norm(binding);
 }
 
 /* Solves the assembled system and moves work_positions. */
 static void lvp__take_step(lvp_binding *binding, int32_t m)
 {
-	const int32_t *active = binding->active;
-	const lvp__profile *profile = &binding->system_profile;
+	const int32_t *active = binding->step.active;
+	const lvp__profile *profile = &binding->system.profile;
 	int32_t dense = profile->count;
 	/* The regions' own step, towards their targets. The diagonal is kept in mu[] for the
 	 * per-region fallback. */
 	double largest_diagonal = 0.0;
 	for (int32_t i = 0; i < dense; ++i) {
-		double diagonal = binding->system[profile->lower[i] + i];
+		double diagonal = binding->system.matrix[profile->lower[i] + i];
 		largest_diagonal = fmax(largest_diagonal, fabs(diagonal));
-		binding->mu[active[i]] = diagonal;
-		binding->rhs[i] = binding->target[active[i]] - binding->change[active[i]];
+		binding->step.mu[active[i]] = diagonal;
+		binding->system.rhs[i] = binding->step.target[active[i]] - binding->step.change[active[i]];
 	}
 	bool solved = lvp__solve_system(binding, largest_diagonal);
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
-		double diagonal = binding->mu[t], mu;
+		double diagonal = binding->step.mu[t], mu;
 		if (i < dense && solved)
-			mu = binding->solution[i];
+			mu = binding->system.solution[i];
 		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
-			mu = diagonal > 1e-12 * largest_diagonal ? (binding->target[t] - binding->change[t]) / diagonal : 0.0;
-		binding->mu[t] = isfinite(mu) ? mu : 0.0;
+			mu = diagonal > 1e-12 * largest_diagonal ? (binding->step.target[t] - binding->step.change[t]) / diagonal : 0.0;
+		binding->step.mu[t] = isfinite(mu) ? mu : 0.0;
 	}
-	memset(binding->part_uniform, 0, sizeof(double) * (size_t)binding->part_count);
-	if (binding->spread_total) {
+	memset(binding->parts.uniform, 0, sizeof(double) * (size_t)binding->parts.count);
+	if (binding->step.spread_total) {
 		/* Each region's target moves by what the uniform part does to it (uniform_gain: its row
 		 * of the system, which has no term from another part's regions). */
 		lvp__uniform_multipliers(binding, m);
 		for (int32_t i = 0; i < m; ++i) {
 			int32_t t = active[i];
-			double uniform = binding->part_uniform[lvp__region_part(binding, t)];
-			binding->mu[t] += uniform;
-			binding->target[t] += binding->uniform_gain[t] * uniform;
+			double uniform = binding->parts.uniform[lvp__region_part(binding, t)];
+			binding->step.mu[t] += uniform;
+			binding->step.target[t] += binding->step.uniform_gain[t] * uniform;
 		}
 	}
 	lvp__apply_multipliers(binding, active, m);
@@ -442,27 +440,27 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
 	bool any_off = false;
-	if (binding->spread_total) {
+	if (binding->step.spread_total) {
 		lvp__part_changes(binding);
 		any_off = lvp__parts_off(binding, tolerance);
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		binding->active_index[r] = -1;
+		binding->step.active_index[r] = -1;
 	for (int32_t i = 0; i < binding->region_count; ++i) {
-		int32_t r = binding->solve_order[i]; /* the system's order (region_system.c) */
-		double reference = binding->reference_volume[r];
-		if (binding->region_skipped[r] || !(reference > 0.0) || !binding->region_movable[r])
+		int32_t r = binding->system.solve_order[i]; /* the system's order (region_system.c) */
+		double reference = binding->measure.reference_volume[r];
+		if (binding->rig.region_skipped[r] || !(reference > 0.0) || !binding->step.region_movable[r])
 			continue;
-		bool off = fabs(binding->change[r] - binding->target[r]) > tolerance * reference;
+		bool off = fabs(binding->step.change[r] - binding->step.target[r]) > tolerance * reference;
 		any_off = any_off || off;
-		if (off || binding->region_touched[r]) {
-			binding->active_index[r] = m;
-			binding->active[m++] = r;
+		if (off || binding->step.region_touched[r]) {
+			binding->step.active_index[r] = m;
+			binding->step.active[m++] = r;
 		}
 	}
 	if (!any_off) {
 		for (int32_t i = 0; i < m; ++i)
-			binding->active_index[binding->active[i]] = -1;
+			binding->step.active_index[binding->step.active[i]] = -1;
 		return 0;
 	}
 	return m;
@@ -472,40 +470,40 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
  * Such a vertex is dynamic: the walk is over the dynamic set of the last measurement. */
 static void lvp__movable_regions(lvp_binding *binding)
 {
-	memset(binding->region_movable, 0, (size_t)binding->region_count);
+	memset(binding->step.region_movable, 0, (size_t)binding->region_count);
 	int32_t entries = 0;
-	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
-		int32_t k = binding->dynamic_vertices[v];
-		if (!(binding->frame_gamma[k] > 0.0f))
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		if (!(binding->frame_map.gamma[k] > 0.0f))
 			continue;
 		lvp__support support = lvp__vertex_support(binding, k);
 		for (int32_t i = 0; i < support.count; ++i) {
 			if (support.phi[i] > 0.0f) {
-				binding->region_movable[support.regions[i]] = 1;
+				binding->step.region_movable[support.regions[i]] = 1;
 				++entries;
 			}
 		}
 	}
-	binding->movable_entries = entries;
+	binding->step.movable_entries = entries;
 }
 
 /* Measures work_positions (mesh pass and region changes). */
-static void lvp__measure(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
+static void lvp__measure_positions(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
 {
-	lvp__dynamic_set(binding, rest_positions, totals, false);
-	lvp__mesh_pass(binding, binding->work_positions);
-	lvp__region_changes(binding, binding->work_positions, totals, binding->change);
+	lvp__find_dynamic_set(binding, rest_positions, totals, false);
+	lvp__mesh_pass(binding, binding->step.positions);
+	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
 }
 
-/* Measures again after a step that moved only binding->moved: only their triangles are visited,
+/* Measures again after a step that moved only binding->step.moved: only their triangles are visited,
  * or, when they are most of the dynamic set, the whole set again (streaming and threaded). */
 static void lvp__remeasure(lvp_binding *binding, const lvp__region_sums *totals)
 {
-	if (2 * binding->moved_count >= binding->dynamic_vertex_count)
-		lvp__mesh_pass(binding, binding->work_positions);
+	if (2 * binding->step.moved_count >= binding->dynamic.vertex_count)
+		lvp__mesh_pass(binding, binding->step.positions);
 	else
-		lvp__update_pass(binding, binding->work_positions, binding->moved, binding->moved_count);
-	lvp__region_changes(binding, binding->work_positions, totals, binding->change);
+		lvp__update_pass(binding, binding->step.positions, binding->step.moved, binding->step.moved_count);
+	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
 }
 
 /* Sum over the regions of their squared relative distance to their targets, and, spreading
@@ -515,13 +513,13 @@ static double lvp__error_norm(lvp_binding *binding)
 {
 	double sum = 0.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		double reference = binding->reference_volume[r];
-		if (binding->region_skipped[r] || !(reference > 0.0))
+		double reference = binding->measure.reference_volume[r];
+		if (binding->rig.region_skipped[r] || !(reference > 0.0))
 			continue;
-		double off = (binding->change[r] - binding->target[r]) / reference;
+		double off = (binding->step.change[r] - binding->step.target[r]) / reference;
 		sum += off * off;
 	}
-	if (binding->spread_total) {
+	if (binding->step.spread_total) {
 		lvp__part_changes(binding);
 		sum += lvp__parts_error(binding);
 	}
@@ -556,10 +554,10 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		if (!(after < before)) {
 			lvp__undo_step(binding);
 			for (int32_t i = 0; i < m; ++i) { /* and the targets it moved */
-				int32_t t = binding->active[i];
-				binding->target[t] -= binding->uniform_gain[t] * binding->part_uniform[lvp__region_part(binding, t)];
+				int32_t t = binding->step.active[i];
+				binding->step.target[t] -= binding->step.uniform_gain[t] * binding->parts.uniform[lvp__region_part(binding, t)];
 			}
-			lvp__measure(binding, rest_positions, totals);
+			lvp__measure_positions(binding, rest_positions, totals);
 			*r_failed = true;
 			break;
 		}
@@ -569,7 +567,7 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 		}
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		binding->active_index[r] = -1;
+		binding->step.active_index[r] = -1;
 	return steps;
 }
 
@@ -582,41 +580,41 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 {
 	int32_t steps = 0, touched = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		if (binding->region_touched[r])
-			binding->active[touched++] = r;
-	double *system = binding->part_gain;
+		if (binding->step.region_touched[r])
+			binding->step.active[touched++] = r;
+	double *system = binding->step.part_gain;
 	while (steps < budget && touched > 0) {
 		lvp__part_changes(binding);
 		if (!lvp__parts_off(binding, options->tolerance))
 			break;
 		double before = lvp__parts_error(binding);
 		lvp__vertex_gradients(binding);
-		memset(system, 0, sizeof(double) * (size_t)binding->part_count);
-		for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
-			int32_t k = binding->dynamic_vertices[v];
+		memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
+		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+			int32_t k = binding->dynamic.vertices[v];
 			if (!lvp__can_move(binding, k))
 				continue;
 			lvp__support support = lvp__vertex_support(binding, k);
-			double gain = (double)binding->frame_gamma[k] * binding->vertex_g[k] * binding->vertex_g[k];
+			double gain = (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
 			for (int32_t i = 0; i < support.count; ++i)
-				if (support.phi[i] > 0.0f && binding->region_touched[support.regions[i]])
+				if (support.phi[i] > 0.0f && binding->step.region_touched[support.regions[i]])
 					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
 		}
 		bool any = false;
 		for (int32_t j = 0; j < touched; ++j) {
-			int32_t t = binding->active[j], p = lvp__region_part(binding, t);
-			binding->mu[t] = system[p] > 0.0 ? -binding->part_change[p] / system[p] : 0.0;
+			int32_t t = binding->step.active[j], p = lvp__region_part(binding, t);
+			binding->step.mu[t] = system[p] > 0.0 ? -binding->parts.change[p] / system[p] : 0.0;
 			any = any || system[p] > 0.0;
 		}
 		if (!any)
 			break;
-		lvp__apply_multipliers(binding, binding->active, touched);
+		lvp__apply_multipliers(binding, binding->step.active, touched);
 		++steps;
 		lvp__remeasure(binding, totals);
 		lvp__part_changes(binding);
 		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
-			lvp__measure(binding, rest_positions, totals);
+			lvp__measure_positions(binding, rest_positions, totals);
 			break;
 		}
 	}
@@ -630,10 +628,10 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
  * bones' scales give it (stretch.c), and nothing else. */
 static bool lvp__bones_scale(const lvp_binding *binding)
 {
-	if (binding->stretch_frame)
+	if (binding->stretch.any)
 		return true;
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		if (!binding->region_skipped[r] && fabs(binding->kappa[r] - 1.0) > 1e-4)
+		if (!binding->rig.region_skipped[r] && fabs(binding->rig.kappa[r] - 1.0) > 1e-4)
 			return true;
 	return false;
 }
@@ -656,10 +654,10 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
                                     int32_t *r_first_active)
 {
 	bool failed, whole_mesh = binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding);
-	binding->spread_total = whole_mesh;
+	binding->step.spread_total = whole_mesh;
 	int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations,
 	                                       r_first_active, &failed);
-	binding->spread_total = false;
+	binding->step.spread_total = false;
 	if (!failed || !whole_mesh)
 		return steps;
 	int32_t ignored;
@@ -673,10 +671,10 @@ static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
 	int32_t worst = -1;
 	double largest = -1.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		double reference = binding->reference_volume[r];
-		if (binding->region_skipped[r] || !(reference > 0.0))
+		double reference = binding->measure.reference_volume[r];
+		if (binding->rig.region_skipped[r] || !(reference > 0.0))
 			continue;
-		double relative = (binding->change[r] - binding->stretch_change[r]) / reference;
+		double relative = (binding->step.change[r] - binding->stretch.change[r]) / reference;
 		if (fabs(relative) > largest) {
 			largest = fabs(relative);
 			worst = r;
@@ -690,7 +688,7 @@ static int32_t lvp__count_skipped(const lvp_binding *binding)
 {
 	int32_t skipped = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		skipped += binding->region_skipped[r] != 0;
+		skipped += binding->rig.region_skipped[r] != 0;
 	return skipped;
 }
 
@@ -714,12 +712,12 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 
 	int32_t n = binding->vertex_count;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
-	memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
-	if (binding->rigid_shortcut_off) { /* the frame before had it off: the classes come back */
-		binding->rigid_shortcut_off = false;
-		binding->frame_map_current = binding->dynamic_set_current = false;
+	memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
+	if (binding->frame_map.rigid_shortcut_off) { /* the frame before had it off: the classes come back */
+		binding->frame_map.rigid_shortcut_off = false;
+		binding->frame_map.current = binding->dynamic.current = false;
 	}
-	lvp__frame_map(binding, rest_positions);
+	lvp__build_frame_map(binding, rest_positions);
 
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
@@ -728,36 +726,36 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	 * Where they are not (bone frames that are not what moved the mesh, weights that changed
 	 * since the bind), the frame is measured from the positions alone, and says so. */
 	if (!lvp__rigid_vertices_hold(binding, positions, rest_positions, &stats.unskinned_distance)) {
-		binding->rigid_shortcut_off = true;
-		binding->frame_map_current = binding->dynamic_set_current = false;
-		lvp__frame_map(binding, rest_positions);
+		binding->frame_map.rigid_shortcut_off = true;
+		binding->frame_map.current = binding->dynamic.current = false;
+		lvp__build_frame_map(binding, rest_positions);
 	}
 	stats.worst_region = -1;
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 
 	int32_t first_active = 0;
 	/* The whole mesh's volume at this frame's rest, or each separate part's (binding.h). */
-	if (binding->part_count == 1)
-		binding->part_rest_volume[0] = stats.volume_rest;
+	if (binding->parts.count == 1)
+		binding->parts.rest_volume[0] = stats.volume_rest;
 	else if (rest_positions)
-		lvp__part_volumes(binding, rest_positions, binding->part_rest_volume);
+		lvp__volumes_of_parts(binding, rest_positions, binding->parts.rest_volume);
 	else
-		memcpy(binding->part_rest_volume, binding->part_bind_volume, sizeof(double) * (size_t)binding->part_count);
+		memcpy(binding->parts.rest_volume, binding->parts.bind_volume, sizeof(double) * (size_t)binding->parts.count);
 	/* What a part's change is measured against: its volume, or for an open, flat part (no
 	 * volume to speak of) the cube of the mesh's size, as the global mode's reference. */
 	double cube = binding->size * binding->size * binding->size;
-	for (int32_t p = 0; p < binding->part_count; ++p) {
-		double volume = fabs(binding->part_rest_volume[p]);
-		binding->part_scale[p] = volume > 1e-6 * cube ? volume : cube;
+	for (int32_t p = 0; p < binding->parts.count; ++p) {
+		double volume = fabs(binding->parts.rest_volume[p]);
+		binding->parts.scale[p] = volume > 1e-6 * cube ? volume : cube;
 	}
-	memset(binding->region_touched, 0, (size_t)binding->region_count);
-	lvp__measure(binding, rest_positions, totals);
+	memset(binding->step.region_touched, 0, (size_t)binding->region_count);
+	lvp__measure_positions(binding, rest_positions, totals);
 	/* Each region aims at zero change, or where bones are stretched against each other at the
 	 * change their stretch alone gives it (stretch.c; zero without stretch). */
 	lvp__stretch_targets(binding, rest_positions, options->rigid_space);
-	memcpy(binding->target, binding->stretch_change, sizeof(double) * (size_t)binding->region_count);
+	memcpy(binding->step.target, binding->stretch.change, sizeof(double) * (size_t)binding->region_count);
 	lvp__movable_regions(binding);
-	stats.volume_before = lvp__pass_volume(binding, binding->work_positions);
+	stats.volume_before = lvp__pass_volume(binding, binding->step.positions);
 	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
 
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
@@ -775,30 +773,30 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 			/* At the contacts found since the last round; only the fade changes what can move. */
 			if (lvp__fade_map_at_contact(binding))
 				lvp__movable_regions(binding);
-			lvp__measure(binding, rest_positions, totals);
+			lvp__measure_positions(binding, rest_positions, totals);
 			stats.iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
 			moved = lvp__fold_over(binding, rest_positions);
 			stats.folded_vertices += moved;
 		}
-		memset(binding->frozen, 0, (size_t)n);
-		lvp__measure(binding, rest_positions, totals);
+		memset(binding->fold.held, 0, (size_t)n);
+		lvp__measure_positions(binding, rest_positions, totals);
 	}
 	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
 	 * through unchanged and says so. Only dynamic vertices can have moved (binding.h); the
 	 * others are the input, which was checked. */
-	for (int32_t v = 0; v < binding->dynamic_vertex_count && !stats.passed_through; ++v) {
-		const float *p = binding->work_positions + 3 * binding->dynamic_vertices[v];
+	for (int32_t v = 0; v < binding->dynamic.vertex_count && !stats.passed_through; ++v) {
+		const float *p = binding->step.positions + 3 * binding->dynamic.vertices[v];
 		if (!lvp__finite(p[0]) || !lvp__finite(p[1]) || !lvp__finite(p[2])) {
-			memcpy(binding->work_positions, positions, sizeof(float) * 3 * (size_t)n);
-			lvp__measure(binding, rest_positions, totals);
+			memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
+			lvp__measure_positions(binding, rest_positions, totals);
 			stats.passed_through = 1;
 		}
 	}
-	stats.volume_after = lvp__pass_volume(binding, binding->work_positions);
+	stats.volume_after = lvp__pass_volume(binding, binding->step.positions);
 	if (stats.worst_region >= 0) {
 		stats.worst_region_change_after =
-		    (binding->change[stats.worst_region] - binding->stretch_change[stats.worst_region]) /
-		    binding->reference_volume[stats.worst_region];
+		    (binding->step.change[stats.worst_region] - binding->stretch.change[stats.worst_region]) /
+		    binding->measure.reference_volume[stats.worst_region];
 		stats.worst_region = lvp__caller_bone(binding, stats.worst_region); /* its bone, in local mode */
 	}
 	stats.skipped_regions = lvp__count_skipped(binding);
@@ -808,10 +806,10 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	if (r_positions && r_positions != positions)
 		memcpy(r_positions, positions, sizeof(float) * 3 * (size_t)n);
 	double largest = 0.0;
-	for (int32_t v = 0; v < binding->dynamic_vertex_count; ++v) {
-		int32_t i = 3 * binding->dynamic_vertices[v];
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t i = 3 * binding->dynamic.vertices[v];
 		float in[3] = {positions[i], positions[i + 1], positions[i + 2]};
-		const float *out = binding->work_positions + i;
+		const float *out = binding->step.positions + i;
 		double d2 = 0.0;
 		for (int c = 0; c < 3; ++c) {
 			float offset = out[c] - in[c];
@@ -842,18 +840,18 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 	if (result)
 		return result;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
-	lvp__dynamic_set(binding, rest_positions, totals, true);
+	lvp__find_dynamic_set(binding, rest_positions, totals, true);
 	lvp__mesh_pass(binding, positions);
-	lvp__region_changes(binding, positions, totals, binding->change);
+	lvp__region_changes(binding, positions, totals, binding->step.change);
 	/* Per caller's region: the sum over the separate parts of its bone (binding.h). */
 	int32_t regions = lvp_region_count(binding);
 	memset(r_changes, 0, sizeof(double) * (size_t)regions);
 	if (r_references)
 		memset(r_references, 0, sizeof(double) * (size_t)regions);
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		r_changes[lvp__caller_bone(binding, r)] += binding->change[r];
+		r_changes[lvp__caller_bone(binding, r)] += binding->step.change[r];
 		if (r_references)
-			r_references[lvp__caller_bone(binding, r)] += binding->reference_volume[r];
+			r_references[lvp__caller_bone(binding, r)] += binding->measure.reference_volume[r];
 	}
 	return lvp_success;
 }

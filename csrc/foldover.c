@@ -9,7 +9,7 @@
  */
 #include "binding.h"
 
-/* binding->neighbour_contact, per neighbour entry (s, j) of this frame: */
+/* binding->fold.contact, per neighbour entry (s, j) of this frame: */
 enum {
 	LVP__CONTACT_NONE = 0, /* no skin crossed between s and j */
 	LVP__CONTACT_FOUND,    /* skin crossed (of s into j, or of j into s); the map not faded yet */
@@ -74,7 +74,7 @@ static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, 
 /* Whether two bones move differently this frame (only then can skin fold between them). */
 static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 {
-	const double *a = binding->skin[s].m, *b = binding->skin[j].m;
+	const double *a = binding->rig.skin[s].m, *b = binding->rig.skin[j].m;
 	double scale = 1.0;
 	for (int i = 0; i < 12; ++i)
 		scale = fmax(scale, fabs(a[i]));
@@ -86,42 +86,42 @@ static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 
 void lvp__clear_contacts(lvp_binding *binding)
 {
-	memset(binding->neighbour_contact, 0, (size_t)binding->neighbour_offsets[binding->region_count]);
+	memset(binding->fold.contact, 0, (size_t)binding->mesh.neighbour_offsets[binding->region_count]);
 }
 
 /* Marks the contact of entry n of region s's neighbours, bone j, for both sides: the flesh of s
  * and of j is pressed together, whichever crossed. */
 static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_t j)
 {
-	if (binding->neighbour_contact[n] == LVP__CONTACT_NONE)
-		binding->neighbour_contact[n] = LVP__CONTACT_FOUND;
-	for (int32_t m = binding->neighbour_offsets[j]; m < binding->neighbour_offsets[j + 1]; ++m)
-		if (binding->neighbour_bones[m] == s && binding->neighbour_contact[m] == LVP__CONTACT_NONE)
-			binding->neighbour_contact[m] = LVP__CONTACT_FOUND;
+	if (binding->fold.contact[n] == LVP__CONTACT_NONE)
+		binding->fold.contact[n] = LVP__CONTACT_FOUND;
+	for (int32_t m = binding->mesh.neighbour_offsets[j]; m < binding->mesh.neighbour_offsets[j + 1]; ++m)
+		if (binding->mesh.neighbour_bones[m] == s && binding->fold.contact[m] == LVP__CONTACT_NONE)
+			binding->fold.contact[m] = LVP__CONTACT_FOUND;
 }
 
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	float *work = binding->work_positions;
+	float *work = binding->step.positions;
 	int32_t moved = 0;
 	for (int32_t s = 0; s < binding->region_count; ++s) {
-		double ls = binding->bone_length[s] > 0.0 ? 1.0 : 0.0;
-		if (binding->region_skipped[s] || !(ls > 0.0))
+		double ls = binding->rig.bone_length[s] > 0.0 ? 1.0 : 0.0;
+		if (binding->rig.region_skipped[s] || !(ls > 0.0))
 			continue;
-		for (int32_t n = binding->neighbour_offsets[s]; n < binding->neighbour_offsets[s + 1]; ++n) {
-			int32_t j = binding->neighbour_bones[n];
-			double lj = binding->bone_length[j] > 0.0 ? 1.0 : 0.0;
+		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
+			int32_t j = binding->mesh.neighbour_bones[n];
+			double lj = binding->rig.bone_length[j] > 0.0 ? 1.0 : 0.0;
 			if (!(lj > 0.0) || !lvp__bends(binding, s, j))
 				continue;
-			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
-			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
-			double gap = 1e-4 * (binding->bone_length[s] + binding->bone_length[j]);
-			for (int32_t i = binding->region_vertex_offsets[s]; i < binding->region_vertex_offsets[s + 1]; ++i) {
-				int32_t k = binding->region_vertices[i];
+			lvp__vec3 sh = binding->rig.posed_heads[s], st = binding->rig.posed_tails[s];
+			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
+			double gap = 1e-4 * (binding->rig.bone_length[s] + binding->rig.bone_length[j]);
+			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1]; ++i) {
+				int32_t k = binding->mesh.region_vertices[i];
 				/* Only vertices that were on their own side at rest can cross. */
 				lvp__vec3 r = lvp__load(rest + 3 * k);
-				if (lvp__side(r, binding->heads[s], binding->tails[s], ls, binding->heads[j], binding->tails[j], lj) >= 0.0)
+				if (lvp__side(r, binding->rig.heads[s], binding->rig.tails[s], ls, binding->rig.heads[j], binding->rig.tails[j], lj) >= 0.0)
 					continue;
 				lvp__vec3 p = lvp__load(work + 3 * k);
 				if (lvp__side(p, sh, st, ls, jh, jt, lj) <= 0.0)
@@ -133,10 +133,10 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				work[3 * k + 1] = (float)q.y;
 				work[3 * k + 2] = (float)q.z;
 				lvp__mark_contact(binding, s, n, j);
-				moved += !binding->frozen[k];
-				binding->frozen[k] = 1;
-				binding->vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
-				binding->dynamic_set_current = binding->frame_map_current = false;
+				moved += !binding->fold.held[k];
+				binding->fold.held[k] = 1;
+				binding->frame_map.vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
+				binding->dynamic.current = binding->frame_map.current = false;
 			}
 		}
 	}
@@ -191,32 +191,32 @@ static bool lvp__concave_side(lvp__vec3 *r_joint, lvp__vec3 *r_direction, lvp__v
  * bulge), each once a frame. */
 bool lvp__fade_map_at_contact(lvp_binding *binding)
 {
-	const float *work = binding->work_positions;
+	const float *work = binding->step.positions;
 	bool faded = false;
 	for (int32_t s = 0; s < binding->region_count; ++s) {
-		if (binding->region_skipped[s] || !(binding->bone_length[s] > 0.0))
+		if (binding->rig.region_skipped[s] || !(binding->rig.bone_length[s] > 0.0))
 			continue;
-		for (int32_t n = binding->neighbour_offsets[s]; n < binding->neighbour_offsets[s + 1]; ++n) {
-			if (binding->neighbour_contact[n] != LVP__CONTACT_FOUND)
+		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
+			if (binding->fold.contact[n] != LVP__CONTACT_FOUND)
 				continue;
-			binding->neighbour_contact[n] = LVP__CONTACT_FADED;
+			binding->fold.contact[n] = LVP__CONTACT_FADED;
 			faded = true;
-			int32_t j = binding->neighbour_bones[n];
-			lvp__vec3 sh = binding->posed_heads[s], st = binding->posed_tails[s];
-			lvp__vec3 jh = binding->posed_heads[j], jt = binding->posed_tails[j];
+			int32_t j = binding->mesh.neighbour_bones[n];
+			lvp__vec3 sh = binding->rig.posed_heads[s], st = binding->rig.posed_tails[s];
+			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
 			lvp__vec3 joint, concave;
 			bool has_side = lvp__concave_side(&joint, &concave, sh, st, jh, jt);
-			for (int32_t i = binding->region_vertex_offsets[s]; i < binding->region_vertex_offsets[s + 1]; ++i) {
-				int32_t k = binding->region_vertices[i];
-				if (!(binding->frame_gamma[k] > 0.0f))
+			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1]; ++i) {
+				int32_t k = binding->mesh.region_vertices[i];
+				if (!(binding->frame_map.gamma[k] > 0.0f))
 					continue;
-				double width = 0.5 * binding->distance[k];
+				double width = 0.5 * binding->map.distance[k];
 				if (!(width > 0.0))
 					continue; /* on the bone itself (where the map is zero anyway) */
 				lvp__vec3 p = lvp__load(work + 3 * k);
 				double fade = lvp__smoothstep(-lvp__side(p, sh, st, 1.0, jh, jt, 1.0) / width);
 				double pressed = has_side ? lvp__smoothstep(lvp__dot(lvp__sub(p, joint), concave) / width) : 1.0;
-				binding->frame_gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
+				binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
 			}
 		}
 	}

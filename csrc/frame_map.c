@@ -20,14 +20,14 @@ static void lvp__skin_classes(lvp_binding *binding)
 	int32_t b = binding->caller_bone_count;
 	for (int32_t i = 0; i < b; ++i) {
 		int32_t skin_class = i;
-		const double *m = binding->skin[i].m;
+		const double *m = binding->rig.skin[i].m;
 		double scale = 1.0;
 		for (int c = 0; c < 12; ++c)
 			scale = fmax(scale, fabs(m[c]));
 		for (int32_t j = 0; j < i && b <= LVP__CLASS_BONES; ++j) {
-			if (binding->skin_class[j] != j)
+			if (binding->frame_map.skin_class[j] != j)
 				continue;
-			const double *other = binding->skin[j].m;
+			const double *other = binding->rig.skin[j].m;
 			bool same = true;
 			for (int c = 0; c < 12 && same; ++c)
 				same = fabs(m[c] - other[c]) <= 1e-6 * scale;
@@ -36,23 +36,23 @@ static void lvp__skin_classes(lvp_binding *binding)
 				break;
 			}
 		}
-		if (binding->skin_class[i] != skin_class)
-			binding->dynamic_set_current = binding->frame_map_current = false;
-		binding->skin_class[i] = skin_class;
+		if (binding->frame_map.skin_class[i] != skin_class)
+			binding->dynamic.current = binding->frame_map.current = false;
+		binding->frame_map.skin_class[i] = skin_class;
 	}
 	/* A copy of a caller's bone for a separate part (binding.h) is in its bone's class. */
 	for (int32_t i = b; i < binding->bone_count; ++i)
-		binding->skin_class[i] = binding->skin_class[lvp__caller_bone(binding, i)];
+		binding->frame_map.skin_class[i] = binding->frame_map.skin_class[lvp__caller_bone(binding, i)];
 }
 
 /* The skin class that all bones of vertex k (with weight) share, or -1. */
 static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
 {
 	int32_t shared = -1;
-	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-		if (!(binding->weight_values[e] > 0.0f))
+	for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+		if (!(binding->rig.weight_values[e] > 0.0f))
 			continue;
-		int32_t c = binding->skin_class[binding->weight_bones[e]];
+		int32_t c = binding->frame_map.skin_class[binding->rig.weight_bones[e]];
 		if (shared >= 0 && c != shared)
 			return -1;
 		shared = c;
@@ -64,7 +64,7 @@ static int32_t lvp__vertex_class(const lvp_binding *binding, int32_t k)
  * small where bones nearly agree, so rounding does not swamp their difference. */
 static inline void lvp__displacement(float r_d[3], const lvp_binding *binding, int32_t bone, const float *p)
 {
-	const float *m = binding->skin_displacement + 12 * bone;
+	const float *m = binding->frame_map.skin_displacement + 12 * bone;
 	r_d[0] = m[0] * p[0] + m[1] * p[1] + m[2] * p[2] + m[3];
 	r_d[1] = m[4] * p[0] + m[5] * p[1] + m[6] * p[2] + m[7];
 	r_d[2] = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
@@ -100,7 +100,7 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 	 * is relative to the point and to the skin's translations (of the order of the bones' distance
 	 * from the origin); not to the whole mesh's size, which one stray vertex far away would make
 	 * so large that every vertex looked rigid and nothing was corrected. */
-	float noise = (float)(1e-6 * binding->skeleton_reach) + 1e-6f * sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+	float noise = (float)(1e-6 * binding->rig.reach) + 1e-6f * sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
 	return spread < noise ? 0.0f : spread;
 }
 
@@ -112,11 +112,11 @@ static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_
                                    float r_weight[LVP__SPREAD_KEPT])
 {
 	int32_t count = 0;
-	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-		float w = binding->weight_values[e];
+	for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+		float w = binding->rig.weight_values[e];
 		if (!(w > 0.0f))
 			continue;
-		int32_t c = binding->skin_class[binding->weight_bones[e]], i = 0;
+		int32_t c = binding->frame_map.skin_class[binding->rig.weight_bones[e]], i = 0;
 		while (i < count && r_class[i] != c)
 			++i;
 		if (i == count) {
@@ -138,16 +138,16 @@ static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int3
 	int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
 	if (class_count >= 0)
 		return lvp__spread(binding, p, classes, class_weight, class_count);
-	int32_t first = binding->weight_offsets[k];
-	return lvp__spread(binding, p, binding->weight_bones + first, binding->weight_values + first,
-	                   binding->weight_offsets[k + 1] - first);
+	int32_t first = binding->rig.weight_offsets[k];
+	return lvp__spread(binding, p, binding->rig.weight_bones + first, binding->rig.weight_values + first,
+	                   binding->rig.weight_offsets[k + 1] - first);
 }
 
 /* This frame's map at vertex k of the given class (lvp__vertex_class). */
 static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
 {
-	float gamma = binding->gamma[k];
-	if (!binding->map.deformation_weighted)
+	float gamma = binding->map.gamma[k];
+	if (!binding->map.options.deformation_weighted)
 		return gamma;
 	if (!(gamma > 0.0f) || vertex_class >= 0)
 		return 0.0f; /* all its bones in one class: it moves rigidly */
@@ -162,15 +162,15 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 	lvp_binding *binding = c->binding;
 	bool changed = false;
 	for (int32_t k = begin; k < end; ++k) {
-		int32_t vertex_class = binding->rigid_shortcut_off ? -1 : lvp__vertex_class(binding, k);
-		changed = changed || binding->vertex_class[k] != vertex_class;
-		binding->vertex_class[k] = vertex_class;
-		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, vertex_class);
-		uint8_t dynamic = vertex_class < 0 || binding->frame_gamma[k] > 0.0f;
-		changed = changed || binding->vertex_dynamic[k] != dynamic;
-		binding->vertex_dynamic[k] = dynamic;
+		int32_t vertex_class = binding->frame_map.rigid_shortcut_off ? -1 : lvp__vertex_class(binding, k);
+		changed = changed || binding->frame_map.vertex_class[k] != vertex_class;
+		binding->frame_map.vertex_class[k] = vertex_class;
+		binding->frame_map.gamma[k] = lvp__frame_gamma(binding, c->positions, k, vertex_class);
+		uint8_t dynamic = vertex_class < 0 || binding->frame_map.gamma[k] > 0.0f;
+		changed = changed || binding->frame_map.vertex_dynamic[k] != dynamic;
+		binding->frame_map.vertex_dynamic[k] = dynamic;
 	}
-	binding->chunk_changed[begin / LVP__GRAIN] = changed;
+	binding->frame_map.chunk_changed[begin / LVP__GRAIN] = changed;
 }
 
 /* The same over the dynamic vertices only, when their classes and flags are known. */
@@ -179,8 +179,8 @@ static void lvp__frame_map_dynamic_loop(void *context, int32_t begin, int32_t en
 	const lvp__loop_context *c = context; /* positions: the rest */
 	lvp_binding *binding = c->binding;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic_vertices[v];
-		binding->frame_gamma[k] = lvp__frame_gamma(binding, c->positions, k, binding->vertex_class[k]);
+		int32_t k = binding->dynamic.vertices[v];
+		binding->frame_map.gamma[k] = lvp__frame_gamma(binding, c->positions, k, binding->frame_map.vertex_class[k]);
 	}
 }
 
@@ -198,17 +198,17 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 		return true;
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		int32_t first = binding->region_vertex_offsets[r], count = binding->region_vertex_offsets[r + 1] - first;
+		int32_t first = binding->mesh.region_vertex_offsets[r], count = binding->mesh.region_vertex_offsets[r + 1] - first;
 		int32_t step = count > LVP__RIGID_SAMPLES ? count / LVP__RIGID_SAMPLES : 1;
 		for (int32_t i = 0; i < count; i += step) {
-			int32_t k = binding->region_vertices[first + i], c = binding->vertex_class[k];
-			if (binding->vertex_dynamic[k] || c < 0)
+			int32_t k = binding->mesh.region_vertices[first + i], c = binding->frame_map.vertex_class[k];
+			if (binding->frame_map.vertex_dynamic[k] || c < 0)
 				continue;
-			lvp__vec3 x = lvp__load(rest + 3 * k), expected = lvp__transform_point(&binding->skin[c], x);
+			lvp__vec3 x = lvp__load(rest + 3 * k), expected = lvp__transform_point(&binding->rig.skin[c], x);
 			double off = lvp__length(lvp__sub(lvp__load(positions + 3 * k), expected));
 			/* Float rounding of Blender's skinning is of 1e-7 of the point's and the bones' size;
 			 * a frame that is not this skinning is off by far more. */
-			double allowed = 1e-4 * (binding->skeleton_reach + lvp__length(x) + lvp__length(expected));
+			double allowed = 1e-4 * (binding->rig.reach + lvp__length(x) + lvp__length(expected));
 			largest = fmax(largest, off);
 			if (!(off <= allowed))
 				hold = false;
@@ -220,36 +220,36 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
  * vertices are dynamic (binding.h). */
-void lvp__frame_map(lvp_binding *binding, const float *rest_positions)
+void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 {
 	int32_t n = binding->vertex_count;
 	if (binding->mode != LVP_MODE_LOCAL) {
-		memcpy(binding->frame_gamma, binding->gamma, sizeof(float) * (size_t)n);
-		memset(binding->vertex_dynamic, 1, (size_t)n);
+		memcpy(binding->frame_map.gamma, binding->map.gamma, sizeof(float) * (size_t)n);
+		memset(binding->frame_map.vertex_dynamic, 1, (size_t)n);
 		return;
 	}
 	lvp__skin_classes(binding);
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
-		const double *m = binding->skin[i].m;
-		float *d = binding->skin_displacement + 12 * i;
+		const double *m = binding->rig.skin[i].m;
+		float *d = binding->frame_map.skin_displacement + 12 * i;
 		for (int c = 0; c < 12; ++c)
 			d[c] = (float)(m[c] - (c % 5 == 0 ? 1.0 : 0.0)); /* S - I: the diagonal is 0, 5, 10 */
 	}
 	lvp__loop_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
-	if (binding->frame_map_current && binding->dynamic_set_current) {
+	if (binding->frame_map.current && binding->dynamic.current) {
 		/* The bones fall into the same classes as in the frame before and nothing else changed a
 		 * vertex's class or flag (binding.h): only the dynamic vertices' map follows the pose;
 		 * every other vertex is rigid, its map still zero. In an animation this is most frames,
 		 * and the walk over all vertices is skipped. */
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__frame_map_dynamic_loop,
-		                  &context, binding->dynamic_vertex_count, LVP__GRAIN);
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__frame_map_dynamic_loop,
+		                  &context, binding->dynamic.vertex_count, LVP__GRAIN);
 		return;
 	}
 	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
-	memset(binding->chunk_changed, 0, (size_t)chunks);
+	memset(binding->frame_map.chunk_changed, 0, (size_t)chunks);
 	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
 	for (int32_t i = 0; i < chunks; ++i)
-		if (binding->chunk_changed[i])
-			binding->dynamic_set_current = false;
-	binding->frame_map_current = true;
+		if (binding->frame_map.chunk_changed[i])
+			binding->dynamic.current = false;
+	binding->frame_map.current = true;
 }

@@ -72,10 +72,10 @@ static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], 
  * counting sort by the part of their first vertex. */
 static lvp_result lvp__sort_caps_by_part(lvp_binding *binding)
 {
-	int32_t parts = binding->part_count, count = binding->cap_edge_count;
-	int32_t *offsets = binding->cap_part_offsets;
+	int32_t parts = binding->parts.count, count = binding->borders.cap_edge_count;
+	int32_t *offsets = binding->borders.cap_part_offsets;
 	memset(offsets, 0, sizeof(int32_t) * ((size_t)parts + 1));
-	if (!binding->vertex_part) {
+	if (!binding->parts.vertex_part) {
 		offsets[parts] = count;
 		return lvp_success;
 	}
@@ -83,19 +83,19 @@ static lvp_result lvp__sort_caps_by_part(lvp_binding *binding)
 	if (!sorted)
 		return lvp_error_out_of_memory;
 	for (int32_t i = 0; i < count; ++i)
-		++offsets[binding->vertex_part[binding->cap_edges[2 * i]] + 1];
+		++offsets[binding->parts.vertex_part[binding->borders.cap_edges[2 * i]] + 1];
 	for (int32_t p = 0; p < parts; ++p)
 		offsets[p + 1] += offsets[p];
 	for (int32_t i = 0; i < count; ++i) {
-		int32_t at = offsets[binding->vertex_part[binding->cap_edges[2 * i]]]++;
-		sorted[2 * at] = binding->cap_edges[2 * i];
-		sorted[2 * at + 1] = binding->cap_edges[2 * i + 1];
+		int32_t at = offsets[binding->parts.vertex_part[binding->borders.cap_edges[2 * i]]]++;
+		sorted[2 * at] = binding->borders.cap_edges[2 * i];
+		sorted[2 * at + 1] = binding->borders.cap_edges[2 * i + 1];
 	}
 	for (int32_t p = parts; p > 0; --p)
 		offsets[p] = offsets[p - 1];
 	offsets[0] = 0;
-	free(binding->cap_edges);
-	binding->cap_edges = sorted;
+	free(binding->borders.cap_edges);
+	binding->borders.cap_edges = sorted;
 	return lvp_success;
 }
 
@@ -104,19 +104,19 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t s = binding->region_count, f = binding->triangle_count;
 	size_t capacity = (size_t)f * 3;
 	uint64_t *keys = malloc(sizeof(uint64_t) * capacity);
-	binding->border_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	binding->borders.offsets = calloc((size_t)s + 1, sizeof(int32_t));
 	/* At most every half-edge is a border; shrunk below once counted. */
-	binding->border_edges = malloc(sizeof(int32_t) * 2 * capacity);
-	binding->cap_edges = malloc(sizeof(int32_t) * 2 * capacity);
-	if (!keys || !binding->border_offsets || !binding->border_edges || !binding->cap_edges) {
+	binding->borders.edges = malloc(sizeof(int32_t) * 2 * capacity);
+	binding->borders.cap_edges = malloc(sizeof(int32_t) * 2 * capacity);
+	if (!keys || !binding->borders.offsets || !binding->borders.edges || !binding->borders.cap_edges) {
 		free(keys);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
 	/* The mesh's own holes, capped for the volume statistics and the final global step. */
 	int32_t unpaired[2];
-	binding->flipped_edge_count = 0;
-	binding->cap_edge_count = lvp__surplus_half_edges(binding->cap_edges, unpaired, &binding->flipped_edge_count,
-	                                                  binding->triangles, 0, f, keys);
+	binding->borders.flipped_edge_count = 0;
+	binding->borders.cap_edge_count = lvp__surplus_half_edges(binding->borders.cap_edges, unpaired, &binding->borders.flipped_edge_count,
+	                                                  binding->mesh.triangles, 0, f, keys);
 	if (binding->mode == LVP_MODE_GLOBAL && unpaired[0] >= 0) {
 		free(keys);
 		return lvp__fail(r_diag, lvp_error_mesh_not_closed, "triangles", -1,
@@ -127,31 +127,31 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	}
 	int32_t written = 0;
 	for (int32_t r = 0; r < s; ++r) {
-		binding->border_offsets[r] = written;
-		written += lvp__surplus_half_edges(binding->border_edges + 2 * written, unpaired, NULL, binding->triangles,
-		                                   binding->region_triangle_offsets[r], binding->region_triangle_offsets[r + 1],
+		binding->borders.offsets[r] = written;
+		written += lvp__surplus_half_edges(binding->borders.edges + 2 * written, unpaired, NULL, binding->mesh.triangles,
+		                                   binding->mesh.region_triangle_offsets[r], binding->mesh.region_triangle_offsets[r + 1],
 		                                   keys);
 	}
-	binding->border_offsets[s] = written;
+	binding->borders.offsets[s] = written;
 	free(keys);
-	int32_t *shrunk = realloc(binding->border_edges, sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
+	int32_t *shrunk = realloc(binding->borders.edges, sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
 	if (shrunk)
-		binding->border_edges = shrunk;
-	shrunk = realloc(binding->cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->cap_edge_count > 0 ? binding->cap_edge_count : 1));
+		binding->borders.edges = shrunk;
+	shrunk = realloc(binding->borders.cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->borders.cap_edge_count > 0 ? binding->borders.cap_edge_count : 1));
 	if (shrunk)
-		binding->cap_edges = shrunk;
+		binding->borders.cap_edges = shrunk;
 	if (lvp__sort_caps_by_part(binding) != lvp_success)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
-	binding->border_slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
-	binding->border_gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
-	binding->border_rest = malloc(sizeof(lvp__vec3) * 2 * (size_t)(written > 0 ? written : 1));
-	if (!binding->border_slots || !binding->border_gradient || !binding->border_rest)
+	binding->borders.slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
+	binding->borders.gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
+	binding->borders.rest = malloc(sizeof(lvp__vec3) * 2 * (size_t)(written > 0 ? written : 1));
+	if (!binding->borders.slots || !binding->borders.gradient || !binding->borders.rest)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	for (int32_t r = 0; r < s; ++r)
-		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
 			for (int end = 0; end < 2; ++end)
-				binding->border_slots[2 * i + end] = lvp__find_slot(binding, binding->border_edges[2 * i + end], r);
+				binding->borders.slots[2 * i + end] = lvp__find_slot(binding, binding->borders.edges[2 * i + end], r);
 	return lvp_success;
 }
 
@@ -159,8 +159,8 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
 {
 	int32_t s = binding->region_count, n = binding->vertex_count;
 	int32_t *seen = malloc(sizeof(int32_t) * (size_t)n);
-	binding->region_corner_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	if (!seen || !binding->region_corner_offsets) {
+	binding->mesh.region_corner_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	if (!seen || !binding->mesh.region_corner_offsets) {
 		free(seen);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
@@ -169,20 +169,20 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
 		for (int32_t k = 0; k < n; ++k)
 			seen[k] = -1;
 		for (int32_t r = 0; r < s; ++r) {
-			binding->region_corner_offsets[r] = (int32_t)count;
-			for (int32_t i = 3 * binding->region_triangle_offsets[r]; i < 3 * binding->region_triangle_offsets[r + 1];
+			binding->mesh.region_corner_offsets[r] = (int32_t)count;
+			for (int32_t i = 3 * binding->mesh.region_triangle_offsets[r]; i < 3 * binding->mesh.region_triangle_offsets[r + 1];
 			     ++i) {
-				int32_t k = binding->triangles[i];
+				int32_t k = binding->mesh.triangles[i];
 				if (seen[k] == r)
 					continue;
 				seen[k] = r;
 				if (pass)
-					binding->region_corners[count] = k;
+					binding->mesh.region_corners[count] = k;
 				++count;
 			}
 		}
-		binding->region_corner_offsets[s] = (int32_t)count; /* at most 3 F, below LVP_MAX_TRIANGLES*3 */
-		if (!pass && !(binding->region_corners = malloc(sizeof(int32_t) * (size_t)(count > 0 ? count : 1)))) {
+		binding->mesh.region_corner_offsets[s] = (int32_t)count; /* at most 3 F, below LVP_MAX_TRIANGLES*3 */
+		if (!pass && !(binding->mesh.region_corners = malloc(sizeof(int32_t) * (size_t)(count > 0 ? count : 1)))) {
 			free(seen);
 			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 		}
@@ -201,12 +201,12 @@ static double lvp__cap_range_volume6(const lvp_binding *binding, const float *po
 		return 0.0;
 	lvp__vec3 apex = lvp__v(0.0, 0.0, 0.0);
 	for (int32_t i = begin; i < end; ++i)
-		apex = lvp__add(apex, lvp__load(positions + 3 * binding->cap_edges[2 * i]));
+		apex = lvp__add(apex, lvp__load(positions + 3 * binding->borders.cap_edges[2 * i]));
 	apex = lvp__scale(apex, 1.0 / (end - begin));
 	double volume6 = 0.0;
 	for (int32_t i = begin; i < end; ++i) {
-		lvp__vec3 a = lvp__load(positions + 3 * binding->cap_edges[2 * i]);
-		lvp__vec3 b = lvp__load(positions + 3 * binding->cap_edges[2 * i + 1]);
+		lvp__vec3 a = lvp__load(positions + 3 * binding->borders.cap_edges[2 * i]);
+		lvp__vec3 b = lvp__load(positions + 3 * binding->borders.cap_edges[2 * i + 1]);
 		volume6 += lvp__vol6(b, a, apex);
 	}
 	return volume6;
@@ -214,16 +214,27 @@ static double lvp__cap_range_volume6(const lvp_binding *binding, const float *po
 
 double lvp__cap_volume6(const lvp_binding *binding, const float *positions)
 {
-	return lvp__cap_range_volume6(binding, positions, 0, binding->cap_edge_count);
+	return lvp__cap_range_volume6(binding, positions, 0, binding->borders.cap_edge_count);
 }
 
 /* ---- the mesh pass ------------------------------------------------------------------------ */
 
+/* The origin of region r's bone frame this frame (global mode: the rest centroid). */
+static lvp__vec3 lvp__posed_origin(const lvp_binding *binding, int32_t r)
+{
+	if (binding->mode != LVP_MODE_LOCAL)
+		return binding->measure.global_origin;
+	const double *m = binding->rig.posed[r].m;
+	return lvp__v(m[3], m[7], m[11]);
+}
+
+/* The origin region's sums are taken about in the last mesh pass (0 for the triangles without
+ * region). */
 static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
 {
 	if (region < 0)
 		return lvp__v(0.0, 0.0, 0.0);
-	return binding->origin[region];
+	return binding->measure.origin[region];
 }
 
 /* Volume term (p0 - o) . cr and cr = (p1 - p0) x (p2 - p0) of a triangle. In float: each term
@@ -257,8 +268,8 @@ static inline double lvp__triangle_terms(float r_gradient[3], const float *posit
 /* Normal, g and the slots' <n, gradient> of vertex k from its slot gradients. */
 static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 {
-	const float *slot_gradient = binding->slot_gradient;
-	int32_t first = binding->slot_offsets[k], last = binding->slot_offsets[k + 1];
+	const float *slot_gradient = binding->measure.slot_gradient;
+	int32_t first = binding->mesh.slot_offsets[k], last = binding->mesh.slot_offsets[k + 1];
 	float gx = 0.0f, gy = 0.0f, gz = 0.0f;
 	for (int32_t i = first; i < last; ++i) {
 		gx += slot_gradient[3 * i];
@@ -268,19 +279,19 @@ static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 	float length = sqrtf(gx * gx + gy * gy + gz * gz);
 	float inverse = length > 0.0f ? 1.0f / length : 0.0f;
 	float nx = gx * inverse, ny = gy * inverse, nz = gz * inverse;
-	binding->normals[3 * k] = nx;
-	binding->normals[3 * k + 1] = ny;
-	binding->normals[3 * k + 2] = nz;
-	binding->vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
+	binding->measure.normals[3 * k] = nx;
+	binding->measure.normals[3 * k + 1] = ny;
+	binding->measure.normals[3 * k + 2] = nz;
+	binding->measure.vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
 	for (int32_t i = first; i < last; ++i)
-		binding->slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+		binding->measure.slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
 }
 
 static lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
 {
 	if (binding->mode == LVP_MODE_GLOBAL)
-		return binding->global_origin;
-	const double *m = binding->rest_matrices[region].m;
+		return binding->measure.global_origin;
+	const double *m = binding->rig.rest_matrices[region].m;
 	return lvp__v(m[3], m[7], m[11]);
 }
 
@@ -321,31 +332,31 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 	lvp_binding *binding = c->binding;
 	int32_t s = binding->region_count;
 	for (int32_t r = begin; r < end; ++r) {
-		int32_t first = binding->region_triangle_offsets[r];
-		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
-		if (!(c->local && r < s && !binding->region_skipped[r])) {
-			binding->region_state[r] = LVP__REGION_DYNAMIC;
-			binding->region_dynamic_offsets[r + 1] = last - first;
+		int32_t first = binding->mesh.region_triangle_offsets[r];
+		int32_t last = r < s ? binding->mesh.region_triangle_offsets[r + 1] : binding->triangle_count;
+		if (!(c->local && r < s && !binding->rig.region_skipped[r])) {
+			binding->dynamic.region_state[r] = LVP__REGION_DYNAMIC;
+			binding->dynamic.region_offsets[r + 1] = last - first;
 			if (r < s) {
-				memset(&binding->static_rest[r], 0, sizeof(lvp__region_sums));
-				binding->static_count[r] = 0;
+				memset(&binding->dynamic.static_rest[r], 0, sizeof(lvp__region_sums));
+				binding->dynamic.static_count[r] = 0;
 			}
 			continue;
 		}
-		int32_t bone_class = binding->skin_class[r];
+		int32_t bone_class = binding->frame_map.skin_class[r];
 		bool whole_region_static = true;
-		for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
-			int32_t k = binding->region_corners[i];
+		for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1]; ++i) {
+			int32_t k = binding->mesh.region_corners[i];
 			if (!lvp__carried_rigidly(binding, k, bone_class)) {
 				whole_region_static = false;
 				break;
 			}
 		}
 		if (whole_region_static) { /* the bone carries the region rigidly: nothing to visit */
-			binding->region_state[r] = LVP__REGION_STATIC;
-			binding->region_dynamic_offsets[r + 1] = 0;
-			binding->static_rest[r] = c->rest_totals[r];
-			binding->static_count[r] = last - first;
+			binding->dynamic.region_state[r] = LVP__REGION_STATIC;
+			binding->dynamic.region_offsets[r + 1] = 0;
+			binding->dynamic.static_rest[r] = c->rest_totals[r];
+			binding->dynamic.static_count[r] = last - first;
 			continue;
 		}
 		/* The dynamic triangles' rest terms, subtracted from the totals below: in float, like
@@ -355,11 +366,11 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
 		int32_t dynamic = 0;
 		for (int32_t t = first; t < last; ++t) {
-			const int32_t *corners = binding->triangles + 3 * t;
+			const int32_t *corners = binding->mesh.triangles + 3 * t;
 			bool is_static = true;
 			for (int i = 0; i < 3 && is_static; ++i)
 				is_static = lvp__carried_rigidly(binding, corners[i], bone_class);
-			binding->triangle_static[t] = is_static;
+			binding->dynamic.triangle_static[t] = is_static;
 			if (is_static)
 				continue;
 			++dynamic;
@@ -371,13 +382,13 @@ static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 		}
 		lvp__vec3 area = lvp__v(ax, ay, az);
 		volume6 += lvp__dot(lvp__sub(lvp__v(o[0], o[1], o[2]), o_exact), area);
-		binding->region_state[r] = LVP__REGION_MIXED;
-		binding->region_dynamic_offsets[r + 1] = dynamic;
+		binding->dynamic.region_state[r] = LVP__REGION_MIXED;
+		binding->dynamic.region_offsets[r + 1] = dynamic;
 		/* static = all - dynamic; none static: exactly zero, not the rounding of a difference */
 		int32_t statics = (last - first) - dynamic;
 		const lvp__region_sums *total = &c->rest_totals[r];
-		lvp__region_sums *sums = &binding->static_rest[r];
-		binding->static_count[r] = statics;
+		lvp__region_sums *sums = &binding->dynamic.static_rest[r];
+		binding->dynamic.static_count[r] = statics;
 		sums->volume6 = statics ? total->volume6 - volume6 : 0.0;
 		sums->area6[0] = statics ? total->area6[0] - area.x : 0.0;
 		sums->area6[1] = statics ? total->area6[1] - area.y : 0.0;
@@ -391,21 +402,21 @@ static void lvp__list_dynamic_triangles(void *context, int32_t begin, int32_t en
 	lvp_binding *binding = ((const lvp__dynamic_context *)context)->binding;
 	int32_t s = binding->region_count;
 	for (int32_t r = begin; r < end; ++r) {
-		int32_t first = binding->region_triangle_offsets[r];
-		int32_t last = r < s ? binding->region_triangle_offsets[r + 1] : binding->triangle_count;
-		int32_t *out = binding->dynamic_triangles + binding->region_dynamic_offsets[r];
-		if (binding->region_state[r] == LVP__REGION_DYNAMIC) {
+		int32_t first = binding->mesh.region_triangle_offsets[r];
+		int32_t last = r < s ? binding->mesh.region_triangle_offsets[r + 1] : binding->triangle_count;
+		int32_t *out = binding->dynamic.triangles + binding->dynamic.region_offsets[r];
+		if (binding->dynamic.region_state[r] == LVP__REGION_DYNAMIC) {
 			for (int32_t t = first; t < last; ++t)
 				*out++ = t;
-		} else if (binding->region_state[r] == LVP__REGION_MIXED) {
+		} else if (binding->dynamic.region_state[r] == LVP__REGION_MIXED) {
 			for (int32_t t = first; t < last; ++t)
-				if (!binding->triangle_static[t])
+				if (!binding->dynamic.triangle_static[t])
 					*out++ = t;
 		}
 	}
 }
 
-void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
+void lvp__find_dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
                       bool all_dynamic)
 {
 	int32_t s = binding->region_count;
@@ -414,41 +425,41 @@ void lvp__dynamic_set(lvp_binding *binding, const float *rest_positions, const l
 	 * region_skipped; whatever changes one of them clears dynamic_set_current. In an animation
 	 * the same bones move from frame to frame, so the set is usually last frame's. */
 	bool reusable = local && !rest_positions;
-	if (reusable && binding->dynamic_set_current)
+	if (reusable && binding->dynamic.current)
 		return;
-	binding->dynamic_set_current = false;
+	binding->dynamic.current = false;
 	if (!local) {
-		memset(binding->vertex_dynamic, 1, (size_t)binding->vertex_count);
-		binding->frame_map_current = false;
+		memset(binding->frame_map.vertex_dynamic, 1, (size_t)binding->vertex_count);
+		binding->frame_map.current = false;
 	}
 	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
 	                                local};
 	lvp__pool *pool = LVP__POOL_FOR(binding, binding->triangle_count);
 	lvp__parallel_for(pool, lvp__classify_regions, &context, s + 1, 1);
-	binding->region_dynamic_offsets[0] = 0;
+	binding->dynamic.region_offsets[0] = 0;
 	for (int32_t r = 0; r <= s; ++r)
-		binding->region_dynamic_offsets[r + 1] += binding->region_dynamic_offsets[r];
+		binding->dynamic.region_offsets[r + 1] += binding->dynamic.region_offsets[r];
 	lvp__parallel_for(pool, lvp__list_dynamic_triangles, &context, s + 1, 1);
 	int32_t vertices = 0;
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
-		if (binding->vertex_dynamic[k])
-			binding->dynamic_vertices[vertices++] = k;
-	binding->dynamic_vertex_count = vertices;
-	binding->dynamic_set_current = reusable;
+		if (binding->frame_map.vertex_dynamic[k])
+			binding->dynamic.vertices[vertices++] = k;
+	binding->dynamic.vertex_count = vertices;
+	binding->dynamic.current = reusable;
 }
 
-/* The static triangles' part of region r's sums this frame (see lvp__dynamic_set). */
+/* The static triangles' part of region r's sums this frame (see lvp__find_dynamic_set). */
 static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volume6, double r_area6[3])
 {
-	const lvp__region_sums *rest = &binding->static_rest[r];
-	const double *m = binding->skin[r].m;
+	const lvp__region_sums *rest = &binding->dynamic.static_rest[r];
+	const double *m = binding->rig.skin[r].m;
 	/* cof(L): columns c1 x c2, c2 x c0, c0 x c1 of L's columns c0, c1, c2 */
 	lvp__vec3 c0 = lvp__v(m[0], m[4], m[8]), c1 = lvp__v(m[1], m[5], m[9]), c2 = lvp__v(m[2], m[6], m[10]);
 	lvp__vec3 k0 = lvp__cross(c1, c2), k1 = lvp__cross(c2, c0), k2 = lvp__cross(c0, c1);
 	lvp__vec3 area = lvp__add(lvp__add(lvp__scale(k0, rest->area6[0]), lvp__scale(k1, rest->area6[1])),
 	                          lvp__scale(k2, rest->area6[2]));
-	lvp__vec3 exact_origin = lvp__transform_point(&binding->skin[r], lvp__rest_origin(binding, r));
-	const float *o = binding->origin_float + 3 * r;
+	lvp__vec3 exact_origin = lvp__transform_point(&binding->rig.skin[r], lvp__rest_origin(binding, r));
+	const float *o = binding->measure.origin_float + 3 * r;
 	lvp__vec3 delta = lvp__sub(exact_origin, lvp__v(o[0], o[1], o[2]));
 	*r_volume6 += lvp__dot(c0, k0) * rest->volume6 + lvp__dot(delta, area);
 	r_area6[0] += area.x;
@@ -467,13 +478,13 @@ static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__loop_context *c = context;
 	lvp_binding *binding = c->binding;
-	const int32_t *dynamic = binding->dynamic_triangles, *triangles = binding->triangles;
-	float *triangle_gradient = binding->triangle_gradient, *triangle_volume6 = binding->triangle_volume6;
+	const int32_t *dynamic = binding->dynamic.triangles, *triangles = binding->mesh.triangles;
+	float *triangle_gradient = binding->measure.triangle_gradient, *triangle_volume6 = binding->measure.triangle_volume6;
 	for (int32_t piece = begin; piece < end; ++piece) {
 		/* origin_float's last entry: triangles without region, origin 0 */
-		const float *o = binding->origin_float + 3 * binding->piece_region[piece];
+		const float *o = binding->measure.origin_float + 3 * binding->measure.piece_region[piece];
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		for (int32_t i = binding->piece_first[piece]; i < binding->piece_first[piece + 1]; ++i) {
+		for (int32_t i = binding->measure.piece_first[piece]; i < binding->measure.piece_first[piece + 1]; ++i) {
 			int32_t t = dynamic[i];
 			float *g = triangle_gradient + 3 * t;
 			float v = (float)lvp__triangle_terms(g, c->positions, triangles + 3 * t, o);
@@ -483,7 +494,7 @@ static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 			ay += g[1];
 			az += g[2];
 		}
-		lvp__region_sums *sums = &binding->piece_sums[piece];
+		lvp__region_sums *sums = &binding->measure.piece_sums[piece];
 		sums->volume6 = volume6;
 		sums->area6[0] = ax; /* the sums of cr / 6, times 6 per region below */
 		sums->area6[1] = ay;
@@ -496,13 +507,13 @@ static void lvp__cut_pieces(lvp_binding *binding)
 {
 	int32_t count = 0;
 	for (int32_t r = 0; r <= binding->region_count; ++r)
-		for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1];
+		for (int32_t i = binding->dynamic.region_offsets[r]; i < binding->dynamic.region_offsets[r + 1];
 		     i += LVP__GRAIN) {
-			binding->piece_first[count] = i;
-			binding->piece_region[count++] = r;
+			binding->measure.piece_first[count] = i;
+			binding->measure.piece_region[count++] = r;
 		}
-	binding->piece_first[count] = binding->region_dynamic_offsets[binding->region_count + 1];
-	binding->piece_count = count;
+	binding->measure.piece_first[count] = binding->dynamic.region_offsets[binding->region_count + 1];
+	binding->measure.piece_count = count;
 }
 
 /* Each region's sums: its pieces' in order, and its static triangles'. */
@@ -511,18 +522,18 @@ static void lvp__region_sums_from_pieces(lvp_binding *binding)
 	int32_t s = binding->region_count, piece = 0;
 	for (int32_t r = 0; r <= s; ++r) {
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		for (; piece < binding->piece_count && binding->piece_region[piece] == r; ++piece) {
-			const lvp__region_sums *sums = &binding->piece_sums[piece];
+		for (; piece < binding->measure.piece_count && binding->measure.piece_region[piece] == r; ++piece) {
+			const lvp__region_sums *sums = &binding->measure.piece_sums[piece];
 			volume6 += sums->volume6;
 			ax += sums->area6[0];
 			ay += sums->area6[1];
 			az += sums->area6[2];
 		}
 		double area6[3] = {6.0 * ax, 6.0 * ay, 6.0 * az};
-		if (r < s && binding->static_count[r] > 0)
+		if (r < s && binding->dynamic.static_count[r] > 0)
 			lvp__add_static_part(binding, r, &volume6, area6);
-		binding->sums[r].volume6 = volume6;
-		memcpy(binding->sums[r].area6, area6, sizeof(area6));
+		binding->measure.sums[r].volume6 = volume6;
+		memcpy(binding->measure.sums[r].area6, area6, sizeof(area6));
 	}
 }
 
@@ -531,17 +542,17 @@ static void lvp__region_sums_from_pieces(lvp_binding *binding)
 static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
-	float *slot_gradient = binding->slot_gradient;
-	const float *triangle_gradient = binding->triangle_gradient;
+	float *slot_gradient = binding->measure.slot_gradient;
+	const float *triangle_gradient = binding->measure.triangle_gradient;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic_vertices[v];
-		int32_t first = binding->vertex_corner_offsets[k], last = binding->vertex_corner_offsets[k + 1];
-		int32_t slot_first = binding->slot_offsets[k];
-		if (binding->slot_offsets[k + 1] - slot_first == 1) {
+		int32_t k = binding->dynamic.vertices[v];
+		int32_t first = binding->mesh.vertex_corner_offsets[k], last = binding->mesh.vertex_corner_offsets[k + 1];
+		int32_t slot_first = binding->mesh.slot_offsets[k];
+		if (binding->mesh.slot_offsets[k + 1] - slot_first == 1) {
 			/* inside a region: one slot, summed in registers */
 			float gx = 0.0f, gy = 0.0f, gz = 0.0f;
 			for (int32_t i = first; i < last; ++i) {
-				const float *g = triangle_gradient + 3 * binding->vertex_triangles[i];
+				const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
 				gx += g[0];
 				gy += g[1];
 				gz += g[2];
@@ -551,11 +562,11 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 			sg[1] = gy;
 			sg[2] = gz;
 		} else {
-			for (int32_t slot = slot_first; slot < binding->slot_offsets[k + 1]; ++slot)
+			for (int32_t slot = slot_first; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
 				slot_gradient[3 * slot] = slot_gradient[3 * slot + 1] = slot_gradient[3 * slot + 2] = 0.0f;
 			for (int32_t i = first; i < last; ++i) {
-				const float *g = triangle_gradient + 3 * binding->vertex_triangles[i];
-				float *sg = slot_gradient + 3 * binding->vertex_corner_slot[i];
+				const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
+				float *sg = slot_gradient + 3 * binding->mesh.vertex_corner_slot[i];
 				sg[0] += g[0];
 				sg[1] += g[1];
 				sg[2] += g[2];
@@ -571,18 +582,18 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 	/* The triangle terms are taken about float origins; every other use of the origins (the
 	 * whole-mesh volume, the update pass) takes the same rounded points, so all agree exactly. */
 	for (int32_t r = 0; r <= binding->region_count; ++r) {
-		lvp__vec3 o = lvp__region_origin(binding, r < binding->region_count ? r : -1);
-		binding->origin_float[3 * r] = (float)o.x;
-		binding->origin_float[3 * r + 1] = (float)o.y;
-		binding->origin_float[3 * r + 2] = (float)o.z;
+		lvp__vec3 o = r < binding->region_count ? lvp__posed_origin(binding, r) : lvp__v(0.0, 0.0, 0.0);
+		binding->measure.origin_float[3 * r] = (float)o.x;
+		binding->measure.origin_float[3 * r + 1] = (float)o.y;
+		binding->measure.origin_float[3 * r + 2] = (float)o.z;
 		if (r < binding->region_count)
-			binding->origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
+			binding->measure.origin[r] = lvp__v((float)o.x, (float)o.y, (float)o.z);
 	}
 	lvp__cut_pieces(binding);
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->region_dynamic_offsets[binding->region_count + 1]),
-	                  lvp__piece_loop, &context, binding->piece_count, 1);
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.region_offsets[binding->region_count + 1]),
+	                  lvp__piece_loop, &context, binding->measure.piece_count, 1);
 	lvp__region_sums_from_pieces(binding);
-	binding->vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */
+	binding->measure.vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */
 }
 
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count)
@@ -591,49 +602,49 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 	int32_t dirty = 0;
 	for (int32_t i = 0; i < moved_count; ++i) {
 		int32_t k = moved[i];
-		for (int32_t c = binding->vertex_corner_offsets[k]; c < binding->vertex_corner_offsets[k + 1]; ++c) {
-			int32_t t = binding->vertex_triangles[c];
-			if (!binding->triangle_dirty[t]) {
-				binding->triangle_dirty[t] = 1;
-				binding->dirty_triangles[dirty++] = t;
+		for (int32_t c = binding->mesh.vertex_corner_offsets[k]; c < binding->mesh.vertex_corner_offsets[k + 1]; ++c) {
+			int32_t t = binding->mesh.vertex_triangles[c];
+			if (!binding->measure.triangle_dirty[t]) {
+				binding->measure.triangle_dirty[t] = 1;
+				binding->measure.dirty_triangles[dirty++] = t;
 			}
 		}
 	}
 	/* Replace their terms in the region sums and the slot gradients. */
 	int32_t touched = 0;
 	for (int32_t i = 0; i < dirty; ++i) {
-		int32_t t = binding->dirty_triangles[i];
-		binding->triangle_dirty[t] = 0;
-		int32_t r = binding->triangle_region[t];
+		int32_t t = binding->measure.dirty_triangles[i];
+		binding->measure.triangle_dirty[t] = 0;
+		int32_t r = binding->mesh.triangle_region[t];
 		int32_t sum_index = r < 0 ? binding->region_count : r;
 		float g[3];
-		float *old = binding->triangle_gradient + 3 * t;
-		double v = lvp__triangle_terms(g, positions, binding->triangles + 3 * t, binding->origin_float + 3 * sum_index);
-		lvp__region_sums *sums = &binding->sums[sum_index];
-		sums->volume6 += v - binding->triangle_volume6[t];
+		float *old = binding->measure.triangle_gradient + 3 * t;
+		double v = lvp__triangle_terms(g, positions, binding->mesh.triangles + 3 * t, binding->measure.origin_float + 3 * sum_index);
+		lvp__region_sums *sums = &binding->measure.sums[sum_index];
+		sums->volume6 += v - binding->measure.triangle_volume6[t];
 		float d[3] = {g[0] - old[0], g[1] - old[1], g[2] - old[2]};
 		for (int c = 0; c < 3; ++c) {
 			sums->area6[c] += 6.0 * d[c];
 			old[c] = g[c];
 		}
-		binding->triangle_volume6[t] = v;
-		if (!binding->vertex_terms_current)
+		binding->measure.triangle_volume6[t] = v;
+		if (!binding->measure.vertex_terms_current)
 			continue; /* the slot gradients are gathered afresh from the triangles when needed */
 		for (int c = 0; c < 3; ++c) {
-			float *sg = binding->slot_gradient + 3 * binding->corner_slot[3 * t + c];
+			float *sg = binding->measure.slot_gradient + 3 * binding->mesh.corner_slot[3 * t + c];
 			sg[0] += d[0];
 			sg[1] += d[1];
 			sg[2] += d[2];
-			int32_t k = binding->triangles[3 * t + c];
-			if (!binding->vertex_dirty[k] && binding->vertex_dynamic[k]) { /* static ones need no normal */
-				binding->vertex_dirty[k] = 1;
-				binding->dirty_vertices[touched++] = k;
+			int32_t k = binding->mesh.triangles[3 * t + c];
+			if (!binding->measure.vertex_dirty[k] && binding->frame_map.vertex_dynamic[k]) { /* static ones need no normal */
+				binding->measure.vertex_dirty[k] = 1;
+				binding->measure.dirty_vertices[touched++] = k;
 			}
 		}
 	}
 	for (int32_t i = 0; i < touched; ++i) {
-		int32_t k = binding->dirty_vertices[i];
-		binding->vertex_dirty[k] = 0;
+		int32_t k = binding->measure.dirty_vertices[i];
+		binding->measure.vertex_dirty[k] = 0;
 		lvp__vertex_terms(binding, k);
 	}
 }
@@ -643,7 +654,7 @@ double lvp__pass_volume(const lvp_binding *binding, const float *positions)
 	double volume6 = 0.0;
 	for (int32_t r = 0; r <= binding->region_count; ++r) {
 		lvp__vec3 o = lvp__region_origin(binding, r < binding->region_count ? r : -1);
-		const lvp__region_sums *sums = &binding->sums[r];
+		const lvp__region_sums *sums = &binding->measure.sums[r];
 		volume6 += sums->volume6 + o.x * sums->area6[0] + o.y * sums->area6[1] + o.z * sums->area6[2];
 	}
 	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
@@ -655,48 +666,48 @@ double lvp__volume_of(const lvp_binding *binding, const float *positions)
 	lvp__vec3 o = lvp__v(0.0, 0.0, 0.0);
 	double volume6 = 0.0;
 	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		lvp__vec3 p0 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t]), o);
-		lvp__vec3 p1 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t + 1]), o);
-		lvp__vec3 p2 = lvp__sub(lvp__load(positions + 3 * binding->triangles[3 * t + 2]), o);
+		lvp__vec3 p0 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t]), o);
+		lvp__vec3 p1 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 1]), o);
+		lvp__vec3 p2 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 2]), o);
 		volume6 += lvp__vol6(p0, p1, p2);
 	}
 	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
 }
 
-void lvp__part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes)
+void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, double *r_volumes)
 {
-	if (binding->part_count == 1) {
+	if (binding->parts.count == 1) {
 		r_volumes[0] = lvp__volume_of(binding, positions);
 		return;
 	}
-	memset(r_volumes, 0, sizeof(double) * (size_t)binding->part_count);
+	memset(r_volumes, 0, sizeof(double) * (size_t)binding->parts.count);
 	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		lvp__vec3 p0 = lvp__load(positions + 3 * binding->triangles[3 * t]);
-		lvp__vec3 p1 = lvp__load(positions + 3 * binding->triangles[3 * t + 1]);
-		lvp__vec3 p2 = lvp__load(positions + 3 * binding->triangles[3 * t + 2]);
-		r_volumes[lvp__region_part(binding, binding->triangle_region[t])] += lvp__vol6(p0, p1, p2);
+		lvp__vec3 p0 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t]);
+		lvp__vec3 p1 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 1]);
+		lvp__vec3 p2 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 2]);
+		r_volumes[lvp__region_part(binding, binding->mesh.triangle_region[t])] += lvp__vol6(p0, p1, p2);
 	}
-	const int32_t *caps = binding->cap_part_offsets;
-	for (int32_t p = 0; p < binding->part_count; ++p)
+	const int32_t *caps = binding->borders.cap_part_offsets;
+	for (int32_t p = 0; p < binding->parts.count; ++p)
 		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
 }
 
 void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes)
 {
-	if (binding->part_count == 1) {
+	if (binding->parts.count == 1) {
 		r_volumes[0] = lvp__pass_volume(binding, positions);
 		return;
 	}
-	memset(r_volumes, 0, sizeof(double) * (size_t)binding->part_count);
+	memset(r_volumes, 0, sizeof(double) * (size_t)binding->parts.count);
 	for (int32_t r = 0; r <= binding->region_count; ++r) {
 		int32_t region = r < binding->region_count ? r : -1;
 		lvp__vec3 o = lvp__region_origin(binding, region);
-		const lvp__region_sums *sums = &binding->sums[r];
+		const lvp__region_sums *sums = &binding->measure.sums[r];
 		r_volumes[lvp__region_part(binding, region)] +=
 		    sums->volume6 + o.x * sums->area6[0] + o.y * sums->area6[1] + o.z * sums->area6[2];
 	}
-	const int32_t *caps = binding->cap_part_offsets;
-	for (int32_t p = 0; p < binding->part_count; ++p)
+	const int32_t *caps = binding->borders.cap_part_offsets;
+	for (int32_t p = 0; p < binding->parts.count; ++p)
 		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
 }
 
@@ -708,9 +719,9 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
 		double volume6 = 0.0;
-		for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
+		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1]; ++t) {
 			lvp__vec3 cr;
-			volume6 += lvp__rest_terms(&cr, rest, binding->triangles + 3 * t, o);
+			volume6 += lvp__rest_terms(&cr, rest, binding->mesh.triangles + 3 * t, o);
 			area = lvp__add(area, cr);
 		}
 		r_totals[r].volume6 = volume6;
@@ -726,14 +737,14 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 static void lvp__border_rest(lvp_binding *binding, const float *rest)
 {
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->border_offsets[r + 1] == binding->border_offsets[r])
+		if (binding->borders.offsets[r + 1] == binding->borders.offsets[r])
 			continue;
-		const lvp__mat4 *to_local = &binding->rest_inverse[r];
-		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
-			lvp__vec3 a = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i]));
-			lvp__vec3 b = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->border_edges[2 * i + 1]));
-			binding->border_rest[2 * i] = lvp__add(a, b);
-			binding->border_rest[2 * i + 1] = lvp__cross(a, b);
+		const lvp__mat4 *to_local = &binding->rig.rest_inverse[r];
+		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i) {
+			lvp__vec3 a = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->borders.edges[2 * i]));
+			lvp__vec3 b = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->borders.edges[2 * i + 1]));
+			binding->borders.rest[2 * i] = lvp__add(a, b);
+			binding->borders.rest[2 * i + 1] = lvp__cross(a, b);
 		}
 	}
 }
@@ -741,16 +752,16 @@ static void lvp__border_rest(lvp_binding *binding, const float *rest)
 const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions)
 {
 	if (rest_positions) {
-		lvp__rest_constants(binding, rest_positions, binding->frame_totals);
+		lvp__rest_constants(binding, rest_positions, binding->measure.frame_totals);
 		lvp__border_rest(binding, rest_positions);
-		binding->border_rest_is_bind = false;
-		return binding->frame_totals;
+		binding->borders.rest_is_bind = false;
+		return binding->measure.frame_totals;
 	}
-	if (!binding->border_rest_is_bind) {
+	if (!binding->borders.rest_is_bind) {
 		lvp__border_rest(binding, binding->rest_positions);
-		binding->border_rest_is_bind = true;
+		binding->borders.rest_is_bind = true;
 	}
-	return binding->rest_totals;
+	return binding->measure.rest_totals;
 }
 
 void lvp__reference_volumes(lvp_binding *binding)
@@ -766,32 +777,31 @@ void lvp__reference_volumes(lvp_binding *binding)
 			lo = lvp__v(fmin(lo.x, p.x), fmin(lo.y, p.y), fmin(lo.z, p.z));
 			hi = lvp__v(fmax(hi.x, p.x), fmax(hi.y, p.y), fmax(hi.z, p.z));
 		}
-		binding->global_origin = lvp__scale(centroid, 1.0 / binding->vertex_count);
-		binding->origin[0] = binding->global_origin;
+		binding->measure.global_origin = lvp__scale(centroid, 1.0 / binding->vertex_count);
 		for (int32_t t = 0; t < binding->triangle_count; ++t) {
-			lvp__vec3 p0 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t]), binding->global_origin);
-			lvp__vec3 p1 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t + 1]), binding->global_origin);
-			lvp__vec3 p2 = lvp__sub(lvp__load(rest + 3 * binding->triangles[3 * t + 2]), binding->global_origin);
+			lvp__vec3 p0 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t]), binding->measure.global_origin);
+			lvp__vec3 p1 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 1]), binding->measure.global_origin);
+			lvp__vec3 p2 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]), binding->measure.global_origin);
 			volume6 += lvp__vol6(p0, p1, p2);
 		}
 		double size = lvp__length(lvp__sub(hi, lo));
 		double volume = fabs(volume6 / 6.0);
-		binding->reference_volume[0] = volume > 1e-6 * size * size * size ? volume : size * size * size;
+		binding->measure.reference_volume[0] = volume > 1e-6 * size * size * size ? volume : size * size * size;
 		return;
 	}
 	/* A region is open, so it has no volume of its own: its reference is the volume of the
 	 * cones from its triangles to its bone, sum area * distance(centroid, bone) / 3. */
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		double volume = 0.0;
-		for (int32_t t = binding->region_triangle_offsets[r]; t < binding->region_triangle_offsets[r + 1]; ++t) {
-			lvp__vec3 p0 = lvp__load(rest + 3 * binding->triangles[3 * t]);
-			lvp__vec3 p1 = lvp__load(rest + 3 * binding->triangles[3 * t + 1]);
-			lvp__vec3 p2 = lvp__load(rest + 3 * binding->triangles[3 * t + 2]);
+		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1]; ++t) {
+			lvp__vec3 p0 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t]);
+			lvp__vec3 p1 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 1]);
+			lvp__vec3 p2 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]);
 			double area = 0.5 * lvp__length(lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0)));
 			lvp__vec3 centroid = lvp__scale(lvp__add(lvp__add(p0, p1), p2), 1.0 / 3.0);
-			volume += area * lvp__segment_distance(centroid, binding->heads[r], binding->tails[r]) / 3.0;
+			volume += area * lvp__segment_distance(centroid, binding->rig.heads[r], binding->rig.tails[r]) / 3.0;
 		}
-		binding->reference_volume[r] = volume;
+		binding->measure.reference_volume[r] = volume;
 	}
 }
 
@@ -809,30 +819,30 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 	lvp_binding *binding = c->binding;
 	const float *positions = c->positions;
 	for (int32_t r = first; r < last; ++r) {
-		if (binding->region_skipped[r]) {
+		if (binding->rig.region_skipped[r]) {
 			c->r_change[r] = 0.0;
 			continue;
 		}
 		/* Top part in rest-world units: kappa * sum (p_i - t) . cr / 6, kappa = det(rest)/det(posed). */
-		double top = binding->kappa[r] * binding->sums[r].volume6 / 6.0;
+		double top = binding->rig.kappa[r] * binding->measure.sums[r].volume6 / 6.0;
 		double sides6 = 0.0;
-		if (binding->border_offsets[r + 1] > binding->border_offsets[r]) {
-			const lvp__mat4 *to_local = &binding->posed_inverse[r];
+		if (binding->borders.offsets[r + 1] > binding->borders.offsets[r]) {
+			const lvp__mat4 *to_local = &binding->rig.posed_inverse[r];
 			const double *m = to_local->m;
 			/* side gradients: local frame, 6 x volume -> world, in the units of the top part's
 			 * gradient (which the correction multiplies by kappa); q = L p => dV/dp = L^T dV/dq */
-			double gradient_scale = binding->rest_det[r] / binding->kappa[r] / 6.0;
-			int32_t bone_class = binding->skin_class[r];
-			lvp__vec3 o = binding->origin[r];
-			for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
-				int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
+			double gradient_scale = binding->rig.rest_det[r] / binding->rig.kappa[r] / 6.0;
+			int32_t bone_class = binding->frame_map.skin_class[r];
+			lvp__vec3 o = binding->measure.origin[r];
+			for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i) {
+				int32_t a = binding->borders.edges[2 * i], b = binding->borders.edges[2 * i + 1];
 				/* Both ends static with the region's bone: rest and posed edge are the same in the
 				 * bone's frame, the quad is flat, and neither end moves this frame. */
 				if (lvp__carried_rigidly(binding, a, bone_class) && lvp__carried_rigidly(binding, b, bone_class))
 					continue;
 				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
 				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
-				const lvp__vec3 *rest = binding->border_rest + 2 * i;
+				const lvp__vec3 *rest = binding->borders.rest + 2 * i;
 				lvp__vec3 local[2];
 				sides6 += lvp__side_quad6(&local[0], &local[1], qa, qb, rest[0], rest[1]);
 				/* The top's gradient was taken in its translation-invariant form, exact only where
@@ -840,7 +850,7 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is
 				 * this half-edge's share for both of its ends. */
 				lvp__vec3 top_share = lvp__scale(lvp__cross(lvp__sub(pb, o), lvp__sub(pa, o)), 1.0 / 6.0);
-				float *gradient = binding->border_gradient + 6 * i;
+				float *gradient = binding->borders.gradient + 6 * i;
 				for (int end = 0; end < 2; ++end) {
 					lvp__vec3 g = local[end];
 					gradient[3 * end] = (float)(gradient_scale * (m[0] * g.x + m[4] * g.y + m[8] * g.z) + top_share.x);
@@ -849,7 +859,7 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 				}
 			}
 			/* local units -> rest-world units */
-			sides6 *= binding->rest_det[r];
+			sides6 *= binding->rig.rest_det[r];
 		}
 		c->r_change[r] = top + sides6 / 6.0 - c->rest_totals[r].volume6 / 6.0;
 	}
@@ -860,7 +870,7 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp
 {
 	lvp__change_context context = {binding, positions, rest_totals, r_change};
 	/* a border edge costs about as much as 8 triangles of the mesh pass */
-	int64_t work = 8 * (int64_t)binding->border_offsets[binding->region_count];
+	int64_t work = 8 * (int64_t)binding->borders.offsets[binding->region_count];
 	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__region_change_loop, &context, binding->region_count, 1);
 }
 
@@ -874,42 +884,42 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 {
 	int32_t touched = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->region_skipped[r])
+		if (binding->rig.region_skipped[r])
 			continue;
-		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
 			for (int end = 0; end < 2; ++end) {
-				int32_t k = binding->border_edges[2 * i + end];
-				if (binding->vertex_dynamic[k] && !binding->vertex_dirty[k]) {
-					binding->vertex_dirty[k] = 1;
-					binding->dirty_vertices[touched++] = k;
+				int32_t k = binding->borders.edges[2 * i + end];
+				if (binding->frame_map.vertex_dynamic[k] && !binding->measure.vertex_dirty[k]) {
+					binding->measure.vertex_dirty[k] = 1;
+					binding->measure.dirty_vertices[touched++] = k;
 					lvp__vertex_terms(binding, k);
 				}
 			}
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->region_skipped[r])
+		if (binding->rig.region_skipped[r])
 			continue;
-		for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i)
+		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
 			for (int end = 0; end < 2; ++end) {
-				int32_t k = binding->border_edges[2 * i + end];
-				int32_t slot = binding->border_slots[2 * i + end];
-				if (!binding->vertex_dynamic[k] || slot < 0)
+				int32_t k = binding->borders.edges[2 * i + end];
+				int32_t slot = binding->borders.slots[2 * i + end];
+				if (!binding->frame_map.vertex_dynamic[k] || slot < 0)
 					continue;
-				const float *n = binding->normals + 3 * k, *g = binding->border_gradient + 6 * i + 3 * end;
-				binding->slot_g[slot] += n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
+				const float *n = binding->measure.normals + 3 * k, *g = binding->borders.gradient + 6 * i + 3 * end;
+				binding->measure.slot_g[slot] += n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
 			}
 	}
 	for (int32_t i = 0; i < touched; ++i)
-		binding->vertex_dirty[binding->dirty_vertices[i]] = 0;
+		binding->measure.vertex_dirty[binding->measure.dirty_vertices[i]] = 0;
 }
 
 void lvp__vertex_gradients(lvp_binding *binding)
 {
-	if (!binding->vertex_terms_current) {
+	if (!binding->measure.vertex_terms_current) {
 		lvp__loop_context context = {binding, NULL};
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic_vertex_count), lvp__vertex_loop, &context,
-		                  binding->dynamic_vertex_count, LVP__GRAIN);
-		binding->vertex_terms_current = true;
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__vertex_loop, &context,
+		                  binding->dynamic.vertex_count, LVP__GRAIN);
+		binding->measure.vertex_terms_current = true;
 	}
 	lvp__add_border_gradients(binding);
 }

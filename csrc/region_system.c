@@ -110,20 +110,20 @@ static bool lvp__profile_solve(double *a, const lvp__profile *profile, double *x
 static bool lvp__build_coupling(lvp_binding *binding)
 {
 	int32_t s = binding->region_count;
-	binding->coupling_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	binding->system.coupling_offsets = calloc((size_t)s + 1, sizeof(int32_t));
 	int32_t *seen = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	size_t count = 0, capacity = 64;
 	uint64_t *pairs = malloc(sizeof(uint64_t) * capacity);
-	bool ok = binding->coupling_offsets && seen && pairs;
+	bool ok = binding->system.coupling_offsets && seen && pairs;
 	for (int32_t r = 0; r < s && ok; ++r)
 		seen[r] = -1;
-	for (int32_t r = 0; r < s && ok && binding->weight_offsets; ++r) {
+	for (int32_t r = 0; r < s && ok && binding->rig.weight_offsets; ++r) {
 		seen[r] = r;
-		for (int32_t c = binding->region_corner_offsets[r]; c < binding->region_corner_offsets[r + 1] && ok; ++c) {
-			int32_t k = binding->region_corners[c];
+		for (int32_t c = binding->mesh.region_corner_offsets[r]; c < binding->mesh.region_corner_offsets[r + 1] && ok; ++c) {
+			int32_t k = binding->mesh.region_corners[c];
 			/* its weights' bones, then its own region (a vertex without weight has one too) */
-			for (int32_t w = binding->weight_offsets[k]; w <= binding->weight_offsets[k + 1]; ++w) {
-				int32_t t = w < binding->weight_offsets[k + 1] ? binding->weight_bones[w] : binding->vertex_region[k];
+			for (int32_t w = binding->rig.weight_offsets[k]; w <= binding->rig.weight_offsets[k + 1]; ++w) {
+				int32_t t = w < binding->rig.weight_offsets[k + 1] ? binding->rig.weight_bones[w] : binding->mesh.vertex_region[k];
 				if (t < 0 || t >= s || seen[t] == r)
 					continue;
 				seen[t] = r;
@@ -147,14 +147,14 @@ static bool lvp__build_coupling(lvp_binding *binding)
 		for (size_t i = 0; i < count; ++i)
 			if (i == 0 || pairs[i] != pairs[i - 1])
 				pairs[unique++] = pairs[i];
-		binding->coupling = malloc(sizeof(int32_t) * (unique > 0 ? unique : 1));
-		ok = binding->coupling != NULL;
+		binding->system.coupling = malloc(sizeof(int32_t) * (unique > 0 ? unique : 1));
+		ok = binding->system.coupling != NULL;
 		for (size_t i = 0; i < unique && ok; ++i) {
-			binding->coupling[i] = (int32_t)(pairs[i] % (uint64_t)s);
-			binding->coupling_offsets[pairs[i] / (uint64_t)s + 1]++;
+			binding->system.coupling[i] = (int32_t)(pairs[i] % (uint64_t)s);
+			binding->system.coupling_offsets[pairs[i] / (uint64_t)s + 1]++;
 		}
 		for (int32_t r = 0; r < s && ok; ++r)
-			binding->coupling_offsets[r + 1] += binding->coupling_offsets[r];
+			binding->system.coupling_offsets[r + 1] += binding->system.coupling_offsets[r];
 	}
 	free(seen);
 	free(pairs);
@@ -167,8 +167,8 @@ static bool lvp__build_coupling(lvp_binding *binding)
  * Cuthill-McKee and shrinks its profile (a region coupled with many comes after them). */
 static bool lvp__order_regions(lvp_binding *binding)
 {
-	int32_t s = binding->region_count, *order = binding->solve_order;
-	const int32_t *offsets = binding->coupling_offsets;
+	int32_t s = binding->region_count, *order = binding->system.solve_order;
+	const int32_t *offsets = binding->system.coupling_offsets;
 	int32_t *by_degree = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	int32_t *counts = calloc((size_t)s + 1, sizeof(int32_t));
 	uint8_t *placed_already = calloc((size_t)s + 1, 1);
@@ -194,7 +194,7 @@ static bool lvp__order_regions(lvp_binding *binding)
 			for (int32_t head = placed - 1; head < placed; ++head) {
 				int32_t r = order[head], first_new = placed;
 				for (int32_t e = offsets[r]; e < offsets[r + 1]; ++e) {
-					int32_t t = binding->coupling[e];
+					int32_t t = binding->system.coupling[e];
 					if (placed_already[t])
 						continue;
 					placed_already[t] = 1;
@@ -225,12 +225,12 @@ static bool lvp__order_regions(lvp_binding *binding)
 static void lvp__system_firsts(lvp_binding *binding, int32_t m)
 {
 	for (int32_t i = 0; i < m; ++i) {
-		int32_t r = binding->active[i], first = i;
-		for (int32_t e = binding->coupling_offsets[r]; e < binding->coupling_offsets[r + 1]; ++e) {
-			int32_t j = binding->active_index[binding->coupling[e]];
+		int32_t r = binding->step.active[i], first = i;
+		for (int32_t e = binding->system.coupling_offsets[r]; e < binding->system.coupling_offsets[r + 1]; ++e) {
+			int32_t j = binding->step.active_index[binding->system.coupling[e]];
 			first = j >= 0 && j < first ? j : first;
 		}
-		binding->system_profile.first[i] = first;
+		binding->system.profile.first[i] = first;
 	}
 }
 
@@ -239,9 +239,9 @@ static void lvp__system_firsts(lvp_binding *binding, int32_t m)
  * normal_capacity; returns whether it fits. */
 static bool lvp__normal_layout(lvp_binding *binding)
 {
-	const lvp__profile *system = &binding->system_profile;
-	lvp__profile *normal = &binding->normal_profile;
-	int32_t m = system->count, *last = binding->row_last;
+	const lvp__profile *system = &binding->system.profile;
+	lvp__profile *normal = &binding->system.normal_profile;
+	int32_t m = system->count, *last = binding->system.row_last;
 	for (int32_t r = 0; r < m; ++r) {
 		last[r] = r;
 		normal->first[r] = r;
@@ -252,58 +252,58 @@ static bool lvp__normal_layout(lvp_binding *binding)
 	for (int32_t r = 0; r < m; ++r)
 		for (int32_t b = system->first[r]; b <= last[r]; ++b)
 			normal->first[b] = system->first[r] < normal->first[b] ? system->first[r] : normal->first[b];
-	return lvp__lay_out(normal, m, binding->normal_capacity) == m;
+	return lvp__lay_out(normal, m, binding->system.normal_capacity) == m;
 }
 
 lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count;
 	size_t n = s > 0 ? (size_t)s : 1;
-	binding->solve_order = malloc(sizeof(int32_t) * n);
-	binding->system_profile.first = malloc(sizeof(int32_t) * n);
-	binding->system_profile.lower = malloc(sizeof(int32_t) * n);
-	binding->system_profile.upper = malloc(sizeof(int32_t) * n);
-	binding->normal_profile.first = malloc(sizeof(int32_t) * n);
-	binding->normal_profile.lower = malloc(sizeof(int32_t) * n);
-	binding->normal_profile.upper = malloc(sizeof(int32_t) * n);
-	binding->row_last = malloc(sizeof(int32_t) * n);
-	binding->still = malloc(n);
-	binding->rhs = malloc(sizeof(double) * n);
-	binding->solution = malloc(sizeof(double) * n);
-	binding->row_values = malloc(sizeof(double) * n);
-	binding->system_place = malloc(sizeof(lvp__system_place) * n);
-	bool ok = binding->solve_order && binding->system_profile.first && binding->system_profile.lower &&
-	          binding->system_profile.upper && binding->normal_profile.first && binding->normal_profile.lower &&
-	          binding->normal_profile.upper && binding->row_last && binding->still && binding->rhs &&
-	          binding->solution && binding->row_values && binding->system_place;
+	binding->system.solve_order = malloc(sizeof(int32_t) * n);
+	binding->system.profile.first = malloc(sizeof(int32_t) * n);
+	binding->system.profile.lower = malloc(sizeof(int32_t) * n);
+	binding->system.profile.upper = malloc(sizeof(int32_t) * n);
+	binding->system.normal_profile.first = malloc(sizeof(int32_t) * n);
+	binding->system.normal_profile.lower = malloc(sizeof(int32_t) * n);
+	binding->system.normal_profile.upper = malloc(sizeof(int32_t) * n);
+	binding->system.row_last = malloc(sizeof(int32_t) * n);
+	binding->system.still = malloc(n);
+	binding->system.rhs = malloc(sizeof(double) * n);
+	binding->system.solution = malloc(sizeof(double) * n);
+	binding->system.row_values = malloc(sizeof(double) * n);
+	binding->system.place = malloc(sizeof(lvp__system_place) * n);
+	bool ok = binding->system.solve_order && binding->system.profile.first && binding->system.profile.lower &&
+	          binding->system.profile.upper && binding->system.normal_profile.first && binding->system.normal_profile.lower &&
+	          binding->system.normal_profile.upper && binding->system.row_last && binding->system.still && binding->system.rhs &&
+	          binding->system.solution && binding->system.row_values && binding->system.place;
 	ok = ok && lvp__build_coupling(binding) && lvp__order_regions(binding);
 	if (ok) {
 		/* The capacities: the profiles of every region active at once (a step's, of fewer
 		 * regions, is never larger: compacting an order only brings coupled regions closer),
 		 * up to LVP__SYSTEM_CELLS each. */
 		for (int32_t i = 0; i < s; ++i) {
-			binding->active[i] = binding->solve_order[i];
-			binding->active_index[binding->solve_order[i]] = i;
+			binding->step.active[i] = binding->system.solve_order[i];
+			binding->step.active_index[binding->system.solve_order[i]] = i;
 		}
 		lvp__system_firsts(binding, s);
-		binding->system_capacity = LVP__SYSTEM_CELLS;
-		binding->normal_capacity = LVP__SYSTEM_CELLS;
-		if (lvp__lay_out(&binding->system_profile, s, LVP__SYSTEM_CELLS) == s) {
-			binding->system_capacity = binding->system_profile.cells;
+		binding->system.capacity = LVP__SYSTEM_CELLS;
+		binding->system.normal_capacity = LVP__SYSTEM_CELLS;
+		if (lvp__lay_out(&binding->system.profile, s, LVP__SYSTEM_CELLS) == s) {
+			binding->system.capacity = binding->system.profile.cells;
 			if (lvp__normal_layout(binding))
-				binding->normal_capacity = binding->normal_profile.cells;
+				binding->system.normal_capacity = binding->system.normal_profile.cells;
 		}
 		for (int32_t i = 0; i < s; ++i)
-			binding->active_index[i] = -1;
-		binding->system_profile.count = binding->normal_profile.count = 0;
-		binding->system_profile.cells = binding->normal_profile.cells = 0;
-		size_t system = (size_t)binding->system_capacity, block = LVP__ASSEMBLY_BLOCK(system, n);
-		binding->system = malloc(sizeof(double) * system);
-		binding->factor = malloc(sizeof(double) * system);
-		binding->normal = malloc(sizeof(double) * (size_t)binding->normal_capacity);
-		binding->assembly = malloc(sizeof(double) * block * LVP__ASSEMBLY_CHUNKS);
-		binding->assembly_block = block;
-		ok = binding->system && binding->factor && binding->normal && binding->assembly;
+			binding->step.active_index[i] = -1;
+		binding->system.profile.count = binding->system.normal_profile.count = 0;
+		binding->system.profile.cells = binding->system.normal_profile.cells = 0;
+		size_t system = (size_t)binding->system.capacity, block = LVP__ASSEMBLY_BLOCK(system, n);
+		binding->system.matrix = malloc(sizeof(double) * system);
+		binding->system.factor = malloc(sizeof(double) * system);
+		binding->system.normal = malloc(sizeof(double) * (size_t)binding->system.normal_capacity);
+		binding->system.assembly = malloc(sizeof(double) * block * LVP__ASSEMBLY_CHUNKS);
+		binding->system.assembly_block = block;
+		ok = binding->system.matrix && binding->system.factor && binding->system.normal && binding->system.assembly;
 	}
 	if (!ok)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
@@ -316,26 +316,26 @@ lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag
 int32_t lvp__system_layout(lvp_binding *binding, int32_t m)
 {
 	lvp__system_firsts(binding, m);
-	const lvp__profile *p = &binding->system_profile;
-	int32_t dense = lvp__lay_out(&binding->system_profile, m, binding->system_capacity);
+	const lvp__profile *p = &binding->system.profile;
+	int32_t dense = lvp__lay_out(&binding->system.profile, m, binding->system.capacity);
 	lvp__system_place outside = {dense, INT32_MAX, 0, 0};
 	for (int32_t r = 0; r < binding->region_count; ++r)
-		binding->system_place[r] = outside;
+		binding->system.place[r] = outside;
 	for (int32_t i = 0; i < dense; ++i) {
 		lvp__system_place place = {i, p->first[i], p->lower[i], p->upper[i]};
-		binding->system_place[binding->active[i]] = place;
+		binding->system.place[binding->step.active[i]] = place;
 	}
 	return dense;
 }
 
 void lvp__sum_system(lvp_binding *binding)
 {
-	const lvp__profile *p = &binding->system_profile;
-	double *system = binding->system;
+	const lvp__profile *p = &binding->system.profile;
+	double *system = binding->system.matrix;
 	bool by_rows = lvp__assembled_by_rows(binding);
 	memset(system, 0, sizeof(double) * (size_t)p->cells);
-	for (int32_t chunk = 0; chunk < binding->assembly_chunks; ++chunk) {
-		const double *sums = binding->assembly + (size_t)chunk * binding->assembly_block;
+	for (int32_t chunk = 0; chunk < binding->system.assembly_chunks; ++chunk) {
+		const double *sums = binding->system.assembly + (size_t)chunk * binding->system.assembly_block;
 		if (!by_rows) {
 			for (int32_t c = 0; c < p->cells; ++c)
 				system[c] += sums[c];
@@ -355,8 +355,8 @@ void lvp__sum_system(lvp_binding *binding)
 
 void lvp__system_row_sums(const lvp_binding *binding, double *r_sums)
 {
-	const lvp__profile *p = &binding->system_profile;
-	const double *a = binding->system;
+	const lvp__profile *p = &binding->system.profile;
+	const double *a = binding->system.matrix;
 	for (int32_t i = 0; i < p->count; ++i) {
 		double sum = 0.0;
 		for (int32_t j = p->first[i]; j <= i; ++j)
@@ -372,23 +372,23 @@ void lvp__system_row_sums(const lvp_binding *binding, double *r_sums)
  * system: their row and column zero, their diagonal 1, their right-hand side 0. */
 static void lvp__take_out_still_regions(lvp_binding *binding, double largest_diagonal)
 {
-	const lvp__profile *p = &binding->system_profile;
-	double *a = binding->system;
+	const lvp__profile *p = &binding->system.profile;
+	double *a = binding->system.matrix;
 	bool any = false;
 	for (int32_t i = 0; i < p->count; ++i) {
-		binding->still[i] = !(fabs(a[p->lower[i] + i]) > 1e-12 * largest_diagonal);
-		any = any || binding->still[i];
+		binding->system.still[i] = !(fabs(a[p->lower[i] + i]) > 1e-12 * largest_diagonal);
+		any = any || binding->system.still[i];
 	}
 	if (!any)
 		return;
 	for (int32_t i = 0; i < p->count; ++i) {
 		for (int32_t j = p->first[i]; j < i; ++j) {
-			if (binding->still[i] || binding->still[j])
+			if (binding->system.still[i] || binding->system.still[j])
 				a[p->lower[i] + j] = a[p->upper[i] + j] = 0.0;
 		}
-		if (binding->still[i]) {
+		if (binding->system.still[i]) {
 			a[p->lower[i] + i] = 1.0;
-			binding->rhs[i] = 0.0;
+			binding->system.rhs[i] = 0.0;
 		}
 	}
 }
@@ -400,14 +400,14 @@ static bool lvp__least_squares(lvp_binding *binding)
 {
 	if (!lvp__normal_layout(binding))
 		return false;
-	const lvp__profile *p = &binding->system_profile, *np = &binding->normal_profile;
-	const double *a = binding->system, *rhs = binding->rhs;
-	double *normal = binding->normal, *x = binding->row_values, *solution = binding->solution;
+	const lvp__profile *p = &binding->system.profile, *np = &binding->system.normal_profile;
+	const double *a = binding->system.matrix, *rhs = binding->system.rhs;
+	double *normal = binding->system.normal, *x = binding->system.row_values, *solution = binding->system.solution;
 	int32_t m = p->count;
 	memset(normal, 0, sizeof(double) * (size_t)np->cells);
 	memset(solution, 0, sizeof(double) * (size_t)m);
 	for (int32_t r = 0; r < m; ++r) {
-		int32_t from = p->first[r], to = binding->row_last[r];
+		int32_t from = p->first[r], to = binding->system.row_last[r];
 		for (int32_t c = from; c <= r; ++c)
 			x[c] = a[p->lower[r] + c];
 		for (int32_t c = r + 1; c <= to; ++c)
@@ -431,11 +431,11 @@ static bool lvp__least_squares(lvp_binding *binding)
 
 bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 {
-	const lvp__profile *p = &binding->system_profile;
+	const lvp__profile *p = &binding->system.profile;
 	if (p->count == 0)
 		return false;
 	lvp__take_out_still_regions(binding, largest_diagonal);
-	memcpy(binding->factor, binding->system, sizeof(double) * (size_t)p->cells);
-	memcpy(binding->solution, binding->rhs, sizeof(double) * (size_t)p->count);
-	return lvp__profile_solve(binding->factor, p, binding->solution) || lvp__least_squares(binding);
+	memcpy(binding->system.factor, binding->system.matrix, sizeof(double) * (size_t)p->cells);
+	memcpy(binding->system.solution, binding->system.rhs, sizeof(double) * (size_t)p->count);
+	return lvp__profile_solve(binding->system.factor, p, binding->system.solution) || lvp__least_squares(binding);
 }

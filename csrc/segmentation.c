@@ -12,9 +12,9 @@ static int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_ma
 {
 	int32_t best = -1;
 	float best_weight = 0.0f;
-	for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-		float w = binding->weight_values[e];
-		int32_t bone = binding->weight_bones[e];
+	for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+		float w = binding->rig.weight_values[e];
+		int32_t bone = binding->rig.weight_bones[e];
 		if (w > best_weight || (w == best_weight && w > 0.0f && bone < best)) {
 			best = bone;
 			best_weight = w;
@@ -32,23 +32,23 @@ static int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_ma
 static int32_t lvp__triangle_bone(const lvp_binding *binding, const int32_t *corners, double *r_sums)
 {
 	for (int c = 0; c < 3; ++c)
-		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e)
-			r_sums[binding->weight_bones[e]] += binding->weight_values[e];
+		for (int32_t e = binding->rig.weight_offsets[corners[c]]; e < binding->rig.weight_offsets[corners[c] + 1]; ++e)
+			r_sums[binding->rig.weight_bones[e]] += binding->rig.weight_values[e];
 	int32_t best = -1;
 	double best_sum = 0.0;
 	for (int c = 0; c < 3; ++c) {
-		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e) {
-			int32_t bone = binding->weight_bones[e];
+		for (int32_t e = binding->rig.weight_offsets[corners[c]]; e < binding->rig.weight_offsets[corners[c] + 1]; ++e) {
+			int32_t bone = binding->rig.weight_bones[e];
 			double sum = r_sums[bone];
-			if (binding->weight_values[e] > 0.0f && (sum > best_sum || (sum == best_sum && bone < best))) {
+			if (binding->rig.weight_values[e] > 0.0f && (sum > best_sum || (sum == best_sum && bone < best))) {
 				best = bone;
 				best_sum = sum;
 			}
 		}
 	}
 	for (int c = 0; c < 3; ++c)
-		for (int32_t e = binding->weight_offsets[corners[c]]; e < binding->weight_offsets[corners[c] + 1]; ++e)
-			r_sums[binding->weight_bones[e]] = 0.0;
+		for (int32_t e = binding->rig.weight_offsets[corners[c]]; e < binding->rig.weight_offsets[corners[c] + 1]; ++e)
+			r_sums[binding->rig.weight_bones[e]] = 0.0;
 	return best;
 }
 
@@ -60,9 +60,9 @@ static lvp_result lvp__assign_regions(lvp_binding *binding, const int32_t *trian
 	int32_t weighted = 0;
 	for (int32_t k = 0; k < n; ++k) {
 		float max_weight = 0.0f;
-		int32_t bone = binding->weight_offsets ? lvp__main_bone(binding, k, &max_weight) : -1;
-		binding->max_weight[k] = max_weight;
-		binding->vertex_region[k] = local ? bone : 0;
+		int32_t bone = binding->rig.weight_offsets ? lvp__main_bone(binding, k, &max_weight) : -1;
+		binding->mesh.max_weight[k] = max_weight;
+		binding->mesh.vertex_region[k] = local ? bone : 0;
 		weighted += bone >= 0;
 	}
 	if (local && weighted == 0)
@@ -87,13 +87,13 @@ static lvp_result lvp__assign_regions(lvp_binding *binding, const int32_t *trian
 	for (int32_t r = 0; r <= s; ++r)
 		count[r + 1] += count[r];
 	for (int32_t r = 0; r <= s; ++r)
-		binding->region_triangle_offsets[r] = count[r];
+		binding->mesh.region_triangle_offsets[r] = count[r];
 	for (int32_t t = 0; t < f; ++t) {
 		int32_t r = region_of[t] < 0 ? s : region_of[t];
 		int32_t at = count[r]++;
-		memcpy(binding->triangles + 3 * at, triangles_in + 3 * t, sizeof(int32_t) * 3);
-		binding->triangle_original[at] = t;
-		binding->triangle_region[at] = region_of[t];
+		memcpy(binding->mesh.triangles + 3 * at, triangles_in + 3 * t, sizeof(int32_t) * 3);
+		binding->mesh.triangle_original[at] = t;
+		binding->mesh.triangle_region[at] = region_of[t];
 	}
 	free(region_of);
 	free(count);
@@ -113,67 +113,67 @@ static lvp_result lvp__build_slots(lvp_binding *binding, lvp_diagnostic *r_diag)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
 	for (int32_t c = 0; c < 3 * f; ++c)
-		++corner_offsets[binding->triangles[c] + 1];
+		++corner_offsets[binding->mesh.triangles[c] + 1];
 	for (int32_t k = 0; k < n; ++k)
 		corner_offsets[k + 1] += corner_offsets[k];
 	for (int32_t c = 0; c < 3 * f; ++c)
-		corners[corner_offsets[binding->triangles[c]]++] = c;
+		corners[corner_offsets[binding->mesh.triangles[c]]++] = c;
 	for (int32_t k = n; k > 0; --k)
 		corner_offsets[k] = corner_offsets[k - 1];
 	corner_offsets[0] = 0;
 
 	/* Two passes over each vertex's corners: count the distinct regions, then assign. */
-	binding->slot_offsets[0] = 0;
+	binding->mesh.slot_offsets[0] = 0;
 	for (int32_t k = 0; k < n; ++k) {
 		int32_t distinct = 0;
 		for (int32_t i = corner_offsets[k]; i < corner_offsets[k + 1]; ++i) {
-			int32_t region = binding->triangle_region[corners[i] / 3];
+			int32_t region = binding->mesh.triangle_region[corners[i] / 3];
 			bool seen = false;
 			for (int32_t j = corner_offsets[k]; j < i && !seen; ++j)
-				seen = binding->triangle_region[corners[j] / 3] == region;
+				seen = binding->mesh.triangle_region[corners[j] / 3] == region;
 			distinct += !seen;
 		}
-		binding->slot_offsets[k + 1] = binding->slot_offsets[k] + distinct;
+		binding->mesh.slot_offsets[k + 1] = binding->mesh.slot_offsets[k] + distinct;
 	}
-	binding->slot_count = binding->slot_offsets[n];
-	size_t slots = (size_t)binding->slot_count;
-	binding->slot_region = malloc(sizeof(int32_t) * (slots ? slots : 1));
-	binding->slot_gradient = calloc((slots ? slots : 1) * 3, sizeof(float));
-	binding->slot_g = calloc(slots ? slots : 1, sizeof(float));
-	if (!binding->slot_region || !binding->slot_gradient || !binding->slot_g) {
+	binding->mesh.slot_count = binding->mesh.slot_offsets[n];
+	size_t slots = (size_t)binding->mesh.slot_count;
+	binding->mesh.slot_region = malloc(sizeof(int32_t) * (slots ? slots : 1));
+	binding->measure.slot_gradient = calloc((slots ? slots : 1) * 3, sizeof(float));
+	binding->measure.slot_g = calloc(slots ? slots : 1, sizeof(float));
+	if (!binding->mesh.slot_region || !binding->measure.slot_gradient || !binding->measure.slot_g) {
 		free(corner_offsets);
 		free(corners);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
 	for (int32_t k = 0; k < n; ++k) {
-		int32_t first = binding->slot_offsets[k], used = 0;
+		int32_t first = binding->mesh.slot_offsets[k], used = 0;
 		for (int32_t i = corner_offsets[k]; i < corner_offsets[k + 1]; ++i) {
-			int32_t region = binding->triangle_region[corners[i] / 3];
+			int32_t region = binding->mesh.triangle_region[corners[i] / 3];
 			int32_t slot = -1;
 			for (int32_t j = 0; j < used && slot < 0; ++j)
-				if (binding->slot_region[first + j] == region)
+				if (binding->mesh.slot_region[first + j] == region)
 					slot = first + j;
 			if (slot < 0) {
 				slot = first + used++;
-				binding->slot_region[slot] = region;
+				binding->mesh.slot_region[slot] = region;
 			}
-			binding->corner_slot[corners[i]] = slot;
+			binding->mesh.corner_slot[corners[i]] = slot;
 		}
 	}
 	/* Kept, as (triangle, slot) per corner around each vertex: the mesh pass gathers each
 	 * vertex's gradient through them, the incremental pass finds the triangles of moved
 	 * vertices. */
-	binding->vertex_corner_offsets = corner_offsets;
-	binding->vertex_corner_slot = malloc(sizeof(int32_t) * (size_t)(3 * f > 0 ? 3 * f : 1));
-	if (!binding->vertex_corner_slot) {
+	binding->mesh.vertex_corner_offsets = corner_offsets;
+	binding->mesh.vertex_corner_slot = malloc(sizeof(int32_t) * (size_t)(3 * f > 0 ? 3 * f : 1));
+	if (!binding->mesh.vertex_corner_slot) {
 		free(corners);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
 	for (int32_t i = 0; i < 3 * f; ++i) {
-		binding->vertex_corner_slot[i] = binding->corner_slot[corners[i]];
+		binding->mesh.vertex_corner_slot[i] = binding->mesh.corner_slot[corners[i]];
 		corners[i] /= 3;
 	}
-	binding->vertex_triangles = corners;
+	binding->mesh.vertex_triangles = corners;
 	return lvp_success;
 }
 
@@ -182,18 +182,18 @@ static lvp_result lvp__build_slots(lvp_binding *binding, lvp_diagnostic *r_diag)
 static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t n = binding->vertex_count, s = binding->region_count;
-	int32_t *offsets = binding->region_vertex_offsets;
+	int32_t *offsets = binding->mesh.region_vertex_offsets;
 	memset(offsets, 0, sizeof(int32_t) * ((size_t)s + 1));
 	for (int32_t k = 0; k < n; ++k)
-		if (binding->vertex_region[k] >= 0)
-			++offsets[binding->vertex_region[k] + 1];
+		if (binding->mesh.vertex_region[k] >= 0)
+			++offsets[binding->mesh.vertex_region[k] + 1];
 	for (int32_t r = 0; r < s; ++r)
 		offsets[r + 1] += offsets[r];
 	int32_t *fill = malloc(sizeof(int32_t) * (size_t)s);
-	binding->neighbour_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	binding->mesh.neighbour_offsets = calloc((size_t)s + 1, sizeof(int32_t));
 	int32_t *marker = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	int32_t *directed_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	if (!fill || !binding->neighbour_offsets || !marker || !directed_offsets) {
+	if (!fill || !binding->mesh.neighbour_offsets || !marker || !directed_offsets) {
 		free(fill);
 		free(marker);
 		free(directed_offsets);
@@ -201,16 +201,16 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 	}
 	memcpy(fill, offsets, sizeof(int32_t) * (size_t)s);
 	for (int32_t k = 0; k < n; ++k)
-		if (binding->vertex_region[k] >= 0)
-			binding->region_vertices[fill[binding->vertex_region[k]]++] = k;
+		if (binding->mesh.vertex_region[k] >= 0)
+			binding->mesh.region_vertices[fill[binding->mesh.vertex_region[k]]++] = k;
 	free(fill);
 
 	if (binding->mode != LVP_MODE_LOCAL) {
 		free(marker);
 		free(directed_offsets);
-		binding->neighbour_bones = malloc(sizeof(int32_t));
-		binding->neighbour_contact = calloc(1, 1);
-		return binding->neighbour_bones && binding->neighbour_contact
+		binding->mesh.neighbour_bones = malloc(sizeof(int32_t));
+		binding->fold.contact = calloc(1, 1);
+		return binding->mesh.neighbour_bones && binding->fold.contact
 		           ? lvp_success
 		           : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
@@ -229,10 +229,10 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 		for (int32_t r = 0; r < s; ++r) {
 			int32_t found = 0;
 			for (int32_t i = offsets[r]; i < offsets[r + 1]; ++i) {
-				int32_t k = binding->region_vertices[i];
-				for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-					int32_t bone = binding->weight_bones[e];
-					if (bone == r || binding->weight_values[e] <= 0.0f || marker[bone] == r + pass * s)
+				int32_t k = binding->mesh.region_vertices[i];
+				for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+					int32_t bone = binding->rig.weight_bones[e];
+					if (bone == r || binding->rig.weight_values[e] <= 0.0f || marker[bone] == r + pass * s)
 						continue;
 					marker[bone] = r + pass * s;
 					if (pass)
@@ -252,10 +252,10 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 		}
 		/* Symmetric closure N(r) = D(r) + {t : r in D(t)}: at most twice the directed size. */
 		int32_t total = directed_offsets[s];
-		binding->neighbour_bones = malloc(sizeof(int32_t) * (size_t)(2 * total > 0 ? 2 * total : 1));
+		binding->mesh.neighbour_bones = malloc(sizeof(int32_t) * (size_t)(2 * total > 0 ? 2 * total : 1));
 		int32_t *reverse_offsets = calloc((size_t)s + 1, sizeof(int32_t));
 		int32_t *reverse = malloc(sizeof(int32_t) * (size_t)(total > 0 ? total : 1));
-		if (!binding->neighbour_bones || !reverse_offsets || !reverse) {
+		if (!binding->mesh.neighbour_bones || !reverse_offsets || !reverse) {
 			free(directed);
 			free(reverse_offsets);
 			free(reverse);
@@ -277,40 +277,40 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 			marker[r] = -1;
 		int32_t written = 0;
 		for (int32_t r = 0; r < s; ++r) {
-			binding->neighbour_offsets[r] = written;
+			binding->mesh.neighbour_offsets[r] = written;
 			for (int32_t i = directed_offsets[r]; i < directed_offsets[r + 1]; ++i)
 				if (marker[directed[i]] != r) {
 					marker[directed[i]] = r;
-					binding->neighbour_bones[written++] = directed[i];
+					binding->mesh.neighbour_bones[written++] = directed[i];
 				}
 			for (int32_t i = reverse_offsets[r]; i < reverse_offsets[r + 1]; ++i)
 				if (marker[reverse[i]] != r) {
 					marker[reverse[i]] = r;
-					binding->neighbour_bones[written++] = reverse[i];
+					binding->mesh.neighbour_bones[written++] = reverse[i];
 				}
 		}
-		binding->neighbour_offsets[s] = written;
+		binding->mesh.neighbour_offsets[s] = written;
 		free(directed);
 		free(reverse_offsets);
 		free(reverse);
 	}
 	free(marker);
 	free(directed_offsets);
-	int32_t entries = binding->neighbour_offsets[s];
-	binding->neighbour_contact = calloc((size_t)(entries > 0 ? entries : 1), 1);
-	if (!binding->neighbour_contact)
+	int32_t entries = binding->mesh.neighbour_offsets[s];
+	binding->fold.contact = calloc((size_t)(entries > 0 ? entries : 1), 1);
+	if (!binding->fold.contact)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	return lvp_success;
 }
 
 lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
-	/* The caller's triangles were copied unsorted into binding->triangles; sort from a copy. */
+	/* The caller's triangles were copied unsorted into binding->mesh.triangles; sort from a copy. */
 	size_t bytes = sizeof(int32_t) * 3 * (size_t)binding->triangle_count;
 	int32_t *input = malloc(bytes);
 	if (!input)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while segmenting.");
-	memcpy(input, binding->triangles, bytes);
+	memcpy(input, binding->mesh.triangles, bytes);
 	lvp_result result = lvp__assign_regions(binding, input, r_diag);
 	free(input);
 	if (result)
@@ -373,7 +373,7 @@ static double lvp__vertex_distance(const lvp_binding *binding, int32_t k, const 
 	double best = INFINITY;
 	for (int32_t i = 0; i < bone_count; ++i) {
 		int32_t bone = bones ? bones[i] : i;
-		double d = lvp__segment_distance(p, binding->heads[bone], binding->tails[bone]);
+		double d = lvp__segment_distance(p, binding->rig.heads[bone], binding->rig.tails[bone]);
 		best = d < best ? d : best;
 	}
 	return isfinite(best) ? best : 0.0;
@@ -414,54 +414,54 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	bool local = binding->mode == LVP_MODE_LOCAL;
 
 	/* Keep a copy of the Fig. 11 restriction (the caller's arrays are not kept). */
-	free(binding->region_bone_offsets);
-	free(binding->region_bones);
-	binding->region_bone_offsets = NULL;
-	binding->region_bones = NULL;
+	free(binding->map.region_bone_offsets);
+	free(binding->map.region_bones);
+	binding->map.region_bone_offsets = NULL;
+	binding->map.region_bones = NULL;
 	if (map->region_bone_offsets) {
 		int32_t total = map->region_bone_offsets[b];
-		binding->region_bone_offsets = malloc(sizeof(int32_t) * ((size_t)b + 1));
-		binding->region_bones = malloc(sizeof(int32_t) * (size_t)(total > 0 ? total : 1));
-		if (!binding->region_bone_offsets || !binding->region_bones)
+		binding->map.region_bone_offsets = malloc(sizeof(int32_t) * ((size_t)b + 1));
+		binding->map.region_bones = malloc(sizeof(int32_t) * (size_t)(total > 0 ? total : 1));
+		if (!binding->map.region_bone_offsets || !binding->map.region_bones)
 			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
-		memcpy(binding->region_bone_offsets, map->region_bone_offsets, sizeof(int32_t) * ((size_t)b + 1));
-		memcpy(binding->region_bones, map->region_bones, sizeof(int32_t) * (size_t)total);
+		memcpy(binding->map.region_bone_offsets, map->region_bone_offsets, sizeof(int32_t) * ((size_t)b + 1));
+		memcpy(binding->map.region_bones, map->region_bones, sizeof(int32_t) * (size_t)total);
 	}
-	binding->map = *map;
-	binding->map.painted = NULL;
-	binding->map.region_bone_offsets = binding->region_bone_offsets;
-	binding->map.region_bones = binding->region_bones;
+	binding->map.options = *map;
+	binding->map.options.painted = NULL;
+	binding->map.options.region_bone_offsets = binding->map.region_bone_offsets;
+	binding->map.options.region_bones = binding->map.region_bones;
 
 	/* The map is built as a logarithm and normalized to a maximum of 1 before it is stored: only
 	 * its shape matters (the multipliers absorb its scale), and d^beta of a far vertex would
 	 * overflow a float (or a double) for large coordinates or exponents. */
 	double largest = -INFINITY;
 	for (int32_t k = 0; k < n; ++k) {
-		int32_t region = lvp__caller_bone(binding, binding->vertex_region[k]);
+		int32_t region = lvp__caller_bone(binding, binding->mesh.vertex_region[k]);
 		double distance = 0.0;
 		if (b > 0) {
 			const int32_t *bones = NULL;
 			int32_t count = b;
-			if (binding->region_bone_offsets && local && region >= 0 &&
-			    binding->region_bone_offsets[region + 1] > binding->region_bone_offsets[region]) {
-				bones = binding->region_bones + binding->region_bone_offsets[region];
-				count = binding->region_bone_offsets[region + 1] - binding->region_bone_offsets[region];
+			if (binding->map.region_bone_offsets && local && region >= 0 &&
+			    binding->map.region_bone_offsets[region + 1] > binding->map.region_bone_offsets[region]) {
+				bones = binding->map.region_bones + binding->map.region_bone_offsets[region];
+				count = binding->map.region_bone_offsets[region + 1] - binding->map.region_bone_offsets[region];
 			}
 			distance = lvp__vertex_distance(binding, k, bones, count);
 		}
-		binding->distance[k] = (float)distance;
-		double log_gamma = lvp__log_map(map, binding->max_weight[k], distance, k);
+		binding->map.distance[k] = (float)distance;
+		double log_gamma = lvp__log_map(map, binding->mesh.max_weight[k], distance, k);
 		/* Unweighted vertices belong to no region in local mode: they never move. */
 		if (local && region < 0)
 			log_gamma = -INFINITY;
-		binding->log_gamma[k] = log_gamma;
+		binding->map.log_gamma[k] = log_gamma;
 		largest = log_gamma > largest ? log_gamma : largest;
 	}
 	for (int32_t k = 0; k < n; ++k)
-		binding->gamma[k] = isfinite(largest) ? (float)exp(binding->log_gamma[k] - largest) : 0.0f;
+		binding->map.gamma[k] = isfinite(largest) ? (float)exp(binding->map.log_gamma[k] - largest) : 0.0f;
 
 	/* Which regions' multipliers reach a vertex, and with which phi (correction.c,
 	 * lvp__vertex_support): its bones, by weight, or only its region under the boundary fade. */
-	binding->soft_support = local && map->map != LVP_MAP_BOUNDARY_FADE;
+	binding->map.soft_support = local && map->map != LVP_MAP_BOUNDARY_FADE;
 	return lvp_success;
 }

@@ -45,46 +45,46 @@ static lvp_result lvp__stretch_out_of_memory(lvp_diagnostic *r_diag)
 /* Where the relative stretch of bones r and b is taken about (see the top of the file). */
 static lvp__vec3 lvp__pair_centre(const lvp_binding *binding, int32_t r, int32_t b)
 {
-	double head_b_to_r = lvp__segment_distance(binding->heads[b], binding->heads[r], binding->tails[r]);
-	double head_r_to_b = lvp__segment_distance(binding->heads[r], binding->heads[b], binding->tails[b]);
-	return head_b_to_r <= head_r_to_b ? binding->heads[b] : binding->heads[r];
+	double head_b_to_r = lvp__segment_distance(binding->rig.heads[b], binding->rig.heads[r], binding->rig.tails[r]);
+	double head_r_to_b = lvp__segment_distance(binding->rig.heads[r], binding->rig.heads[b], binding->rig.tails[b]);
+	return head_b_to_r <= head_r_to_b ? binding->rig.heads[b] : binding->rig.heads[r];
 }
 
 lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count, bones = binding->bone_count;
-	bool local = binding->mode == LVP_MODE_LOCAL && binding->weight_offsets;
-	binding->stretch_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	binding->bone_entry = malloc(sizeof(int32_t) * LVP__STRETCH_GROUPS * (size_t)(bones > 0 ? bones : 1));
-	binding->stretch_change = calloc((size_t)(s > 0 ? s : 1), sizeof(double));
-	size_t slots = (size_t)(local && binding->slot_count > 0 ? binding->slot_count : 1);
-	binding->stretch_offset = malloc(sizeof(float) * 3 * slots);
-	binding->stretch_regions = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
-	binding->bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
-	binding->bone_stretch_invertible = calloc((size_t)(bones > 0 ? bones : 1), 1);
-	if (!binding->stretch_offsets || !binding->bone_entry || !binding->stretch_change || !binding->stretch_offset ||
-	    !binding->stretch_regions || !binding->bone_stretch || !binding->bone_stretch_invertible)
+	bool local = binding->mode == LVP_MODE_LOCAL && binding->rig.weight_offsets;
+	binding->stretch.offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	binding->stretch.bone_entry = malloc(sizeof(int32_t) * LVP__STRETCH_GROUPS * (size_t)(bones > 0 ? bones : 1));
+	binding->stretch.change = calloc((size_t)(s > 0 ? s : 1), sizeof(double));
+	size_t slots = (size_t)(local && binding->mesh.slot_count > 0 ? binding->mesh.slot_count : 1);
+	binding->stretch.corner_offset = malloc(sizeof(float) * 3 * slots);
+	binding->stretch.regions = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
+	binding->stretch.bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
+	binding->stretch.bone_stretch_invertible = calloc((size_t)(bones > 0 ? bones : 1), 1);
+	if (!binding->stretch.offsets || !binding->stretch.bone_entry || !binding->stretch.change || !binding->stretch.corner_offset ||
+	    !binding->stretch.regions || !binding->stretch.bone_stretch || !binding->stretch.bone_stretch_invertible)
 		return lvp__stretch_out_of_memory(r_diag);
 	for (int32_t i = 0; i < LVP__STRETCH_GROUPS * bones; ++i)
-		binding->bone_entry[i] = -1;
+		binding->stretch.bone_entry[i] = -1;
 	/* Per region, the distinct bones other than its own weighting the corners of its triangles
 	 * (bone_entry marks them with the region while it is walked): counted, then listed. */
 	for (int pass = 0; pass < 2; ++pass) {
 		int64_t count = 0;
 		for (int32_t r = 0; r < s; ++r) {
-			binding->stretch_offsets[r] = (int32_t)count;
+			binding->stretch.offsets[r] = (int32_t)count;
 			if (!local)
 				continue;
-			for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
-				int32_t k = binding->region_corners[i];
-				for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-					int32_t bone = binding->weight_bones[e];
-					if (bone == r || !(binding->weight_values[e] > 0.0f) || binding->bone_entry[bone] == r)
+			for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1]; ++i) {
+				int32_t k = binding->mesh.region_corners[i];
+				for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+					int32_t bone = binding->rig.weight_bones[e];
+					if (bone == r || !(binding->rig.weight_values[e] > 0.0f) || binding->stretch.bone_entry[bone] == r)
 						continue;
-					binding->bone_entry[bone] = r;
+					binding->stretch.bone_entry[bone] = r;
 					if (pass) {
-						binding->stretch_bones[count] = bone;
-						binding->stretch_centre[count] = lvp__pair_centre(binding, r, bone);
+						binding->stretch.bones[count] = bone;
+						binding->stretch.centre[count] = lvp__pair_centre(binding, r, bone);
 					}
 					++count;
 				}
@@ -92,15 +92,15 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 			if (count > INT32_MAX)
 				return lvp__stretch_out_of_memory(r_diag);
 		}
-		binding->stretch_offsets[s] = (int32_t)count;
+		binding->stretch.offsets[s] = (int32_t)count;
 		for (int32_t i = 0; i < bones; ++i)
-			binding->bone_entry[i] = -1;
+			binding->stretch.bone_entry[i] = -1;
 		if (!pass) {
 			size_t entries = (size_t)(count > 0 ? count : 1);
-			binding->stretch_bones = malloc(sizeof(int32_t) * entries);
-			binding->stretch_centre = malloc(sizeof(lvp__vec3) * entries);
-			binding->stretch_linear = calloc(entries, sizeof(lvp__mat4));
-			if (!binding->stretch_bones || !binding->stretch_centre || !binding->stretch_linear)
+			binding->stretch.bones = malloc(sizeof(int32_t) * entries);
+			binding->stretch.centre = malloc(sizeof(lvp__vec3) * entries);
+			binding->stretch.linear = calloc(entries, sizeof(lvp__mat4));
+			if (!binding->stretch.bones || !binding->stretch.centre || !binding->stretch.linear)
 				return lvp__stretch_out_of_memory(r_diag);
 		}
 	}
@@ -111,7 +111,7 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 static lvp__mat4 lvp__rigid_skin(const lvp_binding *binding, int32_t i, const lvp__mat4 *to_rigid,
                                  const lvp__mat4 *from_rigid)
 {
-	lvp__mat4 half = lvp__mat4_mul(&binding->skin[i], from_rigid);
+	lvp__mat4 half = lvp__mat4_mul(&binding->rig.skin[i], from_rigid);
 	return lvp__mat4_mul(to_rigid, &half);
 }
 
@@ -153,7 +153,7 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 		for (int col = 0; col < 3; ++col)
 			a[3 * row + col] = skin.m[4 * row + col];
 	lvp__split_rotation(u, a);
-	lvp__mat4 *stretch = &binding->bone_stretch[2 * (size_t)i];
+	lvp__mat4 *stretch = &binding->stretch.bone_stretch[2 * (size_t)i];
 	memset(stretch, 0, sizeof(*stretch));
 	stretch->m[15] = 1.0;
 	for (int row = 0; row < 3; ++row) /* made exactly symmetric */
@@ -169,7 +169,7 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *binding, int32_t r, int32_t b,
                                   const lvp__mat4 *to_rigid, const lvp__mat4 *from_rigid)
 {
-	const lvp__mat4 *stretch = binding->bone_stretch;
+	const lvp__mat4 *stretch = binding->stretch.bone_stretch;
 	lvp__mat4 relative = lvp__mat4_mul(&stretch[2 * (size_t)r + 1], &stretch[2 * (size_t)b]);
 	double largest = 0.0;
 	for (int row = 0; row < 3; ++row) {
@@ -195,10 +195,10 @@ static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *bin
  * weights are walked only where some bone moves otherwise, and only the dynamic triangles. */
 static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest, const int32_t *bone_entry)
 {
-	float *offset = binding->stretch_offset;
-	int32_t bone_class = binding->skin_class[r];
-	for (int32_t i = binding->region_corner_offsets[r]; i < binding->region_corner_offsets[r + 1]; ++i) {
-		int32_t k = binding->region_corners[i], slot = lvp__find_slot(binding, k, r);
+	float *offset = binding->stretch.corner_offset;
+	int32_t bone_class = binding->frame_map.skin_class[r];
+	for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1]; ++i) {
+		int32_t k = binding->mesh.region_corners[i], slot = lvp__find_slot(binding, k, r);
 		if (slot < 0) /* cannot happen: every corner of r's triangles has a slot for r */
 			continue;
 		if (lvp__carried_rigidly(binding, k, bone_class)) {
@@ -206,13 +206,13 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 			continue;
 		}
 		lvp__vec3 x = lvp__load(rest + 3 * k), d = lvp__v(0.0, 0.0, 0.0);
-		for (int32_t e = binding->weight_offsets[k]; e < binding->weight_offsets[k + 1]; ++e) {
-			int32_t entry = bone_entry[binding->weight_bones[e]];
+		for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
+			int32_t entry = bone_entry[binding->rig.weight_bones[e]];
 			if (entry < 0)
 				continue;
-			lvp__vec3 v = lvp__sub(x, binding->stretch_centre[entry]);
-			d = lvp__add(d, lvp__scale(lvp__transform_vector(&binding->stretch_linear[entry], v),
-			                           binding->weight_values[e]));
+			lvp__vec3 v = lvp__sub(x, binding->stretch.centre[entry]);
+			d = lvp__add(d, lvp__scale(lvp__transform_vector(&binding->stretch.linear[entry], v),
+			                           binding->rig.weight_values[e]));
 		}
 		offset[3 * slot] = (float)d.x;
 		offset[3 * slot + 1] = (float)d.y;
@@ -220,12 +220,12 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 	}
 	/* Only where a corner moved does a prism or side quad have volume. About the bone's rest
 	 * origin, as local_volume.c measures. */
-	const double *m = binding->rest_matrices[r].m;
+	const double *m = binding->rig.rest_matrices[r].m;
 	lvp__vec3 o = lvp__v(m[3], m[7], m[11]);
 	double volume6 = 0.0;
-	for (int32_t i = binding->region_dynamic_offsets[r]; i < binding->region_dynamic_offsets[r + 1]; ++i) {
-		int32_t t = binding->dynamic_triangles[i];
-		const int32_t *corners = binding->triangles + 3 * t, *slots = binding->corner_slot + 3 * t;
+	for (int32_t i = binding->dynamic.region_offsets[r]; i < binding->dynamic.region_offsets[r + 1]; ++i) {
+		int32_t t = binding->dynamic.triangles[i];
+		const int32_t *corners = binding->mesh.triangles + 3 * t, *slots = binding->mesh.corner_slot + 3 * t;
 		const float *d0 = offset + 3 * slots[0], *d1 = offset + 3 * slots[1], *d2 = offset + 3 * slots[2];
 		if (!d0[0] && !d0[1] && !d0[2] && !d1[0] && !d1[1] && !d1[2] && !d2[0] && !d2[1] && !d2[2])
 			continue;
@@ -235,9 +235,9 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 		volume6 += lvp__vol6(lvp__add(x0, lvp__load(d0)), lvp__add(x1, lvp__load(d1)), lvp__add(x2, lvp__load(d2))) -
 		           lvp__vol6(x0, x1, x2);
 	}
-	for (int32_t i = binding->border_offsets[r]; i < binding->border_offsets[r + 1]; ++i) {
-		int32_t a = binding->border_edges[2 * i], b = binding->border_edges[2 * i + 1];
-		int32_t slot_a = binding->border_slots[2 * i], slot_b = binding->border_slots[2 * i + 1];
+	for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i) {
+		int32_t a = binding->borders.edges[2 * i], b = binding->borders.edges[2 * i + 1];
+		int32_t slot_a = binding->borders.slots[2 * i], slot_b = binding->borders.slots[2 * i + 1];
 		if (slot_a < 0 || slot_b < 0) /* as above */
 			continue;
 		lvp__vec3 da = lvp__load(offset + 3 * slot_a), db = lvp__load(offset + 3 * slot_b);
@@ -254,9 +254,9 @@ static double lvp__reference_change(lvp_binding *binding, int32_t r, const float
 /* What the reference pass of region r costs, in corners, dynamic triangles and border edges. */
 static int64_t lvp__reference_work(const lvp_binding *binding, int32_t r)
 {
-	return (int64_t)(binding->region_corner_offsets[r + 1] - binding->region_corner_offsets[r]) +
-	       (binding->region_dynamic_offsets[r + 1] - binding->region_dynamic_offsets[r]) +
-	       (binding->border_offsets[r + 1] - binding->border_offsets[r]);
+	return (int64_t)(binding->mesh.region_corner_offsets[r + 1] - binding->mesh.region_corner_offsets[r]) +
+	       (binding->dynamic.region_offsets[r + 1] - binding->dynamic.region_offsets[r]) +
+	       (binding->borders.offsets[r + 1] - binding->borders.offsets[r]);
 }
 
 /* Cuts stretch_regions[0..count) into groups of consecutive regions of about equal work; returns
@@ -265,17 +265,17 @@ static int64_t lvp__cut_reference_groups(lvp_binding *binding, int32_t count)
 {
 	int64_t total = 0;
 	for (int32_t i = 0; i < count; ++i)
-		total += lvp__reference_work(binding, binding->stretch_regions[i]);
+		total += lvp__reference_work(binding, binding->stretch.regions[i]);
 	int64_t share = total / LVP__STRETCH_GROUPS + 1, done = 0;
 	int32_t groups = 0;
-	binding->stretch_group_first[0] = 0;
+	binding->stretch.group_first[0] = 0;
 	for (int32_t i = 0; i < count; ++i) {
-		done += lvp__reference_work(binding, binding->stretch_regions[i]);
+		done += lvp__reference_work(binding, binding->stretch.regions[i]);
 		if (done >= (groups + 1) * share && groups + 1 < LVP__STRETCH_GROUPS && i + 1 < count)
-			binding->stretch_group_first[++groups] = i + 1;
+			binding->stretch.group_first[++groups] = i + 1;
 	}
-	binding->stretch_group_count = count > 0 ? groups + 1 : 0;
-	binding->stretch_group_first[binding->stretch_group_count] = count;
+	binding->stretch.group_count = count > 0 ? groups + 1 : 0;
+	binding->stretch.group_first[binding->stretch.group_count] = count;
 	return total;
 }
 
@@ -298,15 +298,15 @@ static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 	const lvp__loop_context *c = context; /* positions: the rest */
 	lvp_binding *binding = c->binding;
 	for (int32_t group = begin; group < end; ++group) {
-		int32_t *bone_entry = binding->bone_entry + (size_t)group * (size_t)binding->bone_count;
-		for (int32_t i = binding->stretch_group_first[group]; i < binding->stretch_group_first[group + 1]; ++i) {
-			int32_t r = binding->stretch_regions[i];
-			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
-				if (lvp__pair_stretched(&binding->stretch_linear[e]))
-					bone_entry[binding->stretch_bones[e]] = e;
-			binding->stretch_change[r] = lvp__reference_change(binding, r, c->positions, bone_entry);
-			for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e)
-				bone_entry[binding->stretch_bones[e]] = -1;
+		int32_t *bone_entry = binding->stretch.bone_entry + (size_t)group * (size_t)binding->bone_count;
+		for (int32_t i = binding->stretch.group_first[group]; i < binding->stretch.group_first[group + 1]; ++i) {
+			int32_t r = binding->stretch.regions[i];
+			for (int32_t e = binding->stretch.offsets[r]; e < binding->stretch.offsets[r + 1]; ++e)
+				if (lvp__pair_stretched(&binding->stretch.linear[e]))
+					bone_entry[binding->stretch.bones[e]] = e;
+			binding->stretch.change[r] = lvp__reference_change(binding, r, c->positions, bone_entry);
+			for (int32_t e = binding->stretch.offsets[r]; e < binding->stretch.offsets[r + 1]; ++e)
+				bone_entry[binding->stretch.bones[e]] = -1;
 		}
 	}
 }
@@ -314,25 +314,25 @@ static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space)
 {
 	int32_t s = binding->region_count;
-	bool had_stretch = binding->stretch_frame;
-	binding->stretch_frame = false;
+	bool had_stretch = binding->stretch.any;
+	binding->stretch.any = false;
 	/* The rigid frame: the caller's, or the first bone's rest frame (the armature's, turned). */
 	lvp__mat4 to_rigid, from_rigid;
 	if (rigid_space) {
 		to_rigid = lvp__mat4_load(rigid_space);
 		lvp__mat4_invert_affine(&from_rigid, &to_rigid); /* checked with the options */
 	} else if (binding->bone_count > 0) {
-		to_rigid = binding->rest_inverse[0];
-		from_rigid = binding->rest_matrices[0];
+		to_rigid = binding->rig.rest_inverse[0];
+		from_rigid = binding->rig.rest_matrices[0];
 	}
-	if (binding->mode != LVP_MODE_LOCAL || binding->stretch_offsets[s] == 0 ||
+	if (binding->mode != LVP_MODE_LOCAL || binding->stretch.offsets[s] == 0 ||
 	    !lvp__some_stretch(binding, &to_rigid, &from_rigid)) {
 		if (had_stretch)
-			memset(binding->stretch_change, 0, sizeof(double) * (size_t)s);
+			memset(binding->stretch.change, 0, sizeof(double) * (size_t)s);
 		return false;
 	}
 	for (int32_t i = 0; i < binding->bone_count; ++i)
-		binding->bone_stretch_invertible[i] = lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
+		binding->stretch.bone_stretch_invertible[i] = lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
 	/* Each pair's relative stretch (zero for the pairs that have none), and the regions with some.
 	 * A region is seen from its own bone, which must be invertible (a region whose bone is scaled
 	 * to zero is skipped: correction.c); the bones it blends with need not be. A bone scaled to
@@ -341,22 +341,22 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 	 * make up (which would balloon it by the collapsed part's whole volume). */
 	int32_t stretched = 0;
 	for (int32_t r = 0; r < s; ++r) {
-		binding->stretch_change[r] = 0.0;
-		if (binding->region_skipped[r] || !binding->bone_stretch_invertible[r])
+		binding->stretch.change[r] = 0.0;
+		if (binding->rig.region_skipped[r] || !binding->stretch.bone_stretch_invertible[r])
 			continue;
 		bool any = false;
-		for (int32_t e = binding->stretch_offsets[r]; e < binding->stretch_offsets[r + 1]; ++e) {
-			int32_t bone = binding->stretch_bones[e];
-			any = lvp__relative_stretch(&binding->stretch_linear[e], binding, r, bone, &to_rigid, &from_rigid) || any;
+		for (int32_t e = binding->stretch.offsets[r]; e < binding->stretch.offsets[r + 1]; ++e) {
+			int32_t bone = binding->stretch.bones[e];
+			any = lvp__relative_stretch(&binding->stretch.linear[e], binding, r, bone, &to_rigid, &from_rigid) || any;
 		}
 		if (any)
-			binding->stretch_regions[stretched++] = r;
+			binding->stretch.regions[stretched++] = r;
 	}
 	if (stretched == 0)
 		return false;
 	int64_t work = lvp__cut_reference_groups(binding, stretched);
 	lvp__loop_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
-	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__reference_loop, &context, binding->stretch_group_count, 1);
-	binding->stretch_frame = true;
+	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__reference_loop, &context, binding->stretch.group_count, 1);
+	binding->stretch.any = true;
 	return true;
 }

@@ -245,6 +245,7 @@ typedef struct lvp__region_system {
 	size_t assembly_block;     /* LVP__ASSEMBLY_BLOCK(capacity, region_count) */
 	int32_t assembly_chunks;   /* the blocks of the last assembly */
 	double *column_gain;       /* region_count: the summed gains of the last assembly, by column */
+	double *row_sums;          /* region_count: the sums of the summed system's rows */
 	double *rhs;               /* region_count: the right-hand side */
 	double *solution;          /* region_count */
 	double *row_values;        /* region_count: scratch (one row of the system) */
@@ -346,10 +347,6 @@ struct lvp_binding {
 	lvp__step step;
 };
 
-/* calloc of count items (at least one) for a stage's _alloc: on failure (or when *ok is already
- * false) NULL and *ok false; the binding is then freed by lvp_bind. */
-void *lvp__calloc(size_t count, size_t size, bool *ok);
-
 /* parts.c */
 /* The internal bones of a mesh whose separate parts bend (binding.h). Arrays are malloc'ed; the
  * NULL ones mean "nothing split". */
@@ -398,18 +395,75 @@ static inline int32_t lvp__region_part(const lvp_binding *binding, int32_t r)
 	return binding->parts.region_part && r >= 0 ? binding->parts.region_part[r] : 0;
 }
 
+/* Each stage's memory: _alloc (at bind, after the stages it is sized by; false when out of
+ * memory, the binding then freed by lvp_bind) and _free (of every array the stage holds, also
+ * those its build step allocated). */
+bool lvp__rig_alloc(lvp_binding *binding, const lvp_weights *weights); /* weights NULL: no skeleton */
+bool lvp__mesh_alloc(lvp_binding *binding);
+bool lvp__map_alloc(lvp_binding *binding);
+bool lvp__frame_map_alloc(lvp_binding *binding);
+bool lvp__borders_alloc(lvp_binding *binding);        /* after the parts are known */
+bool lvp__dynamic_set_alloc(lvp_binding *binding);
+bool lvp__measure_alloc(lvp_binding *binding);        /* after lvp__segment (the slots) */
+bool lvp__fold_alloc(lvp_binding *binding);           /* after lvp__segment (the neighbours) */
+bool lvp__part_volumes_alloc(lvp_binding *binding);
+bool lvp__step_alloc(lvp_binding *binding);
+void lvp__rig_free(lvp__rig *rig);
+void lvp__mesh_free(lvp__mesh *mesh);
+void lvp__map_free(lvp__map *map);
+void lvp__frame_map_free(lvp__frame_map *frame_map);
+void lvp__borders_free(lvp__borders *borders);
+void lvp__dynamic_set_free(lvp__dynamic_set *dynamic);
+void lvp__measure_free(lvp__measure *measure);
+void lvp__region_system_free(lvp__region_system *system);
+void lvp__stretch_free(lvp__stretch *stretch);
+void lvp__fold_free(lvp__fold *fold);
+void lvp__part_volumes_free(lvp__part_volumes *parts);
+void lvp__step_free(lvp__step *step);
+
+/* rig.c */
+/* Copies the weights, normalized by their sum (their bones are already in weight_bones,
+ * lvp__split_parts), and the bones' rest frames (each internal bone its caller's). */
+void lvp__rig_copy(lvp_binding *binding, const lvp_weights *weights, const lvp_skeleton *skeleton);
+/* Checks a frame's inputs and poses the bones: posed, skin, kappa, region_skipped. */
+lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
+                              const float *rest_positions, lvp_diagnostic *r_diag);
+
 /* segmentation.c */
 lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* Each region's distinct corner vertices (lvp__mesh); after lvp__segment. */
+lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag);
+
+/* map.c */
 lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
 lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
 
-/* local_volume.c */
+/* borders.c */
 lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag);
-lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* Which triangles and vertices a pass visits (binding.h), from vertex_class and vertex_dynamic;
- * with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
+/* The rest side of the borders' side quads at rest_positions, or at the bind rest for NULL (kept
+ * while the frames use the bind rest). */
+void lvp__borders_rest(lvp_binding *binding, const float *rest_positions);
+/* 6 x the volume of the cones that cap the mesh's holes (0 when closed); the same over the cap
+ * edges [begin, end) only, from the mean of their first vertices. */
+double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
+double lvp__cap_range_volume6(const lvp_binding *binding, const float *positions, int32_t begin, int32_t end);
+/* Signed volume of the mesh at positions, holes capped (double precision). */
+double lvp__volume_of(const lvp_binding *binding, const float *positions);
+/* The same per part (lvp__part_volumes): r_volumes has parts.count entries. Each part's holes are
+ * capped from their own apex; the triangles without region count in part 0. */
+void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, double *r_volumes);
+
+/* dynamic_set.c */
+/* Which triangles and vertices a pass visits (lvp__dynamic_set), from vertex_class and
+ * vertex_dynamic; with all_dynamic, everything. rest_totals: rest_totals or frame_totals. */
 void lvp__find_dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
-                      bool all_dynamic);
+                           bool all_dynamic);
+/* Something the dynamic set is made of changed: it is found anew at the next lvp__find_dynamic_set. */
+void lvp__dynamic_set_stale(lvp_binding *binding);
+/* A region all of whose triangles are dynamic, static (carried by its bone), or some of each. */
+enum { LVP__REGION_DYNAMIC, LVP__REGION_STATIC, LVP__REGION_MIXED };
+
+/* local_volume.c */
 /* One pass over the dynamic triangles at `positions`: their terms and the region sums. */
 void lvp__mesh_pass(lvp_binding *binding, const float *positions);
 /* The same after only the vertices moved[0..moved_count) moved: visits their triangles only
@@ -445,22 +499,48 @@ static inline double lvp__side_quad6(lvp__vec3 *r_grad_a, lvp__vec3 *r_grad_b, l
 	return 0.5 * (lvp__dot(lvp__add(a, b), rest_cross) + lvp__dot(a, sum_b));
 }
 
-/* 6 x the volume of the cones that cap the mesh's holes (0 when closed). */
-double lvp__cap_volume6(const lvp_binding *binding, const float *positions);
-/* Signed volume of the mesh at positions, holes capped (double precision). */
-double lvp__volume_of(const lvp_binding *binding, const float *positions);
-/* Signed mesh volume, holes capped, from the last mesh pass over `positions`. */
+/* Signed mesh volume, holes capped, from the last mesh pass over `positions`; and per part. */
 double lvp__pass_volume(const lvp_binding *binding, const float *positions);
-/* The same two per part (binding.h): r_volumes has part_count entries. Each part's holes are
- * capped from their own apex; the triangles without region count in part 0. */
-void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, double *r_volumes);
 void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes);
 
+/* Volume term (p0 - o) . cr and cr = (p1 - p0) x (p2 - p0) of a triangle. In float: each term
+ * is exact to float precision and the sums are taken in double. */
+static inline double lvp__triangle_cross(float r_cross[3], const float *positions, const int32_t *corners,
+                                         const float *o)
+{
+	const float *p0 = positions + 3 * corners[0];
+	const float *p1 = positions + 3 * corners[1];
+	const float *p2 = positions + 3 * corners[2];
+	float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
+	float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
+	float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+	r_cross[0] = cx;
+	r_cross[1] = cy;
+	r_cross[2] = cz;
+	return (double)((p0[0] - o[0]) * cx + (p0[1] - o[1]) * cy + (p0[2] - o[2]) * cz);
+}
+
+/* The origin of region r's bone frame at rest (global mode: the rest centroid). */
+static inline lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
+{
+	if (binding->mode == LVP_MODE_GLOBAL)
+		return binding->measure.global_origin;
+	const double *m = binding->rig.rest_matrices[region].m;
+	return lvp__v(m[3], m[7], m[11]);
+}
+
 /* frame_map.c */
-/* This frame's frame_gamma (the bind map times the deformation weighting), the bones' skin
- * classes and the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions:
- * this frame's rest, or NULL for the bind rest. */
+/* This frame's map (the bind map times the deformation weighting), the bones' skin classes and
+ * the vertices' classes and dynamic flags (needs lvp__prepare_frame). rest_positions: this
+ * frame's rest, or NULL for the bind rest. */
 void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions);
+/* The bind map changed: the next lvp__build_frame_map walks every vertex. */
+void lvp__frame_map_stale(lvp_binding *binding);
+/* Vertex k, or every vertex, is dynamic until the frame map is built again. */
+void lvp__make_dynamic(lvp_binding *binding, int32_t k);
+void lvp__make_all_dynamic(lvp_binding *binding);
+/* Whether this frame may carry rigid vertices in closed form (lvp__frame_map, rigid_shortcut_off). */
+void lvp__use_rigid_shortcut(lvp_binding *binding, bool usable);
 /* Whether positions put the vertices that the frame map found carried rigidly where their
  * bone class carries them (checked on a sample, at most LVP__RIGID_SAMPLES a region); r_off:
  * the largest distance found. The closed-form shortcuts of the measurement rest on it. */
@@ -496,18 +576,15 @@ static inline size_t lvp__assembly_gains_at(const lvp_binding *binding)
 	size_t stride = (size_t)binding->system.profile.count + 1;
 	return lvp__assembled_by_rows(binding) ? stride * stride : (size_t)binding->system.profile.cells + 1;
 }
-/* system: the sums of the chunks' blocks of the last assembly, added in chunk order. */
+/* matrix and column_gain: the sums of the chunks' blocks of the last assembly, added in chunk order. */
 void lvp__sum_system(lvp_binding *binding);
-/* The sum of each row of the summed system, into r_sums[0..count). */
-void lvp__system_row_sums(const lvp_binding *binding, double *r_sums);
+/* row_sums: the sum of each row of the summed system. */
+void lvp__system_row_sums(lvp_binding *binding);
 /* Solves the summed system for rhs into solution: regions with a diagonal under 1e-12 of
  * largest_diagonal taken out (multiplier 0), LU, and damped least squares when the LU cannot be
  * trusted. Returns false when neither solves it. */
 bool lvp__solve_system(lvp_binding *binding, double largest_diagonal);
 
-/* correction.c */
-lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
-                              const float *rest_positions, lvp_diagnostic *r_diag);
 
 /* stretch.c */
 /* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 5). */

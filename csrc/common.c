@@ -5,6 +5,7 @@
  */
 #include "lvp_internal.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 #include <stdarg.h>
@@ -229,4 +230,14 @@ int lvp__compare_u64(const void *a, const void *b)
 {
 	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
 	return (x > y) - (x < y);
+}
+
+void *lvp__calloc(size_t count, size_t size, bool *ok)
+{
+	if (!*ok)
+		return NULL;
+	void *p = calloc(count ? count : 1, size);
+	if (!p)
+		*ok = false;
+	return p;
 }

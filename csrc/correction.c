@@ -44,50 +44,6 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 	return lvp_success;
 }
 
-lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
-                              const float *rest_positions, lvp_diagnostic *r_diag)
-{
-	int32_t n = binding->vertex_count, b = binding->caller_bone_count;
-	lvp_result result = lvp__check_float_array(positions, (int64_t)n * 3, "positions", r_diag);
-	if (result)
-		return result;
-	if (rest_positions && (result = lvp__check_float_array(rest_positions, (int64_t)n * 3, "rest_positions", r_diag)))
-		return result;
-	bool need_bones = binding->mode == LVP_MODE_LOCAL;
-	if (need_bones && !bone_matrices)
-		return lvp__fail(r_diag, lvp_error_null_argument, "bone_matrices", -1,
-		                 "bone_matrices is NULL; pass the %d posed bone matrices (16 floats each).", (int)b);
-	if (bone_matrices && b > 0 &&
-	    (result = lvp__check_float_array(bone_matrices, (int64_t)b * 16, "bone_matrices", r_diag)))
-		return result;
-
-	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->rig.region_skipped[r])
-			binding->dynamic.current = false; /* the dynamic set depends on it (local_volume.c) */
-		binding->rig.region_skipped[r] = 0;
-		binding->rig.kappa[r] = 1.0;
-	}
-	if (bone_matrices && b > 0) {
-		/* The internal bones past the caller's are copies (binding.h): the same matrices. */
-		for (int32_t i = 0; i < binding->bone_count; ++i) {
-			int32_t source = lvp__caller_bone(binding, i);
-			binding->rig.posed[i] = lvp__mat4_load(bone_matrices + 16 * source);
-			binding->rig.skin[i] = lvp__mat4_mul(&binding->rig.posed[i], &binding->rig.rest_inverse[i]);
-			binding->rig.posed_heads[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.heads[i]);
-			binding->rig.posed_tails[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.tails[i]);
-			bool invertible = lvp__mat4_invert_affine(&binding->rig.posed_inverse[i], &binding->rig.posed[i]);
-			if (binding->mode != LVP_MODE_LOCAL)
-				continue;
-			if (invertible)
-				binding->rig.kappa[i] = binding->rig.rest_det[i] / lvp__mat4_det3(&binding->rig.posed[i]);
-			else
-				binding->rig.region_skipped[i] = 1; /* a bone scaled to zero: documented fallback */
-			if (!invertible)
-				binding->dynamic.current = false;
-		}
-	}
-	return lvp_success;
-}
 
 /* Moves vertex k by rho along its normal, remembering where it was in moved[slot] and
  * step_backup (lvp__undo_step). A single step moves a vertex by at most a quarter of the mesh's
@@ -203,13 +159,12 @@ typedef struct lvp__assembly_context {
 	int32_t chunk_size;
 } lvp__assembly_context;
 
-/* Past the regions the system holds: the diagonal of columns [begin, end) (stored in mu
- * temporarily) and what they do to the whole mesh. Only where a step's profile would take more
- * than LVP__SYSTEM_CELLS (binding.h). */
-static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, int32_t end)
+/* Past the regions the system holds: the diagonal of columns [begin, end) and what they do to
+ * the whole mesh. Only where a step's profile would take more than LVP__SYSTEM_CELLS (binding.h). */
+static void lvp__assemble_diagonals(lvp_binding *binding, int32_t begin, int32_t end)
 {
 	for (int32_t j = begin; j < end; ++j)
-		binding->step.mu[binding->step.active[j]] = binding->step.total_gain[binding->step.active[j]] = 0.0;
+		binding->step.diagonal[binding->step.active[j]] = binding->step.total_gain[binding->step.active[j]] = 0.0;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
@@ -225,7 +180,7 @@ static void lvp__assemble_diagonals(const lvp_binding *binding, int32_t begin, i
 			binding->step.total_gain[t] += weight * g;
 			for (int32_t slot = binding->mesh.slot_offsets[k]; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
 				if (binding->mesh.slot_region[slot] == t)
-					binding->step.mu[t] += binding->rig.kappa[t] * binding->measure.slot_g[slot] * weight;
+					binding->step.diagonal[t] += binding->rig.kappa[t] * binding->measure.slot_g[slot] * weight;
 		}
 	}
 }
@@ -371,23 +326,15 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->step.movable_entries), lvp__assemble_chunks, &context, chunks, 1);
 	binding->system.assembly_chunks = chunks;
 	lvp__sum_system(binding);
-	double *gains = binding->system.rhs; /* rhs is free until the solve */
-	memset(gains, 0, sizeof(double) * (size_t)dense);
-	size_t gains_at = lvp__assembly_gains_at(binding);
-	for (int32_t chunk = 0; chunk < chunks; ++chunk) {
-		const double *sums = binding->system.assembly + (size_t)chunk * binding->system.assembly_block + gains_at;
-		for (int32_t j = 0; j < dense; ++j)
-			gains[j] += sums[j];
-	}
 	for (int32_t j = 0; j < dense; ++j)
-		binding->step.total_gain[active[j]] = gains[j];
+		binding->step.total_gain[active[j]] = binding->system.column_gain[j];
 	if (m > dense)
 		lvp__assemble_diagonals(binding, dense, m);
 	/* What equal multipliers do to each region: its row of the system (past the regions the
-	 * system holds, its diagonal, kept in mu[] by the assembly). */
-	lvp__system_row_sums(binding, gains);
+	 * system holds, its diagonal). */
+	lvp__system_row_sums(binding);
 	for (int32_t i = 0; i < m; ++i)
-		binding->step.uniform_gain[active[i]] = i < dense ? gains[i] : binding->step.mu[active[i]];
+		binding->step.uniform_gain[active[i]] = i < dense ? binding->system.row_sums[i] : binding->step.diagonal[active[i]];
 	return lvp__error_norm(binding);
 }
 
@@ -397,19 +344,19 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 	const int32_t *active = binding->step.active;
 	const lvp__profile *profile = &binding->system.profile;
 	int32_t dense = profile->count;
-	/* The regions' own step, towards their targets. The diagonal is kept in mu[] for the
-	 * per-region fallback. */
+	/* The regions' own step, towards their targets; each region's diagonal for the per-region
+	 * fallback. */
 	double largest_diagonal = 0.0;
 	for (int32_t i = 0; i < dense; ++i) {
 		double diagonal = binding->system.matrix[profile->lower[i] + i];
 		largest_diagonal = fmax(largest_diagonal, fabs(diagonal));
-		binding->step.mu[active[i]] = diagonal;
+		binding->step.diagonal[active[i]] = diagonal;
 		binding->system.rhs[i] = binding->step.target[active[i]] - binding->step.change[active[i]];
 	}
 	bool solved = lvp__solve_system(binding, largest_diagonal);
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
-		double diagonal = binding->step.mu[t], mu;
+		double diagonal = binding->step.diagonal[t], mu;
 		if (i < dense && solved)
 			mu = binding->system.solution[i];
 		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
@@ -713,10 +660,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	int32_t n = binding->vertex_count;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
 	memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
-	if (binding->frame_map.rigid_shortcut_off) { /* the frame before had it off: the classes come back */
-		binding->frame_map.rigid_shortcut_off = false;
-		binding->frame_map.current = binding->dynamic.current = false;
-	}
+	lvp__use_rigid_shortcut(binding, true); /* the frame before may have had it off */
 	lvp__build_frame_map(binding, rest_positions);
 
 	lvp_frame_stats stats;
@@ -726,8 +670,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	 * Where they are not (bone frames that are not what moved the mesh, weights that changed
 	 * since the bind), the frame is measured from the positions alone, and says so. */
 	if (!lvp__rigid_vertices_hold(binding, positions, rest_positions, &stats.unskinned_distance)) {
-		binding->frame_map.rigid_shortcut_off = true;
-		binding->frame_map.current = binding->dynamic.current = false;
+		lvp__use_rigid_shortcut(binding, false);
 		lvp__build_frame_map(binding, rest_positions);
 	}
 	stats.worst_region = -1;
@@ -854,4 +797,40 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 			r_references[lvp__caller_bone(binding, r)] += binding->measure.reference_volume[r];
 	}
 	return lvp_success;
+}
+
+bool lvp__step_alloc(lvp_binding *binding)
+{
+	size_t n = (size_t)binding->vertex_count, s = (size_t)binding->region_count;
+	size_t parts = (size_t)binding->parts.count;
+	lvp__step *step = &binding->step;
+	bool ok = true;
+	step->positions = lvp__calloc(n * 3, sizeof(float), &ok);
+	step->moved = lvp__calloc(n, sizeof(int32_t), &ok);
+	step->backup = lvp__calloc(n * 3, sizeof(float), &ok);
+	step->chunk_moved = lvp__calloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
+	step->change = lvp__calloc(s, sizeof(double), &ok);
+	step->target = lvp__calloc(s, sizeof(double), &ok);
+	step->uniform_gain = lvp__calloc(s, sizeof(double), &ok);
+	step->total_gain = lvp__calloc(s, sizeof(double), &ok);
+	step->diagonal = lvp__calloc(s, sizeof(double), &ok);
+	step->region_movable = lvp__calloc(s, sizeof(uint8_t), &ok);
+	step->region_touched = lvp__calloc(s, sizeof(uint8_t), &ok);
+	step->active = lvp__calloc(s, sizeof(int32_t), &ok);
+	step->active_index = lvp__calloc(s, sizeof(int32_t), &ok);
+	step->mu = lvp__calloc(s, sizeof(double), &ok);
+	step->applied_mu = lvp__calloc(s, sizeof(double), &ok);
+	step->part_total = lvp__calloc(parts, sizeof(double), &ok);
+	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
+	return ok;
+}
+
+void lvp__step_free(lvp__step *step)
+{
+	void *arrays[] = {step->positions, step->moved, step->backup, step->chunk_moved, step->change, step->target,
+	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
+	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
+	                  step->part_total, step->part_gain};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
 }

@@ -9,6 +9,8 @@
  */
 #include "binding.h"
 
+#include <stdlib.h>
+
 /* binding->fold.contact, per neighbour entry (s, j) of this frame: */
 enum {
 	LVP__CONTACT_NONE = 0, /* no skin crossed between s and j */
@@ -135,8 +137,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				lvp__mark_contact(binding, s, n, j);
 				moved += !binding->fold.held[k];
 				binding->fold.held[k] = 1;
-				binding->frame_map.vertex_dynamic[k] = 1; /* off its bone's path now: the next pass visits it */
-				binding->dynamic.current = binding->frame_map.current = false;
+				lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
 			}
 		}
 	}
@@ -221,4 +222,18 @@ bool lvp__fade_map_at_contact(lvp_binding *binding)
 		}
 	}
 	return faded;
+}
+
+bool lvp__fold_alloc(lvp_binding *binding)
+{
+	bool ok = true;
+	binding->fold.contact = lvp__calloc((size_t)binding->mesh.neighbour_offsets[binding->region_count], 1, &ok);
+	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	return ok;
+}
+
+void lvp__fold_free(lvp__fold *fold)
+{
+	free(fold->contact);
+	free(fold->held);
 }

@@ -9,6 +9,7 @@
  */
 #include "binding.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 /* Bones whose skin matrices agree (to 1e-6 of their size) this frame share a class: the
@@ -36,8 +37,10 @@ static void lvp__skin_classes(lvp_binding *binding)
 				break;
 			}
 		}
-		if (binding->frame_map.skin_class[i] != skin_class)
-			binding->dynamic.current = binding->frame_map.current = false;
+		if (binding->frame_map.skin_class[i] != skin_class) {
+			binding->frame_map.current = false;
+			lvp__dynamic_set_stale(binding);
+		}
 		binding->frame_map.skin_class[i] = skin_class;
 	}
 	/* A copy of a caller's bone for a separate part (binding.h) is in its bone's class. */
@@ -250,6 +253,57 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
 	for (int32_t i = 0; i < chunks; ++i)
 		if (binding->frame_map.chunk_changed[i])
-			binding->dynamic.current = false;
+			lvp__dynamic_set_stale(binding);
 	binding->frame_map.current = true;
+}
+
+void lvp__frame_map_stale(lvp_binding *binding)
+{
+	binding->frame_map.current = false;
+}
+
+void lvp__make_dynamic(lvp_binding *binding, int32_t k)
+{
+	binding->frame_map.vertex_dynamic[k] = 1;
+	binding->frame_map.current = false;
+	lvp__dynamic_set_stale(binding);
+}
+
+void lvp__make_all_dynamic(lvp_binding *binding)
+{
+	memset(binding->frame_map.vertex_dynamic, 1, (size_t)binding->vertex_count);
+	binding->frame_map.current = false;
+}
+
+void lvp__use_rigid_shortcut(lvp_binding *binding, bool usable)
+{
+	if (binding->frame_map.rigid_shortcut_off == !usable)
+		return;
+	binding->frame_map.rigid_shortcut_off = !usable;
+	binding->frame_map.current = false;
+	lvp__dynamic_set_stale(binding);
+}
+
+bool lvp__frame_map_alloc(lvp_binding *binding)
+{
+	size_t n = (size_t)binding->vertex_count, b = (size_t)binding->bone_count;
+	lvp__frame_map *frame_map = &binding->frame_map;
+	bool ok = true;
+	frame_map->gamma = lvp__calloc(n, sizeof(float), &ok);
+	frame_map->skin_class = lvp__calloc(b, sizeof(int32_t), &ok);
+	frame_map->skin_displacement = lvp__calloc(b * 12, sizeof(float), &ok);
+	frame_map->vertex_class = lvp__calloc(n, sizeof(int32_t), &ok);
+	frame_map->vertex_dynamic = lvp__calloc(n, sizeof(uint8_t), &ok);
+	frame_map->chunk_changed = lvp__calloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
+	return ok;
+}
+
+void lvp__frame_map_free(lvp__frame_map *frame_map)
+{
+	free(frame_map->gamma);
+	free(frame_map->skin_class);
+	free(frame_map->skin_displacement);
+	free(frame_map->vertex_class);
+	free(frame_map->vertex_dynamic);
+	free(frame_map->chunk_changed);
 }

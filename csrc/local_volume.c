@@ -18,205 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* ---- region borders --------------------------------------------------------------------- */
-
-/* Half-edge key: (lo, hi, direction), direction 1 when the half-edge runs hi -> lo. */
-static inline uint64_t lvp__edge_key(int32_t a, int32_t b)
-{
-	uint64_t lo = (uint64_t)(a < b ? a : b), hi = (uint64_t)(a < b ? b : a);
-	return (lo << 27 | hi) << 1 | (uint64_t)(a > b);
-}
-
-/* The half-edges of triangles [begin, end) whose side quads do not cancel: equal numbers of
- * opposite half-edges between two vertices cancel pairwise, the surplus keeps its quads. Writes
- * them (a, b per half-edge) to r_edges and returns their number; *r_unpaired receives one edge
- * that is not exactly one half-edge each way (a hole or a non-manifold edge), or -1s; *r_flipped
- * (when not NULL) the number of edges with two half-edges the same way (two triangles wound
- * against each other: their normals disagree). */
-static int32_t lvp__surplus_half_edges(int32_t *r_edges, int32_t r_unpaired[2], int32_t *r_flipped,
-                                       const int32_t *triangles, int32_t begin, int32_t end, uint64_t *keys)
-{
-	int32_t count = 0, written = 0;
-	r_unpaired[0] = r_unpaired[1] = -1;
-	for (int32_t t = begin; t < end; ++t)
-		for (int c = 0; c < 3; ++c) {
-			int32_t a = triangles[3 * t + c], b = triangles[3 * t + (c + 1) % 3];
-			if (a != b) /* a collapsed edge has a flat side quad */
-				keys[count++] = lvp__edge_key(a, b);
-		}
-	qsort(keys, (size_t)count, sizeof(uint64_t), lvp__compare_u64);
-	for (int32_t i = 0; i < count;) {
-		uint64_t edge = keys[i] >> 1;
-		int32_t forward = 0, backward = 0, j = i;
-		for (; j < count && keys[j] >> 1 == edge; ++j)
-			(keys[j] & 1) ? ++backward : ++forward;
-		int32_t lo = (int32_t)(edge >> 27), hi = (int32_t)(edge & ((1u << 27) - 1));
-		if (forward != 1 || backward != 1) {
-			r_unpaired[0] = lo;
-			r_unpaired[1] = hi;
-		}
-		if (r_flipped && forward + backward == 2 && forward != backward)
-			++*r_flipped;
-		int32_t surplus = forward > backward ? forward - backward : backward - forward;
-		for (int32_t m = 0; m < surplus; ++m) {
-			r_edges[2 * written] = forward > backward ? lo : hi;
-			r_edges[2 * written + 1] = forward > backward ? hi : lo;
-			++written;
-		}
-		i = j;
-	}
-	return written;
-}
-
-/* Sorts the cap edges by the part of their hole (binding.h, cap_part_offsets): a stable
- * counting sort by the part of their first vertex. */
-static lvp_result lvp__sort_caps_by_part(lvp_binding *binding)
-{
-	int32_t parts = binding->parts.count, count = binding->borders.cap_edge_count;
-	int32_t *offsets = binding->borders.cap_part_offsets;
-	memset(offsets, 0, sizeof(int32_t) * ((size_t)parts + 1));
-	if (!binding->parts.vertex_part) {
-		offsets[parts] = count;
-		return lvp_success;
-	}
-	int32_t *sorted = malloc(sizeof(int32_t) * 2 * (size_t)(count > 0 ? count : 1));
-	if (!sorted)
-		return lvp_error_out_of_memory;
-	for (int32_t i = 0; i < count; ++i)
-		++offsets[binding->parts.vertex_part[binding->borders.cap_edges[2 * i]] + 1];
-	for (int32_t p = 0; p < parts; ++p)
-		offsets[p + 1] += offsets[p];
-	for (int32_t i = 0; i < count; ++i) {
-		int32_t at = offsets[binding->parts.vertex_part[binding->borders.cap_edges[2 * i]]]++;
-		sorted[2 * at] = binding->borders.cap_edges[2 * i];
-		sorted[2 * at + 1] = binding->borders.cap_edges[2 * i + 1];
-	}
-	for (int32_t p = parts; p > 0; --p)
-		offsets[p] = offsets[p - 1];
-	offsets[0] = 0;
-	free(binding->borders.cap_edges);
-	binding->borders.cap_edges = sorted;
-	return lvp_success;
-}
-
-lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
-{
-	int32_t s = binding->region_count, f = binding->triangle_count;
-	size_t capacity = (size_t)f * 3;
-	uint64_t *keys = malloc(sizeof(uint64_t) * capacity);
-	binding->borders.offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	/* At most every half-edge is a border; shrunk below once counted. */
-	binding->borders.edges = malloc(sizeof(int32_t) * 2 * capacity);
-	binding->borders.cap_edges = malloc(sizeof(int32_t) * 2 * capacity);
-	if (!keys || !binding->borders.offsets || !binding->borders.edges || !binding->borders.cap_edges) {
-		free(keys);
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-	}
-	/* The mesh's own holes, capped for the volume statistics and the final global step. */
-	int32_t unpaired[2];
-	binding->borders.flipped_edge_count = 0;
-	binding->borders.cap_edge_count = lvp__surplus_half_edges(binding->borders.cap_edges, unpaired, &binding->borders.flipped_edge_count,
-	                                                  binding->mesh.triangles, 0, f, keys);
-	if (binding->mode == LVP_MODE_GLOBAL && unpaired[0] >= 0) {
-		free(keys);
-		return lvp__fail(r_diag, lvp_error_mesh_not_closed, "triangles", -1,
-		                 "the edge between vertices %d and %d is not shared by exactly two triangles of opposite "
-		                 "orientation; the global mode needs a closed, consistently oriented mesh (fill the holes "
-		                 "and recalculate normals, or use the local mode).",
-		                 (int)unpaired[0], (int)unpaired[1]);
-	}
-	int32_t written = 0;
-	for (int32_t r = 0; r < s; ++r) {
-		binding->borders.offsets[r] = written;
-		written += lvp__surplus_half_edges(binding->borders.edges + 2 * written, unpaired, NULL, binding->mesh.triangles,
-		                                   binding->mesh.region_triangle_offsets[r], binding->mesh.region_triangle_offsets[r + 1],
-		                                   keys);
-	}
-	binding->borders.offsets[s] = written;
-	free(keys);
-	int32_t *shrunk = realloc(binding->borders.edges, sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
-	if (shrunk)
-		binding->borders.edges = shrunk;
-	shrunk = realloc(binding->borders.cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->borders.cap_edge_count > 0 ? binding->borders.cap_edge_count : 1));
-	if (shrunk)
-		binding->borders.cap_edges = shrunk;
-	if (lvp__sort_caps_by_part(binding) != lvp_success)
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-	/* Each border end's slot for the region (it is on one of the region's triangles, so it has one). */
-	binding->borders.slots = malloc(sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
-	binding->borders.gradient = calloc((size_t)6 * (size_t)(written > 0 ? written : 1), sizeof(float));
-	binding->borders.rest = malloc(sizeof(lvp__vec3) * 2 * (size_t)(written > 0 ? written : 1));
-	if (!binding->borders.slots || !binding->borders.gradient || !binding->borders.rest)
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-	for (int32_t r = 0; r < s; ++r)
-		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
-			for (int end = 0; end < 2; ++end)
-				binding->borders.slots[2 * i + end] = lvp__find_slot(binding, binding->borders.edges[2 * i + end], r);
-	return lvp_success;
-}
-
-lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag)
-{
-	int32_t s = binding->region_count, n = binding->vertex_count;
-	int32_t *seen = malloc(sizeof(int32_t) * (size_t)n);
-	binding->mesh.region_corner_offsets = calloc((size_t)s + 1, sizeof(int32_t));
-	if (!seen || !binding->mesh.region_corner_offsets) {
-		free(seen);
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-	}
-	for (int pass = 0; pass < 2; ++pass) {
-		int64_t count = 0;
-		for (int32_t k = 0; k < n; ++k)
-			seen[k] = -1;
-		for (int32_t r = 0; r < s; ++r) {
-			binding->mesh.region_corner_offsets[r] = (int32_t)count;
-			for (int32_t i = 3 * binding->mesh.region_triangle_offsets[r]; i < 3 * binding->mesh.region_triangle_offsets[r + 1];
-			     ++i) {
-				int32_t k = binding->mesh.triangles[i];
-				if (seen[k] == r)
-					continue;
-				seen[k] = r;
-				if (pass)
-					binding->mesh.region_corners[count] = k;
-				++count;
-			}
-		}
-		binding->mesh.region_corner_offsets[s] = (int32_t)count; /* at most 3 F, below LVP_MAX_TRIANGLES*3 */
-		if (!pass && !(binding->mesh.region_corners = malloc(sizeof(int32_t) * (size_t)(count > 0 ? count : 1)))) {
-			free(seen);
-			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
-		}
-	}
-	free(seen);
-	return lvp_success;
-}
-
-/* 6 times the volume of the cones from the mesh's holes to one apex (the mean of the hole
- * vertices): added to the divergence sum, it closes the surface, so the volume of an open
- * mesh no longer depends on the origin. Zero for closed meshes. */
-/* 6 x the volume of the cones from the mean of their first vertices to cap edges [begin, end). */
-static double lvp__cap_range_volume6(const lvp_binding *binding, const float *positions, int32_t begin, int32_t end)
-{
-	if (end <= begin)
-		return 0.0;
-	lvp__vec3 apex = lvp__v(0.0, 0.0, 0.0);
-	for (int32_t i = begin; i < end; ++i)
-		apex = lvp__add(apex, lvp__load(positions + 3 * binding->borders.cap_edges[2 * i]));
-	apex = lvp__scale(apex, 1.0 / (end - begin));
-	double volume6 = 0.0;
-	for (int32_t i = begin; i < end; ++i) {
-		lvp__vec3 a = lvp__load(positions + 3 * binding->borders.cap_edges[2 * i]);
-		lvp__vec3 b = lvp__load(positions + 3 * binding->borders.cap_edges[2 * i + 1]);
-		volume6 += lvp__vol6(b, a, apex);
-	}
-	return volume6;
-}
-
-double lvp__cap_volume6(const lvp_binding *binding, const float *positions)
-{
-	return lvp__cap_range_volume6(binding, positions, 0, binding->borders.cap_edge_count);
-}
-
 /* ---- the mesh pass ------------------------------------------------------------------------ */
 
 /* The origin of region r's bone frame this frame (global mode: the rest centroid). */
@@ -237,22 +38,6 @@ static lvp__vec3 lvp__region_origin(const lvp_binding *binding, int32_t region)
 	return binding->measure.origin[region];
 }
 
-/* Volume term (p0 - o) . cr and cr = (p1 - p0) x (p2 - p0) of a triangle. In float: each term
- * is exact to float precision and the sums are taken in double. */
-static inline double lvp__triangle_cross(float r_cross[3], const float *positions, const int32_t *corners,
-                                         const float *o)
-{
-	const float *p0 = positions + 3 * corners[0];
-	const float *p1 = positions + 3 * corners[1];
-	const float *p2 = positions + 3 * corners[2];
-	float e1x = p1[0] - p0[0], e1y = p1[1] - p0[1], e1z = p1[2] - p0[2];
-	float e2x = p2[0] - p0[0], e2y = p2[1] - p0[1], e2z = p2[2] - p0[2];
-	float cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
-	r_cross[0] = cx;
-	r_cross[1] = cy;
-	r_cross[2] = cz;
-	return (double)((p0[0] - o[0]) * cx + (p0[1] - o[1]) * cy + (p0[2] - o[2]) * cz);
-}
 
 /* The same with cr / 6 (each corner's share of the gradient). */
 static inline double lvp__triangle_terms(float r_gradient[3], const float *positions, const int32_t *corners,
@@ -287,13 +72,6 @@ static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 		binding->measure.slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
 }
 
-static lvp__vec3 lvp__rest_origin(const lvp_binding *binding, int32_t region)
-{
-	if (binding->mode == LVP_MODE_GLOBAL)
-		return binding->measure.global_origin;
-	const double *m = binding->rig.rest_matrices[region].m;
-	return lvp__v(m[3], m[7], m[11]);
-}
 
 /* 6 x the rest volume term of triangle t about o, and its cr. */
 static double lvp__rest_terms(lvp__vec3 *r_area6, const float *rest, const int32_t *corners, lvp__vec3 o)
@@ -304,150 +82,6 @@ static double lvp__rest_terms(lvp__vec3 *r_area6, const float *rest, const int32
 	*r_area6 = lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0));
 	return lvp__dot(lvp__sub(p0, o), *r_area6);
 }
-
-/* ---- the dynamic set ------------------------------------------------------------------------ */
-
-/* A triangle whose three corners are moved by bones of its region's bone's skin class alone,
- * and that the correction never moves, is where its rest triangle is, moved by that bone:
- * (p0 - o) . cr = det(L) (r0 - o_rest) . cr_rest + delta . cof(L) cr_rest, where L is the
- * bone's linear part, cof(L) = det(L) L^-T maps rest area vectors to posed ones, and delta is
- * what the rounded origin o differs from the exact posed rest origin by. So a region's static
- * triangles enter its sums through their rest sums, and a pass visits only the dynamic rest:
- * in a pose bent at a few joints, a small part of the mesh. */
-typedef struct lvp__dynamic_context {
-	lvp_binding *binding;
-	const float *rest;
-	const lvp__region_sums *rest_totals;
-	bool local;
-} lvp__dynamic_context;
-
-enum { LVP__REGION_DYNAMIC, LVP__REGION_STATIC, LVP__REGION_MIXED };
-
-/* First phase, per region (the last: triangles without region): whether it is static, dynamic
- * or mixed, the static flag of each triangle of a mixed one, its number of dynamic triangles
- * (in region_dynamic_offsets[r + 1], summed into offsets afterwards) and its static rest sums. */
-static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
-{
-	const lvp__dynamic_context *c = context;
-	lvp_binding *binding = c->binding;
-	int32_t s = binding->region_count;
-	for (int32_t r = begin; r < end; ++r) {
-		int32_t first = binding->mesh.region_triangle_offsets[r];
-		int32_t last = r < s ? binding->mesh.region_triangle_offsets[r + 1] : binding->triangle_count;
-		if (!(c->local && r < s && !binding->rig.region_skipped[r])) {
-			binding->dynamic.region_state[r] = LVP__REGION_DYNAMIC;
-			binding->dynamic.region_offsets[r + 1] = last - first;
-			if (r < s) {
-				memset(&binding->dynamic.static_rest[r], 0, sizeof(lvp__region_sums));
-				binding->dynamic.static_count[r] = 0;
-			}
-			continue;
-		}
-		int32_t bone_class = binding->frame_map.skin_class[r];
-		bool whole_region_static = true;
-		for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1]; ++i) {
-			int32_t k = binding->mesh.region_corners[i];
-			if (!lvp__carried_rigidly(binding, k, bone_class)) {
-				whole_region_static = false;
-				break;
-			}
-		}
-		if (whole_region_static) { /* the bone carries the region rigidly: nothing to visit */
-			binding->dynamic.region_state[r] = LVP__REGION_STATIC;
-			binding->dynamic.region_offsets[r + 1] = 0;
-			binding->dynamic.static_rest[r] = c->rest_totals[r];
-			binding->dynamic.static_count[r] = last - first;
-			continue;
-		}
-		/* The dynamic triangles' rest terms, subtracted from the totals below: in float, like
-		 * the posed terms of the passes, about the rounded origin, then moved to the exact one. */
-		lvp__vec3 o_exact = lvp__rest_origin(binding, r);
-		float o[3] = {(float)o_exact.x, (float)o_exact.y, (float)o_exact.z};
-		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
-		int32_t dynamic = 0;
-		for (int32_t t = first; t < last; ++t) {
-			const int32_t *corners = binding->mesh.triangles + 3 * t;
-			bool is_static = true;
-			for (int i = 0; i < 3 && is_static; ++i)
-				is_static = lvp__carried_rigidly(binding, corners[i], bone_class);
-			binding->dynamic.triangle_static[t] = is_static;
-			if (is_static)
-				continue;
-			++dynamic;
-			float cr[3];
-			volume6 += lvp__triangle_cross(cr, c->rest, corners, o);
-			ax += cr[0];
-			ay += cr[1];
-			az += cr[2];
-		}
-		lvp__vec3 area = lvp__v(ax, ay, az);
-		volume6 += lvp__dot(lvp__sub(lvp__v(o[0], o[1], o[2]), o_exact), area);
-		binding->dynamic.region_state[r] = LVP__REGION_MIXED;
-		binding->dynamic.region_offsets[r + 1] = dynamic;
-		/* static = all - dynamic; none static: exactly zero, not the rounding of a difference */
-		int32_t statics = (last - first) - dynamic;
-		const lvp__region_sums *total = &c->rest_totals[r];
-		lvp__region_sums *sums = &binding->dynamic.static_rest[r];
-		binding->dynamic.static_count[r] = statics;
-		sums->volume6 = statics ? total->volume6 - volume6 : 0.0;
-		sums->area6[0] = statics ? total->area6[0] - area.x : 0.0;
-		sums->area6[1] = statics ? total->area6[1] - area.y : 0.0;
-		sums->area6[2] = statics ? total->area6[2] - area.z : 0.0;
-	}
-}
-
-/* Second phase, per region: its dynamic triangles, in order, from its offset on. */
-static void lvp__list_dynamic_triangles(void *context, int32_t begin, int32_t end)
-{
-	lvp_binding *binding = ((const lvp__dynamic_context *)context)->binding;
-	int32_t s = binding->region_count;
-	for (int32_t r = begin; r < end; ++r) {
-		int32_t first = binding->mesh.region_triangle_offsets[r];
-		int32_t last = r < s ? binding->mesh.region_triangle_offsets[r + 1] : binding->triangle_count;
-		int32_t *out = binding->dynamic.triangles + binding->dynamic.region_offsets[r];
-		if (binding->dynamic.region_state[r] == LVP__REGION_DYNAMIC) {
-			for (int32_t t = first; t < last; ++t)
-				*out++ = t;
-		} else if (binding->dynamic.region_state[r] == LVP__REGION_MIXED) {
-			for (int32_t t = first; t < last; ++t)
-				if (!binding->dynamic.triangle_static[t])
-					*out++ = t;
-		}
-	}
-}
-
-void lvp__find_dynamic_set(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *rest_totals,
-                      bool all_dynamic)
-{
-	int32_t s = binding->region_count;
-	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
-	/* From the bind rest, the set depends only on vertex_dynamic, vertex_class, skin_class and
-	 * region_skipped; whatever changes one of them clears dynamic_set_current. In an animation
-	 * the same bones move from frame to frame, so the set is usually last frame's. */
-	bool reusable = local && !rest_positions;
-	if (reusable && binding->dynamic.current)
-		return;
-	binding->dynamic.current = false;
-	if (!local) {
-		memset(binding->frame_map.vertex_dynamic, 1, (size_t)binding->vertex_count);
-		binding->frame_map.current = false;
-	}
-	lvp__dynamic_context context = {binding, rest_positions ? rest_positions : binding->rest_positions, rest_totals,
-	                                local};
-	lvp__pool *pool = LVP__POOL_FOR(binding, binding->triangle_count);
-	lvp__parallel_for(pool, lvp__classify_regions, &context, s + 1, 1);
-	binding->dynamic.region_offsets[0] = 0;
-	for (int32_t r = 0; r <= s; ++r)
-		binding->dynamic.region_offsets[r + 1] += binding->dynamic.region_offsets[r];
-	lvp__parallel_for(pool, lvp__list_dynamic_triangles, &context, s + 1, 1);
-	int32_t vertices = 0;
-	for (int32_t k = 0; k < binding->vertex_count; ++k)
-		if (binding->frame_map.vertex_dynamic[k])
-			binding->dynamic.vertices[vertices++] = k;
-	binding->dynamic.vertex_count = vertices;
-	binding->dynamic.current = reusable;
-}
-
 /* The static triangles' part of region r's sums this frame (see lvp__find_dynamic_set). */
 static void lvp__add_static_part(lvp_binding *binding, int32_t r, double *r_volume6, double r_area6[3])
 {
@@ -660,38 +294,6 @@ double lvp__pass_volume(const lvp_binding *binding, const float *positions)
 	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
 }
 
-double lvp__volume_of(const lvp_binding *binding, const float *positions)
-{
-	/* About the origin, like lvp_mesh_volume() and the per-frame statistics (open meshes). */
-	lvp__vec3 o = lvp__v(0.0, 0.0, 0.0);
-	double volume6 = 0.0;
-	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		lvp__vec3 p0 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t]), o);
-		lvp__vec3 p1 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 1]), o);
-		lvp__vec3 p2 = lvp__sub(lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 2]), o);
-		volume6 += lvp__vol6(p0, p1, p2);
-	}
-	return (volume6 + lvp__cap_volume6(binding, positions)) / 6.0;
-}
-
-void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, double *r_volumes)
-{
-	if (binding->parts.count == 1) {
-		r_volumes[0] = lvp__volume_of(binding, positions);
-		return;
-	}
-	memset(r_volumes, 0, sizeof(double) * (size_t)binding->parts.count);
-	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		lvp__vec3 p0 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t]);
-		lvp__vec3 p1 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 1]);
-		lvp__vec3 p2 = lvp__load(positions + 3 * binding->mesh.triangles[3 * t + 2]);
-		r_volumes[lvp__region_part(binding, binding->mesh.triangle_region[t])] += lvp__vol6(p0, p1, p2);
-	}
-	const int32_t *caps = binding->borders.cap_part_offsets;
-	for (int32_t p = 0; p < binding->parts.count; ++p)
-		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
-}
-
 void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, double *r_volumes)
 {
 	if (binding->parts.count == 1) {
@@ -710,7 +312,6 @@ void lvp__pass_part_volumes(const lvp_binding *binding, const float *positions, 
 	for (int32_t p = 0; p < binding->parts.count; ++p)
 		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
 }
-
 /* ---- rest side and region changes ----------------------------------------------------------- */
 
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals)
@@ -731,36 +332,15 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 	}
 }
 
-/* The rest side of each border half-edge's side quad at `rest` (binding.h, border_rest): the
- * same for every measurement of a frame. Regions without borders are skipped before their rest
- * frame is looked at: the global mode's one region has none, nor, without a skeleton, a frame. */
-static void lvp__border_rest(lvp_binding *binding, const float *rest)
-{
-	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (binding->borders.offsets[r + 1] == binding->borders.offsets[r])
-			continue;
-		const lvp__mat4 *to_local = &binding->rig.rest_inverse[r];
-		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i) {
-			lvp__vec3 a = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->borders.edges[2 * i]));
-			lvp__vec3 b = lvp__transform_point(to_local, lvp__load(rest + 3 * binding->borders.edges[2 * i + 1]));
-			binding->borders.rest[2 * i] = lvp__add(a, b);
-			binding->borders.rest[2 * i + 1] = lvp__cross(a, b);
-		}
-	}
-}
 
 const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions)
 {
 	if (rest_positions) {
 		lvp__rest_constants(binding, rest_positions, binding->measure.frame_totals);
-		lvp__border_rest(binding, rest_positions);
-		binding->borders.rest_is_bind = false;
+		lvp__borders_rest(binding, rest_positions);
 		return binding->measure.frame_totals;
 	}
-	if (!binding->borders.rest_is_bind) {
-		lvp__border_rest(binding, binding->rest_positions);
-		binding->borders.rest_is_bind = true;
-	}
+	lvp__borders_rest(binding, NULL);
 	return binding->measure.rest_totals;
 }
 
@@ -922,4 +502,43 @@ void lvp__vertex_gradients(lvp_binding *binding)
 		binding->measure.vertex_terms_current = true;
 	}
 	lvp__add_border_gradients(binding);
+}
+
+bool lvp__measure_alloc(lvp_binding *binding)
+{
+	size_t n = (size_t)binding->vertex_count, f = (size_t)binding->triangle_count, s = (size_t)binding->region_count;
+	size_t slots = (size_t)binding->mesh.slot_count, pieces = f / LVP__GRAIN + s + 2;
+	lvp__measure *measure = &binding->measure;
+	bool ok = true;
+	measure->rest_totals = lvp__calloc(s, sizeof(lvp__region_sums), &ok);
+	measure->frame_totals = lvp__calloc(s, sizeof(lvp__region_sums), &ok);
+	measure->reference_volume = lvp__calloc(s, sizeof(double), &ok);
+	measure->origin = lvp__calloc(s, sizeof(lvp__vec3), &ok);
+	measure->origin_float = lvp__calloc((s + 1) * 3, sizeof(float), &ok);
+	measure->sums = lvp__calloc(s + 1, sizeof(lvp__region_sums), &ok);
+	measure->piece_first = lvp__calloc(pieces + 1, sizeof(int32_t), &ok);
+	measure->piece_region = lvp__calloc(pieces, sizeof(int32_t), &ok);
+	measure->piece_sums = lvp__calloc(pieces, sizeof(lvp__region_sums), &ok);
+	measure->triangle_gradient = lvp__calloc(f * 3, sizeof(float), &ok);
+	measure->triangle_volume6 = lvp__calloc(f, sizeof(float), &ok);
+	measure->normals = lvp__calloc(n * 3, sizeof(float), &ok);
+	measure->vertex_g = lvp__calloc(n, sizeof(float), &ok);
+	measure->slot_gradient = lvp__calloc(slots * 3, sizeof(float), &ok);
+	measure->slot_g = lvp__calloc(slots, sizeof(float), &ok);
+	measure->triangle_dirty = lvp__calloc(f, sizeof(uint8_t), &ok);
+	measure->dirty_triangles = lvp__calloc(f, sizeof(int32_t), &ok);
+	measure->vertex_dirty = lvp__calloc(n, sizeof(uint8_t), &ok);
+	measure->dirty_vertices = lvp__calloc(n, sizeof(int32_t), &ok);
+	return ok;
+}
+
+void lvp__measure_free(lvp__measure *measure)
+{
+	void *arrays[] = {measure->rest_totals, measure->frame_totals, measure->reference_volume, measure->origin,
+	                  measure->origin_float, measure->sums, measure->piece_first, measure->piece_region,
+	                  measure->piece_sums, measure->triangle_gradient, measure->triangle_volume6, measure->normals,
+	                  measure->vertex_g, measure->slot_gradient, measure->slot_g, measure->triangle_dirty,
+	                  measure->dirty_triangles, measure->vertex_dirty, measure->dirty_vertices};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
 }

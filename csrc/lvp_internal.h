@@ -28,6 +28,9 @@ lvp_result lvp__fail(lvp_diagnostic *r_diag, lvp_result result, const char *argu
 
 /* ---- validation (each returns lvp_success or a filled diagnostic) ---------------------- */
 
+/* calloc of count items (at least one): on failure, or when *ok is already false, NULL and *ok
+ * false, so that a list of allocations is checked once. */
+void *lvp__calloc(size_t count, size_t size, bool *ok);
 lvp_result lvp__check_float_array(const float *values, int64_t count, const char *argument, lvp_diagnostic *r_diag);
 lvp_result lvp__check_mesh(const float *positions, int32_t vertex_count, const int32_t *triangles,
                            int32_t triangle_count, const char *positions_argument, lvp_diagnostic *r_diag);

@@ -193,3 +193,27 @@ done:
 	*r_parts = parts;
 	return result;
 }
+
+bool lvp__part_volumes_alloc(lvp_binding *binding)
+{
+	size_t count = (size_t)binding->parts.count;
+	lvp__part_volumes *parts = &binding->parts;
+	bool ok = true;
+	parts->bind_volume = lvp__calloc(count, sizeof(double), &ok);
+	parts->rest_volume = lvp__calloc(count, sizeof(double), &ok);
+	parts->scale = lvp__calloc(count, sizeof(double), &ok);
+	parts->change = lvp__calloc(count, sizeof(double), &ok);
+	parts->uniform = lvp__calloc(count, sizeof(double), &ok);
+	return ok;
+}
+
+void lvp__part_volumes_free(lvp__part_volumes *parts)
+{
+	free(parts->region_part);
+	free(parts->vertex_part);
+	free(parts->bind_volume);
+	free(parts->rest_volume);
+	free(parts->scale);
+	free(parts->change);
+	free(parts->uniform);
+}

@@ -268,13 +268,16 @@ lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag
 	binding->system.normal_profile.upper = malloc(sizeof(int32_t) * n);
 	binding->system.row_last = malloc(sizeof(int32_t) * n);
 	binding->system.still = malloc(n);
+	binding->system.column_gain = malloc(sizeof(double) * n);
+	binding->system.row_sums = malloc(sizeof(double) * n);
 	binding->system.rhs = malloc(sizeof(double) * n);
 	binding->system.solution = malloc(sizeof(double) * n);
 	binding->system.row_values = malloc(sizeof(double) * n);
 	binding->system.place = malloc(sizeof(lvp__system_place) * n);
 	bool ok = binding->system.solve_order && binding->system.profile.first && binding->system.profile.lower &&
 	          binding->system.profile.upper && binding->system.normal_profile.first && binding->system.normal_profile.lower &&
-	          binding->system.normal_profile.upper && binding->system.row_last && binding->system.still && binding->system.rhs &&
+	          binding->system.normal_profile.upper && binding->system.row_last && binding->system.still && binding->system.column_gain && binding->system.row_sums &&
+	          binding->system.rhs &&
 	          binding->system.solution && binding->system.row_values && binding->system.place;
 	ok = ok && lvp__build_coupling(binding) && lvp__order_regions(binding);
 	if (ok) {
@@ -351,10 +354,19 @@ void lvp__sum_system(lvp_binding *binding)
 		for (int32_t i = 0; i < p->count; ++i)
 			system[p->lower[i] + i] += sums[i * stride + i];
 	}
+	/* Each block's gains follow its sums (binding.h, LVP__ASSEMBLY_BLOCK). */
+	size_t gains_at = lvp__assembly_gains_at(binding);
+	memset(binding->system.column_gain, 0, sizeof(double) * (size_t)p->count);
+	for (int32_t chunk = 0; chunk < binding->system.assembly_chunks; ++chunk) {
+		const double *gains = binding->system.assembly + (size_t)chunk * binding->system.assembly_block + gains_at;
+		for (int32_t j = 0; j < p->count; ++j)
+			binding->system.column_gain[j] += gains[j];
+	}
 }
 
-void lvp__system_row_sums(const lvp_binding *binding, double *r_sums)
+void lvp__system_row_sums(lvp_binding *binding)
 {
+	double *r_sums = binding->system.row_sums;
 	const lvp__profile *p = &binding->system.profile;
 	const double *a = binding->system.matrix;
 	for (int32_t i = 0; i < p->count; ++i) {
@@ -438,4 +450,15 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 	memcpy(binding->system.factor, binding->system.matrix, sizeof(double) * (size_t)p->cells);
 	memcpy(binding->system.solution, binding->system.rhs, sizeof(double) * (size_t)p->count);
 	return lvp__profile_solve(binding->system.factor, p, binding->system.solution) || lvp__least_squares(binding);
+}
+
+void lvp__region_system_free(lvp__region_system *system)
+{
+	void *arrays[] = {system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
+	                  system->profile.lower, system->profile.upper, system->normal_profile.first,
+	                  system->normal_profile.lower, system->normal_profile.upper, system->place, system->matrix,
+	                  system->factor, system->normal, system->assembly, system->column_gain, system->row_sums, system->rhs,
+	                  system->solution, system->row_values, system->row_last, system->still};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
 }

@@ -1,7 +1,7 @@
 /*
- * segmentation.c - paper 5.2 (regions by largest weight) and the correction maps of 4.2, 4.3
- * (eq. 7) and 5.3 (eq. 8), with the rule that spreads each region's multiplier over the
- * vertices it may move (see CORRECTION MAPS in lvp.h for why it is the skinning weight).
+ * segmentation.c - paper 5.2: regions by largest weight, the triangles sorted by region, and
+ * the adjacency the other stages walk (slots, each region's corners, vertices and neighbouring
+ * bones).
  */
 #include "binding.h"
 
@@ -138,9 +138,7 @@ static lvp_result lvp__build_slots(lvp_binding *binding, lvp_diagnostic *r_diag)
 	binding->mesh.slot_count = binding->mesh.slot_offsets[n];
 	size_t slots = (size_t)binding->mesh.slot_count;
 	binding->mesh.slot_region = malloc(sizeof(int32_t) * (slots ? slots : 1));
-	binding->measure.slot_gradient = calloc((slots ? slots : 1) * 3, sizeof(float));
-	binding->measure.slot_g = calloc(slots ? slots : 1, sizeof(float));
-	if (!binding->mesh.slot_region || !binding->measure.slot_gradient || !binding->measure.slot_g) {
+	if (!binding->mesh.slot_region) {
 		free(corner_offsets);
 		free(corners);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
@@ -209,9 +207,7 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 		free(marker);
 		free(directed_offsets);
 		binding->mesh.neighbour_bones = malloc(sizeof(int32_t));
-		binding->fold.contact = calloc(1, 1);
-		return binding->mesh.neighbour_bones && binding->fold.contact
-		           ? lvp_success
+		return binding->mesh.neighbour_bones ? lvp_success
 		           : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
 
@@ -296,10 +292,6 @@ static lvp_result lvp__build_neighbours(lvp_binding *binding, lvp_diagnostic *r_
 	}
 	free(marker);
 	free(directed_offsets);
-	int32_t entries = binding->mesh.neighbour_offsets[s];
-	binding->fold.contact = calloc((size_t)(entries > 0 ? entries : 1), 1);
-	if (!binding->fold.contact)
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	return lvp_success;
 }
 
@@ -320,148 +312,68 @@ lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag)
 	return lvp__build_neighbours(binding, r_diag);
 }
 
-/* ---- correction maps ----------------------------------------------------------------------- */
-
-lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag)
+lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
-	if ((unsigned)map->map > (unsigned)LVP_MAP_UNIFORM)
-		return lvp__fail(r_diag, lvp_error_invalid_option, "map.map", -1,
-		                 "map.map is %d; use ORGANIC, RUBBER, BOUNDARY_FADE, PAINTED or UNIFORM.", (int)map->map);
-	if (!(map->alpha >= 0.0f && map->alpha <= 64.0f))
-		return lvp__fail(r_diag, lvp_error_invalid_option, "map.alpha", -1,
-		                 "map.alpha is %g; it must be a number between 0 and 64.", (double)map->alpha);
-	if (!(map->beta >= 0.0f && map->beta <= 64.0f))
-		return lvp__fail(r_diag, lvp_error_invalid_option, "map.beta", -1,
-		                 "map.beta is %g; it must be a number between 0 and 64.", (double)map->beta);
-	if (map->map == LVP_MAP_PAINTED) {
-		lvp_result result = lvp__check_float_array(map->painted, binding->vertex_count, "map.painted", r_diag);
-		if (result)
-			return result;
-		for (int32_t k = 0; k < binding->vertex_count; ++k)
-			if (map->painted[k] < 0.0f)
-				return lvp__fail(r_diag, lvp_error_negative_weight, "map.painted", k,
-				                 "map.painted[%d] is %g; a painted correction map must be >= 0.", (int)k,
-				                 (double)map->painted[k]);
+	int32_t s = binding->region_count, n = binding->vertex_count;
+	int32_t *seen = malloc(sizeof(int32_t) * (size_t)n);
+	binding->mesh.region_corner_offsets = calloc((size_t)s + 1, sizeof(int32_t));
+	if (!seen || !binding->mesh.region_corner_offsets) {
+		free(seen);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	}
-	if ((map->region_bone_offsets == NULL) != (map->region_bones == NULL))
-		return lvp__fail(r_diag, lvp_error_null_argument,
-		                 map->region_bones ? "map.region_bone_offsets" : "map.region_bones", -1,
-		                 "map.region_bone_offsets and map.region_bones go together: pass both or neither.");
-	if (map->region_bone_offsets) {
-		const int32_t *offsets = map->region_bone_offsets;
-		int32_t b = binding->caller_bone_count;
-		if (offsets[0] != 0)
-			return lvp__fail(r_diag, lvp_error_invalid_size, "map.region_bone_offsets", 0,
-			                 "map.region_bone_offsets[0] is %d; compressed rows start at 0.", (int)offsets[0]);
-		for (int32_t r = 0; r < b; ++r)
-			if (offsets[r + 1] < offsets[r])
-				return lvp__fail(r_diag, lvp_error_invalid_size, "map.region_bone_offsets", r + 1,
-				                 "map.region_bone_offsets must not decrease (entry %d).", (int)(r + 1));
-		for (int32_t i = 0; i < offsets[b]; ++i)
-			if (map->region_bones[i] < 0 || map->region_bones[i] >= b)
-				return lvp__fail(r_diag, lvp_error_index_out_of_range, "map.region_bones", i,
-				                 "map.region_bones[%d] is %d, outside the %d bones.", (int)i, (int)map->region_bones[i],
-				                 (int)b);
-	}
-	return lvp_success;
-}
-
-/* Rest distance from vertex k to the nearest bone segment it may depend on (Fig. 11). */
-static double lvp__vertex_distance(const lvp_binding *binding, int32_t k, const int32_t *bones, int32_t bone_count)
-{
-	lvp__vec3 p = lvp__load(binding->rest_positions + 3 * k);
-	double best = INFINITY;
-	for (int32_t i = 0; i < bone_count; ++i) {
-		int32_t bone = bones ? bones[i] : i;
-		double d = lvp__segment_distance(p, binding->rig.heads[bone], binding->rig.tails[bone]);
-		best = d < best ? d : best;
-	}
-	return isfinite(best) ? best : 0.0;
-}
-
-/* log(x^exponent), with 0^0 = 1 and x <= 0 giving -infinity (a zero map). */
-static double lvp__log_power(double x, double exponent)
-{
-	return exponent == 0.0 ? 0.0 : (x > 0.0 ? exponent * log(x) : -INFINITY);
-}
-
-/* log gamma_k for vertex k with largest weight w and rest bone distance d (lvp.h, maps). */
-static double lvp__log_map(const lvp_map_options *map, double w, double d, int32_t k)
-{
-	switch (map->map) {
-	case LVP_MAP_ORGANIC:
-		return lvp__log_power(1.0 - w, map->alpha) + lvp__log_power(d, map->beta);
-	case LVP_MAP_RUBBER:
-		return lvp__log_power(1.0 - w, map->alpha);
-	case LVP_MAP_BOUNDARY_FADE:
-		return lvp__log_power(2.0 * w - 1.0, map->alpha) + lvp__log_power(d, map->beta);
-	case LVP_MAP_PAINTED:
-		return map->painted[k] > 0.0f ? log((double)map->painted[k]) : -INFINITY;
-	case LVP_MAP_UNIFORM:
-		break;
-	}
-	return 0.0;
-}
-
-lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag)
-{
-	lvp_result result = lvp__check_map_options(binding, map, r_diag);
-	if (result)
-		return result;
-	/* The restriction and the distances are in the caller's bones: copies of them for separate
-	 * parts (binding.h) have the same segments. */
-	int32_t n = binding->vertex_count, b = binding->caller_bone_count;
-	bool local = binding->mode == LVP_MODE_LOCAL;
-
-	/* Keep a copy of the Fig. 11 restriction (the caller's arrays are not kept). */
-	free(binding->map.region_bone_offsets);
-	free(binding->map.region_bones);
-	binding->map.region_bone_offsets = NULL;
-	binding->map.region_bones = NULL;
-	if (map->region_bone_offsets) {
-		int32_t total = map->region_bone_offsets[b];
-		binding->map.region_bone_offsets = malloc(sizeof(int32_t) * ((size_t)b + 1));
-		binding->map.region_bones = malloc(sizeof(int32_t) * (size_t)(total > 0 ? total : 1));
-		if (!binding->map.region_bone_offsets || !binding->map.region_bones)
-			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
-		memcpy(binding->map.region_bone_offsets, map->region_bone_offsets, sizeof(int32_t) * ((size_t)b + 1));
-		memcpy(binding->map.region_bones, map->region_bones, sizeof(int32_t) * (size_t)total);
-	}
-	binding->map.options = *map;
-	binding->map.options.painted = NULL;
-	binding->map.options.region_bone_offsets = binding->map.region_bone_offsets;
-	binding->map.options.region_bones = binding->map.region_bones;
-
-	/* The map is built as a logarithm and normalized to a maximum of 1 before it is stored: only
-	 * its shape matters (the multipliers absorb its scale), and d^beta of a far vertex would
-	 * overflow a float (or a double) for large coordinates or exponents. */
-	double largest = -INFINITY;
-	for (int32_t k = 0; k < n; ++k) {
-		int32_t region = lvp__caller_bone(binding, binding->mesh.vertex_region[k]);
-		double distance = 0.0;
-		if (b > 0) {
-			const int32_t *bones = NULL;
-			int32_t count = b;
-			if (binding->map.region_bone_offsets && local && region >= 0 &&
-			    binding->map.region_bone_offsets[region + 1] > binding->map.region_bone_offsets[region]) {
-				bones = binding->map.region_bones + binding->map.region_bone_offsets[region];
-				count = binding->map.region_bone_offsets[region + 1] - binding->map.region_bone_offsets[region];
+	for (int pass = 0; pass < 2; ++pass) {
+		int64_t count = 0;
+		for (int32_t k = 0; k < n; ++k)
+			seen[k] = -1;
+		for (int32_t r = 0; r < s; ++r) {
+			binding->mesh.region_corner_offsets[r] = (int32_t)count;
+			for (int32_t i = 3 * binding->mesh.region_triangle_offsets[r]; i < 3 * binding->mesh.region_triangle_offsets[r + 1];
+			     ++i) {
+				int32_t k = binding->mesh.triangles[i];
+				if (seen[k] == r)
+					continue;
+				seen[k] = r;
+				if (pass)
+					binding->mesh.region_corners[count] = k;
+				++count;
 			}
-			distance = lvp__vertex_distance(binding, k, bones, count);
 		}
-		binding->map.distance[k] = (float)distance;
-		double log_gamma = lvp__log_map(map, binding->mesh.max_weight[k], distance, k);
-		/* Unweighted vertices belong to no region in local mode: they never move. */
-		if (local && region < 0)
-			log_gamma = -INFINITY;
-		binding->map.log_gamma[k] = log_gamma;
-		largest = log_gamma > largest ? log_gamma : largest;
+		binding->mesh.region_corner_offsets[s] = (int32_t)count; /* at most 3 F, below LVP_MAX_TRIANGLES*3 */
+		if (!pass && !(binding->mesh.region_corners = malloc(sizeof(int32_t) * (size_t)(count > 0 ? count : 1)))) {
+			free(seen);
+			return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+		}
 	}
-	for (int32_t k = 0; k < n; ++k)
-		binding->map.gamma[k] = isfinite(largest) ? (float)exp(binding->map.log_gamma[k] - largest) : 0.0f;
-
-	/* Which regions' multipliers reach a vertex, and with which phi (correction.c,
-	 * lvp__vertex_support): its bones, by weight, or only its region under the boundary fade. */
-	binding->map.soft_support = local && map->map != LVP_MAP_BOUNDARY_FADE;
+	free(seen);
 	return lvp_success;
+}
+
+bool lvp__mesh_alloc(lvp_binding *binding)
+{
+	size_t n = (size_t)binding->vertex_count, f = (size_t)binding->triangle_count, s = (size_t)binding->region_count;
+	lvp__mesh *mesh = &binding->mesh;
+	bool ok = true;
+	mesh->triangles = lvp__calloc(f * 3, sizeof(int32_t), &ok);
+	mesh->triangle_original = lvp__calloc(f, sizeof(int32_t), &ok);
+	mesh->triangle_region = lvp__calloc(f, sizeof(int32_t), &ok);
+	mesh->region_triangle_offsets = lvp__calloc(s + 1, sizeof(int32_t), &ok);
+	mesh->vertex_region = lvp__calloc(n, sizeof(int32_t), &ok);
+	mesh->max_weight = lvp__calloc(n, sizeof(float), &ok);
+	mesh->slot_offsets = lvp__calloc(n + 1, sizeof(int32_t), &ok);
+	mesh->corner_slot = lvp__calloc(f * 3, sizeof(int32_t), &ok);
+	mesh->region_vertex_offsets = lvp__calloc(s + 1, sizeof(int32_t), &ok);
+	mesh->region_vertices = lvp__calloc(n, sizeof(int32_t), &ok);
+	return ok;
+}
+
+void lvp__mesh_free(lvp__mesh *mesh)
+{
+	void *arrays[] = {mesh->triangles, mesh->triangle_original, mesh->triangle_region,
+	                  mesh->region_triangle_offsets, mesh->vertex_region, mesh->max_weight, mesh->slot_offsets,
+	                  mesh->slot_region, mesh->corner_slot, mesh->vertex_corner_offsets, mesh->vertex_triangles,
+	                  mesh->vertex_corner_slot, mesh->region_corner_offsets, mesh->region_corners,
+	                  mesh->region_vertex_offsets, mesh->region_vertices, mesh->neighbour_offsets,
+	                  mesh->neighbour_bones};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
 }

@@ -360,3 +360,12 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 	binding->stretch.any = true;
 	return true;
 }
+
+void lvp__stretch_free(lvp__stretch *stretch)
+{
+	void *arrays[] = {stretch->offsets, stretch->bones, stretch->centre, stretch->linear, stretch->bone_stretch,
+	                  stretch->bone_stretch_invertible, stretch->bone_entry, stretch->corner_offset,
+	                  stretch->regions, stretch->change};
+	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
+		free(arrays[i]);
+}

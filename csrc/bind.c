@@ -237,7 +237,8 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
 			r_vertex_regions[k] = lvp__caller_bone(binding, binding->mesh.vertex_region[k]);
 	if (r_triangle_regions)
 		for (int32_t t = 0; t < binding->triangle_count; ++t)
-			r_triangle_regions[binding->mesh.triangle_original[t]] = lvp__caller_bone(binding, binding->mesh.triangle_region[t]);
+			r_triangle_regions[binding->mesh.triangle_original[t]] =
+			    lvp__caller_bone(binding, binding->mesh.triangle_region[t]);
 }
 
 void lvp_get_correction_map(const lvp_binding *binding, float *r_map)

@@ -279,7 +279,7 @@ typedef struct lvp__fold {
 	                              zero between frames */
 } lvp__fold;
 
-/* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 5) restores each
+/* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
  * part's volume (correction.c). Part 0: all that is on the caller's bones (the first part that
  * bends, parts one bone carries, triangles without region); then each split part. */
 typedef struct lvp__part_volumes {
@@ -475,13 +475,13 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 void lvp__vertex_gradients(lvp_binding *binding);
 /* Rest side: the region sums of the rest positions (NULL = bind rest) about the rest origins. */
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals);
-/* The rest side of a frame whose rest is rest_positions (NULL = bind rest): border_rest, and the
+/* The rest side of a frame whose rest is rest_positions (NULL = bind rest): borders.rest, and the
  * region sums to measure against (rest_totals, or frame_totals filled from rest_positions). */
 const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
 void lvp__reference_volumes(lvp_binding *binding);
 /* Region changes (rest-world units) from the last mesh pass, and the border terms of the
- * gradients (binding.h, border_gradient); needs posed/posed_inverse. */
+ * gradients (binding.h, borders.gradient); needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp__region_sums *rest_totals,
                          double *r_change);
 /* Side quad (a, A, B, b) of the prism over the border half-edge a -> b (A, B: a and b at rest),
@@ -552,7 +552,7 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
  * lvp__build_region_corners. */
 lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Lays out the system of a step over active[0..m) (in solve order, active_index set) in
- * system_profile and system_place; returns how many of them it holds (the first ones), up to
+ * system.profile and system.place; returns how many of them it holds (the first ones), up to
  * system_capacity. */
 int32_t lvp__system_layout(lvp_binding *binding, int32_t m);
 /* The cell of the step's system that region `row`'s row and region `column`'s column meet in
@@ -587,9 +587,9 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal);
 
 
 /* stretch.c */
-/* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 5). */
+/* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 3). */
 lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* This frame's stretch_change, zero for every region when no bone is stretched (needs
+/* This frame's stretch.change, zero for every region when no bone is stretched (needs
  * lvp__prepare_frame and this frame's dynamic set, lvp__find_dynamic_set); sets and returns
  * stretch_frame.
  * rest_positions: this frame's rest, or NULL for the bind rest; rigid_space: see lvp.h
@@ -598,10 +598,10 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 
 /* foldover.c */
 /* Moves the vertices that crossed into a neighbouring bone's flesh back to the contact surface
- * and holds them (frozen); marks the neighbour pairs where that happened. Returns how many
+ * and holds them (fold.held); marks the neighbour pairs where that happened. Returns how many
  * vertices it held that were not held yet. */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
-/* Fades frame_gamma near the contact surfaces of the pairs marked since the last call; returns
+/* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);
 /* Forgets this frame's contacts (before the first lvp__fold_over of a frame). */

@@ -103,8 +103,9 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	/* The mesh's own holes, capped for the volume statistics and the final global step. */
 	int32_t unpaired[2];
 	binding->borders.flipped_edge_count = 0;
-	binding->borders.cap_edge_count = lvp__surplus_half_edges(binding->borders.cap_edges, unpaired, &binding->borders.flipped_edge_count,
-	                                                  binding->mesh.triangles, 0, f, keys);
+	binding->borders.cap_edge_count =
+	    lvp__surplus_half_edges(binding->borders.cap_edges, unpaired, &binding->borders.flipped_edge_count,
+	                            binding->mesh.triangles, 0, f, keys);
 	if (binding->mode == LVP_MODE_GLOBAL && unpaired[0] >= 0) {
 		free(keys);
 		return lvp__fail(r_diag, lvp_error_mesh_not_closed, "triangles", -1,
@@ -116,16 +117,18 @@ lvp_result lvp__build_borders(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t written = 0;
 	for (int32_t r = 0; r < s; ++r) {
 		binding->borders.offsets[r] = written;
-		written += lvp__surplus_half_edges(binding->borders.edges + 2 * written, unpaired, NULL, binding->mesh.triangles,
-		                                   binding->mesh.region_triangle_offsets[r], binding->mesh.region_triangle_offsets[r + 1],
-		                                   keys);
+		written += lvp__surplus_half_edges(binding->borders.edges + 2 * written, unpaired, NULL,
+		                                   binding->mesh.triangles, binding->mesh.region_triangle_offsets[r],
+		                                   binding->mesh.region_triangle_offsets[r + 1], keys);
 	}
 	binding->borders.offsets[s] = written;
 	free(keys);
 	int32_t *shrunk = realloc(binding->borders.edges, sizeof(int32_t) * 2 * (size_t)(written > 0 ? written : 1));
 	if (shrunk)
 		binding->borders.edges = shrunk;
-	shrunk = realloc(binding->borders.cap_edges, sizeof(int32_t) * 2 * (size_t)(binding->borders.cap_edge_count > 0 ? binding->borders.cap_edge_count : 1));
+	shrunk = realloc(binding->borders.cap_edges,
+	                 sizeof(int32_t) * 2 *
+	                     (size_t)(binding->borders.cap_edge_count > 0 ? binding->borders.cap_edge_count : 1));
 	if (shrunk)
 		binding->borders.cap_edges = shrunk;
 	if (lvp__sort_caps_by_part(binding) != lvp_success)
@@ -201,7 +204,7 @@ void lvp__volumes_of_parts(const lvp_binding *binding, const float *positions, d
 		r_volumes[p] = (r_volumes[p] + lvp__cap_range_volume6(binding, positions, caps[p], caps[p + 1])) / 6.0;
 }
 
-/* The rest side of each border half-edge's side quad at `rest` (binding.h, border_rest): the
+/* The rest side of each border half-edge's side quad at `rest` (binding.h, borders.rest): the
  * same for every measurement of a frame. Regions without borders are skipped before their rest
  * frame is looked at: the global mode's one region has none, nor, without a skeleton, a frame. */
 static void lvp__border_rest(lvp_binding *binding, const float *rest)

@@ -104,12 +104,12 @@ static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
 }
 
 /* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t
- * over their support (the step's multipliers in step_mu), listing the moved ones from
+ * over their support (the step's multipliers in applied_mu), listing the moved ones from
  * moved[begin] on; chunk_moved of the chunk says how many. */
 static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = context;
-	const double *step_mu = binding->step.applied_mu;
+	const double *applied_mu = binding->step.applied_mu;
 	int32_t written = begin;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
@@ -119,7 +119,7 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 		double sum = 0.0;
 		for (int32_t i = 0; i < support.count; ++i)
 			if (support.phi[i] > 0.0f)
-				sum += support.phi[i] * step_mu[support.regions[i]];
+				sum += support.phi[i] * applied_mu[support.regions[i]];
 		float rho = (float)((double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * sum);
 		if (rho != 0.0f)
 			lvp__move_vertex(binding, k, rho, written++);
@@ -127,7 +127,7 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 	binding->step.chunk_moved[begin / LVP__GRAIN] = written - begin;
 }
 
-/* Moves work_positions by the multipliers of the given regions (in mu[]), remembering the step
+/* Moves step.positions by the multipliers of the given regions (in mu[]), remembering the step
  * (lvp__undo_step). Only dynamic vertices can move (their map is zero otherwise). Split over
  * the threads in chunks of dynamic vertices; the moved list is then closed up in chunk order,
  * the same for any threads. */
@@ -334,11 +334,12 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	 * system holds, its diagonal). */
 	lvp__system_row_sums(binding);
 	for (int32_t i = 0; i < m; ++i)
-		binding->step.uniform_gain[active[i]] = i < dense ? binding->system.row_sums[i] : binding->step.diagonal[active[i]];
+		binding->step.uniform_gain[active[i]] =
+		    i < dense ? binding->system.row_sums[i] : binding->step.diagonal[active[i]];
 	return lvp__error_norm(binding);
 }
 
-/* Solves the assembled system and moves work_positions. */
+/* Solves the assembled system and moves step.positions. */
 static void lvp__take_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->step.active;
@@ -360,7 +361,8 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 		if (i < dense && solved)
 			mu = binding->system.solution[i];
 		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
-			mu = diagonal > 1e-12 * largest_diagonal ? (binding->step.target[t] - binding->step.change[t]) / diagonal : 0.0;
+			mu = diagonal > 1e-12 * largest_diagonal ? (binding->step.target[t] - binding->step.change[t]) / diagonal
+			                                         : 0.0;
 		binding->step.mu[t] = isfinite(mu) ? mu : 0.0;
 	}
 	memset(binding->parts.uniform, 0, sizeof(double) * (size_t)binding->parts.count);
@@ -434,7 +436,7 @@ static void lvp__movable_regions(lvp_binding *binding)
 	binding->step.movable_entries = entries;
 }
 
-/* Measures work_positions (mesh pass and region changes). */
+/* Measures step.positions (mesh pass and region changes). */
 static void lvp__measure_positions(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
 {
 	lvp__find_dynamic_set(binding, rest_positions, totals, false);
@@ -474,7 +476,7 @@ static double lvp__error_norm(lvp_binding *binding)
 }
 
 /* Correct, re-measure, correct... from a measured state, at most `budget` steps; leaves the
- * last measurement of work_positions. Returns the number of steps taken; *r_first_active
+ * last measurement of step.positions. Returns the number of steps taken; *r_first_active
  * receives the number of regions corrected by the first one. A step that makes the regions
  * worse overall is undone and ends the iteration, with *r_failed set. So does a step that
  * removes less than a tenth of the error, but it is kept: a Newton step that achieves so little
@@ -502,7 +504,8 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 			lvp__undo_step(binding);
 			for (int32_t i = 0; i < m; ++i) { /* and the targets it moved */
 				int32_t t = binding->step.active[i];
-				binding->step.target[t] -= binding->step.uniform_gain[t] * binding->parts.uniform[lvp__region_part(binding, t)];
+				binding->step.target[t] -=
+				    binding->step.uniform_gain[t] * binding->parts.uniform[lvp__region_part(binding, t)];
 			}
 			lvp__measure_positions(binding, rest_positions, totals);
 			*r_failed = true;
@@ -542,7 +545,8 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			if (!lvp__can_move(binding, k))
 				continue;
 			lvp__support support = lvp__vertex_support(binding, k);
-			double gain = (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
+			double gain =
+			    (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
 			for (int32_t i = 0; i < support.count; ++i)
 				if (support.phi[i] > 0.0f && binding->step.region_touched[support.regions[i]])
 					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];

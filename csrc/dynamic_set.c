@@ -22,7 +22,7 @@ typedef struct lvp__dynamic_context {
 
 /* First phase, per region (the last: triangles without region): whether it is static, dynamic
  * or mixed, the static flag of each triangle of a mixed one, its number of dynamic triangles
- * (in region_dynamic_offsets[r + 1], summed into offsets afterwards) and its static rest sums. */
+ * (in region_offsets[r + 1], summed into offsets afterwards) and its static rest sums. */
 static void lvp__classify_regions(void *context, int32_t begin, int32_t end)
 {
 	const lvp__dynamic_context *c = context;
@@ -119,7 +119,7 @@ void lvp__find_dynamic_set(lvp_binding *binding, const float *rest_positions, co
 	int32_t s = binding->region_count;
 	bool local = binding->mode == LVP_MODE_LOCAL && !all_dynamic;
 	/* From the bind rest, the set depends only on vertex_dynamic, vertex_class, skin_class and
-	 * region_skipped; whatever changes one of them clears dynamic_set_current. In an animation
+	 * region_skipped; whatever changes one of them marks the set stale. In an animation
 	 * the same bones move from frame to frame, so the set is usually last frame's. */
 	bool reusable = local && !rest_positions;
 	if (reusable && binding->dynamic.current)

@@ -41,7 +41,8 @@ static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, 
 	double ds = lvp__length(lvp__sub(p, cs)), dj = lvp__length(lvp__sub(p, cj));
 	if (!(ds > 0.0) || !(dj > 0.0))
 		return false;
-	lvp__vec3 gradient = lvp__sub(lvp__scale(lvp__sub(p, cs), 1.0 / (ds * ls)), lvp__scale(lvp__sub(p, cj), 1.0 / (dj * lj)));
+	lvp__vec3 gradient =
+	    lvp__sub(lvp__scale(lvp__sub(p, cs), 1.0 / (ds * ls)), lvp__scale(lvp__sub(p, cj), 1.0 / (dj * lj)));
 	/* Each term of the gradient has length 1 / l. When they (nearly) cancel, the two bones lie on
 	 * top of each other here (a joint folded to 180 degrees): there is no contact surface to
 	 * project onto, and the direction would be rounding noise. */
@@ -119,11 +120,13 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 			lvp__vec3 sh = binding->rig.posed_heads[s], st = binding->rig.posed_tails[s];
 			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
 			double gap = 1e-4 * (binding->rig.bone_length[s] + binding->rig.bone_length[j]);
-			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1]; ++i) {
+			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
+			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
 				/* Only vertices that were on their own side at rest can cross. */
 				lvp__vec3 r = lvp__load(rest + 3 * k);
-				if (lvp__side(r, binding->rig.heads[s], binding->rig.tails[s], ls, binding->rig.heads[j], binding->rig.tails[j], lj) >= 0.0)
+				if (lvp__side(r, binding->rig.heads[s], binding->rig.tails[s], ls, binding->rig.heads[j],
+				              binding->rig.tails[j], lj) >= 0.0)
 					continue;
 				lvp__vec3 p = lvp__load(work + 3 * k);
 				if (lvp__side(p, sh, st, ls, jh, jt, lj) <= 0.0)
@@ -207,7 +210,8 @@ bool lvp__fade_map_at_contact(lvp_binding *binding)
 			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
 			lvp__vec3 joint, concave;
 			bool has_side = lvp__concave_side(&joint, &concave, sh, st, jh, jt);
-			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1]; ++i) {
+			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
+			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
 				if (!(binding->frame_map.gamma[k] > 0.0f))
 					continue;

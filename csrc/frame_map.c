@@ -4,8 +4,8 @@
  * are dynamic (binding.h): those whose bones do not all move alike, or that the map lets move.
  * Bones that move alike this frame share a skin class; a vertex whose bones are all in one class
  * moves rigidly, and with the deformation weighting its map is zero (without it, the bind map
- * still lets it move, and it is dynamic). In an animation the classes rarely change, and then only the dynamic vertices'
- * map is recomputed.
+ * still lets it move, and it is dynamic). In an animation the classes rarely change, and then
+ * only the dynamic vertices' map is recomputed.
  */
 #include "binding.h"
 
@@ -201,7 +201,8 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 		return true;
 	}
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		int32_t first = binding->mesh.region_vertex_offsets[r], count = binding->mesh.region_vertex_offsets[r + 1] - first;
+		int32_t first = binding->mesh.region_vertex_offsets[r],
+		        count = binding->mesh.region_vertex_offsets[r + 1] - first;
 		int32_t step = count > LVP__RIGID_SAMPLES ? count / LVP__RIGID_SAMPLES : 1;
 		for (int32_t i = 0; i < count; i += step) {
 			int32_t k = binding->mesh.region_vertices[first + i], c = binding->frame_map.vertex_class[k];

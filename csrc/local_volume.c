@@ -69,7 +69,8 @@ static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 	binding->measure.normals[3 * k + 2] = nz;
 	binding->measure.vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
 	for (int32_t i = first; i < last; ++i)
-		binding->measure.slot_g[i] = nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+		binding->measure.slot_g[i] =
+		    nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
 }
 
 
@@ -113,7 +114,8 @@ static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 	const lvp__loop_context *c = context;
 	lvp_binding *binding = c->binding;
 	const int32_t *dynamic = binding->dynamic.triangles, *triangles = binding->mesh.triangles;
-	float *triangle_gradient = binding->measure.triangle_gradient, *triangle_volume6 = binding->measure.triangle_volume6;
+	float *triangle_gradient = binding->measure.triangle_gradient,
+	      *triangle_volume6 = binding->measure.triangle_volume6;
 	for (int32_t piece = begin; piece < end; ++piece) {
 		/* origin_float's last entry: triangles without region, origin 0 */
 		const float *o = binding->measure.origin_float + 3 * binding->measure.piece_region[piece];
@@ -253,7 +255,8 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 		int32_t sum_index = r < 0 ? binding->region_count : r;
 		float g[3];
 		float *old = binding->measure.triangle_gradient + 3 * t;
-		double v = lvp__triangle_terms(g, positions, binding->mesh.triangles + 3 * t, binding->measure.origin_float + 3 * sum_index);
+		double v = lvp__triangle_terms(g, positions, binding->mesh.triangles + 3 * t,
+		                               binding->measure.origin_float + 3 * sum_index);
 		lvp__region_sums *sums = &binding->measure.sums[sum_index];
 		sums->volume6 += v - binding->measure.triangle_volume6[t];
 		float d[3] = {g[0] - old[0], g[1] - old[1], g[2] - old[2]};
@@ -270,7 +273,8 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 			sg[1] += d[1];
 			sg[2] += d[2];
 			int32_t k = binding->mesh.triangles[3 * t + c];
-			if (!binding->measure.vertex_dirty[k] && binding->frame_map.vertex_dynamic[k]) { /* static ones need no normal */
+			if (!binding->measure.vertex_dirty[k] &&
+			    binding->frame_map.vertex_dynamic[k]) { /* static ones need no normal */
 				binding->measure.vertex_dirty[k] = 1;
 				binding->measure.dirty_vertices[touched++] = k;
 			}
@@ -320,7 +324,8 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		lvp__vec3 o = lvp__rest_origin(binding, r), area = lvp__v(0.0, 0.0, 0.0);
 		double volume6 = 0.0;
-		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1]; ++t) {
+		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1];
+		     ++t) {
 			lvp__vec3 cr;
 			volume6 += lvp__rest_terms(&cr, rest, binding->mesh.triangles + 3 * t, o);
 			area = lvp__add(area, cr);
@@ -359,9 +364,12 @@ void lvp__reference_volumes(lvp_binding *binding)
 		}
 		binding->measure.global_origin = lvp__scale(centroid, 1.0 / binding->vertex_count);
 		for (int32_t t = 0; t < binding->triangle_count; ++t) {
-			lvp__vec3 p0 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t]), binding->measure.global_origin);
-			lvp__vec3 p1 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 1]), binding->measure.global_origin);
-			lvp__vec3 p2 = lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]), binding->measure.global_origin);
+			lvp__vec3 p0 =
+			    lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t]), binding->measure.global_origin);
+			lvp__vec3 p1 =
+			    lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 1]), binding->measure.global_origin);
+			lvp__vec3 p2 =
+			    lvp__sub(lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]), binding->measure.global_origin);
 			volume6 += lvp__vol6(p0, p1, p2);
 		}
 		double size = lvp__length(lvp__sub(hi, lo));
@@ -373,7 +381,8 @@ void lvp__reference_volumes(lvp_binding *binding)
 	 * cones from its triangles to its bone, sum area * distance(centroid, bone) / 3. */
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		double volume = 0.0;
-		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1]; ++t) {
+		for (int32_t t = binding->mesh.region_triangle_offsets[r]; t < binding->mesh.region_triangle_offsets[r + 1];
+		     ++t) {
 			lvp__vec3 p0 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t]);
 			lvp__vec3 p1 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 1]);
 			lvp__vec3 p2 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]);
@@ -434,8 +443,10 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 				for (int end = 0; end < 2; ++end) {
 					lvp__vec3 g = local[end];
 					gradient[3 * end] = (float)(gradient_scale * (m[0] * g.x + m[4] * g.y + m[8] * g.z) + top_share.x);
-					gradient[3 * end + 1] = (float)(gradient_scale * (m[1] * g.x + m[5] * g.y + m[9] * g.z) + top_share.y);
-					gradient[3 * end + 2] = (float)(gradient_scale * (m[2] * g.x + m[6] * g.y + m[10] * g.z) + top_share.z);
+					gradient[3 * end + 1] =
+					    (float)(gradient_scale * (m[1] * g.x + m[5] * g.y + m[9] * g.z) + top_share.y);
+					gradient[3 * end + 2] =
+					    (float)(gradient_scale * (m[2] * g.x + m[6] * g.y + m[10] * g.z) + top_share.z);
 				}
 			}
 			/* local units -> rest-world units */

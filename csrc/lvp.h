@@ -35,68 +35,23 @@
  *     with the name of the offending argument, the element index and a sentence that says
  *     what is wrong and how to fix it. On failure, outputs are left untouched.
  *
- * ALGORITHM (per frame, local mode)
+ * ALGORITHM (per frame, local mode; docs/method.md derives each step)
  *
- *   1. Mesh pass: for every triangle, its area vector; per vertex, the volume gradient
- *      grad_k V = 1/6 sum (p_j - p_k) x (p_l - p_k) and the unit normal n_k = grad_k V / |.|.
- *   2. Local volumes (paper 5.2): every triangle belongs to one region (see SEGMENTATION).
- *      The change of region s is the signed volume of the prisms spanned by its rest and
- *      deformed triangles in the local frame of bone s, each side quad split in four at its
- *      centroid. Sides shared by two triangles of the region cancel exactly, so only the
- *      region's border edges are visited; the rest is two per-region sums (volume and area
- *      vector) that are moved into the bone frame in closed form.
- *   3. Correction (paper eq. 5, generalized to coupled regions): displacements along the
- *      normals, rho_k = gamma_k g_k sum_s phi_ks mu_s, with g_k = <n_k, grad_k V>. The region
- *      multipliers mu solve the small system  sum_t M_st mu_t = dV_s  (M_st = sum_k g_sk gamma_k
- *      g_k phi_kt, g_sk the part of g_k from region s's triangles) over the regions whose
- *      volume changed; unchanged regions cost nothing. With one region this is exactly eq. 5.
- *      M_st can be nonzero only where a corner of s's triangles has a weight of bone t, so
- *      M is stored by its profile, the regions ordered at bind to keep coupled ones close
- *      (reverse Cuthill-McKee: a chain of bones is a band, a bone blending with many comes
- *      after most of them), and solved by LU without pivoting inside that profile.
- *      Where the maps overlap so much that no multipliers tell some regions apart (a tail of
- *      short bones whose every vertex is shared half and half with the next bone: rows
- *      [1 2 1], singular), or a pivot comes out negligible, mu is the damped least-squares
- *      solution (M^T M + 1e-9 diag) mu = M^T dV: the smallest multipliers that come closest,
- *      in one step where the per-region steps of eq. 5 overshoot each other and crawl.
- *   4. The true volumes are measured again and steps 1-3 repeat until every region is within
- *      `tolerance` of its target (step 5) or `max_iterations` is reached: the linearization error
- *      of the paper's single pass is removed, not reported. The gradient of each region's
- *      volume is exact, side quads included, so this converges like Newton's method.
- *   5. The local volumes are estimates (paper 5.2): summed over the mesh they differ from its
- *      true change by what each region border sees from two bone frames (second order in the
- *      bend; 0.4 % of the paper's cylinder at 90 degrees, more for narrow weight bands), and
- *      regions the map cannot move change too. So each step of 3 also adds one multiplier to
- *      every corrected region's, chosen so that the whole mesh's volume, holes capped and
- *      measured with its true gradient, is restored to first order; each region's target
- *      (zero at first) moves by what that multiplier does to it. When every region is at its
- *      target the whole mesh is at its rest volume: no pass is spent on a separate global
- *      step, and each region is left off its rest volume by its part of the difference.
- *      A mesh made of separate parts that bend (see SEGMENTATION) gets one such multiplier per
- *      part: each part is restored to its own rest volume, as it would be alone.
- *      Where such a step makes things worse (many overlapping regions, most of the whole
- *      mesh's change missed by them, as at a shoulder) it is undone, and the frame goes on in
- *      two phases: the regions to their targets, then one multiplier for the whole mesh. A step
- *      that removes less than a tenth of the error is kept and goes on the same way: a Newton
- *      step that achieves so little will not be followed by better ones (degenerate input).
- *      Bones that scale (squash and stretch, a stretchy chain, an inflated limb; not in the
- *      paper, whose bones are rigid): in a frame where some bone's posed frame changes volume
- *      against its rest frame (|det ratio - 1| > 1e-4), or some bone is stretched against a
- *      bone it blends with, the whole mesh has no rest volume to go back to, so this multiplier
- *      is left out. Each region is then corrected to the change it has in a reference pose
- *      where the joints keep their scales and do not bend (stretch.c): each bone's skin is
- *      split into a turn and a stretch (polar decomposition, in lvp_frame_options.rigid_space),
- *      and the stretch of every bone against the region's bone is applied to the rest about
- *      the joint, with the turns left out. A straight joint between a scaled and an unscaled
- *      bone is thus left exactly as skinning makes it (linear blending interpolates the two
- *      sizes across the weight band), and a bend is corrected to the volume the scales give
- *      (the cylinder with its upper bone at x1.2, or stretched 1.5 along it with 0.8 across,
- *      bent by 90 degrees: within 0.4 % of the same cylinder scaled and straight; plain
- *      skinning loses 11 %). Frames where every bone's skin is a rotation times one common
- *      scale skip this with a test per bone.
- *   6. Fold-over prevention (5.4), when enabled: see FOLD-OVER.
+ *   1. Measure: every triangle belongs to one region, a bone's (SEGMENTATION); the volume change
+ *      of each region is the volume between its rest and its posed triangles in its bone's frame
+ *      (paper 5.2), exact, holes capped.
+ *   2. Correct: vertex k moves along its normal n_k by rho_k = gamma_k g_k sum_s phi_ks mu_s
+ *      (paper eq. 5 for coupled regions): gamma the correction map (CORRECTION MAPS), g_k =
+ *      <n_k, grad_k V>, phi_ks the share of region s's correction at k, and one multiplier mu_s
+ *      per region, from a linear system over the regions whose volume changed.
+ *   3. Repeat 1-2 until every region is within `tolerance` of its target, or `max_iterations`
+ *      steps are taken. A region's target is zero change plus its share of restoring the whole
+ *      mesh's volume (each separate part's, see SEGMENTATION). In a frame where bones scale
+ *      (squash and stretch; the paper's bones are rigid) the target is instead the change the
+ *      bones' scales alone give the region, and the whole mesh keeps the scaled volume.
+ *   4. Fold-over prevention (paper 5.4), when enabled: see FOLD-OVER.
  *
- * CORRECTION MAPS (gamma, where the volume goes; paper sections 4 and 5.3)
+ * CORRECTION MAPS (gamma: where the volume goes; paper 4 and 5.3)
  *
  *   With w_k = max_i omega_ki (the vertex's largest normalized weight) and d_k the rest
  *   distance from vertex k to the nearest bone segment (optionally among chosen bones only,
@@ -106,77 +61,40 @@
  *     LVP_MAP_BOUNDARY_FADE      gamma_sk = max(2 w_k - 1, 0)^alpha * d_k^beta    (eq. 8 literal)
  *     LVP_MAP_PAINTED            gamma_k = the caller's per-vertex values (>= 0)
  *     LVP_MAP_UNIFORM            gamma_k = 1                                       (eq. 4)
- *   How a region's correction is spread (phi_ks), and why:
- *     For every map except BOUNDARY_FADE, region s's multiplier reaches vertex k in proportion
- *     to k's normalized skinning weight on bone s: phi_ks = omega_ks. The region corrections
- *     are therefore blended exactly like the bones themselves, so the total displacement is
- *     continuous across region borders whatever the multipliers of two neighbours are, and
- *     the map can stay largest at the joint, where the volume is lost. Vertices that follow
- *     one bone rigidly (w_k = 1) have gamma_k = 0 and never move.
- *     BOUNDARY_FADE is the paper's eq. 8 read literally: phi_ks = 1 on region s only, and the
- *     map itself fades to zero at region borders. It is continuous too, but it is largest in
- *     the middle of each region, far from the joint, so it inflates limbs rather than joints
- *     (paper Fig. 2b); it is kept for comparison and measured in the tests.
- *   Where the skin moved rigidly, nothing moves (deformation weighting, on by default in local
- *   mode): each frame the map is multiplied by a_k = sum_i omega_ki |S_i pbar_k - sum_j omega_kj
- *   S_j pbar_k| (S_i = T_i Tbar_i^-1), how far the vertex's bones disagree about where it goes.
- *   It is zero where all of a vertex's bones move together and largest at bending joints, so a
- *   region's fix stays near the joint that bent even when artist weights scatter the region
- *   over the body (the giraffe's root bone has weight from the tail to the shoulders); like
- *   the weights, it is continuous over the surface.
- *   Smoothness: every map is a continuous function of the skinning weights and of distances
- *   to bone segments, evaluated per vertex, so it is as smooth as the weights are. alpha >= 1
- *   keeps the onset of the correction C1 where a weight band begins.
+ *   phi_ks = omega_ks, the normalized skinning weight of vertex k on bone s, for every map but
+ *   BOUNDARY_FADE (phi_ks = 1 on region s only): the displacement is blended like the bones
+ *   and is continuous across region borders. Vertices that follow one bone rigidly (w_k = 1)
+ *   never move. With deformation weighting (default in local mode) the map is multiplied each
+ *   frame by how far the vertex's bones disagree about where it goes: zero where they move
+ *   together, so nothing moves where the skin moved rigidly. Every map is as smooth over the
+ *   surface as the weights are.
  *
  * SEGMENTATION (paper 5.2)
  *
  *   Region s is the set of vertices whose largest normalized weight is on bone s (ties go to
- *   the lower bone index). A triangle belongs to the region of the bone that has the largest
- *   sum of weights over its three corners (ties: lower bone index). This rule is symmetric in
- *   the corners, gives every triangle exactly one region, and agrees with the vertex regions
- *   whenever two corners agree. Vertices without any weight belong to no region (-1): they
- *   never move; a triangle whose three corners have no weight belongs to no region.
- *   Separate parts (a body and its clothes, two limbs modelled apart, in one mesh): a connected
- *   part of the triangles bends when its vertices have weight on two bones or more. When two
- *   parts or more bend, each bone's region is split by part: the first part that bends (by
- *   vertex order) keeps the bones' own regions, and every other one gets its own region for
- *   each bone it uses, so that one part cannot keep a region's volume at the expense of
- *   another (measured together, of two limbs side by side bent 90 degrees, the one further from
- *   the bones took more of the organic map: +7 % and -7 %). Parts one bone carries rigidly (an
- *   eye, a tooth) stay in their bone's region: they keep no volume change to correct. The
- *   public API still speaks of one region per bone: lvp_get_segmentation() gives a vertex its
- *   bone, lvp_region_volume_changes() sums a bone's parts, and worst_region names the bone of
- *   the worst part. Past LVP_MAX_BONES regions in all (thousands of bent hair cards), the
- *   remaining parts stay in their bones' regions. Bind: O(E log E) for E weight entries.
- *   In LVP_MODE_GLOBAL there is one region: the whole mesh, measured with the plain
- *   divergence formula (paper eq. 1/4), which needs a closed mesh.
+ *   the lower bone index). A triangle belongs to the region of the bone with the largest sum of
+ *   weights over its three corners (ties: lower bone index). Vertices without any weight belong
+ *   to no region (-1) and never move; so does a triangle whose three corners have none.
+ *   Separate parts that bend (a body and its clothes in one mesh: connected sets of triangles
+ *   with vertices weighted to two bones or more) each get their own region of each bone they
+ *   use, and each part is restored to its own rest volume. The API still speaks of one region
+ *   per bone: lvp_get_segmentation() gives a vertex its bone, lvp_region_volume_changes() sums
+ *   a bone's parts, and worst_region names the bone of the worst part. Past LVP_MAX_BONES
+ *   regions in all, the remaining parts stay in their bones' regions.
+ *   In LVP_MODE_GLOBAL there is one region, the whole mesh, which must be closed.
  *
  * FOLD-OVER (paper 5.4)
  *
- *   For the vertices of regions whose bone bends against a neighbouring bone (a bone that
- *   shares influence with the region), the bone of main influence is recomputed on the posed
- *   skeleton: vertex k of region s has crossed into neighbour j when it is closer to j's posed
- *   segment than to s's (d_kj < d_ks), while at rest it was on its own side. This is 5.1's
- *   weight comparison with the length factor left out: with it, the contact surface would curl
- *   around the shorter bone; without it, near a joint it is the bisector plane of the bend.
- *   A crossed vertex goes back the shortest way, along -grad(d_ks - d_kj) (orthogonal to the
- *   bisector plane, which keeps the crossed skin untangled), to the contact surface, found by
- *   bisection to float precision, plus a gap of 1e-4 of the two bone lengths. The step adapts
- *   to the flesh: there is no fixed step to tune and no flesh width it must stay below. Then
- *   the extra volume step runs with the moved vertices held and the map faded to zero within
- *   half the flesh depth of the contact surface, on the concave side of the bend of each pair
- *   of bones where skin crossed (the contact surface also runs through the convex side and the
- *   flanks of the joint, where nothing presses the skin: holding it there would leave a ridge
- *   between held and bulging skin), so the extra volume becomes a bulge beside the contact
- *   (paper Fig. 10d) rather than pushing skin back across; contact test and volume step
- *   alternate up to 4 more rounds, the map faded at each new contact. Limits: two parts of one
- *   bone's flesh, and bones that are not neighbours (a fingertip folded onto the palm), are not
- *   separated, and moving skin back towards its own bone there can add crossings; a crease
- *   pressed flatter than the bisector plane can hold (a finger folded past about 100 degrees
- *   with a 0.2-wide weight band) may still fold after projection. Where two bones lie on top
- *   of each other (a joint folded to 180 degrees) there is no contact surface, and a vertex
- *   whose contact surface is further than a quarter of the rest mesh's size (bones posed far
- *   from their skin) is not moved: such vertices are left where they are.
+ *   A vertex of region s that, at the posed skeleton, is closer to a neighbouring bone j's
+ *   segment than to s's (while at rest it was on its own side) has crossed into j's flesh: it
+ *   goes back to the contact surface between the two bones (near the joint, the bisector plane
+ *   of the bend) and is held there while further volume steps run with the map faded near the
+ *   contact, so the squeezed volume becomes a bulge beside it (paper Fig. 10d). Contact test and
+ *   volume step alternate up to 4 more rounds. Limits: two parts of one bone's flesh, and bones
+ *   that are not neighbours (a fingertip folded onto the palm), are not separated; a crease
+ *   pressed flatter than the bisector plane may still fold; where two bones lie on top of each
+ *   other (a joint folded to 180 degrees) there is no contact surface, and a vertex whose
+ *   contact surface is further than a quarter of the rest mesh's size is left where it is.
  *
  * FALLBACKS (defined outcomes for awkward input; everything else is an error)
  *
@@ -213,26 +131,15 @@
  *
  * PERFORMANCE
  *
- *   Per frame, bones whose skin matrices agree (to 1e-6) form one class. A triangle whose
- *   three corners are moved by one class only, the class of its region's bone, and that the
- *   map does not let move, is static: in its bone's frame it is its rest triangle, so it
- *   enters the region sums through its rest sums moved by the bone in closed form, and no
- *   pass visits it. The passes visit the dynamic rest: in a pose bent at a few joints, the
- *   skin around those joints. (This is where `positions` being the skinning of the rest, as
- *   lvp_correct() says, is relied on: a vertex weighted to one bone is where that bone puts
- *   it.) Which triangles are static is kept from one frame to the next while the same bones
- *   move (the classes of the bones and of every vertex unchanged, no frame rest given, no
- *   fold-over contact): in an animation it is found again only when other joints start or stop
- *   bending, and until then the other vertices are only copied from input to output. Per
- *   iteration: one pass over the dynamic triangles, region by region (or over the
- *   triangles around the moved vertices, when they are few) and, when a step follows, two
- *   over the dynamic vertices (their gradients, then the active regions' system) and one to
- *   move them, plus a solve of the active regions' system within its profile (a chain of m
- *   regions costs O(m), regions coupled all with all m^3/3). The profile is stored in at most
- *   65,536 cells (3 a region in a chain: some 21,000 regions; 256 coupled all with all); the
- *   regions past what fits take the per-region step of eq. 5 and the next iteration goes on
- *   from there. Bind: O(N B) for maps and, in lvp_auto_weights(), O(N B) for the normal test
- *   or O(N B log F) for the exact test.
+ *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries); lvp_auto_weights():
+ *   O(N B) with the normal test, O(N B log F) with the exact test. Per frame, only the skin
+ *   around the joints that bend is visited: a triangle that its region's bone carries rigidly
+ *   enters the measurement in closed form (which relies on `positions` being the skinning of
+ *   the rest, as lvp_correct() says, and is checked each frame on a sample). Per step, a few
+ *   passes over those triangles and vertices, and a solve of the active regions' system within
+ *   its profile (a chain of m regions O(m), regions coupled all with all m^3 / 3), in at most
+ *   65,536 cells; the regions past what fits take the single-region step of eq. 5. Measured
+ *   times: BENCHMARKS.md.
  */
 #ifndef LVP_H
 #define LVP_H
@@ -458,12 +365,12 @@ typedef struct lvp_frame_options {
 	                           the paper's single pass. Fold-over runs up to 4 more volume
 	                           corrections, each with this budget. */
 	float tolerance;        /* stop when every region is within tolerance * its reference volume
-	                           of its target (ALGORITHM, 5); > 0, default 1e-4 (0.01 %) */
+	                           of its target (ALGORITHM, 3); > 0, default 1e-4 (0.01 %) */
 	int32_t fold_over;      /* nonzero: fold-over prevention (local mode only), default 0 */
 	const float *rigid_space; /* NULL (default), or 16 floats (row-major, like the bone matrices): the
 	                           map from the mesh's coordinates to a space where a bone that is not
 	                           scaled only turns (the armature's), used to tell a bone's scale from
-	                           its bend (ALGORITHM, 5). NULL: the first bone's rest frame (the
+	                           its bend (ALGORITHM, 3). NULL: the first bone's rest frame (the
 	                           armature's, turned), which is right unless the mesh has been scaled
 	                           unevenly against the armature since the bind. Its 3x3 part must be
 	                           invertible. */
@@ -479,7 +386,7 @@ typedef struct lvp_frame_stats {
 	                             (of separate parts, the part's bone: SEGMENTATION) */
 	double worst_region_change_before; /* its (V - V_rest) / V_ref, signed; where bones are scaled
 	                                      against each other, less the change their scales give it
-	                                      (ALGORITHM, 5) */
+	                                      (ALGORITHM, 3) */
 	double worst_region_change_after;
 	int32_t iterations;       /* correction steps done, fold-over rounds included */
 	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's

@@ -119,11 +119,13 @@ static bool lvp__build_coupling(lvp_binding *binding)
 		seen[r] = -1;
 	for (int32_t r = 0; r < s && ok && binding->rig.weight_offsets; ++r) {
 		seen[r] = r;
-		for (int32_t c = binding->mesh.region_corner_offsets[r]; c < binding->mesh.region_corner_offsets[r + 1] && ok; ++c) {
+		for (int32_t c = binding->mesh.region_corner_offsets[r]; c < binding->mesh.region_corner_offsets[r + 1] && ok;
+		     ++c) {
 			int32_t k = binding->mesh.region_corners[c];
 			/* its weights' bones, then its own region (a vertex without weight has one too) */
 			for (int32_t w = binding->rig.weight_offsets[k]; w <= binding->rig.weight_offsets[k + 1]; ++w) {
-				int32_t t = w < binding->rig.weight_offsets[k + 1] ? binding->rig.weight_bones[w] : binding->mesh.vertex_region[k];
+				int32_t t = w < binding->rig.weight_offsets[k + 1] ? binding->rig.weight_bones[w]
+				                                                   : binding->mesh.vertex_region[k];
 				if (t < 0 || t >= s || seen[t] == r)
 					continue;
 				seen[t] = r;
@@ -275,10 +277,11 @@ lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag
 	binding->system.row_values = malloc(sizeof(double) * n);
 	binding->system.place = malloc(sizeof(lvp__system_place) * n);
 	bool ok = binding->system.solve_order && binding->system.profile.first && binding->system.profile.lower &&
-	          binding->system.profile.upper && binding->system.normal_profile.first && binding->system.normal_profile.lower &&
-	          binding->system.normal_profile.upper && binding->system.row_last && binding->system.still && binding->system.column_gain && binding->system.row_sums &&
-	          binding->system.rhs &&
-	          binding->system.solution && binding->system.row_values && binding->system.place;
+	          binding->system.profile.upper && binding->system.normal_profile.first &&
+	          binding->system.normal_profile.lower && binding->system.normal_profile.upper &&
+	          binding->system.row_last && binding->system.still && binding->system.column_gain &&
+	          binding->system.row_sums && binding->system.rhs && binding->system.solution &&
+	          binding->system.row_values && binding->system.place;
 	ok = ok && lvp__build_coupling(binding) && lvp__order_regions(binding);
 	if (ok) {
 		/* The capacities: the profiles of every region active at once (a step's, of fewer
@@ -454,11 +457,27 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 
 void lvp__region_system_free(lvp__region_system *system)
 {
-	void *arrays[] = {system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
-	                  system->profile.lower, system->profile.upper, system->normal_profile.first,
-	                  system->normal_profile.lower, system->normal_profile.upper, system->place, system->matrix,
-	                  system->factor, system->normal, system->assembly, system->column_gain, system->row_sums, system->rhs,
-	                  system->solution, system->row_values, system->row_last, system->still};
+	void *arrays[] = {system->coupling_offsets,
+	                  system->coupling,
+	                  system->solve_order,
+	                  system->profile.first,
+	                  system->profile.lower,
+	                  system->profile.upper,
+	                  system->normal_profile.first,
+	                  system->normal_profile.lower,
+	                  system->normal_profile.upper,
+	                  system->place,
+	                  system->matrix,
+	                  system->factor,
+	                  system->normal,
+	                  system->assembly,
+	                  system->column_gain,
+	                  system->row_sums,
+	                  system->rhs,
+	                  system->solution,
+	                  system->row_values,
+	                  system->row_last,
+	                  system->still};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

@@ -37,7 +37,8 @@ static int32_t lvp__triangle_bone(const lvp_binding *binding, const int32_t *cor
 	int32_t best = -1;
 	double best_sum = 0.0;
 	for (int c = 0; c < 3; ++c) {
-		for (int32_t e = binding->rig.weight_offsets[corners[c]]; e < binding->rig.weight_offsets[corners[c] + 1]; ++e) {
+		for (int32_t e = binding->rig.weight_offsets[corners[c]]; e < binding->rig.weight_offsets[corners[c] + 1];
+		     ++e) {
 			int32_t bone = binding->rig.weight_bones[e];
 			double sum = r_sums[bone];
 			if (binding->rig.weight_values[e] > 0.0f && (sum > best_sum || (sum == best_sum && bone < best))) {
@@ -327,8 +328,8 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
 			seen[k] = -1;
 		for (int32_t r = 0; r < s; ++r) {
 			binding->mesh.region_corner_offsets[r] = (int32_t)count;
-			for (int32_t i = 3 * binding->mesh.region_triangle_offsets[r]; i < 3 * binding->mesh.region_triangle_offsets[r + 1];
-			     ++i) {
+			for (int32_t i = 3 * binding->mesh.region_triangle_offsets[r];
+			     i < 3 * binding->mesh.region_triangle_offsets[r + 1]; ++i) {
 				int32_t k = binding->mesh.triangles[i];
 				if (seen[k] == r)
 					continue;

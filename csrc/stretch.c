@@ -1,7 +1,7 @@
 /*
  * stretch.c - what each region is corrected to when bones scale against the bones they blend
  * with (squash and stretch, a stretchy chain, an inflated limb). The paper's bones are rigid;
- * lvp.h (ALGORITHM, 5) documents this extension.
+ * lvp.h (ALGORITHM, 3) documents this extension.
  *
  * A region's local volume is measured in its bone's frame, scale included, so skin that
  * follows a scaled bone keeps the volume the scale gives it. Across the weight band between two
@@ -62,8 +62,9 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 	binding->stretch.regions = malloc(sizeof(int32_t) * (size_t)(s > 0 ? s : 1));
 	binding->stretch.bone_stretch = malloc(sizeof(lvp__mat4) * 2 * (size_t)(bones > 0 ? bones : 1));
 	binding->stretch.bone_stretch_invertible = calloc((size_t)(bones > 0 ? bones : 1), 1);
-	if (!binding->stretch.offsets || !binding->stretch.bone_entry || !binding->stretch.change || !binding->stretch.corner_offset ||
-	    !binding->stretch.regions || !binding->stretch.bone_stretch || !binding->stretch.bone_stretch_invertible)
+	if (!binding->stretch.offsets || !binding->stretch.bone_entry || !binding->stretch.change ||
+	    !binding->stretch.corner_offset || !binding->stretch.regions || !binding->stretch.bone_stretch ||
+	    !binding->stretch.bone_stretch_invertible)
 		return lvp__stretch_out_of_memory(r_diag);
 	for (int32_t i = 0; i < LVP__STRETCH_GROUPS * bones; ++i)
 		binding->stretch.bone_entry[i] = -1;
@@ -75,7 +76,8 @@ lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag
 			binding->stretch.offsets[r] = (int32_t)count;
 			if (!local)
 				continue;
-			for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1]; ++i) {
+			for (int32_t i = binding->mesh.region_corner_offsets[r]; i < binding->mesh.region_corner_offsets[r + 1];
+			     ++i) {
 				int32_t k = binding->mesh.region_corners[i];
 				for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
 					int32_t bone = binding->rig.weight_bones[e];
@@ -188,11 +190,12 @@ static bool lvp__relative_stretch(lvp__mat4 *r_u_minus_i, const lvp_binding *bin
 
 /* Region r's change in the reference pose (rest-world units, taken in the mesh's coordinates
  * about r's rest origin). bone_entry: the region's entry of each bone (-1 for bones that are
- * not among its pairs, or not stretched against it). The offsets y - x are kept per slot of the region's corners (binding.h),
- * so that regions sharing a vertex can be walked at once. A corner that this frame's skin carries rigidly with r's bone (binding.h,
- * the dynamic set) has only bones that move as r's, so none stretched against it: its offset is
- * zero, and the triangles whose corners are all such (static) add nothing. So the corners'
- * weights are walked only where some bone moves otherwise, and only the dynamic triangles. */
+ * not among its pairs, or not stretched against it). The offsets y - x are kept per slot of the
+ * region's corners (binding.h), so that regions sharing a vertex can be walked at once. A corner
+ * that this frame's skin carries rigidly with r's bone (binding.h, the dynamic set) has only
+ * bones that move as r's, so none stretched against it: its offset is zero, and the triangles
+ * whose corners are all such (static) add nothing. So the corners' weights are walked only
+ * where some bone moves otherwise, and only the dynamic triangles. */
 static double lvp__reference_change(lvp_binding *binding, int32_t r, const float *rest, const int32_t *bone_entry)
 {
 	float *offset = binding->stretch.corner_offset;
@@ -291,7 +294,7 @@ static bool lvp__pair_stretched(const lvp__mat4 *u_minus_i)
 }
 
 /* Groups [begin, end) of stretched regions, each with its own bone_entry scratch: each region
- * writes only its own slots and its stretch_change, so the groups can run at once. Only the
+ * writes only its own slots and its stretch.change, so the groups can run at once. Only the
  * region's stretched pairs get an entry: the others would add zero at every corner. */
 static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 {

@@ -132,8 +132,9 @@ def build_hand(with_gltf):
         objects.append(("Hand, glTF round trip", real_cases.gltf_round_trip(obj, rig)))
     scene = bpy.context.scene
     scene.frame_set(real_cases.HAND_FRAMES[1])
-    print("\nHand built in %.1f s; at the fist the middle fingertip is %.1f mm from the palm bone"
-          % (built, 1000 * real_cases.fingertip_to_palm(rig)))
+    height, along = real_cases.fingertip_to_palm(rig)
+    print("\nHand built in %.1f s; at the fist the middle fingertip's bone ends %.1f mm from the palm's middle "
+          "plane, %.0f %% of the way from the wrist to the knuckles" % (built, 1000 * height, 100 * along))
     scene.frame_set(real_cases.HAND_FRAMES[0])
     return objects, rig
 
@@ -203,9 +204,9 @@ def main():
                 bpy.context.scene.frame_set(real_cases.HAND_FRAMES[1])
                 palm = rig.matrix_world @ rig.pose.bones["palm"].tail
                 name = "hand_gltf" if "glTF" in title else "hand"
-                print("render:", render_close_up(addon, options.render, name + "_side", obj, palm,
+                print("render:", render_close_up(addon, options.render, name + "_index_side", obj, palm,
                                                  (0.5, 0.1, -0.25), 0.14))
-                print("render:", render_close_up(addon, options.render, name + "_pinky", obj, palm,
+                print("render:", render_close_up(addon, options.render, name + "_little_finger_side", obj, palm,
                                                  (-0.5, 0.25, -0.2), 0.14))
 
 

@@ -272,13 +272,13 @@ HAND_FRAMES = (1, 21)
 # Digits: name, knuckle position (wrist at the origin, fingers along +Y, palm facing -Z), phalanx lengths and
 # radii at the knuckle and at each joint (metres).
 FINGERS = (
-    ("index", (0.036, 0.092, 0.0), (0.040, 0.024, 0.019), (0.0100, 0.0092, 0.0084, 0.0074)),
-    ("middle", (0.0115, 0.097, 0.0), (0.045, 0.028, 0.021), (0.0104, 0.0096, 0.0086, 0.0076)),
-    ("ring", (-0.0135, 0.094, 0.0), (0.042, 0.026, 0.020), (0.0097, 0.0090, 0.0081, 0.0072)),
-    ("pinky", (-0.0365, 0.086, 0.0), (0.032, 0.019, 0.017), (0.0086, 0.0078, 0.0071, 0.0063)),
+    ("index", (0.0405, 0.092, 0.0), (0.040, 0.024, 0.019), (0.0096, 0.0089, 0.0081, 0.0072)),
+    ("middle", (0.0135, 0.097, 0.0), (0.045, 0.028, 0.021), (0.0099, 0.0092, 0.0083, 0.0074)),
+    ("ring", (-0.0135, 0.094, 0.0), (0.042, 0.026, 0.020), (0.0093, 0.0087, 0.0079, 0.0070)),
+    ("pinky", (-0.0405, 0.086, 0.0), (0.032, 0.019, 0.017), (0.0083, 0.0076, 0.0069, 0.0061)),
 )
 # The thumb: from the base of the palm, out, forward and down towards the palm side.
-THUMB = ("thumb", (0.030, 0.018, -0.006), (0.038, 0.032, 0.026), (0.0135, 0.0115, 0.0100, 0.0088))
+THUMB = ("thumb", (0.034, 0.018, -0.006), (0.038, 0.032, 0.026), (0.0135, 0.0115, 0.0100, 0.0088))
 THUMB_DIRECTION = Vector((0.75, 0.6, -0.28)).normalized()
 # Fist at the last frame: degrees at the knuckle, the middle and the last joint (QUALITY.md's 90, 100, 70).
 FIST = (90.0, 100.0, 70.0)
@@ -380,12 +380,13 @@ def hand(voxel_size=HAND_VOXEL):
 
 
 def fingertip_to_palm(rig, digit="middle"):
-    """Distance from the digit's tip to the palm bone's line, at the current pose (metres)."""
+    """(distance from the digit's tip to the plane of the palm bone and its roll, i.e. the middle of the palm's
+    thickness; how far along the palm the tip is, 0 at the wrist, 1 at the knuckles) at the current pose."""
     tip = rig.pose.bones["%s.03" % digit].tail
     palm = rig.pose.bones["palm"]
-    axis = (palm.tail - palm.head).normalized()
-    along = (tip - palm.head).dot(axis)
-    return (tip - (palm.head + along * axis)).length
+    normal = palm.matrix.to_3x3().col[2].normalized()
+    axis = palm.tail - palm.head
+    return abs((tip - palm.head).dot(normal)), (tip - palm.head).dot(axis) / axis.length_squared
 
 
 # ---- the seams of a glTF round trip ------------------------------------------------------------

@@ -110,13 +110,20 @@ def open_edge_count(mesh):
     return sum(1 for count in faces_of_edge.values() if count != 2) + len(mesh.edges) - len(faces_of_edge)
 
 
+def _select_only(*objects):
+    # Blender 4.3 and 5.2 list a removed object as None in view_layer.objects until the view layer is updated.
+    bpy.context.view_layer.update()
+    for other in bpy.context.view_layer.objects:
+        if other is not None:
+            other.select_set(False)
+    for obj in objects:
+        obj.select_set(True)
+
+
 def parent_with_automatic_weights(obj, rig):
     """Ctrl+P > With Automatic Weights (heat weights over the rig's deforming bones); returns the operator's
     result. The mesh gets an Armature modifier and the rig as its parent."""
-    for other in bpy.context.view_layer.objects:
-        other.select_set(False)
-    obj.select_set(True)
-    rig.select_set(True)
+    _select_only(obj, rig)
     bpy.context.view_layer.objects.active = rig
     with bpy.context.temp_override(active_object=rig, object=rig, selected_editable_objects=[obj, rig],
                                    selected_objects=[obj, rig]):
@@ -433,9 +440,7 @@ def gltf_round_trip(obj, rig, directory=None):
     exported = bpy.data.objects.new(obj.name + "Export", mesh)
     bpy.context.scene.collection.objects.link(exported)
     exported.matrix_world = obj.matrix_world.copy()
-    for other in bpy.context.view_layer.objects:
-        other.select_set(False)
-    exported.select_set(True)
+    _select_only(exported)
     bpy.context.view_layer.objects.active = exported
     bpy.ops.export_scene.gltf(filepath=path, export_format='GLB', use_selection=True, export_animations=False,
                               export_skins=False)

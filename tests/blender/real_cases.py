@@ -302,7 +302,7 @@ def _digit_joints(knuckle, lengths, direction):
 def _hand_spheres():
     spheres = []
     # The palm: a thick plate made of four flattened ellipsoids along the metacarpals and one at the wrist.
-    for _name, knuckle, _lengths, radii in FINGERS:
+    for _name, knuckle, _lengths, _radii in FINGERS:
         x = knuckle[0]
         for t in (0.25, 0.5, 0.75, 0.92):
             spheres.append(((x * (0.75 + 0.25 * t), knuckle[1] * t, -0.002), (0.016, 0.022, 0.0135)))
@@ -310,7 +310,7 @@ def _hand_spheres():
     for _name, knuckle, lengths, radii in FINGERS:
         spheres += _chain(_digit_joints((knuckle[0], knuckle[1] - 0.008, knuckle[2]), (0.008,) + lengths,
                                         Vector((0.0, 1.0, 0.0))), (radii[0],) + radii)
-    name, base, lengths, radii = THUMB
+    _name, base, lengths, radii = THUMB
     spheres += _chain(_digit_joints(base, lengths, THUMB_DIRECTION), radii)
     return spheres
 

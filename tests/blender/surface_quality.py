@@ -209,7 +209,9 @@ def triangles_cross(first, second):
 def crossing_pairs(positions, mesh_or_triangles):
     """The pairs (i, j), i < j, of welded triangles (indices into WeldedMesh.welded_triangles) that cross and
     share no vertex. Candidates come from BVHTree.overlap() (which already leaves out pairs sharing a vertex
-    index, hence the weld), each confirmed by the exact test."""
+    index, hence the weld, and keeps the pairs that Blender's float triangle test finds intersecting), each
+    confirmed by the exact test: a crossing that float test misses, which can only be one within rounding of
+    touching, is not counted."""
     mesh = mesh_or_triangles if isinstance(mesh_or_triangles, WeldedMesh) else WeldedMesh(positions,
                                                                                          mesh_or_triangles)
     points = points_of(positions)

@@ -100,7 +100,9 @@ class TestCrossings(unittest.TestCase):
         corner_on_inside = ((0.5, 0.5, 0.0), (0.5, 0.5, 1.0), (1.0, 0.2, 1.0))
         edge_on_edge = ((1.0, 0.0, 0.0), (1.0, -1.0, 1.0), (1.0, -1.0, -1.0))
         edge_in_plane_outside = ((3.0, 0.0, 0.0), (3.0, 1.0, 0.0), (3.0, 0.0, 1.0))
-        for second in (corner_on_inside, edge_on_edge, edge_in_plane_outside):
+        # An edge of each through the middle of an edge of the other, the rest apart.
+        edges_crossing = ((1.0, -1.0, -1.0), (1.0, 1.0, 1.0), (1.0, -1.0, 1.0))
+        for second in (corner_on_inside, edge_on_edge, edge_in_plane_outside, edges_crossing):
             self.assertEqual(self.pairs(second), 0, second)
             self.assertEqual(self.pairs(second, weld=False), 0, second)
 

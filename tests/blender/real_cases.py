@@ -420,7 +420,7 @@ def enable_gltf():
     if importlib.util.find_spec("numpy") is None:
         return False
     import numpy
-    if not hasattr(numpy, "bool"):
+    if "bool" not in vars(numpy):  # (hasattr would warn: numpy 1.24 keeps a FutureWarning under that name)
         numpy.bool = numpy.bool_
     return addon_utils.enable("io_scene_gltf2", default_set=False) is not None
 

@@ -135,10 +135,6 @@ class WeldedMesh:
         return [edge for edge in self.edges if len(self.edge_triangles[edge]) == 2]
 
 
-def welded(mesh_or_rest, triangles=None):
-    return mesh_or_rest if isinstance(mesh_or_rest, WeldedMesh) else WeldedMesh(mesh_or_rest, triangles)
-
-
 # ---- volume --------------------------------------------------------------------------------
 
 

@@ -1,0 +1,493 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Real cases, as users have them (../shared/QUALITY.md), built from what Blender ships, small enough for a test
+and the same at every run:
+
+- rigify_human(): Rigify's human metarig generated into a rig, a closed smooth body of our own (spheres along
+  the DEF bones, united and smoothed by a voxel remesh: one closed manifold surface), parented With Automatic
+  Weights (heat weights over every DEF bone, face bones included); pose_rigify_human() bends it hard through
+  the rig's own FK controls: elbows and knees past 110 degrees, a hip to 90, shoulders raised, spine bent;
+- hand(): a palm, four fingers side by side and a thumb, phalanges of different lengths and thicknesses, one
+  closed surface the same way, an armature of a palm bone and 3 bones per digit, heat weights, and an animation
+  from open (frame 1) to a fist (frame 21: finger joints at 90, 100 and 70 degrees, fingertips at the palm);
+- gltf_round_trip(): a mesh through Blender's own glTF exporter and importer, which split it at its UV seams
+  as files from other packages are split, then skinned to the same armature with the same weights.
+
+The add-on is not involved: measure_quality.py adds Volume Preservation to these.
+"""
+
+import importlib.util
+import math
+import os
+import tempfile
+
+import addon_utils
+import bpy
+from mathutils import Euler, Vector, kdtree
+
+# ---- closed smooth surfaces from spheres --------------------------------------------------------
+
+
+def _sphere(centre, radii, rings=10, around=16):
+    """(vertices, quads and triangles) of an axis-aligned ellipsoid."""
+    cx, cy, cz = centre
+    rx, ry, rz = radii
+    vertices = [(cx, cy, cz + rz)]
+    for ring in range(1, rings):
+        polar = math.pi * ring / rings
+        for step in range(around):
+            azimuth = 2.0 * math.pi * step / around
+            vertices.append((cx + rx * math.sin(polar) * math.cos(azimuth),
+                             cy + ry * math.sin(polar) * math.sin(azimuth), cz + rz * math.cos(polar)))
+    vertices.append((cx, cy, cz - rz))
+
+    def index(ring, step):
+        return 1 + (ring - 1) * around + step % around
+
+    faces = [(0, index(1, step), index(1, step + 1)) for step in range(around)]
+    faces += [(index(ring, step), index(ring + 1, step), index(ring + 1, step + 1), index(ring, step + 1))
+              for ring in range(1, rings - 1) for step in range(around)]
+    faces += [(len(vertices) - 1, index(rings - 1, step + 1), index(rings - 1, step)) for step in range(around)]
+    return vertices, faces
+
+
+def _chain(points, radii, spacing=0.3):
+    """Spheres along the polyline `points`, their radii interpolated from `radii` (one per point), one every
+    spacing x radius, so their union is a smooth tube whose thickness follows the radii."""
+    spheres = []
+    for index in range(len(points) - 1):
+        start, end = Vector(points[index]), Vector(points[index + 1])
+        r0, r1 = radii[index], radii[index + 1]
+        length = (end - start).length
+        steps = max(1, int(math.ceil(length / (spacing * min(r0, r1)))))
+        for step in range(steps + (1 if index == len(points) - 2 else 0)):
+            t = step / steps
+            r = r0 + (r1 - r0) * t
+            spheres.append((tuple(start.lerp(end, t)), (r, r, r)))
+    return spheres
+
+
+def closed_surface(name, spheres, voxel_size, smoothing=6):
+    """A mesh object: the union of the ellipsoids `spheres` [(centre, radii)], by a voxel remesh (one closed
+    manifold surface, vertices about voxel_size apart), smoothed a little so the voxels and the spheres do not
+    show. Smooth shaded."""
+    vertices, faces = [], []
+    for centre, radii in spheres:
+        sphere_vertices, sphere_faces = _sphere(centre, radii)
+        base = len(vertices)
+        vertices += sphere_vertices
+        faces += [tuple(base + v for v in face) for face in sphere_faces]
+    pieces = bpy.data.meshes.new(name + "Pieces")
+    pieces.from_pydata(vertices, [], faces)
+    pieces.update()
+    source = bpy.data.objects.new(name + "Pieces", pieces)
+    bpy.context.scene.collection.objects.link(source)
+    remesh = source.modifiers.new("Remesh", 'REMESH')
+    remesh.mode = 'VOXEL'
+    remesh.voxel_size = voxel_size
+    remesh.adaptivity = 0.0
+    if smoothing:
+        smooth = source.modifiers.new("Smooth", 'SMOOTH')
+        smooth.factor = 0.5
+        smooth.iterations = smoothing
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(source.evaluated_get(depsgraph))
+    mesh.name = name
+    bpy.data.objects.remove(source)
+    bpy.data.meshes.remove(pieces)
+    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def open_edge_count(mesh):
+    """Edges with other than two faces (0 on a closed manifold mesh)."""
+    faces_of_edge = {}
+    for polygon in mesh.polygons:
+        for key in polygon.edge_keys:
+            faces_of_edge[key] = faces_of_edge.get(key, 0) + 1
+    return sum(1 for count in faces_of_edge.values() if count != 2) + len(mesh.edges) - len(faces_of_edge)
+
+
+def _select_only(*objects):
+    # Blender 4.3 and 5.2 list a removed object as None in view_layer.objects until the view layer is updated.
+    bpy.context.view_layer.update()
+    for other in bpy.context.view_layer.objects:
+        if other is not None:
+            other.select_set(False)
+    for obj in objects:
+        obj.select_set(True)
+
+
+def parent_with_automatic_weights(obj, rig):
+    """Ctrl+P > With Automatic Weights (heat weights over the rig's deforming bones); returns the operator's
+    result. The mesh gets an Armature modifier and the rig as its parent."""
+    _select_only(obj, rig)
+    bpy.context.view_layer.objects.active = rig
+    with bpy.context.temp_override(active_object=rig, object=rig, selected_editable_objects=[obj, rig],
+                                   selected_objects=[obj, rig]):
+        result = bpy.ops.object.parent_set(type='ARMATURE_AUTO')
+    bpy.context.view_layer.update()
+    return result
+
+
+def empty_vertex_groups(obj):
+    """Names of the vertex groups in which no vertex has weight (heat weighting that failed)."""
+    used = set()
+    for vertex in obj.data.vertices:
+        for element in vertex.groups:
+            if element.weight > 0.0:
+                used.add(element.group)
+    return [group.name for group in obj.vertex_groups if group.index not in used]
+
+
+# ---- a Rigify human ----------------------------------------------------------------------------
+
+BODY_VOXEL = 0.024
+
+
+def enable_rigify():
+    _default, loaded = addon_utils.check("rigify")
+    if not loaded:
+        addon_utils.enable("rigify", default_set=True)  # its register() reads its preferences
+    return hasattr(bpy.ops.pose, "rigify_generate")
+
+
+def _body_spheres(rig):
+    """Ellipsoids of a body that fits Rigify's human metarig (1.98 m, facing -Y), from the rig's DEF bones."""
+    bones = rig.data.bones
+
+    def head(name):
+        return tuple(bones[name].head_local)
+
+    def tail(name):
+        return tuple(bones[name].tail_local)
+
+    spheres = []
+    for side in ("L", "R"):
+        leg = [head("DEF-thigh." + side), tail("DEF-thigh." + side), tail("DEF-thigh.%s.001" % side),
+               tail("DEF-shin." + side), tail("DEF-shin.%s.001" % side)]
+        spheres += _chain(leg, [0.085, 0.075, 0.058, 0.052, 0.04])
+        foot = [tail("DEF-shin.%s.001" % side), tail("DEF-foot." + side), tail("DEF-toe." + side)]
+        spheres += _chain(foot, [0.04, 0.035, 0.03])
+        arm = [head("DEF-upper_arm." + side), tail("DEF-upper_arm." + side), tail("DEF-upper_arm.%s.001" % side),
+               tail("DEF-forearm." + side), tail("DEF-forearm.%s.001" % side), tail("DEF-hand." + side)]
+        spheres += _chain(arm, [0.052, 0.048, 0.042, 0.04, 0.03, 0.028])
+        shoulder = [head("DEF-shoulder." + side), head("DEF-upper_arm." + side)]
+        spheres += _chain(shoulder, [0.055, 0.055])
+    # The trunk: flattened ellipsoids along the spine, from the pelvis to the head.
+    trunk = [("DEF-spine", 0.0, (0.15, 0.11, 0.12)), ("DEF-spine", 1.0, (0.14, 0.10, 0.10)),
+             ("DEF-spine.001", 1.0, (0.135, 0.095, 0.10)), ("DEF-spine.002", 0.5, (0.15, 0.10, 0.11)),
+             ("DEF-spine.003", 0.0, (0.16, 0.105, 0.11)), ("DEF-spine.003", 0.6, (0.15, 0.095, 0.10))]
+    for name, t, radii in trunk:
+        spheres.append((tuple(Vector(head(name)).lerp(Vector(tail(name)), t)), radii))
+    spheres += _chain([head("DEF-spine.004"), tail("DEF-spine.005")], [0.05, 0.05])
+    centre = Vector(head("DEF-spine.006")).lerp(Vector(tail("DEF-spine.006")), 0.4)
+    spheres.append((tuple(centre), (0.085, 0.1, 0.115)))
+    return spheres
+
+
+def rigify_human(voxel_size=BODY_VOXEL):
+    """(body, rig): Rigify's human generated, a closed body around its DEF bones parented to it With Automatic
+    Weights. Raises RuntimeError when this Blender has no Rigify or heat weighting leaves the body unweighted."""
+    if not enable_rigify():
+        raise RuntimeError("this Blender has no Rigify add-on")
+    bpy.ops.object.armature_human_metarig_add()
+    metarig = bpy.context.object
+    bpy.ops.pose.rigify_generate()
+    rig = next(obj for obj in bpy.data.objects if obj.type == 'ARMATURE' and obj != metarig)
+    bpy.data.objects.remove(metarig)
+    body = closed_surface("Body", _body_spheres(rig), voxel_size)
+    if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
+        raise RuntimeError("With Automatic Weights failed on the body")
+    limbs = [name for name in ("DEF-thigh.L", "DEF-shin.L", "DEF-forearm.L", "DEF-spine.002")
+             if name in empty_vertex_groups(body)]
+    if limbs:
+        raise RuntimeError("heat weighting left %s empty" % limbs)
+    return body, rig
+
+
+def _turn_towards(rig, control, axis, degrees, bone, direction):
+    """Rotates pose bone `control` about its local `axis` ('X', 'Y' or 'Z') by `degrees`, with the sign that
+    moves the tail of `bone` towards world `direction` (so the pose reads anatomically whatever the control's
+    roll is in this Rigify version)."""
+    pose_bone = rig.pose.bones[control]
+    pose_bone.rotation_mode = 'XYZ'
+    index = "XYZ".index(axis)
+    before = pose_bone.rotation_euler.copy()
+    bpy.context.view_layer.update()
+    start = rig.matrix_world @ rig.pose.bones[bone].tail
+    moves = []
+    for sign in (1.0, -1.0):
+        rotation = before.copy()
+        rotation[index] += sign * math.radians(degrees)
+        pose_bone.rotation_euler = rotation
+        bpy.context.view_layer.update()
+        moves.append(((rig.matrix_world @ rig.pose.bones[bone].tail) - start).dot(Vector(direction)))
+    rotation = before.copy()
+    rotation[index] += (1.0 if moves[0] >= moves[1] else -1.0) * math.radians(degrees)
+    pose_bone.rotation_euler = rotation
+    bpy.context.view_layer.update()
+
+
+def bend_angle(rig, first, second):
+    """Degrees between the posed directions of two bones (0: straight on)."""
+    a = rig.pose.bones[first]
+    b = rig.pose.bones[second]
+    return math.degrees((a.tail - a.head).angle(b.tail - b.head))
+
+
+def pose_rigify_human(rig, amount=1.0):
+    """The hard pose, `amount` of the way from rest (1.0: elbows 125 and 115 degrees, knees 120 and 115, left hip
+    90, right hip 40, shoulders raised 25, arms raised 50, spine bent forward 35 through the chest and the torso
+    FK). Arms and legs are switched to FK and posed through their FK controls: constraints and drivers carry that
+    to the DEF B-Bones. Returns {joint: degrees measured between the DEF bones}."""
+    pose_bones = rig.pose.bones
+    for name in ("upper_arm_parent.L", "upper_arm_parent.R", "thigh_parent.L", "thigh_parent.R"):
+        pose_bones[name]["IK_FK"] = 1.0
+    for pose_bone in pose_bones:
+        pose_bone.rotation_mode = 'XYZ'
+        pose_bone.rotation_euler = Euler((0.0, 0.0, 0.0))
+    bpy.context.view_layer.update()
+    forward, up, back = (0.0, -1.0, 0.0), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)
+    for side, elbow, knee, hip in (("L", 125.0, 120.0, 90.0), ("R", 115.0, 115.0, 40.0)):
+        _turn_towards(rig, "shoulder." + side, 'Z', 25.0 * amount, "DEF-shoulder." + side, up)
+        _turn_towards(rig, "upper_arm_fk." + side, 'Z', 50.0 * amount, "DEF-upper_arm.%s.001" % side, up)
+        _turn_towards(rig, "forearm_fk." + side, 'X', elbow * amount, "DEF-forearm.%s.001" % side, forward)
+        _turn_towards(rig, "thigh_fk." + side, 'X', hip * amount, "DEF-thigh.%s.001" % side, forward)
+        _turn_towards(rig, "shin_fk." + side, 'X', knee * amount, "DEF-shin.%s.001" % side, back)
+    _turn_towards(rig, "chest", 'X', 35.0 * amount, "DEF-spine.003", forward)
+    bpy.context.view_layer.update()
+    return {
+        "elbow.L": bend_angle(rig, "DEF-upper_arm.L.001", "DEF-forearm.L"),
+        "elbow.R": bend_angle(rig, "DEF-upper_arm.R.001", "DEF-forearm.R"),
+        "knee.L": bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L"),
+        "knee.R": bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R"),
+        # Flexion: 0 when the thigh hangs straight down from the spine.
+        "hip.L": 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.L"),
+        "hip.R": 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.R"),
+        "spine": bend_angle(rig, "DEF-spine.001", "DEF-spine.003"),
+    }
+
+
+# ---- a hand ------------------------------------------------------------------------------------
+
+HAND_VOXEL = 0.003
+HAND_FRAMES = (1, 21)
+
+# Digits: name, knuckle position (wrist at the origin, fingers along +Y, palm facing -Z), phalanx lengths and
+# radii at the knuckle and at each joint (metres).
+FINGERS = (
+    ("index", (0.0405, 0.092, 0.0), (0.040, 0.024, 0.019), (0.0096, 0.0089, 0.0081, 0.0072)),
+    ("middle", (0.0135, 0.097, 0.0), (0.045, 0.028, 0.021), (0.0099, 0.0092, 0.0083, 0.0074)),
+    ("ring", (-0.0135, 0.094, 0.0), (0.042, 0.026, 0.020), (0.0093, 0.0087, 0.0079, 0.0070)),
+    ("pinky", (-0.0405, 0.086, 0.0), (0.032, 0.019, 0.017), (0.0083, 0.0076, 0.0069, 0.0061)),
+)
+# The thumb: from the base of the palm, out, forward and down towards the palm side.
+THUMB = ("thumb", (0.034, 0.018, -0.006), (0.038, 0.032, 0.026), (0.0135, 0.0115, 0.0100, 0.0088))
+THUMB_DIRECTION = Vector((0.75, 0.6, -0.28)).normalized()
+# Fist at the last frame: degrees at the knuckle, the middle and the last joint (QUALITY.md's 90, 100, 70).
+FIST = (90.0, 100.0, 70.0)
+THUMB_FIST = (35.0, 45.0, 50.0)
+
+
+def _digit_joints(knuckle, lengths, direction):
+    points = [Vector(knuckle)]
+    for length in lengths:
+        points.append(points[-1] + length * direction)
+    return points
+
+
+def _hand_spheres():
+    spheres = []
+    # The palm: a thick plate made of four flattened ellipsoids along the metacarpals and one at the wrist.
+    for _name, knuckle, _lengths, _radii in FINGERS:
+        x = knuckle[0]
+        for t in (0.25, 0.5, 0.75, 0.92):
+            spheres.append(((x * (0.75 + 0.25 * t), knuckle[1] * t, -0.002), (0.016, 0.022, 0.0135)))
+    spheres.append(((0.0, 0.012, -0.002), (0.03, 0.02, 0.015)))
+    for _name, knuckle, lengths, radii in FINGERS:
+        spheres += _chain(_digit_joints((knuckle[0], knuckle[1] - 0.008, knuckle[2]), (0.008,) + lengths,
+                                        Vector((0.0, 1.0, 0.0))), (radii[0],) + radii)
+    _name, base, lengths, radii = THUMB
+    spheres += _chain(_digit_joints(base, lengths, THUMB_DIRECTION), radii)
+    return spheres
+
+
+def hand_armature(name="HandRig"):
+    """The palm bone (wrist to the middle knuckle) and 3 bones per digit, rolled so that each finger bone's local
+    X is the axis its joint bends about."""
+    armature = bpy.data.armatures.new(name)
+    rig = bpy.data.objects.new(name, armature)
+    bpy.context.scene.collection.objects.link(rig)
+    bpy.context.view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode='EDIT')
+    palm = armature.edit_bones.new("palm")
+    palm.head, palm.tail = (0.0, 0.0, 0.0), (0.0, 0.09, 0.0)
+    digits = [(n, k, lengths, Vector((0.0, 1.0, 0.0))) for n, k, lengths, _radii in FINGERS]
+    digits.append((THUMB[0], THUMB[1], THUMB[2], THUMB_DIRECTION))
+    for digit, knuckle, lengths, direction in digits:
+        points = _digit_joints(knuckle, lengths, direction)
+        parent = palm
+        for index in range(3):
+            bone = armature.edit_bones.new("%s.%02d" % (digit, index + 1))
+            bone.head, bone.tail = points[index], points[index + 1]
+            # Local Z towards the back of the hand (+Z), so local X is the bending axis.
+            bone.align_roll(Vector((0.0, 0.0, 1.0)))
+            bone.parent = parent
+            bone.use_connect = index > 0
+            parent = bone
+    bpy.ops.object.mode_set(mode='OBJECT')
+    return rig
+
+
+def hand_joint_rotations(amount):
+    """{bone: degrees about its local X} of the hand `amount` of the way to the fist; positive curls towards the
+    palm (-Z)."""
+    rotations = {}
+    for digit, _knuckle, _lengths, _radii in FINGERS:
+        for index, degrees in enumerate(FIST):
+            rotations["%s.%02d" % (digit, index + 1)] = degrees * amount
+    for index, degrees in enumerate(THUMB_FIST):
+        rotations["thumb.%02d" % (index + 1)] = degrees * amount
+    return rotations
+
+
+def pose_hand(rig, amount):
+    """Poses the hand `amount` of the way from open (0) to the fist (1), without keys."""
+    for name, degrees in hand_joint_rotations(amount).items():
+        pose_bone = rig.pose.bones[name]
+        pose_bone.rotation_mode = 'XYZ'
+        # A right-handed rotation about local X takes +Y (along the bone) to +Z (the back of the hand): curling
+        # towards the palm is negative.
+        pose_bone.rotation_euler = Euler((-math.radians(degrees), 0.0, 0.0))
+    bpy.context.view_layer.update()
+
+
+def hand(voxel_size=HAND_VOXEL):
+    """(hand, rig): the closed hand parented With Automatic Weights to its armature, animated from open at frame
+    HAND_FRAMES[0] to the fist at HAND_FRAMES[1] (two keys, Blender's default ease in and out), the scene's frame
+    range set to it."""
+    rig = hand_armature()
+    obj = closed_surface("Hand", _hand_spheres(), voxel_size)
+    if parent_with_automatic_weights(obj, rig) != {'FINISHED'}:
+        raise RuntimeError("With Automatic Weights failed on the hand")
+    empty = empty_vertex_groups(obj)
+    if empty:
+        raise RuntimeError("heat weighting left %s empty" % empty)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = HAND_FRAMES
+    for frame, amount in zip(HAND_FRAMES, (0.0, 1.0)):
+        pose_hand(rig, amount)
+        for name in hand_joint_rotations(amount):
+            rig.pose.bones[name].keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(HAND_FRAMES[0])
+    return obj, rig
+
+
+def fingertip_to_palm(rig, digit="middle"):
+    """(distance from the digit's tip to the plane of the palm bone and its roll, i.e. the middle of the palm's
+    thickness; how far along the palm the tip is, 0 at the wrist, 1 at the knuckles) at the current pose."""
+    tip = rig.pose.bones["%s.03" % digit].tail
+    palm = rig.pose.bones["palm"]
+    normal = palm.matrix.to_3x3().col[2].normalized()
+    axis = palm.tail - palm.head
+    return abs((tip - palm.head).dot(normal)), (tip - palm.head).dot(axis) / axis.length_squared
+
+
+# ---- the seams of a glTF round trip ------------------------------------------------------------
+
+
+def box_uv_map(mesh, name="UVMap"):
+    """A UV map by box projection: each face on the plane of its normal's dominant axis, so the islands split the
+    surface along seams all over it, as a real UV map does."""
+    layer = mesh.uv_layers.new(name=name)
+    for polygon in mesh.polygons:
+        normal = polygon.normal
+        axis = max(range(3), key=lambda k: abs(normal[k]))
+        u_axis, v_axis = [k for k in range(3) if k != axis]
+        shift = 0.0 if normal[axis] > 0 else 10.0  # opposite faces in different places of the map
+        for loop in polygon.loop_indices:
+            co = mesh.vertices[mesh.loops[loop].vertex_index].co
+            layer.data[loop].uv = (co[u_axis] + shift + 3.0 * axis, co[v_axis])
+    return layer
+
+
+def enable_gltf():
+    """Enables Blender's glTF add-on; False when this Blender cannot import glTF (no numpy). Blender 3.4's
+    importer names numpy.bool, gone from numpy 1.24 (Debian bookworm's python3-numpy): it is given back."""
+    if importlib.util.find_spec("numpy") is None:
+        return False
+    import numpy
+    if "bool" not in vars(numpy):  # (hasattr would warn: numpy 1.24 keeps a FutureWarning under that name)
+        numpy.bool = numpy.bool_
+    return addon_utils.enable("io_scene_gltf2", default_set=False) is not None
+
+
+def gltf_round_trip(obj, rig, directory=None):
+    """A copy of obj's rest mesh exported by Blender's glTF exporter (with a box-projected UV map) and imported
+    back, which splits it at the UV seams; its vertices get the weights of obj's vertices at their positions, an
+    Armature modifier on `rig` and `rig` as parent. Returns the imported object (obj stays)."""
+    if not enable_gltf():
+        raise RuntimeError("this Blender cannot import glTF (Blender's importer needs numpy)")
+    directory = directory or tempfile.mkdtemp(prefix="lvp-gltf-")
+    path = os.path.join(directory, obj.name + ".glb")
+    mesh = obj.data.copy()
+    mesh.name = obj.name + "Export"
+    if not mesh.uv_layers:
+        box_uv_map(mesh)
+    exported = bpy.data.objects.new(obj.name + "Export", mesh)
+    bpy.context.scene.collection.objects.link(exported)
+    exported.matrix_world = obj.matrix_world.copy()
+    _select_only(exported)
+    bpy.context.view_layer.objects.active = exported
+    bpy.ops.export_scene.gltf(filepath=path, export_format='GLB', use_selection=True, export_animations=False,
+                              export_skins=False)
+    bpy.data.objects.remove(exported)
+    bpy.data.meshes.remove(mesh)
+    before = set(bpy.data.objects)
+    bpy.ops.import_scene.gltf(filepath=path)
+    imported = [new for new in bpy.data.objects if new not in before and new.type == 'MESH']
+    if len(imported) != 1:
+        raise RuntimeError("the glTF round trip gave %d meshes" % len(imported))
+    result = imported[0]
+    result.name = obj.name + "GLTF"
+    world = result.matrix_world.copy()
+    result.parent = None
+    result.matrix_world = world
+    bpy.context.view_layer.update()
+    _copy_weights_by_position(obj, result)
+    modifier = result.modifiers.new("Armature", 'ARMATURE')
+    modifier.object = rig
+    result.parent = rig
+    result.matrix_parent_inverse = rig.matrix_world.inverted()
+    result.matrix_world = world
+    result.data.polygons.foreach_set("use_smooth", [True] * len(result.data.polygons))
+    bpy.context.view_layer.update()
+    return result
+
+
+def _copy_weights_by_position(source, target):
+    """Every vertex of target gets the vertex groups of the source vertex nearest to it (in world space)."""
+    tree = kdtree.KDTree(len(source.data.vertices))
+    for vertex in source.data.vertices:
+        tree.insert(source.matrix_world @ vertex.co, vertex.index)
+    tree.balance()
+    groups = {group.index: target.vertex_groups.new(name=group.name) for group in source.vertex_groups}
+    worst = 0.0
+    for vertex in target.data.vertices:
+        _co, index, distance = tree.find(target.matrix_world @ vertex.co)
+        worst = max(worst, distance)
+        for element in source.data.vertices[index].groups:
+            groups[element.group].add([vertex.index], element.weight, 'REPLACE')
+    if worst > 1e-4:
+        raise RuntimeError("the glTF round trip moved a vertex by %g" % worst)
+
+
+def split_vertex_count(obj, relative_tolerance=1e-6):
+    """How many vertices of obj's mesh are copies of another one at the same position."""
+    import surface_quality
+    positions = [tuple(vertex.co) for vertex in obj.data.vertices]
+    return len(positions) - len(set(surface_quality.weld_map(positions, relative_tolerance)))
+

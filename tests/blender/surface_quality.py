@@ -1,0 +1,327 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The measures of the surface that ../shared/QUALITY.md judges a correction by, as plain functions over
+positions and triangles: what an animator sees, not only the volume.
+
+- volume change of the whole mesh;
+- crossing pairs: triangles of the posed mesh that cross each other and share no vertex;
+- creases added: edges whose dihedral angle grows by more than 30 degrees over plain skinning's;
+- roughness of the correction: per vertex, |offset - mean offset of its edge neighbours|, and the largest
+  offset, both in mean rest edge lengths;
+- a weld map: vertices at the same rest position are one point of the skin.
+
+Every measure except the volume works on the WELDED mesh, so a mesh split at its UV seams (as glTF's importer
+gives it) measures as its welded version does: a seam is not an open border, two triangles on either side of it
+share their vertices, and the edge along it has a dihedral angle.
+
+Positions are flat sequences of 3n floats (array('f'), lists) or sequences of n 3-vectors; triangles are flat
+sequences of 3m ints or sequences of m triples. Pure Python and mathutils (Blender 3.4 has no numpy): the heavy
+parts (candidate pairs of triangles, nearest positions) run in mathutils' C code, the rest in loops that take a
+fraction of a second on 10k vertices.
+"""
+
+import math
+from fractions import Fraction
+
+from mathutils import kdtree
+from mathutils.bvhtree import BVHTree
+
+CREASE_DEGREES = 30.0
+WELD_RELATIVE_TOLERANCE = 1e-6
+
+
+# ---- input ---------------------------------------------------------------------------------
+
+
+def points_of(positions):
+    """[(x, y, z), ...] from a flat sequence of 3n floats or a sequence of 3-vectors."""
+    if len(positions) and not hasattr(positions[0], "__len__"):
+        return [(float(positions[i]), float(positions[i + 1]), float(positions[i + 2]))
+                for i in range(0, len(positions), 3)]
+    return [(float(p[0]), float(p[1]), float(p[2])) for p in positions]
+
+
+def triangles_of(triangles):
+    """[(a, b, c), ...] from a flat sequence of 3m ints or a sequence of triples."""
+    if len(triangles) and not hasattr(triangles[0], "__len__"):
+        return [(int(triangles[i]), int(triangles[i + 1]), int(triangles[i + 2]))
+                for i in range(0, len(triangles), 3)]
+    return [(int(t[0]), int(t[1]), int(t[2])) for t in triangles]
+
+
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _length(a):
+    return math.sqrt(_dot(a, a))
+
+
+# ---- the weld map --------------------------------------------------------------------------
+
+
+def mesh_size(points):
+    """The diagonal of the bounding box."""
+    if not points:
+        return 0.0
+    low = [min(p[k] for p in points) for k in range(3)]
+    high = [max(p[k] for p in points) for k in range(3)]
+    return math.sqrt(sum((high[k] - low[k]) ** 2 for k in range(3)))
+
+
+def weld_map(rest_positions, relative_tolerance=WELD_RELATIVE_TOLERANCE):
+    """Per vertex, the index of the vertex that stands for its point of the skin: the lowest index among the
+    vertices within relative_tolerance x the mesh's size of it (chains are not followed further: the tolerance
+    is far below an edge length, so the vertices of one point are all within it of each other)."""
+    points = points_of(rest_positions)
+    tolerance = relative_tolerance * mesh_size(points)
+    tree = kdtree.KDTree(len(points))
+    for index, point in enumerate(points):
+        tree.insert(point, index)
+    tree.balance()
+    representative = [-1] * len(points)
+    for index, point in enumerate(points):
+        if representative[index] >= 0:
+            continue
+        representative[index] = index
+        for _co, other, _distance in tree.find_range(point, tolerance):
+            if representative[other] < 0:
+                representative[other] = index
+    return representative
+
+
+class WeldedMesh:
+    """A mesh seen welded: its triangles on the representatives of the weld map (those that collapse dropped),
+    its edges, their triangles, each vertex's edge neighbours and the mean rest edge length. Built once per
+    mesh, used for every pose."""
+
+    def __init__(self, rest_positions, triangles, relative_tolerance=WELD_RELATIVE_TOLERANCE, weld=True):
+        self.rest = points_of(rest_positions)
+        self.triangles = triangles_of(triangles)
+        # weld=False: the mesh as its indices say (to show what the weld changes).
+        self.weld = weld_map(self.rest, relative_tolerance) if weld else list(range(len(self.rest)))
+        self.vertices = sorted(set(self.weld))  # the representatives
+        self.welded_triangles = []
+        for a, b, c in self.triangles:
+            a, b, c = self.weld[a], self.weld[b], self.weld[c]
+            if a != b and b != c and c != a:
+                self.welded_triangles.append((a, b, c))
+        self.edge_triangles = {}
+        for index, (a, b, c) in enumerate(self.welded_triangles):
+            for u, v in ((a, b), (b, c), (c, a)):
+                self.edge_triangles.setdefault((u, v) if u < v else (v, u), []).append(index)
+        self.edges = sorted(self.edge_triangles)
+        self.neighbours = {vertex: [] for vertex in self.vertices}
+        for u, v in self.edges:
+            self.neighbours[u].append(v)
+            self.neighbours[v].append(u)
+        self.mean_rest_edge_length = (sum(_length(_sub(self.rest[u], self.rest[v])) for u, v in self.edges)
+                                      / max(1, len(self.edges)))
+
+    @property
+    def split_vertex_count(self):
+        """How many vertices are copies of another one (0 on a welded mesh)."""
+        return len(self.weld) - len(self.vertices)
+
+    def interior_edges(self):
+        """The edges with exactly two triangles (on a closed mesh, all of them)."""
+        return [edge for edge in self.edges if len(self.edge_triangles[edge]) == 2]
+
+
+# ---- volume --------------------------------------------------------------------------------
+
+
+def mesh_volume(positions, triangles):
+    """Signed volume enclosed by the triangles (positive for a closed mesh wound outward)."""
+    points = points_of(positions)
+    total = 0.0
+    for a, b, c in triangles_of(triangles):
+        total += _dot(points[a], _cross(points[b], points[c]))
+    return total / 6.0
+
+
+def volume_change(rest_positions, positions, triangles):
+    """Relative change of the whole mesh's volume, signed (-0.03: lost 3 %)."""
+    rest = mesh_volume(rest_positions, triangles)
+    return mesh_volume(positions, triangles) / rest - 1.0
+
+
+# ---- crossings -----------------------------------------------------------------------------
+
+
+def _orient3d(a, b, c, d):
+    """Sign of det [a-d; b-d; c-d], exact: a float evaluation with Shewchuk's error bound, and when that cannot
+    vouch for the sign, again in rationals (float coordinates are exact rationals)."""
+    adx, ady, adz = a[0] - d[0], a[1] - d[1], a[2] - d[2]
+    bdx, bdy, bdz = b[0] - d[0], b[1] - d[1], b[2] - d[2]
+    cdx, cdy, cdz = c[0] - d[0], c[1] - d[1], c[2] - d[2]
+    bdxcdy, cdxbdy = bdx * cdy, cdx * bdy
+    cdxady, adxcdy = cdx * ady, adx * cdy
+    adxbdy, bdxady = adx * bdy, bdx * ady
+    det = adz * (bdxcdy - cdxbdy) + bdz * (cdxady - adxcdy) + cdz * (adxbdy - bdxady)
+    permanent = ((abs(bdxcdy) + abs(cdxbdy)) * abs(adz) + (abs(cdxady) + abs(adxcdy)) * abs(bdz)
+                 + (abs(adxbdy) + abs(bdxady)) * abs(cdz))
+    epsilon = 2.0 ** -53
+    bound = (7.0 + 56.0 * epsilon) * epsilon * permanent
+    if det > bound:
+        return 1
+    if -det > bound:
+        return -1
+    a, b, c, d = ([Fraction(x) for x in point] for point in (a, b, c, d))
+    m = [[a[k] - d[k] for k in range(3)], [b[k] - d[k] for k in range(3)], [c[k] - d[k] for k in range(3)]]
+    exact = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
+    return (exact > 0) - (exact < 0)
+
+
+def _edge_pierces(p, q, a, b, c):
+    """Does the segment pq pass through the open triangle abc, from one open side of its plane to the other?"""
+    sp, sq = _orient3d(a, b, c, p), _orient3d(a, b, c, q)
+    if sp == 0 or sq == 0 or sp == sq:
+        return False
+    s1, s2, s3 = _orient3d(p, q, a, b), _orient3d(p, q, b, c), _orient3d(p, q, c, a)
+    return s1 != 0 and s1 == s2 == s3
+
+
+def triangles_cross(first, second):
+    """Do two triangles (each three 3-vectors) cross: an edge of one passes through the inside of the other?
+
+    Exact (every decision is the sign of an orientation determinant). Touching does not count: a corner on the
+    other triangle, an edge meeting an edge or a corner, triangles that only share corners or edges. Coplanar
+    overlap does not count either (a posed skin does not lie flat on itself)."""
+    a, b, c = first
+    d, e, f = second
+    return any(_edge_pierces(p, q, d, e, f) for p, q in ((a, b), (b, c), (c, a))) or \
+        any(_edge_pierces(p, q, a, b, c) for p, q in ((d, e), (e, f), (f, d)))
+
+
+def crossing_pairs(positions, mesh_or_triangles):
+    """The pairs (i, j), i < j, of welded triangles (indices into WeldedMesh.welded_triangles) that cross and
+    share no vertex. Candidates come from BVHTree.overlap() (which already leaves out pairs sharing a vertex
+    index, hence the weld, and keeps the pairs that Blender's float triangle test finds intersecting), each
+    confirmed by the exact test: a crossing that float test misses, which can only be one within rounding of
+    touching, is not counted."""
+    mesh = mesh_or_triangles if isinstance(mesh_or_triangles, WeldedMesh) else WeldedMesh(positions,
+                                                                                         mesh_or_triangles)
+    points = points_of(positions)
+    tree = BVHTree.FromPolygons(points, mesh.welded_triangles, all_triangles=True)
+    found = set()
+    for i, j in tree.overlap(tree):
+        if i == j:
+            continue
+        pair = (i, j) if i < j else (j, i)
+        if pair in found:
+            continue
+        first, second = mesh.welded_triangles[i], mesh.welded_triangles[j]
+        if set(first) & set(second):
+            continue
+        if triangles_cross([points[v] for v in first], [points[v] for v in second]):
+            found.add(pair)
+    return sorted(found)
+
+
+def count_crossing_pairs(positions, mesh_or_triangles):
+    return len(crossing_pairs(positions, mesh_or_triangles))
+
+
+# ---- creases -------------------------------------------------------------------------------
+
+
+def _triangle_normals(points, triangles):
+    """Unit normals (None for a triangle of zero area)."""
+    normals = []
+    for a, b, c in triangles:
+        n = _cross(_sub(points[b], points[a]), _sub(points[c], points[a]))
+        size = _length(n)
+        normals.append((n[0] / size, n[1] / size, n[2] / size) if size > 0.0 else None)
+    return normals
+
+
+def dihedral_angles(positions, mesh):
+    """{edge: angle in degrees between the normals of its two triangles} over the welded mesh's edges that have
+    exactly two triangles of non-zero area (0: flat, 180: folded flat onto itself)."""
+    points = points_of(positions)
+    normals = _triangle_normals(points, mesh.welded_triangles)
+    angles = {}
+    for edge, (t1, t2) in ((edge, triangles) for edge, triangles in mesh.edge_triangles.items()
+                           if len(triangles) == 2):
+        n1, n2 = normals[t1], normals[t2]
+        if n1 is None or n2 is None:
+            continue
+        angles[edge] = math.degrees(math.acos(max(-1.0, min(1.0, _dot(n1, n2)))))
+    return angles
+
+
+def creases_added(plain_positions, positions, mesh, threshold_degrees=CREASE_DEGREES):
+    """The welded edges whose dihedral angle at `positions` exceeds plain skinning's (at the same pose) by more
+    than threshold_degrees."""
+    plain = dihedral_angles(plain_positions, mesh)
+    now = dihedral_angles(positions, mesh)
+    return sorted(edge for edge, angle in now.items() if edge in plain and angle - plain[edge] > threshold_degrees)
+
+
+# ---- roughness -----------------------------------------------------------------------------
+
+
+def offsets_between(plain_positions, positions):
+    """Per vertex, positions - plain_positions, as [(dx, dy, dz), ...]."""
+    plain, now = points_of(plain_positions), points_of(positions)
+    return [_sub(p, q) for p, q in zip(now, plain)]
+
+
+def roughness(offsets, mesh):
+    """(largest roughness, largest offset, vertex of the largest roughness), both in mean rest edge lengths of the
+    welded mesh. A vertex's roughness is |its offset - the mean offset of its edge neighbours|; each point of the
+    skin is measured by its representative's offset."""
+    offsets = points_of(offsets)
+    unit = mesh.mean_rest_edge_length
+    worst, worst_vertex, largest = 0.0, -1, 0.0
+    for vertex in mesh.vertices:
+        own = offsets[vertex]
+        largest = max(largest, _length(own))
+        around = mesh.neighbours[vertex]
+        if not around:
+            continue
+        mean = [sum(offsets[n][k] for n in around) / len(around) for k in range(3)]
+        value = _length(_sub(own, mean))
+        if value > worst:
+            worst, worst_vertex = value, vertex
+    return worst / unit, largest / unit, worst_vertex
+
+
+def crack(offsets, mesh):
+    """The largest distance between the offsets of two vertices at one point of the skin, in mean rest edge lengths
+    (a split mesh whose copies move apart opens a crack)."""
+    offsets = points_of(offsets)
+    worst = 0.0
+    for vertex, representative in enumerate(mesh.weld):
+        if representative != vertex:
+            worst = max(worst, _length(_sub(offsets[vertex], offsets[representative])))
+    return worst / mesh.mean_rest_edge_length
+
+
+# ---- everything at one pose ----------------------------------------------------------------
+
+
+def measure_pose(mesh, plain_positions, corrected):
+    """The measures of QUALITY.md at one pose: `corrected` is {name: positions} (e.g. "vp", "vp+fold");
+    returns {"plain": {...}, name: {...}} with volume change, crossing pairs, and for the corrections the creases
+    added, the roughness, the largest offset and the crack."""
+    triangles = mesh.triangles
+    result = {"plain": {"volume": volume_change(mesh.rest, plain_positions, triangles),
+                        "crossings": count_crossing_pairs(plain_positions, mesh)}}
+    for name, positions in corrected.items():
+        offsets = offsets_between(plain_positions, positions)
+        rough, largest, _vertex = roughness(offsets, mesh)
+        result[name] = {"volume": volume_change(mesh.rest, positions, triangles),
+                        "crossings": count_crossing_pairs(positions, mesh),
+                        "creases": len(creases_added(plain_positions, positions, mesh)),
+                        "roughness": rough, "largest_offset": largest, "crack": crack(offsets, mesh)}
+    return result

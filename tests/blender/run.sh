@@ -120,7 +120,8 @@ if [ "$build" = 1 ] && [ "$list" = 0 ]; then
 fi
 
 for sel in "${selectors[@]}"; do
-	if [ "$sel" = 3.4 ]; then ensure_packages blender; fi
+	# python3-numpy: Blender's glTF add-on needs it (the round trips of test_imports and real_cases.py).
+	if [ "$sel" = 3.4 ]; then ensure_packages blender python3-numpy; fi
 done
 
 # Blender's user directories: fresh for this run (an extension installed by a test stays here).

@@ -7,7 +7,6 @@ the correction must follow what the Armature modifier does with them: the shown 
 bound skinning (lvp.h, stats.unskinned_distance), and the panel's "after" the shown volume.
 """
 
-import importlib.util
 import math
 import os
 import unittest
@@ -17,6 +16,7 @@ import bpy
 from mathutils import Quaternion
 
 import lvp_helpers as helpers
+import real_cases
 
 BONES = 11
 LENGTH = 4.0
@@ -131,10 +131,8 @@ class TestGLTF(RoundTripTestCase):
 
     def setUp(self):
         super().setUp()
-        if importlib.util.find_spec("numpy") is None:
-            self.skipTest("Blender's glTF add-on needs numpy, which this Blender's Python lacks")
-        if addon_utils.enable("io_scene_gltf2", default_set=False) is None:
-            self.skipTest("this Blender has no glTF add-on")
+        if not real_cases.enable_gltf():
+            self.skipTest("this Blender cannot import glTF (no numpy, or no glTF add-on)")
 
     def test_gltf_round_trip(self):
         obj = self.round_trip(

@@ -40,6 +40,7 @@ void lvp_free(lvp_binding *binding)
 		return;
 	lvp__pool_destroy(binding->pool);
 	free(binding->rest_positions);
+	lvp__weld_free(&binding->weld);
 	lvp__rig_free(&binding->rig);
 	lvp__mesh_free(&binding->mesh);
 	lvp__map_free(&binding->map);
@@ -83,6 +84,11 @@ static bool lvp__map_needs_skeleton(lvp_map map)
 
 
 
+static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, const float *rest_positions,
+                                   int32_t vertex_count, const int32_t *triangles, int32_t triangle_count,
+                                   const lvp_weights *weights, const lvp_skeleton *skeleton,
+                                   const lvp_bind_options *options, bool has_skeleton, lvp_diagnostic *r_diag);
+
 lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_t vertex_count,
                     const int32_t *triangles, int32_t triangle_count, const lvp_weights *weights,
                     const lvp_skeleton *skeleton, const lvp_bind_options *options, lvp_diagnostic *r_diag)
@@ -117,20 +123,51 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 			return result;
 	}
 
+	/* Vertices at the same rest position are one point (weld.c): from here on, bind works on the
+	 * points, and so does every frame. */
+	lvp__weld weld;
+	lvp__welded_mesh welded;
+	if ((result = lvp__find_points(&weld, &welded, rest_positions, vertex_count, triangles, triangle_count,
+	                               has_skeleton ? weights : NULL, r_diag)))
+		return result;
+	if (weld.vertex_point) {
+		rest_positions = welded.positions;
+		vertex_count = welded.vertex_count;
+		triangles = welded.triangles;
+		if (has_skeleton)
+			weights = &welded.weights;
+	}
+	result = lvp__bind_points(r_binding, &weld, rest_positions, vertex_count, triangles, triangle_count, weights,
+	                          skeleton, options, has_skeleton, r_diag);
+	lvp__welded_mesh_free(&welded);
+	return result;
+}
+
+/* lvp_bind on the points (weld.c), its inputs checked; takes weld, also on failure. */
+static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, const float *rest_positions,
+                                   int32_t vertex_count, const int32_t *triangles, int32_t triangle_count,
+                                   const lvp_weights *weights, const lvp_skeleton *skeleton,
+                                   const lvp_bind_options *options, bool has_skeleton, lvp_diagnostic *r_diag)
+{
+	lvp_result result;
 	/* Separate parts that bend get their own bones, so their own regions (parts.c). */
 	lvp__parts parts;
 	memset(&parts, 0, sizeof(parts));
 	parts.part_count = 1;
 	if (has_skeleton &&
 	    (result = lvp__split_parts(&parts, weights, vertex_count, triangles, triangle_count, skeleton->bone_count,
-	                               options->mode == LVP_MODE_LOCAL, r_diag)))
+	                               options->mode == LVP_MODE_LOCAL, r_diag))) {
+		lvp__weld_free(weld);
 		return result;
+	}
 
 	lvp_binding *binding = calloc(1, sizeof(lvp_binding));
 	if (!binding) {
 		lvp__parts_free(&parts);
+		lvp__weld_free(weld);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory.");
 	}
+	binding->weld = *weld;
 	binding->mode = options->mode;
 	binding->vertex_count = vertex_count;
 	binding->triangle_count = triangle_count;
@@ -205,7 +242,7 @@ lvp_result lvp_set_map(lvp_binding *binding, const lvp_map_options *map, lvp_dia
 
 int32_t lvp_vertex_count(const lvp_binding *binding)
 {
-	return binding ? binding->vertex_count : 0;
+	return binding ? binding->weld.caller_vertex_count : 0;
 }
 int32_t lvp_triangle_count(const lvp_binding *binding)
 {
@@ -233,8 +270,8 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
 		return;
 	/* Regions are internal bones in local mode: answered as the caller's bones (binding.h). */
 	if (r_vertex_regions)
-		for (int32_t k = 0; k < binding->vertex_count; ++k)
-			r_vertex_regions[k] = lvp__caller_bone(binding, binding->mesh.vertex_region[k]);
+		for (int32_t k = 0; k < binding->weld.caller_vertex_count; ++k)
+			r_vertex_regions[k] = lvp__caller_bone(binding, binding->mesh.vertex_region[lvp__vertex_point(binding, k)]);
 	if (r_triangle_regions)
 		for (int32_t t = 0; t < binding->triangle_count; ++t)
 			r_triangle_regions[binding->mesh.triangle_original[t]] =
@@ -245,5 +282,6 @@ void lvp_get_correction_map(const lvp_binding *binding, float *r_map)
 {
 	if (!binding || !r_map)
 		return;
-	memcpy(r_map, binding->map.gamma, sizeof(float) * (size_t)binding->vertex_count);
+	for (int32_t k = 0; k < binding->weld.caller_vertex_count; ++k)
+		r_map[k] = binding->map.gamma[lvp__vertex_point(binding, k)];
 }

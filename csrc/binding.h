@@ -82,6 +82,20 @@ typedef struct lvp__system_place {
  * the others' data; it writes only its own, and a cache that depends on another stage's data is
  * marked stale through the owner's function (lvp__frame_map_stale, lvp__dynamic_set_stale). */
 
+/* The points of the skin (weld.c): vertices at the same rest position are one point, and every
+ * other stage works on the points (vertex_count counts them). */
+typedef struct lvp__weld {
+	int32_t caller_vertex_count;
+	int32_t point_count;       /* caller_vertex_count when no two vertices coincide */
+	int32_t *vertex_point;     /* caller vertex -> point; NULL when no two vertices coincide (then
+	                              every array below is NULL too, and a point is its vertex) */
+	int32_t *point_first;      /* point -> its first caller vertex */
+	int32_t *copy_offsets;     /* point_count+1 into copies */
+	int32_t *copies;           /* the caller vertices of each point, in order */
+	/* This frame: */
+	float *positions, *rest;   /* point_count*3: the frame's positions and rest, gathered */
+} lvp__weld;
+
 /* The rig (rig.c): the weights and the bones as bound, and this frame's bones. */
 typedef struct lvp__rig {
 	/* Weights normalized by their sum, as Blender's Armature modifier normalizes them. */
@@ -323,7 +337,8 @@ typedef struct lvp__step {
 struct lvp_binding {
 	lvp_mode mode;
 	lvp__pool *pool; /* worker threads, NULL for one thread */
-	/* bone_count counts the internal bones (parts.c): the caller's, then, when several separate
+	/* vertex_count counts the points (weld.c), the caller's vertices with the coincident ones
+	 * taken once; the public API answers per caller vertex. bone_count counts the internal bones (parts.c): the caller's, then, when several separate
 	 * parts of the mesh bend, a copy of each bone for every part after the first that uses it.
 	 * Every array indexed by bone or region is over the internal bones; the public API answers in
 	 * the caller's bones (bind.c, correction.c). */
@@ -333,6 +348,7 @@ struct lvp_binding {
 	double rest_volume;     /* its signed volume, holes capped */
 	double size;            /* the diagonal of its bounding box */
 
+	lvp__weld weld;
 	lvp__rig rig;
 	lvp__mesh mesh;
 	lvp__map map;
@@ -421,13 +437,47 @@ void lvp__fold_free(lvp__fold *fold);
 void lvp__part_volumes_free(lvp__part_volumes *parts);
 void lvp__step_free(lvp__step *step);
 
+/* weld.c */
+/* The welded mesh lvp_bind works on when some vertices coincide (its arrays malloc'ed). */
+typedef struct lvp__welded_mesh {
+	int32_t vertex_count;
+	float *positions;
+	int32_t *triangles;
+	int32_t *weight_offsets, *weight_bones;
+	float *weight_values;
+	lvp_weights weights;       /* over the three arrays above, when weights were given */
+} lvp__welded_mesh;
+/* Finds the points of the caller's mesh (inputs validated). When no two vertices coincide,
+ * weld->vertex_point stays NULL and *r_mesh empty; else *r_mesh is the welded mesh. */
+lvp_result lvp__find_points(lvp__weld *weld, lvp__welded_mesh *r_mesh, const float *positions, int32_t vertex_count,
+                            const int32_t *triangles, int32_t triangle_count, const lvp_weights *weights,
+                            lvp_diagnostic *r_diag);
+void lvp__welded_mesh_free(lvp__welded_mesh *mesh);
+void lvp__weld_free(lvp__weld *weld);
+/* r_points[3p..3p+2] = vertex_values of point p's first vertex. */
+void lvp__gather(float *r_points, const lvp__weld *weld, const float *vertex_values);
+/* Checks a frame's positions (and its rest, when given) against the caller's vertex count and,
+ * on a welded mesh, points *positions and *rest_positions to the points' (gathered). */
+lvp_result lvp__frame_points(lvp_binding *binding, const float **positions, const float **rest_positions,
+                             lvp_diagnostic *r_diag);
+/* The caller's vertex whose values point p takes (itself when nothing is welded). */
+static inline int32_t lvp__point_vertex(const lvp_binding *binding, int32_t p)
+{
+	return binding->weld.point_first ? binding->weld.point_first[p] : p;
+}
+/* The point of caller vertex k. */
+static inline int32_t lvp__vertex_point(const lvp_binding *binding, int32_t k)
+{
+	return binding->weld.vertex_point ? binding->weld.vertex_point[k] : k;
+}
+
 /* rig.c */
 /* Copies the weights, normalized by their sum (their bones are already in weight_bones,
  * lvp__split_parts), and the bones' rest frames (each internal bone its caller's). */
 void lvp__rig_copy(lvp_binding *binding, const lvp_weights *weights, const lvp_skeleton *skeleton);
-/* Checks a frame's inputs and poses the bones: posed, skin, kappa, region_skipped. */
-lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
-                              const float *rest_positions, lvp_diagnostic *r_diag);
+/* Checks the bone matrices and poses the bones: posed, skin, kappa, region_skipped (after
+ * lvp__frame_points). */
+lvp_result lvp__prepare_frame(lvp_binding *binding, const float *bone_matrices, lvp_diagnostic *r_diag);
 
 /* segmentation.c */
 lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag);

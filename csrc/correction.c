@@ -643,6 +643,41 @@ static int32_t lvp__count_skipped(const lvp_binding *binding)
 	return skipped;
 }
 
+/* The offsets (step.positions - positions, of the points) and the corrected positions of every
+ * caller vertex: a point's offset goes to each of its vertices (weld.c). Only dynamic points can
+ * have moved; every other vertex is its input. Returns the largest offset's length. */
+static double lvp__write_output(const lvp_binding *binding, float *r_positions, float *r_offsets,
+                                const float *caller_positions, const float *positions)
+{
+	const lvp__weld *weld = &binding->weld;
+	size_t values = 3 * (size_t)weld->caller_vertex_count;
+	if (r_offsets)
+		memset(r_offsets, 0, sizeof(float) * values);
+	if (r_positions && r_positions != caller_positions)
+		memcpy(r_positions, caller_positions, sizeof(float) * values);
+	double largest = 0.0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t p = binding->dynamic.vertices[v];
+		const float *in = positions + 3 * p, *out = binding->step.positions + 3 * p;
+		float offset[3] = {out[0] - in[0], out[1] - in[1], out[2] - in[2]};
+		largest = fmax(largest, (double)offset[0] * offset[0] + (double)offset[1] * offset[1] +
+		                            (double)offset[2] * offset[2]);
+		int32_t first = weld->copies ? weld->copy_offsets[p] : 0, last = weld->copies ? weld->copy_offsets[p + 1] : 1;
+		for (int32_t i = first; i < last; ++i) {
+			int32_t k = weld->copies ? weld->copies[i] : p;
+			for (int c = 0; c < 3; ++c) {
+				if (r_offsets)
+					r_offsets[3 * k + c] = offset[c];
+				/* a point's first vertex is its input exactly; another copy keeps its own input */
+				if (r_positions)
+					r_positions[3 * k + c] =
+					    k == lvp__point_vertex(binding, p) ? out[c] : caller_positions[3 * k + c] + offset[c];
+			}
+		}
+	}
+	return sqrt(largest);
+}
+
 lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *binding, const float *positions,
                        const float *bone_matrices, const float *rest_positions, const lvp_frame_options *options,
                        lvp_frame_stats *r_stats, lvp_diagnostic *r_diag)
@@ -658,7 +693,9 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	lvp_result result = lvp__check_frame_options(options, r_diag);
 	if (result)
 		return result;
-	if ((result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag)))
+	const float *caller_positions = positions; /* positions and rest_positions: the points' from here on */
+	if ((result = lvp__frame_points(binding, &positions, &rest_positions, r_diag)) ||
+	    (result = lvp__prepare_frame(binding, bone_matrices, r_diag)))
 		return result;
 
 	int32_t n = binding->vertex_count;
@@ -748,27 +785,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	stats.skipped_regions = lvp__count_skipped(binding);
 
-	if (r_offsets)
-		memset(r_offsets, 0, sizeof(float) * 3 * (size_t)n);
-	if (r_positions && r_positions != positions)
-		memcpy(r_positions, positions, sizeof(float) * 3 * (size_t)n);
-	double largest = 0.0;
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
-		int32_t i = 3 * binding->dynamic.vertices[v];
-		float in[3] = {positions[i], positions[i + 1], positions[i + 2]};
-		const float *out = binding->step.positions + i;
-		double d2 = 0.0;
-		for (int c = 0; c < 3; ++c) {
-			float offset = out[c] - in[c];
-			d2 += (double)offset * offset;
-			if (r_offsets)
-				r_offsets[i + c] = offset;
-			if (r_positions)
-				r_positions[i + c] = out[c];
-		}
-		largest = d2 > largest ? d2 : largest;
-	}
-	stats.max_displacement = sqrt(largest);
+	double largest = lvp__write_output(binding, r_positions, r_offsets, caller_positions, positions);
+	stats.max_displacement = largest;
 	if (r_stats)
 		*r_stats = stats;
 	return lvp_success;
@@ -783,8 +801,9 @@ lvp_result lvp_region_volume_changes(double *r_changes, double *r_references, lv
 	if (!r_changes)
 		return lvp__fail(r_diag, lvp_error_null_argument, "r_changes", -1,
 		                 "r_changes is NULL; pass region_count doubles.");
-	lvp_result result = lvp__prepare_frame(binding, positions, bone_matrices, rest_positions, r_diag);
-	if (result)
+	lvp_result result;
+	if ((result = lvp__frame_points(binding, &positions, &rest_positions, r_diag)) ||
+	    (result = lvp__prepare_frame(binding, bone_matrices, r_diag)))
 		return result;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
 	lvp__find_dynamic_set(binding, rest_positions, totals, true);

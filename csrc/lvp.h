@@ -51,6 +51,19 @@
  *      bones' scales alone give the region, and the whole mesh keeps the scaled volume.
  *   4. Fold-over prevention (paper 5.4), when enabled: see FOLD-OVER.
  *
+ * SEAMS (one point of the skin, many vertices)
+ *
+ *   Meshes from glTF, FBX or caches arrive split along their UV seams and hard edges: several
+ *   vertices at one position. lvp_bind() finds them with no option to set: vertices at the same
+ *   rest position (bit for bit, -0 as +0) that share a split edge (each has a neighbour at the
+ *   same position as one of the other's) are one point, and every quantity of the method
+ *   (normals, gradients, regions and their borders, parts, the maps, fold-over) is computed on
+ *   the points: a split mesh is corrected as its welded version is, to float rounding. A point
+ *   takes the weights, the painted map value and each frame's position of its first vertex (the
+ *   lowest index); its offset goes to every vertex of the point, so no crack opens. Shells that
+ *   only touch at a vertex stay apart. The API still speaks of the caller's vertices:
+ *   lvp_vertex_count(), the per-vertex outputs and the arrays the calls take.
+ *
  * CORRECTION MAPS (gamma: where the volume goes; paper 4 and 5.3)
  *
  *   With w_k = max_i omega_ki (the vertex's largest normalized weight) and d_k the rest

@@ -21,10 +21,11 @@ lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_opti
 		return lvp__fail(r_diag, lvp_error_invalid_option, "map.beta", -1,
 		                 "map.beta is %g; it must be a number between 0 and 64.", (double)map->beta);
 	if (map->map == LVP_MAP_PAINTED) {
-		lvp_result result = lvp__check_float_array(map->painted, binding->vertex_count, "map.painted", r_diag);
+		lvp_result result =
+		    lvp__check_float_array(map->painted, binding->weld.caller_vertex_count, "map.painted", r_diag);
 		if (result)
 			return result;
-		for (int32_t k = 0; k < binding->vertex_count; ++k)
+		for (int32_t k = 0; k < binding->weld.caller_vertex_count; ++k)
 			if (map->painted[k] < 0.0f)
 				return lvp__fail(r_diag, lvp_error_negative_weight, "map.painted", k,
 				                 "map.painted[%d] is %g; a painted correction map must be >= 0.", (int)k,
@@ -137,7 +138,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 			distance = lvp__vertex_distance(binding, k, bones, count);
 		}
 		binding->map.distance[k] = (float)distance;
-		double log_gamma = lvp__log_map(map, binding->mesh.max_weight[k], distance, k);
+		double log_gamma = lvp__log_map(map, binding->mesh.max_weight[k], distance, lvp__point_vertex(binding, k));
 		/* Unweighted vertices belong to no region in local mode: they never move. */
 		if (local && region < 0)
 			log_gamma = -INFINITY;

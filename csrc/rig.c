@@ -46,15 +46,10 @@ void lvp__rig_copy(lvp_binding *binding, const lvp_weights *weights, const lvp_s
 	lvp__copy_skeleton(binding, skeleton);
 }
 
-lvp_result lvp__prepare_frame(lvp_binding *binding, const float *positions, const float *bone_matrices,
-                              const float *rest_positions, lvp_diagnostic *r_diag)
+lvp_result lvp__prepare_frame(lvp_binding *binding, const float *bone_matrices, lvp_diagnostic *r_diag)
 {
-	int32_t n = binding->vertex_count, b = binding->caller_bone_count;
-	lvp_result result = lvp__check_float_array(positions, (int64_t)n * 3, "positions", r_diag);
-	if (result)
-		return result;
-	if (rest_positions && (result = lvp__check_float_array(rest_positions, (int64_t)n * 3, "rest_positions", r_diag)))
-		return result;
+	int32_t b = binding->caller_bone_count;
+	lvp_result result;
 	bool need_bones = binding->mode == LVP_MODE_LOCAL;
 	if (need_bones && !bone_matrices)
 		return lvp__fail(r_diag, lvp_error_null_argument, "bone_matrices", -1,

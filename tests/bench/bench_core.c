@@ -243,6 +243,20 @@ int main(void)
 		if (levels[i])
 			test_rig_free(&c.rig);
 	}
+	/* The same giraffe as imported from glTF: split at seams, welded by lvp_bind (lvp.h, SEAMS). */
+	bench_case split;
+	test_rig subdivided = test_subdivide(&giraffe, 3);
+	int32_t *original;
+	split.name = "giraffe x64, split at seams";
+	split.rig = test_split_at_seams(&subdivided, &original);
+	split.pose = "neck, 2 legs";
+	split.rotations = giraffe_pose(&split.rig);
+	split.stretch = 1.0f;
+	run_case(&split, cores);
+	free(split.rotations);
+	free(original);
+	test_rig_free(&split.rig);
+	test_rig_free(&subdivided);
 	test_rig_free(&giraffe);
 	return 0;
 }

@@ -843,73 +843,6 @@ static void test_separate_parts_keep_their_own_volume(void)
 	free_cylinder(&alone);
 }
 
-/* rig split into islands as a glTF round trip splits a mesh at its UV seams: triangles are
- * grouped by the quadrant of their centroid around the axis, and a vertex used by several
- * groups gets a copy for each group after its first (appended). r_original: the vertex each
- * vertex of the split mesh copies. */
-static test_rig split_at_seams(const test_rig *rig, int32_t **r_original)
-{
-	int32_t n = rig->vertex_count, f = rig->triangle_count, b = rig->bone_count;
-	int32_t *copy_of = malloc(sizeof(int32_t) * 4 * (size_t)n); /* (vertex, island) -> split vertex */
-	int32_t *original = malloc(sizeof(int32_t) * 4 * (size_t)n);
-	for (int32_t i = 0; i < 4 * n; ++i)
-		copy_of[i] = -1;
-	test_rig split = *rig;
-	split.triangles = malloc(sizeof(int32_t) * 3 * (size_t)f);
-	int32_t count = n;
-	for (int32_t k = 0; k < n; ++k)
-		original[k] = k;
-	for (int32_t t = 0; t < f; ++t) {
-		float cx = 0.0f, cy = 0.0f;
-		for (int c = 0; c < 3; ++c) {
-			cx += rig->positions[3 * rig->triangles[3 * t + c]];
-			cy += rig->positions[3 * rig->triangles[3 * t + c] + 1];
-		}
-		int island = (cx >= 0.0f) + 2 * (cy >= 0.0f);
-		for (int c = 0; c < 3; ++c) {
-			int32_t k = rig->triangles[3 * t + c];
-			int32_t *slot = &copy_of[4 * k + island];
-			if (*slot < 0) {
-				int used = 0;
-				for (int other = 0; other < 4; ++other)
-					used = used || copy_of[4 * k + other] >= 0;
-				*slot = used ? count : k;
-				if (used)
-					original[count++] = k;
-			}
-			split.triangles[3 * t + c] = *slot;
-		}
-	}
-	split.vertex_count = count;
-	split.positions = malloc(sizeof(float) * 3 * (size_t)count);
-	split.weight_offsets = malloc(sizeof(int32_t) * ((size_t)count + 1));
-	int32_t entries = 0;
-	for (int32_t k = 0; k < count; ++k)
-		entries += rig->weight_offsets[original[k] + 1] - rig->weight_offsets[original[k]];
-	split.weight_bones = malloc(sizeof(int32_t) * (size_t)entries);
-	split.weight_values = malloc(sizeof(float) * (size_t)entries);
-	split.weight_offsets[0] = 0;
-	for (int32_t k = 0; k < count; ++k) {
-		int32_t o = original[k], begin = rig->weight_offsets[o], length = rig->weight_offsets[o + 1] - begin;
-		memcpy(split.positions + 3 * k, rig->positions + 3 * o, sizeof(float) * 3);
-		memcpy(split.weight_bones + split.weight_offsets[k], rig->weight_bones + begin, sizeof(int32_t) * (size_t)length);
-		memcpy(split.weight_values + split.weight_offsets[k], rig->weight_values + begin, sizeof(float) * (size_t)length);
-		split.weight_offsets[k + 1] = split.weight_offsets[k] + length;
-	}
-	split.rest_matrices = malloc(sizeof(float) * 16 * (size_t)b);
-	split.heads = malloc(sizeof(float) * 3 * (size_t)b);
-	split.tails = malloc(sizeof(float) * 3 * (size_t)b);
-	split.parents = malloc(sizeof(int32_t) * (size_t)b);
-	split.names = NULL;
-	memcpy(split.rest_matrices, rig->rest_matrices, sizeof(float) * 16 * (size_t)b);
-	memcpy(split.heads, rig->heads, sizeof(float) * 3 * (size_t)b);
-	memcpy(split.tails, rig->tails, sizeof(float) * 3 * (size_t)b);
-	memcpy(split.parents, rig->parents, sizeof(int32_t) * (size_t)b);
-	free(copy_of);
-	*r_original = original;
-	return split;
-}
-
 /* A mesh split at its seams (lvp.h, SEAMS) is corrected as the welded mesh is: every vertex gets
  * its original's offset (to float rounding) and copies of one point the same offset, so no
  * crack opens; without the welding, each island is a separate open part with its own volume. */
@@ -917,7 +850,7 @@ static void test_seams_are_one_point(void)
 {
 	posed_cylinder c = make_bent_cylinder(90);
 	int32_t *original;
-	test_rig split = split_at_seams(&c.rig, &original);
+	test_rig split = test_split_at_seams(&c.rig, &original);
 	int32_t n = c.rig.vertex_count, split_n = split.vertex_count;
 	float *skinned = malloc(sizeof(float) * 3 * (size_t)split_n);
 	for (int32_t k = 0; k < split_n; ++k)

@@ -90,6 +90,12 @@ int64_t test_count_intersecting_pairs(const float *positions, const int32_t *tri
 test_rig test_subdivide(const test_rig *rig, int levels);
 
 /* Reads a whole file into a malloc'ed, NUL-terminated buffer; NULL on failure. */
+/* rig split into islands as a glTF round trip splits a mesh at its UV seams: triangles are
+ * grouped by the quadrant of their centroid around the z axis, and a vertex used by several
+ * groups gets a copy for each group after its first (appended, with its weights). r_original
+ * (malloc'ed): the vertex each vertex of the split mesh copies. */
+test_rig test_split_at_seams(const test_rig *rig, int32_t **r_original);
+
 char *test_read_file(const char *path, size_t *r_size);
 
 #endif

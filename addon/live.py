@@ -350,6 +350,22 @@ def _not_the_bound_skinning(obj, stats):
             "to %.3g): press Bind if the weights or the rig changed" % stats["unskinned_distance"])
 
 
+def _volume_shortfall(bound, stats):
+    """What is left when the correction could not bring the volume back at this pose (neither the whole
+    mesh nor its worst region at least halfway back: a map that cannot move the skin there, steps that
+    made things worse and were undone), or None."""
+    rest = stats["volume_rest"]
+    if not rest:
+        return None
+    before, after = (stats[key] / rest - 1.0 for key in ("volume_before", "volume_after"))
+    region_before, region_after = stats["worst_region_change_before"], stats["worst_region_change_after"]
+    if abs(after) <= 0.5 * abs(before) + 1e-3 or abs(region_after) <= 0.5 * abs(region_before) + 1e-3:
+        return None
+    return ("the volume comes back only from %+.2f %% to %+.2f %% at this pose (region %s: %+.2f %%): the map "
+            "cannot move the skin there, or the correction's steps made it worse"
+            % (100.0 * before, 100.0 * after, stats["worst_region_name"], 100.0 * region_after))
+
+
 def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
     """(level, message) of a frame corrected with stats: "Correcting", and what holds it back."""
     warnings = []
@@ -370,6 +386,9 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
         vertex, distance = bound.stray_vertex
         warnings.append("vertex %d lies %.3g away from the armature, a stray? Its region's volume is measured "
                         "wrong; move it back or delete it, then Bind" % (vertex, distance))
+    shortfall = _volume_shortfall(bound, stats)
+    if shortfall is not None:
+        warnings.append(shortfall)
     if stats.get("skipped_regions"):
         warnings.append("%d region(s) of a bone scaled to zero left as they are (nothing to restore)"
                         % stats["skipped_regions"])

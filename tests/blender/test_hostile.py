@@ -163,6 +163,20 @@ class TestDeformedTwice(HostileTestCase):
         self.assertGreater(self.addon.bindings.entry(self.obj).stats["unskinned_distance"], 0.1)
 
 
+class TestCannotRestore(HostileTestCase):
+    """A map that lets nothing move (the Painted effect with an empty vertex group): the frame is
+    corrected as far as it can be, which is not at all, and the panel says so."""
+
+    def test_painted_map_of_zeros(self):
+        self.obj.vertex_groups.new(name="Nowhere")
+        self.obj.lvp.effect = 'PAINTED'
+        self.obj.lvp.painted_vertex_group = "Nowhere"
+        self.show_frame(10)
+        level, status = self.assertNeverSilentlyWrong(message="painted map of zeros")
+        self.assertEqual(level, 'WARNING', status)
+        self.assertIn("the volume comes back only", status)
+
+
 class TestTopologyEdits(HostileTestCase):
     """1. A topology edit that keeps the counts (Flip Normals, Rotate Edge, Sort Elements), then a
     weight change."""

@@ -342,18 +342,6 @@ static void test_dual_quaternions_blend_along_the_shorter_arc(void)
 
 /* ---- errors -------------------------------------------------------------------------------------- */
 
-static void expect(lvp_result got, const lvp_diagnostic *diag, lvp_result want, const char *argument, int64_t index)
-{
-	CHECK(got == want);
-	if (got != want)
-		fprintf(stderr, "    got %s, want %s\n", lvp_result_name(got), lvp_result_name(want));
-	CHECK(diag->argument && strcmp(diag->argument, argument) == 0);
-	if (diag->argument && strcmp(diag->argument, argument) != 0)
-		fprintf(stderr, "    argument %s, want %s\n", diag->argument, argument);
-	CHECK(diag->index == index);
-	CHECK(strlen(diag->message) > 10);
-}
-
 static void test_error_paths_name_the_argument(void)
 {
 	tube t = make_tube(4, 5, 0.5f, 4.0f, 2.6f);
@@ -369,48 +357,50 @@ static void test_error_paths_name_the_argument(void)
 		memset(&diag, 0, sizeof(diag));
 		for (int32_t i = 0; i < 3 * n; ++i)
 			out[i] = 777.0f;
-		expect(f(NULL, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_null_argument, "r_positions", -1);
-		expect(f(out, NULL, n, &w, matrices, 2, &diag), &diag, lvp_error_null_argument, "rest_positions", -1);
-		expect(f(out, t.positions, n, NULL, matrices, 2, &diag), &diag, lvp_error_null_argument, "weights.offsets",
-		       -1);
+		CHECK_ERROR(f(NULL, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_null_argument, "r_positions", -1);
+		CHECK_ERROR(f(out, NULL, n, &w, matrices, 2, &diag), &diag, lvp_error_null_argument, "rest_positions", -1);
+		CHECK_ERROR(f(out, t.positions, n, NULL, matrices, 2, &diag), &diag, lvp_error_null_argument, "weights.offsets",
+		            -1);
 		broken = w, broken.offsets = NULL;
-		expect(f(out, t.positions, n, &broken, matrices, 2, &diag), &diag, lvp_error_null_argument,
-		       "weights.offsets", -1);
+		CHECK_ERROR(f(out, t.positions, n, &broken, matrices, 2, &diag), &diag, lvp_error_null_argument,
+		            "weights.offsets", -1);
 		broken = w, broken.values = NULL;
-		expect(f(out, t.positions, n, &broken, matrices, 2, &diag), &diag, lvp_error_null_argument,
-		       "weights.values", -1);
-		expect(f(out, t.positions, n, &w, NULL, 2, &diag), &diag, lvp_error_null_argument, "skin_matrices", -1);
-		expect(f(out, t.positions, 0, &w, matrices, 2, &diag), &diag, lvp_error_invalid_size, "vertex_count", -1);
-		expect(f(out, t.positions, -1, &w, matrices, 2, &diag), &diag, lvp_error_invalid_size, "vertex_count", -1);
-		expect(f(out, t.positions, n, &w, matrices, 0, &diag), &diag, lvp_error_invalid_size, "bone_count", -1);
-		expect(f(out, t.positions, n, &w, matrices, LVP_MAX_BONES + 1, &diag), &diag, lvp_error_invalid_size,
-		       "bone_count", -1);
+		CHECK_ERROR(f(out, t.positions, n, &broken, matrices, 2, &diag), &diag, lvp_error_null_argument,
+		            "weights.values", -1);
+		CHECK_ERROR(f(out, t.positions, n, &w, NULL, 2, &diag), &diag, lvp_error_null_argument, "skin_matrices", -1);
+		CHECK_ERROR(f(out, t.positions, 0, &w, matrices, 2, &diag), &diag, lvp_error_invalid_size, "vertex_count", -1);
+		CHECK_ERROR(f(out, t.positions, -1, &w, matrices, 2, &diag), &diag, lvp_error_invalid_size, "vertex_count", -1);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 0, &diag), &diag, lvp_error_invalid_size, "bone_count", -1);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, LVP_MAX_BONES + 1, &diag), &diag, lvp_error_invalid_size,
+		            "bone_count", -1);
 		/* bone 1 exists only when bone_count is 2 */
 		int32_t first_on_bone_1 = 0;
 		while (t.bones[first_on_bone_1] != 1)
 			++first_on_bone_1;
-		expect(f(out, t.positions, n, &w, matrices, 1, &diag), &diag, lvp_error_index_out_of_range, "weights.bones",
-		       first_on_bone_1);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 1, &diag), &diag,
+		            lvp_error_index_out_of_range, "weights.bones", first_on_bone_1);
 		int32_t saved = t.offsets[3];
 		t.offsets[3] = t.offsets[4] + 1;
-		expect(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_invalid_size, "weights.offsets", 4);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 2, &diag), &diag,
+		            lvp_error_invalid_size, "weights.offsets", 4);
 		t.offsets[3] = saved;
 		t.values[5] = -0.5f;
-		expect(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_negative_weight, "weights.values", 5);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 2, &diag), &diag,
+		            lvp_error_negative_weight, "weights.values", 5);
 		t.values[5] = NAN;
-		expect(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "weights.values", 5);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "weights.values", 5);
 		t.values[5] = 1.0f;
 		t.positions[7] = INFINITY;
-		expect(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "rest_positions", 7);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "rest_positions", 7);
 		t.positions[7] = 0.0f;
 		matrices[16 + 5] = NAN;
-		expect(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "skin_matrices", 21);
+		CHECK_ERROR(f(out, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_not_finite, "skin_matrices", 21);
 		matrices[16 + 5] = 1.0f;
 		/* writing over the rest positions while reading them is refused */
-		expect(f(t.positions, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_invalid_option,
-		       "r_positions", -1);
-		expect(f((float *)t.values, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_invalid_option,
-		       "r_positions", -1);
+		CHECK_ERROR(f(t.positions, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_invalid_option,
+		            "r_positions", -1);
+		CHECK_ERROR(f((float *)t.values, t.positions, n, &w, matrices, 2, &diag), &diag, lvp_error_invalid_option,
+		            "r_positions", -1);
 		for (int32_t i = 0; i < 3 * n; ++i)
 			CHECK(out[i] == 777.0f); /* no failure wrote anything */
 		CHECK(f(out, t.positions, n, &w, matrices, 2, NULL) == lvp_success);

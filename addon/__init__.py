@@ -33,13 +33,14 @@ from . import names  # noqa: E402
 from . import mesh_data  # noqa: E402
 from . import node_group  # noqa: E402
 from . import bindings  # noqa: E402
+from .session import SESSION  # noqa: E402
 from . import live  # noqa: E402
 from . import display  # noqa: E402
 from . import properties  # noqa: E402
 from . import operators  # noqa: E402
 from . import ui  # noqa: E402
 from . import handlers  # noqa: E402
-from . import bake  # noqa: E402  (baking to point caches, issue 4: bake/__init__.py)
+from . import bake  # noqa: E402  (baking to point caches: bake/__init__.py)
 
 # Registered in this order, unregistered in reverse.
 modules = (
@@ -59,4 +60,4 @@ def register():
 def unregister():
     for module in reversed(modules):
         module.unregister()
-    bindings.clear()
+    SESSION.close_bindings()

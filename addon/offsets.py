@@ -32,11 +32,11 @@ from array import array
 
 import bpy
 
-from . import bindings
 from . import blender_api
 from . import mesh_data
 from . import names
 from . import node_group
+from .session import SESSION
 
 
 def offsets_object(modifier):
@@ -104,7 +104,7 @@ def new_offsets_object(obj, modifier, vertex_count):
     # has it rebuild its relations at the next evaluation (tested: tests/blender/test_live.py,
     # TestDuplicates, a copy given a new offsets object from a handler is corrected on that frame).
     blender_api.set_modifier_input(modifier, identifier, holder)
-    bindings.expect_own_update(obj)
+    SESSION.changes.expect_own_update(obj)
     obj.update_tag()
     if previous is not None:
         delete_if_unused(previous)
@@ -125,7 +125,7 @@ def _name_no_offsets_object(obj, modifier):
     """obj's modifier then samples nothing: it passes the mesh through."""
     identifier = node_group.offsets_socket_identifier(modifier.node_group)
     blender_api.set_modifier_input(modifier, identifier, None)
-    bindings.expect_own_update(obj)
+    SESSION.changes.expect_own_update(obj)
     obj.update_tag()
 
 
@@ -144,10 +144,10 @@ def write(holder, offsets, bound=None):
     and tags its mesh for a new evaluation (which evaluates the corrected object again). Returns
     whether anything was written.
 
-    bound.written remembers what was last written, which saves reading it back every frame; it is
-    forgotten (None) whenever something else may have changed it (undo, a new offsets object).
+    bound remembers what was last written, which saves reading it back every frame; it forgets it
+    whenever something else may have changed it (undo, a new offsets object).
     """
-    if bound is not None and bound.written is not None and mesh_data.same_values(bound.written, offsets):
+    if bound is not None and bound.wrote(offsets):
         return False
     mesh = holder.data
     if len(mesh.vertices) * 3 != len(offsets):
@@ -156,15 +156,12 @@ def write(holder, offsets, bound=None):
         current = mesh_data.vertex_positions(mesh)
         if mesh_data.same_values(current, offsets):
             if bound is not None:
-                bound.written = current
+                bound.note_written(current)
             return False
     mesh_data.set_vertex_positions(mesh, offsets)
     mesh.update_tag()
     if bound is not None:
-        if bound.written is None:
-            bound.written = array('f', offsets)
-        else:
-            bound.written[:] = offsets  # in place: no new buffer per frame (it resizes when it must)
+        bound.note_written(offsets)
     return True
 
 

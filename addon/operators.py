@@ -23,6 +23,7 @@ from . import names
 from . import node_group
 from . import offsets
 from . import skeleton
+from .session import SESSION
 
 
 def _target_objects(context):
@@ -224,7 +225,7 @@ def remove_from_object(obj):
             attribute = mesh.attributes.get(name)
             if attribute is not None:
                 mesh.attributes.remove(attribute)
-    bindings.forget(obj)
+    SESSION.forget(obj)
     settings = obj.lvp
     settings.bind_id = ""
     settings.topology_signature = ""
@@ -393,7 +394,7 @@ class OBJECT_OT_lvp_region_restriction_remove(bpy.types.Operator):
         index = min(settings.active_region_restriction, len(settings.region_restrictions) - 1)
         settings.region_restrictions.remove(index)
         settings.active_region_restriction = max(0, index - 1)
-        bindings.expect_own_update(obj)
+        SESSION.changes.expect_own_update(obj)
         obj.update_tag()
         return {'FINISHED'}
 

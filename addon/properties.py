@@ -10,8 +10,8 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
                        PointerProperty, StringProperty)
 
-from . import bindings
 from . import display
+from .session import SESSION
 
 # Every setting can be changed on a library override (a character linked into a shot) and is kept
 # in the shot's file; otherwise Blender would give it back the character file's value on reopening.
@@ -23,7 +23,7 @@ def _own_property_changed(settings, context):
     changed: not a change of its weights or rest mesh, which are not read again for it."""
     obj = settings.id_data
     if isinstance(obj, bpy.types.Object):
-        bindings.expect_own_update(obj)
+        SESSION.changes.expect_own_update(obj)
 
 
 def _settings_changed(settings, context):

@@ -20,12 +20,12 @@ from array import array
 
 import bpy
 
-from .. import bindings
 from .. import handlers
 from .. import mesh_data
 from .. import names
 from .. import node_group
 from .. import offsets
+from ..session import SESSION
 
 
 class BakeError(Exception):
@@ -114,7 +114,7 @@ class ObjectReader:
     def read(self, depsgraph, frame):
         """Fills self.positions for the frame the depsgraph was evaluated at. Raises BakeError."""
         obj = self.obj
-        status = bindings.status(obj)
+        status = SESSION.status(obj)
         if status is not None and status[0] == 'ERROR':
             raise BakeError("%r at frame %d: %s" % (self.name, frame, status[1]))
         mesh_eval = obj.evaluated_get(depsgraph).data

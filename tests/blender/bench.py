@@ -143,8 +143,8 @@ def main():
 
     # Where the time goes in Volume Preservation: the C core's correction alone, on one frame.
     scene.frame_set(half)
-    bound = addon.bindings.entry(ours)
-    status = addon.bindings.status(ours)
+    bound = addon.session.SESSION.bound(ours)
+    status = addon.session.SESSION.status(ours)
     correct_times = []
     for _repeat in range(5):
         start = time.perf_counter()

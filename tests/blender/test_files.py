@@ -32,13 +32,13 @@ result = {{}}
 def dump(key):
     positions = lvp_helpers.evaluated_positions(obj)
     result[key] = list(positions)
-    status = addon.bindings.status(obj)
+    status = addon.session.SESSION.status(obj)
     result[key + "_status"] = list(status) if status else None
 dump("opened")
 for frame in {frames!r}:
     bpy.context.scene.frame_set(frame)
     dump("frame%d" % frame)
-result["bound"] = addon.bindings.entry(obj) is not None
+result["bound"] = addon.session.SESSION.bound(obj) is not None
 with open(out, "w") as file:
     json.dump(result, file)
 """

@@ -92,7 +92,7 @@ class RoundTripTestCase(helpers.AddonTestCase):
             scene.frame_set(frame)
             level, status = self.status_of(obj)
             self.assertTrue(status.startswith("Correcting") and level == 'INFO', "%s, frame %d: %r" % (what, frame, status))
-            stats = self.addon.bindings.entry(obj).stats
+            stats = self.addon.session.SESSION.bound(obj).stats
             self.assertEqual(stats["unskinned_distance"], 0.0, "%s, frame %d: the bound skinning" % (what, frame))
             shown = helpers.volume(helpers.evaluated_positions(obj), triangles)
             self.assertSmallerThan(abs(shown / rest - 1.0), 1e-3, "%s, frame %d: shown volume" % (what, frame))

@@ -227,9 +227,9 @@ def bind(obj, depsgraph=None, inputs=None):
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
                                mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton, inputs))
-    except ValueError as error:
+    except _lvp.Error as error:
         message = str(error)
-        if getattr(error, "code", None) == "mesh_not_closed":
+        if error.code == "mesh_not_closed":
             message = ("The Global effect needs a closed mesh and %s has holes: use Organic (per region), or "
                        "close the mesh. (%s)" % (obj.name, message))
         raise BindError("Cannot bind %s: %s" % (obj.name, message)) from None

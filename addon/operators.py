@@ -329,7 +329,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
                         mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads,
                         tails, alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
                         min_weight=self.min_weight)
-                except (ValueError, MemoryError) as error:
+                except (_lvp.Error, MemoryError) as error:
                     problem = "Cannot compute weights for %s: %s" % (obj.name, error)
                 else:
                     plans.append((obj, bone_names, weights))

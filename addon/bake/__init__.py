@@ -20,13 +20,14 @@ from . import operator
 from . import command
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(operator.classes)
+
+
 def register():
-    for cls in operator.classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     command.register()
 
 
 def unregister():
     command.unregister()
-    for cls in reversed(operator.classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

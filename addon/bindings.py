@@ -75,9 +75,8 @@ def _digest(*parts):
 class BindInputs:
     """What a binding is made of, read from the object as it is now: the rest mesh, the bound bones
     (deforming, with a vertex group) and their weights, the Armature modifier's mask weights, the
-    painted map. The weights are read by a Python loop over the vertices (75-100 ms for 100k
-    vertices with two weights each), so this is read when binding and when someone else changed the
-    mesh, never per frame.
+    painted map. The weights are read by a Python loop over the vertices, too slow for every
+    frame, so this is read when binding and when someone else changed the mesh (changes.py).
 
     digests: a hash per part ("rest mesh", "weights", "painted map"), to tell whether a binding is
     still made of the object's data (changed_parts)."""

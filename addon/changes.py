@@ -36,9 +36,9 @@ import time
 
 import bpy
 
-# Reading the weights costs 75-100 ms for 100k vertices, and Weight Paint Mode changes the mesh at
-# every stroke: in the interface they are read only once the changes paused for this long; in
-# background Blender, where scripts expect each update to be complete, at once.
+# Reading the weights is a Python loop over the vertices, and Weight Paint Mode changes the mesh at
+# every stroke: in the interface they are read only once the changes paused for this long (seconds);
+# in background Blender, where scripts expect each update to be complete, at once.
 CHECK_PAUSE = 0.4
 
 

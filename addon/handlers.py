@@ -14,8 +14,8 @@
   offsets and writes nothing, so there is no loop. A mesh reported as changed has its weights and
   rest mesh read again, unless the add-on made that update itself (changes.py).
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
-  lazily by the next correction, with no user action. load_post also replaces node groups of an
-  older layout (or edited by hand) with the current one: the group is the add-on's code.
+  lazily by the next correction, with no user action. load_post also replaces node groups of
+  another layout (or edited by hand) with the add-on's: the group is the add-on's code.
 - save_pre, save_post (and save_post_fail on 4.1+): files are saved without the correction, so a
   file opened where the add-on does not run (a farm machine, a colleague's Blender) shows plain
   skinning at every frame, rather than the correction of the frame it was saved at applied to other

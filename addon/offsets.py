@@ -9,15 +9,14 @@ never into the character's mesh:
                                                                           mesh: N loose vertices,
                                                                           vertex i at offset i
 
-Why not an attribute of the character's mesh (version 1 of the node group did that):
+Why not an attribute of the character's mesh:
 - a character linked from a library, as productions bring characters into shots by library
   override, keeps its mesh linked, and Blender ignores what add-ons write into it; the offsets
   object is local to the shot, and the override records which one the modifier uses;
 - objects that share one mesh (linked duplicates) each need their own correction;
 - on Blender 3.4 a tagged mesh is copied whole into its evaluated copy before the modifiers run
-  again: the object evaluated again after its offsets object changed takes 12.7 ms for 100k
-  vertices, after its own mesh changed 17-18.5 ms (BENCHMARKS.md). On 4.3 the Sample Index node
-  costs about 0.3 ms per evaluation instead.
+  again, so evaluating the object again costs less after its offsets object changed than after its
+  own mesh did (BENCHMARKS.md).
 
 The offsets object is in no collection (nothing to see, select or render) and is kept and saved
 because the modifier uses it. Its custom property names.OFFSETS_OWNER_TAG names the object it was

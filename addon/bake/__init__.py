@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Baking the corrected animation to PC2 point caches (issue 4, docs/baking.md):
+"""Baking the corrected animation to PC2 point caches (docs/baking.md):
 
     pc2.py       the PC2 format, crash-safe part files, merging (pure Python, no bpy)
     capture.py   what is baked for an object at a frame, and the checks before baking

@@ -185,8 +185,8 @@ class TestSaveAndReopen(FileTestCase):
 
 
 class TestFilesOfVersionOne(FileTestCase):
-    """Files saved by version 1 of the add-on, whose node group read the offsets from an attribute of
-    the character's own mesh: opening one gives the modifier the current node group and an offsets
+    """Files whose node group reads the offsets from an attribute of the character's own mesh (another
+    layout of the group): opening one gives the modifier the current node group and an offsets
     object, with no user action."""
 
     @staticmethod

@@ -160,7 +160,7 @@ class TestWeightPaintMode(FollowTestCase):
         bpy.ops.object.mode_set(mode='WEIGHT_PAINT')
         self.repaint_weights()  # a stroke
         bpy.context.view_layer.update()
-        # While strokes come, the weights are not read again (about 70 ms for 100k vertices).
+        # While strokes come, the weights are not read again (a Python loop over the vertices).
         self.assertIs(self.bound(), before)
         self.assertStatusContains(self.obj, "read again when the changes pause")
         self.assertTrue(bpy.app.timers.is_registered(self.addon.handlers.after_mesh_changes))
@@ -173,7 +173,7 @@ class TestWeightPaintMode(FollowTestCase):
     def test_own_changes_read_nothing_again(self):
         """A setting, the display, a region restriction and Bind each have Blender report the mesh as
         changed; what the add-on did itself changed neither the weights nor the rest mesh (or was just
-        bound), so they are not read again (75-100 ms for 100k vertices once the changes pause). The
+        bound), so they are not read again (a Python loop over the vertices once the changes pause). The
         next stroke still is."""
         self.scene.frame_set(10)
         bpy.context.view_layer.objects.active = self.obj

@@ -468,11 +468,9 @@ static void test_system_past_its_capacity(void)
 /* Short regions on a coarse tube (4 rings a bone, weights blended over half a bone), bent at
  * every joint: every vertex of a weight band is shared half and half by two bones, so no
  * multipliers tell neighbouring regions apart and the region system is singular (rows [1 2 1]).
- * Its damped least-squares solution (lvp.h, ALGORITHM 3) corrects them in one or two steps;
- * the per-region steps of eq. 5 that a singular system used to fall back to overshot each other
- * and took 5 steps on the 8-bone chain bent 40 degrees (8, the cap, before the iteration ended
- * on steps that gain too little) and 3 on the 64-bone tail. The whole mesh ends within the
- * tolerance, and every region within 1 % of its rest. */
+ * Its damped least-squares solution (lvp.h, ALGORITHM 3) corrects them in one or two steps,
+ * where per-region steps of eq. 5 would overshoot each other for several steps. The whole mesh
+ * ends within the tolerance, and every region within 1 % of its rest. */
 static void test_regions_that_cannot_be_told_apart(void)
 {
 	const struct {

@@ -6,6 +6,7 @@
  * general inflation of the paper's Fig. 2b, not a correction).
  */
 #include "lvp.h"
+#include "support/bind_rig.h"
 #include "support/check.h"
 #include "support/test_meshes.h"
 
@@ -63,14 +64,7 @@ static void free_cylinder(posed_cylinder *c)
 
 static lvp_binding *bind_rig(const test_rig *rig, lvp_bind_options options)
 {
-	lvp_weights weights = test_rig_weights(rig);
-	lvp_skeleton skeleton = test_rig_skeleton(rig);
-	lvp_binding *binding = NULL;
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_bind(&binding, rig->positions, rig->vertex_count, rig->triangles, rig->triangle_count, &weights,
-	                  &skeleton, &options, &diag),
-	         diag);
-	return binding;
+	return test_bind_rig(rig, &options);
 }
 
 static double volume(const float *positions, const test_rig *rig)

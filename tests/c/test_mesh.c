@@ -179,14 +179,22 @@ static mesh make_irregular_closed_mesh(void)
 	return m;
 }
 
+/* The volume gradient of m, 3 floats a vertex (the caller frees it). */
+static float *gradient_of(const mesh *m)
+{
+	float *gradient = malloc(sizeof(float) * 3 * (size_t)m->vertex_count);
+	lvp_diagnostic diag = {0};
+	CHECK_OK(lvp_volume_gradient(gradient, m->positions, m->vertex_count, m->triangles, m->triangle_count, &diag),
+	         diag);
+	return gradient;
+}
+
 /* V is affine in each vertex coordinate (every triangle holds a vertex once), so a central difference is
  * exact up to rounding, whatever the step. */
 static void test_gradient_matches_central_differences(void)
 {
 	mesh m = make_irregular_closed_mesh();
-	float *gradient = malloc(sizeof(float) * 3 * (size_t)m.vertex_count);
-	lvp_diagnostic diag = {0};
-	CHECK_OK(lvp_volume_gradient(gradient, m.positions, m.vertex_count, m.triangles, m.triangle_count, &diag), diag);
+	float *gradient = gradient_of(&m);
 	double largest = 0.0;
 	for (int32_t i = 0; i < 3 * m.vertex_count; ++i)
 		largest = fmax(largest, fabs(gradient[i]));
@@ -209,9 +217,7 @@ static void test_gradient_matches_central_differences(void)
 static void test_gradient_satisfies_euler_identity(void)
 {
 	mesh m = make_irregular_closed_mesh();
-	float *gradient = malloc(sizeof(float) * 3 * (size_t)m.vertex_count);
-	lvp_diagnostic diag = {0};
-	CHECK_OK(lvp_volume_gradient(gradient, m.positions, m.vertex_count, m.triangles, m.triangle_count, &diag), diag);
+	float *gradient = gradient_of(&m);
 	double sum = 0.0;
 	for (int32_t i = 0; i < 3 * m.vertex_count; ++i)
 		sum += (double)m.positions[i] * gradient[i];

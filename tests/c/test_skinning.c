@@ -72,6 +72,15 @@ static lvp_weights tube_weights(const tube *t)
 	return w;
 }
 
+/* Every vertex on one bone only, with weight 1. The tube's rows have room for it: at least one influence
+ * a vertex. */
+static void tube_weigh_rigidly(tube *t, int32_t bone)
+{
+	for (int32_t v = 0; v < t->vertex_count; ++v)
+		t->offsets[v] = v, t->bones[v] = bone, t->values[v] = 1.0f;
+	t->offsets[t->vertex_count] = t->vertex_count;
+}
+
 /* Row-major 4x4: rotation by angle about the unit axis, then a scale diag(sx, sy, sz) applied first,
  * then the translation. */
 static void make_matrix(float r_m[16], double ax, double ay, double az, double angle, double sx, double sy,
@@ -136,10 +145,7 @@ static void test_identity_matrices_leave_the_mesh(void)
 static void test_single_rigid_bone_moves_the_mesh_rigidly(void)
 {
 	tube t = make_tube(12, 9, 0.5f, 4.0f, 2.6f);
-	/* every vertex on bone 1 only */
-	for (int32_t v = 0; v < t.vertex_count; ++v)
-		t.offsets[v] = v, t.bones[v] = 1, t.values[v] = 1.0f;
-	t.offsets[t.vertex_count] = t.vertex_count;
+	tube_weigh_rigidly(&t, 1);
 	lvp_weights w = tube_weights(&t);
 	/* several rotations, including a half turn about a skew axis (the quaternion's w is 0) */
 	const double cases[4][4] = {{0.3, -0.5, 0.8, 1.1}, {0, 0, 1, PI}, {1, 1, 1, PI}, {0.2, 0.9, -0.1, 2.9}};
@@ -302,9 +308,7 @@ static void test_dual_quaternions_apply_bone_scale(void)
 static void test_dual_quaternions_reproduce_mirrored_and_collapsed_bones(void)
 {
 	tube t = make_tube(12, 9, 0.5f, 4.0f, 2.6f);
-	for (int32_t v = 0; v < t.vertex_count; ++v)
-		t.offsets[v] = v, t.bones[v] = 0, t.values[v] = 1.0f;
-	t.offsets[t.vertex_count] = t.vertex_count;
+	tube_weigh_rigidly(&t, 0);
 	lvp_weights w = tube_weights(&t);
 	const double scales[4][3] = {{-1, 1, 1}, {0, 1, 1}, {0, 0, 0}, {1, -2, 0.5}};
 	for (int c = 0; c < 4; ++c) {

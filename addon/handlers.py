@@ -271,21 +271,17 @@ def undo_post(*_arguments):
     SESSION.file_data_changed()
 
 
-# Offsets taken out of the offsets objects for saving: object name -> offsets, until save_post puts
-# them back.
-_offsets_while_saving = {}
-
-
 @persistent
 def save_pre(*_arguments):
     for obj in bpy.data.objects:
         if obj.override_library is not None and obj.type == 'MESH':
             blender_api.prepare_override_diff(obj, "lvp")
-    _offsets_while_saving.clear()
+    taken_out = {}
     for holder in offsets.all_writable_offsets_objects():
         previous = offsets.swap_untagged(holder)
         if previous is not None:
-            _offsets_while_saving[holder.name_full] = previous
+            taken_out[holder.name_full] = previous
+    SESSION.note_saving(taken_out)
     # Should save_post never come (a failed save on Blender < 4.1), the next correction reads the
     # meshes again instead of trusting what it wrote last.
     SESSION.file_data_changed()
@@ -293,11 +289,10 @@ def save_pre(*_arguments):
 
 @persistent
 def save_post(*_arguments):
-    for name, previous in _offsets_while_saving.items():
+    for name, previous in SESSION.take_saved_offsets().items():
         holder = bpy.data.objects.get(name)
         if holder is not None and offsets.is_offsets_object(holder):
             offsets.swap_untagged(holder, previous)
-    _offsets_while_saving.clear()
 
 
 @persistent

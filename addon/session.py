@@ -9,7 +9,8 @@ else is rebuilt from the file when needed, and forgotten when another file is lo
 - the status of each object, which the panel shows: (level, message), level 'INFO', 'WARNING' or 'ERROR';
 - the changes to bound meshes not yet read, and the add-on's own updates (changes.MeshChanges);
 - the objects the viewport left uncorrected because they are hidden (corrected once shown again);
-- whether a render from the interface started without Lock Interface (the panel says so).
+- whether a render from the interface started without Lock Interface (the panel says so);
+- while a file is saved, the offsets taken out of the offsets objects (the file holds no correction).
 
 Only the handlers, the operators and the panel run on the main thread or with the interface locked,
 so the session needs no lock.
@@ -26,6 +27,7 @@ class Session:
         self._statuses = {}     # object name -> (level, message)
         self._hidden = set()    # names of the objects the viewport hides
         self._render_without_lock = False
+        self._offsets_while_saving = {}  # offsets object name -> its offsets, from save_pre to save_post
         self.changes = changes.MeshChanges()
 
     # ---- a file ---------------------------------------------------------------------------------
@@ -154,6 +156,20 @@ class Session:
     def note_render_refused(self):
         """A render thread was not corrected: Lock Interface is off."""
         self._render_without_lock = True
+
+
+    # ---- saving ---------------------------------------------------------------------------------------
+
+    def note_saving(self, taken_out):
+        """A file is being saved without the correction: taken_out, offsets object name -> the offsets taken
+        out of it, to be put back once it is saved."""
+        self._offsets_while_saving = dict(taken_out)
+
+    def take_saved_offsets(self):
+        """The offsets taken out for saving (and forgets them)."""
+        taken_out = self._offsets_while_saving
+        self._offsets_while_saving = {}
+        return taken_out
 
 
 SESSION = Session()

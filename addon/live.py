@@ -147,9 +147,9 @@ def correct_object(obj, depsgraph, check_topology=False):
     corrected at all, a pass-through (zero offsets), so that the panel always says what is shown.
     Preconditions: obj has a modifier, and is not left alone this time (_modifier_to_run). The
     computation, each stage raising PassThrough: the binding (_current_binding), where the offsets go
-    (_holder), the rig (_armature), the binding following the object's changes (_follow_changes,
-    bindings.refresh_map), the evaluated positions and bones (_read_pose), the core (_correct). Then
-    the status of what was written (_status_of_correction).
+    (_holder), the rig (_armature), the binding following the object's changes (_following_changes),
+    the evaluated positions and bones (_read_pose), the core (_correct). Then the status of what was
+    written (_status_of_correction).
     """
     modifier = node_group.find_modifier(obj)
     if modifier is None:
@@ -165,14 +165,9 @@ def correct_object(obj, depsgraph, check_topology=False):
         bound = _current_binding(obj, depsgraph, check_topology)
         holder = _holder(obj, modifier, bound)
         armature_modifier, armature_object = _armature(obj, depsgraph)
-        previous_bound, previous_map = bound, bound.map_key
-        bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+        bound = _following_changes(obj, bound, depsgraph, armature_modifier, armature_object)
         if bound is None:
-            raise PassThrough()
-        bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
-        if bound is None:
-            raise PassThrough()
-        _follow_display(obj, bound, previous_bound, previous_map)
+            raise PassThrough()  # the status says why (bindings.rebind, refresh_map)
         _read_pose(obj, depsgraph, bound, armature_object)
         stats = _correct(obj, bound, check_topology)
     except PassThrough as why:
@@ -203,6 +198,19 @@ def _modifier_to_run(obj, modifier, depsgraph, check_topology):
     if not node_group.modifier_enabled(modifier, depsgraph.mode):
         raise LeftAlone("The modifier is disabled in the %s" % _mode_name(depsgraph))
     return modifier
+
+
+def _following_changes(obj, bound, depsgraph, armature_modifier, armature_object):
+    """bound, or the binding that replaced it because the object changed (_follow_changes) or its map
+    settings did (bindings.refresh_map), the display's colours following it; None when obj cannot be
+    bound any more (the status says why)."""
+    previous_map = bound.map_key
+    followed, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+    if followed is not None:
+        followed = bindings.refresh_map(obj, followed, depsgraph, inputs)
+    if followed is not None:
+        _follow_display(obj, followed, bound, previous_map)
+    return followed
 
 
 def _follow_display(obj, bound, previous_bound, previous_map):

@@ -22,8 +22,8 @@ bl_info = {
 
 if "bpy" in locals():
     import importlib
-    for _module in (names, mesh_data, node_group, bindings, live, display, properties, operators, ui,  # noqa: F821
-                    handlers):  # noqa: F821
+    for _module in (names, mesh_data, node_group, changes, session, bound_object, bindings,  # noqa: F821
+                    live, display, properties, operators, ui, handlers):  # noqa: F821
         importlib.reload(_module)
     del _module
 
@@ -32,6 +32,9 @@ import bpy  # noqa: E402,F401
 from . import names  # noqa: E402
 from . import mesh_data  # noqa: E402
 from . import node_group  # noqa: E402
+from . import changes  # noqa: E402,F401
+from . import session  # noqa: E402
+from . import bound_object  # noqa: E402,F401
 from . import bindings  # noqa: E402
 from . import live  # noqa: E402
 from . import display  # noqa: E402
@@ -39,7 +42,7 @@ from . import properties  # noqa: E402
 from . import operators  # noqa: E402
 from . import ui  # noqa: E402
 from . import handlers  # noqa: E402
-from . import bake  # noqa: E402  (baking to point caches, issue 4: bake/__init__.py)
+from . import bake  # noqa: E402  (baking to point caches: bake/__init__.py)
 
 # Registered in this order, unregistered in reverse.
 modules = (
@@ -59,4 +62,4 @@ def register():
 def unregister():
     for module in reversed(modules):
         module.unregister()
-    bindings.clear()
+    session.SESSION.close_bindings()

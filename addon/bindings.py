@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The bind cache: one _lvp.Binding per object, in memory, with the per-frame buffers it needs.
+"""Binding objects: one _lvp.Binding per object, made from its mesh, weights, armature and settings.
 
 A Binding holds the rest-pose work of the C core (segmentation, maps, rest constants). It cannot
 be saved in a .blend file, so the file keeps only a bind record on the object (Object.lvp.bind_id
@@ -13,13 +13,11 @@ changes pause). When the mesh's topology no longer matches the record (vertices 
 after the bind, or reconnected), nothing is rebuilt: the modifier passes the mesh through and the
 panel says "rebind needed". The Bind operator makes a new record.
 
-Entries are keyed by (object name, bind id): renaming an object or duplicating it gives a new key,
-and the new key gets its own binding the next time it is needed.
+The bindings are kept by the session (session.py), one per object and bind record.
 """
 
 import hashlib
 import os
-import time
 import uuid
 
 import bpy
@@ -28,6 +26,8 @@ from . import _lvp
 from . import mesh_data
 from . import node_group
 from . import skeleton
+from .bound_object import BoundObject
+from .session import SESSION
 
 
 # A frame whose largest offset exceeds this fraction of the rest mesh's bounding box diagonal is
@@ -42,146 +42,8 @@ class BindError(Exception):
     """A user-facing reason why an object cannot be bound: what is wrong and how to fix it."""
 
 
-class BoundObject:
-    """An object's binding and everything needed to correct a frame with it (runtime only)."""
-
-    def __init__(self, binding, core_skeleton, vertex_count, topology, bind_id, map_key, mode):
-        self.binding = binding
-        self.skeleton = core_skeleton       # skeleton.CoreSkeleton: the bones given to the core
-        self.vertex_count = vertex_count
-        self.topology = topology
-        self.bind_id = bind_id
-        self.map_key = map_key
-        self.mode = mode
-        self.positions = mesh_data.float_array(3 * vertex_count)
-        self.offsets = mesh_data.float_array(3 * vertex_count)
-        self.written = None                 # the offsets last written to the mesh, when known
-        self.rest_positions = None          # allocated when shape keys are used
-        self.rest_in_use = False            # whether rest_positions differs from the bind rest
-        self.rest_state = None              # the shape key values rest_positions was mixed for
-        self.bone_matrices = mesh_data.float_array(16 * core_skeleton.core_bone_count)
-        self.expected_indices = None        # array('i', range(vertex_count))
-        self.scratch_indices = None         # evaluated "lvp_index", one per final vertex
-        self.scratch_positions = None       # evaluated "lvp_position" when the final mesh has more vertices
-        self.mapping_checked = None         # (final vertex count, stack signature) whose index range was checked
-        self.stats = None                   # the last frame's statistics (dict from Binding.correct)
-        self.displacement_limit = float("inf")  # see DISPLACEMENT_LIMIT
-        self.unweighted_vertices = 0        # vertices without weight on a bound bone
-        self.digests = {}                   # BindInputs.digests of what this binding was made of
-        self.inputs_changed_at = None       # time.monotonic() of a change to the mesh not yet checked
-        self.rebound_because = None         # why this binding replaced an earlier one of the same record
-        self.topology_changed = False       # the mesh's topology is no longer the bound one (live.py)
-        self.stray_vertex = None            # (index, distance) of a vertex far from the armature (stray_vertex)
-
-    def close(self):
-        if self.binding is not None:
-            self.binding.close()
-            self.binding = None
-
-
-# key (object name, bind id) -> BoundObject
-_entries = {}
-# object name -> (level, message): the last status of each object, shown by the panel.
-# level is 'INFO', 'WARNING' or 'ERROR'.
-_status = {}
-# Names of the meshes whose next update the add-on made itself, outside the handlers (see
-# expect_own_update); taken by the next depsgraph_update_post, dropped after each correction and
-# at undo.
-_own_updates = set()
-
-
 def thread_count():
     return max(1, min(8, os.cpu_count() or 1))
-
-
-def set_status(obj, level, message):
-    _status[obj.name_full] = (level, message)
-
-
-def status(obj):
-    return _status.get(obj.name_full)
-
-
-def entry(obj):
-    """The object's cached binding if it is current, else None (never binds)."""
-    return _entries.get((obj.name_full, obj.lvp.bind_id))
-
-
-def forget(obj):
-    """Drops the object's cached binding and status."""
-    for key in [key for key in _entries if key[0] == obj.name_full]:
-        _entries.pop(key).close()
-    _status.pop(obj.name_full, None)
-
-
-def clear():
-    for bound in _entries.values():
-        bound.close()
-    _entries.clear()
-    _status.clear()
-    _own_updates.clear()
-
-
-def forget_written():
-    """Forgets what was last written to and read from every mesh (after undo and redo, the file's
-    data changed)."""
-    for bound in _entries.values():
-        bound.written = None
-        bound.rest_state = None
-
-
-def changes_come_one_at_a_time(obj):
-    """Whether obj is changed by a person in the interface (or painted in Weight Paint Mode), one change
-    per update: then reading its weights and rest mesh waits for the changes to pause (live.py), and
-    the add-on's own updates are told apart (expect_own_update). Scripts in background Blender may make
-    several changes before one update, and expect each update to be followed completely."""
-    return obj.mode == 'WEIGHT_PAINT' or not bpy.app.background
-
-
-def expect_own_update(obj):
-    """The add-on is about to tag obj, or has set a property of obj.lvp (which has Blender tag the whole
-    object): the next update reports obj's mesh as changed, but neither its weights nor its rest mesh
-    changed, or what changed was just bound. Reading them again for it (note_mesh_changed) would cost a
-    Python loop over the vertices (75-100 ms for 100k) to find nothing. Only where changes come one at
-    a time: a script in background Blender may paint weights and change a setting before one update."""
-    if obj.type == 'MESH' and obj.data is not None and changes_come_one_at_a_time(obj):
-        _own_updates.add(obj.data.name_full)
-
-
-def take_own_updates():
-    """The meshes marked by expect_own_update since the last call (and forgets them)."""
-    marked = set(_own_updates)
-    _own_updates.clear()
-    return marked
-
-
-def note_mesh_changed(obj, at_once=False):
-    """Someone else changed obj's mesh (an edit, a weight stroke, a script, undo): a correction reads
-    its weights and rest mesh again (live.py, _follow_changes), once the changes paused, or the next
-    one when at_once."""
-    bound = entry(obj)
-    if bound is not None:
-        bound.inputs_changed_at = float("-inf") if at_once else time.monotonic()
-
-
-def unchecked_mesh_changes():
-    """(object name, time.monotonic() of the change) of the bindings with a mesh change not yet checked."""
-    return [(key[0], bound.inputs_changed_at) for key, bound in _entries.items()
-            if bound.inputs_changed_at is not None]
-
-
-def prune(objects):
-    """Drops cached bindings whose object is gone or has been bound again (after undo, delete...)."""
-    live = set()
-    for obj in objects:
-        settings = getattr(obj, "lvp", None)
-        if settings is not None and settings.bind_id:
-            live.add((obj.name_full, settings.bind_id))
-    for key in [key for key in _entries if key not in live]:
-        _entries.pop(key).close()
-    names = {key[0] for key in live}
-    for name in [name for name in _status if name not in names]:
-        del _status[name]
 
 
 # ---- what is bound, and how ----------------------------------------------------------------
@@ -213,9 +75,8 @@ def _digest(*parts):
 class BindInputs:
     """What a binding is made of, read from the object as it is now: the rest mesh, the bound bones
     (deforming, with a vertex group) and their weights, the Armature modifier's mask weights, the
-    painted map. The weights are read by a Python loop over the vertices (75-100 ms for 100k
-    vertices with two weights each), so this is read when binding and when someone else changed the
-    mesh, never per frame.
+    painted map. The weights are read by a Python loop over the vertices, too slow for every
+    frame, so this is read when binding and when someone else changed the mesh (changes.py).
 
     digests: a hash per part ("rest mesh", "weights", "painted map"), to tell whether a binding is
     still made of the object's data (changed_parts)."""
@@ -365,21 +226,18 @@ def bind(obj, depsgraph=None, inputs=None):
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
                                mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton, inputs))
-    except ValueError as error:
+    except _lvp.Error as error:
         message = str(error)
-        if getattr(error, "code", None) == "mesh_not_closed":
+        if error.code == "mesh_not_closed":
             message = ("The Global effect needs a closed mesh and %s has holes: use Organic (per region), or "
                        "close the mesh. (%s)" % (obj.name, message))
         raise BindError("Cannot bind %s: %s" % (obj.name, message)) from None
     except MemoryError:
         raise BindError("Not enough memory to bind %s" % obj.name) from None
-    bound = BoundObject(binding, core_skeleton, len(mesh.vertices), mesh_data.topology_signature(mesh),
-                        settings.bind_id, map_key(settings), mode)
-    bound.displacement_limit = DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions)
-    bound.unweighted_vertices = unweighted
-    bound.stray_vertex = stray_vertex(positions, heads, tails)
-    bound.digests = inputs.digests
-    return bound
+    return BoundObject(binding, core_skeleton, len(mesh.vertices), mesh_data.topology_signature(mesh),
+                       settings.bind_id, map_key(settings), mode, digests=inputs.digests,
+                       displacement_limit=DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions),
+                       unweighted_vertices=unweighted, stray_vertex=stray_vertex(positions, heads, tails))
 
 
 # A vertex farther than this many times the armature's size from its bones' box is taken for a stray.
@@ -409,12 +267,12 @@ def stray_vertex(positions, heads, tails):
 
 def new_bind_record(obj, bound):
     """Stores a fresh bind record on the object for bound and caches it (operators only)."""
-    forget(obj)
-    expect_own_update(obj)  # bound was made of the mesh as it is now
+    SESSION.forget(obj)
+    SESSION.changes.expect_own_update(obj)  # bound was made of the mesh as it is now
     obj.lvp.bind_id = uuid.uuid4().hex
     obj.lvp.topology_signature = bound.topology
-    bound.bind_id = obj.lvp.bind_id
-    _entries[(obj.name_full, bound.bind_id)] = bound
+    bound.recorded_as(obj.lvp.bind_id)
+    SESSION.keep(obj, bound)
 
 
 def ensure(obj, depsgraph=None):
@@ -426,32 +284,29 @@ def ensure(obj, depsgraph=None):
     """
     settings = obj.lvp
     if not settings.bind_id:
-        set_status(obj, 'ERROR', "Not bound: press Bind")
+        SESSION.set_status(obj, 'ERROR', "Not bound: press Bind")
         return None
-    key = (obj.name_full, settings.bind_id)
-    bound = _entries.get(key)
+    bound = SESSION.bound(obj)
     if bound is not None:
         if bound.topology != settings.topology_signature:
-            set_status(obj, 'ERROR', REBIND_NEEDED)
+            SESSION.set_status(obj, 'ERROR', REBIND_NEEDED)
             return None
         return bound
     # Lazy rebuild: only for the topology that was bound.
     signature = mesh_data.topology_signature(obj.data)
     if signature != settings.topology_signature:
-        set_status(obj, 'ERROR', REBIND_NEEDED)
+        SESSION.set_status(obj, 'ERROR', REBIND_NEEDED)
         return None
     try:
         bound = bind(obj, depsgraph)
     except BindError as error:
-        set_status(obj, 'ERROR', str(error))
+        SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    bound.bind_id = settings.bind_id
-    for stale in [stale for stale in _entries if stale[0] == obj.name_full]:
-        _entries.pop(stale).close()
-    _entries[key] = bound
+    bound.recorded_as(settings.bind_id)
+    SESSION.keep(obj, bound)
     # Lazy binds are rare (file load, undo, rename): a good moment to drop the bindings of objects
     # that were renamed or deleted.
-    prune(bpy.data.objects)
+    SESSION.prune(bpy.data.objects)
     return bound
 
 
@@ -468,9 +323,9 @@ def refresh_map(obj, bound, depsgraph=None, inputs=None):
     try:
         bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton, inputs))
     except (BindError, ValueError) as error:
-        set_status(obj, 'ERROR', str(error))
+        SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    bound.map_key = key
+    bound.map_set(key)
     return bound
 
 
@@ -479,19 +334,17 @@ def rebind(obj, bound, depsgraph=None, reason=None, inputs=None):
     reopened file would bind. reason: why (kept as rebound_because, which the panel shows); inputs:
     a BindInputs of obj just read. Returns the new BoundObject, or None with the status set when
     obj cannot be bound any more (the old binding is dropped either way)."""
-    _entries.pop((obj.name_full, bound.bind_id), None)
-    bound.close()
+    SESSION.drop(obj, bound)
     if mesh_data.topology_signature(obj.data) != obj.lvp.topology_signature:
         # The bind record is of another topology: what was bound no longer maps onto the mesh vertex for
         # vertex, and a reopened file would not bind either. Only the artist's Bind makes a new record.
-        set_status(obj, 'ERROR', REBIND_NEEDED)
+        SESSION.set_status(obj, 'ERROR', REBIND_NEEDED)
         return None
     try:
         rebound = bind(obj, depsgraph, inputs)
     except BindError as error:
-        set_status(obj, 'ERROR', str(error))
+        SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    rebound.bind_id = bound.bind_id
-    rebound.rebound_because = reason
-    _entries[(obj.name_full, rebound.bind_id)] = rebound
+    rebound.recorded_as(bound.bind_id, reason)
+    SESSION.keep(obj, rebound)
     return rebound

@@ -15,6 +15,7 @@ from . import blender_api
 from . import mesh_data
 from . import names
 from . import skeleton
+from .session import SESSION
 
 NO_REGION_COLOR = (0.5, 0.5, 0.5, 1.0)
 
@@ -95,7 +96,7 @@ def update_display(obj, context=None):
     mesh = obj.data
     if settings.display == 'NONE' or obj.type != 'MESH':
         remove_display_attributes(obj)
-        bindings.expect_own_update(obj)
+        SESSION.changes.expect_own_update(obj)
         mesh.update_tag()
         return None
     if mesh_data.is_linked(mesh):
@@ -134,7 +135,7 @@ def update_display(obj, context=None):
         mesh.attributes.remove(other)
     _write_colors(mesh, shown, colors)
     blender_api.set_active_color(mesh, shown)
-    bindings.expect_own_update(obj)  # colours, not weights or positions
+    SESSION.changes.expect_own_update(obj)  # colours, not weights or positions
     mesh.update_tag()
     _show_attribute_colors(context if context is not None else bpy.context)
     return None

@@ -12,12 +12,10 @@
   a setting, undo), correct the objects whose geometry was re-evaluated. Writing the offsets tags
   the offsets object's mesh; Blender's second pass evaluates it without handlers, and the next call sees unchanged
   offsets and writes nothing, so there is no loop. A mesh reported as changed has its weights and
-  rest mesh read again, unless the add-on made that update itself (bindings.expect_own_update: a
-  setting, a bind, the display's colours); marks made while a handler runs are dropped with it,
-  since the pass that follows runs no handlers.
+  rest mesh read again, unless the add-on made that update itself (changes.py).
 - load_post, undo_post, redo_post: forget bindings that no longer match the file; they are rebuilt
-  lazily by the next correction, with no user action. load_post also replaces node groups of an
-  older layout (or edited by hand) with the current one: the group is the add-on's code.
+  lazily by the next correction, with no user action. load_post also replaces node groups of
+  another layout (or edited by hand) with the add-on's: the group is the add-on's code.
 - save_pre, save_post (and save_post_fail on 4.1+): files are saved without the correction, so a
   file opened where the add-on does not run (a farm machine, a colleague's Blender) shows plain
   skinning at every frame, rather than the correction of the frame it was saved at applied to other
@@ -25,8 +23,8 @@
   without tagging anything, so the session never shows the difference. Opened again with the
   add-on, load_post corrects the frame the file opens on, with no user action.
 - a timer for changes to meshes: the correction reads the weights and the rest mesh again (binding
-  the object again when they changed) once the changes paused (live.CHECK_PAUSE: in the interface,
-  and during the strokes of Weight Paint Mode); the timer then has those objects corrected again.
+  the object again when they changed) once the changes paused (changes.py); the timer then has those
+  objects corrected again.
 - render_init: renders started from the interface run in a thread; handlers that write data then
   need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
   data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
@@ -35,26 +33,20 @@
 Every handler is guarded against re-entrancy and never lets an exception escape into Blender.
 """
 
-import time
 import traceback
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bindings
 from . import blender_api
+from . import changes
 from . import live
 from . import node_group
 from . import offsets
+from .session import SESSION
 
+# Whether the handlers are correcting: the updates their own writes cause are not theirs to follow.
 _busy = False
-# Objects with the modifier left uncorrected because the user hid them (name_full): corrected once
-# shown again (_shown_again).
-_hidden = set()
-# object name -> the mesh change after which after_mesh_changes() tagged it (once per change).
-_tagged_after_changes = {}
-# Set when a render from the interface started without Lock Interface (shown by the panel).
-render_without_lock = False
 
 
 def _objects_with_modifier(depsgraph):
@@ -62,8 +54,7 @@ def _objects_with_modifier(depsgraph):
     (_shown_noting_hidden): the visible objects of its view layer, and objects it evaluates because
     something instances them (a collection instance of an excluded or linked collection: a crowd, a
     set, a character placed by layout). depsgraph.objects lists only the first, so the evaluated data-blocks
-    are walked (which also costs less than depsgraph.objects: 0.5 against 0.75 ms for 3,000 objects
-    on Blender 3.4)."""
+    are walked (which also costs less than depsgraph.objects)."""
     object_type = bpy.types.Object
     found = []
     seen = set()
@@ -87,17 +78,15 @@ def _shows(depsgraph, obj):
 
 def _shown_noting_hidden(objects, depsgraph):
     """The objects the depsgraph shows (_shows). Not only a question: those the viewport leaves out
-    are remembered in _hidden (and their status says so) until it shows them again."""
+    are noted as hidden by the session (and their status says so) until it shows them again."""
     shown = []
     for obj in objects:
         if _shows(depsgraph, obj):
             shown.append(obj)
             if depsgraph.mode == 'VIEWPORT':
-                _hidden.discard(obj.name_full)
+                SESSION.note_shown(obj)
         else:
-            _hidden.add(obj.name_full)
-            bindings.set_status(obj, 'INFO', "Hidden: corrected again when shown (the figures are of the last "
-                                             "frame it was shown)")
+            SESSION.note_hidden(obj)
     return shown
 
 
@@ -108,10 +97,9 @@ def corrected_in(obj, depsgraph):
 
 
 def _shown_again(depsgraph):
-    """The objects left uncorrected while hidden (_hidden) that the viewport shows now. Blender
-    reports showing an object as an update of the scene alone (its base), not of the object."""
-    names = set(_hidden)
-    _hidden.clear()
+    """The objects left uncorrected while hidden that the viewport shows now. Blender reports showing
+    an object as an update of the scene alone (its base), not of the object."""
+    names = SESSION.take_hidden()
     objects = [obj for obj in bpy.data.objects if obj.name_full in names and node_group.find_modifier(obj)]
     return _shown_noting_hidden(objects, depsgraph)
 
@@ -165,47 +153,27 @@ def _correct(objects, depsgraph, check_topology=()):
                 live.correct_object(obj, depsgraph, check_topology=obj.data.name_full in check_topology)
             except Exception:
                 traceback.print_exc()
-                bindings.set_status(obj, 'ERROR', "Internal error (see the system console); the mesh is passed "
-                                                  "through")
+                SESSION.set_status(obj, 'ERROR', "Internal error (see the system console); the mesh is passed "
+                                                 "through")
     finally:
         _busy = False
         # Marks made while correcting are not kept: in a handler, Blender's pass that follows runs no
         # handlers, and after loading a file one more reading of the weights costs nothing but time.
-        bindings.take_own_updates()
-    if live.is_main_thread() and any(left > 0.0 for _obj, _changed_at, left in _unchecked_changes()) and \
+        SESSION.changes.drop_own_updates()
+    if live.is_main_thread() and SESSION.changes.any_waiting() and \
             not bpy.app.timers.is_registered(after_mesh_changes):
-        bpy.app.timers.register(after_mesh_changes, first_interval=live.CHECK_PAUSE)
-
-
-def _unchecked_changes():
-    """(object, time of the change, seconds left until the changes count as paused) for the objects
-    whose mesh changed since their weights and rest mesh were last read (bindings.note_mesh_changed)."""
-    now = time.monotonic()
-    found = []
-    for name, changed_at in bindings.unchecked_mesh_changes():
-        obj = bpy.data.objects.get(name)
-        if obj is not None:
-            found.append((obj, changed_at, live.CHECK_PAUSE - (now - changed_at)))
-    return found
+        bpy.app.timers.register(after_mesh_changes, first_interval=changes.CHECK_PAUSE)
 
 
 def after_mesh_changes():
-    """Timer: once the changes to a mesh paused for live.CHECK_PAUSE, its object is corrected again,
-    which reads the weights and the rest mesh and binds again when they changed. Returns when to
-    come back, or None. Each change is tagged once: an object whose correction does not run (in
-    Edit Mode, its modifier hidden) is not tagged again and again. The tag is the object's
-    transform's, which brings the handlers without evaluating its modifiers again."""
-    waits = []
+    """Timer: once the changes to a mesh paused, its object is corrected again, which reads the weights
+    and the rest mesh and binds again when they changed (changes.MeshChanges.tag_paused). Returns when
+    to come back, or None."""
     try:
-        for obj, changed_at, left in _unchecked_changes():
-            if left > 0.0:
-                waits.append(left)
-            elif _tagged_after_changes.get(obj.name_full) != changed_at:
-                _tagged_after_changes[obj.name_full] = changed_at
-                obj.update_tag(refresh={'OBJECT'})
+        return SESSION.changes.tag_paused()
     except Exception:
         traceback.print_exc()
-    return max(min(waits), 0.05) if waits else None
+        return None
 
 
 @persistent
@@ -217,8 +185,7 @@ def frame_change_post(scene, depsgraph=None):
             return
         depsgraph = bpy.context.evaluated_depsgraph_get()
     if not may_write(scene):
-        global render_without_lock
-        render_without_lock = True
+        SESSION.note_render_refused()
         return
     _correct(_objects_with_modifier(depsgraph), depsgraph)
 
@@ -227,7 +194,7 @@ def frame_change_post(scene, depsgraph=None):
 def depsgraph_update_post(scene, depsgraph=None):
     if _busy or depsgraph is None:
         return
-    own_updates = bindings.take_own_updates()
+    own_updates = SESSION.changes.take_own_updates()
     if not may_write(scene):
         return
     objects = []
@@ -247,9 +214,9 @@ def depsgraph_update_post(scene, depsgraph=None):
                 objects.append(data)
     shown = _shown_noting_hidden(objects, depsgraph)
     for obj in objects:
-        if obj.name_full in _hidden and obj.data.name_full in changed_meshes:
-            bindings.note_mesh_changed(obj)  # read again once shown and corrected
-    if scene_changed and _hidden:
+        if SESSION.is_hidden(obj) and obj.data.name_full in changed_meshes:
+            SESSION.note_mesh_changed(obj)  # read again once shown and corrected
+    if scene_changed and SESSION.any_hidden():
         shown.extend(obj for obj in _shown_again(depsgraph) if obj.name_full not in seen)
     if shown:
         _correct(shown, depsgraph, check_topology=changed_meshes)
@@ -257,11 +224,7 @@ def depsgraph_update_post(scene, depsgraph=None):
 
 @persistent
 def load_post(*_arguments):
-    global render_without_lock
-    bindings.clear()
-    _tagged_after_changes.clear()
-    _hidden.clear()
-    render_without_lock = False
+    SESSION.start_file()
     node_group.repair_modifiers(bpy.data.objects)
     if not any(obj.type == 'MESH' and node_group.find_modifier(obj) is not None for obj in bpy.data.objects):
         return
@@ -303,14 +266,9 @@ def _correct_windows_after_load():
 
 @persistent
 def undo_post(*_arguments):
-    bindings.take_own_updates()  # the update that follows brings back what the undo step holds
-    bindings.prune(bpy.data.objects)
-    bindings.forget_written()
-
-
-# Offsets taken out of the offsets objects for saving: object name -> offsets, until save_post puts
-# them back.
-_offsets_while_saving = {}
+    SESSION.changes.drop_own_updates()  # the update that follows brings back what the undo step holds
+    SESSION.prune(bpy.data.objects)
+    SESSION.file_data_changed()
 
 
 @persistent
@@ -318,34 +276,33 @@ def save_pre(*_arguments):
     for obj in bpy.data.objects:
         if obj.override_library is not None and obj.type == 'MESH':
             blender_api.prepare_override_diff(obj, "lvp")
-    _offsets_while_saving.clear()
+    taken_out = {}
     for holder in offsets.all_writable_offsets_objects():
         previous = offsets.swap_untagged(holder)
         if previous is not None:
-            _offsets_while_saving[holder.name_full] = previous
+            taken_out[holder.name_full] = previous
+    SESSION.note_saving(taken_out)
     # Should save_post never come (a failed save on Blender < 4.1), the next correction reads the
     # meshes again instead of trusting what it wrote last.
-    bindings.forget_written()
+    SESSION.file_data_changed()
 
 
 @persistent
 def save_post(*_arguments):
-    for name, previous in _offsets_while_saving.items():
+    for name, previous in SESSION.take_saved_offsets().items():
         holder = bpy.data.objects.get(name)
         if holder is not None and offsets.is_offsets_object(holder):
             offsets.swap_untagged(holder, previous)
-    _offsets_while_saving.clear()
 
 
 @persistent
 def render_init(scene, *_arguments):
-    global render_without_lock
-    render_without_lock = not bpy.app.background and not scene.render.use_lock_interface
+    SESSION.note_render_started(locked=bpy.app.background or scene.render.use_lock_interface)
     # A script may have changed weights or the rest mesh without any update since (the interface
     # always makes one): the first frame rendered reads them again (once, not per frame).
     for obj in scene.objects:
         if obj.type == 'MESH':
-            bindings.note_mesh_changed(obj, at_once=True)
+            SESSION.note_mesh_changed(obj, at_once=True)
 
 
 HANDLERS = (

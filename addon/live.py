@@ -19,8 +19,6 @@ why. With GPU subdivision in the viewport, the CPU mesh is not subdivided at all
 """
 
 import threading
-import time
-from array import array
 
 from . import bindings
 from . import display
@@ -29,21 +27,7 @@ from . import names
 from . import node_group
 from . import offsets
 from . import skeleton
-
-
-def _expected_indices(bound):
-    if bound.expected_indices is None:
-        bound.expected_indices = array('i', range(bound.vertex_count))
-    return bound.expected_indices
-
-
-def _scratch(bound, name, kind, count):
-    """A per-binding buffer of count items, reused from frame to frame while the count stays."""
-    buffer = getattr(bound, name)
-    if buffer is None or len(buffer) != count:
-        buffer = array(kind, bytes(4 * count))
-        setattr(bound, name, buffer)
-    return buffer
+from .session import SESSION
 
 
 def _evaluated_positions(mesh_eval, bound, stack):
@@ -65,9 +49,9 @@ def _evaluated_positions(mesh_eval, bound, stack):
         return ("a modifier after Volume Preservation changes the topology and drops its attributes: move it "
                 "above, or use Subdivision Surface")
     if index_attribute is not None:
-        indices = _scratch(bound, "scratch_indices", 'i', evaluated_count)
+        indices = bound.scratch("indices", 'i', evaluated_count)
         index_attribute.data.foreach_get("value", indices)
-        expected = _expected_indices(bound)
+        expected = bound.identity_indices()
         if not mesh_data.same_values(indices if evaluated_count == vertex_count else indices[:vertex_count], expected):
             return ("the vertices that leave Volume Preservation are not the bound ones in order (a modifier before "
                     "the Armature modifier changes them, or one after Volume Preservation reorders them)")
@@ -78,11 +62,11 @@ def _evaluated_positions(mesh_eval, bound, stack):
             if max(indices) >= vertex_count or min(indices) < 0:
                 return ("the mesh entering Volume Preservation has more vertices than were bound: a modifier "
                         "before the Armature modifier adds vertices")
-            bound.mapping_checked = (evaluated_count, stack)
+            bound.note_mapping_checked(evaluated_count, stack)
     if evaluated_count == vertex_count:
         position_attribute.data.foreach_get("vector", bound.positions)
     else:
-        captured = _scratch(bound, "scratch_positions", 'f', 3 * evaluated_count)
+        captured = bound.scratch("positions", 'f', 3 * evaluated_count)
         position_attribute.data.foreach_get("vector", captured)
         bound.positions[:] = captured[:3 * vertex_count]
     return None
@@ -103,28 +87,8 @@ def _shape_key_rest(obj, bound, mesh_changed):
              tuple((block.name, block.value, block.mute, block.vertex_group,
                     block.relative_key.name if block.relative_key is not None else "")
                    for block in keys.key_blocks))
-    if not mesh_changed and bound.rest_state == state:
-        return bound.rest_positions if bound.rest_in_use else None
-    if bound.rest_positions is None:
-        bound.rest_positions = array('f', bytes(12 * bound.vertex_count))
-    base = mesh_data.vertex_positions(mesh)
-    bound.rest_in_use = mesh_data.shape_key_rest_positions(obj, base, bound.rest_positions)
-    bound.rest_state = state
-    return bound.rest_positions if bound.rest_in_use else None
-
-
-# Blender reports the mesh as changed for much more than new weights or a new rest mesh (a selection,
-# a shape key's value, a modifier shown or hidden), and reading the weights takes a Python loop over the
-# vertices (75-100 ms for 100k). So in the interface, and in Weight Paint Mode, where every stroke
-# changes the mesh, they are read again only once the changes paused for this long (handlers.py's
-# timer then has the object corrected again); in background Blender, where scripts expect each update
-# to be complete, at once.
-CHECK_PAUSE = 0.4
-
-
-def _check_waits(obj, changed_at):
-    """Whether reading obj's weights and rest mesh again waits for changes to pause (CHECK_PAUSE)."""
-    return bindings.changes_come_one_at_a_time(obj) and time.monotonic() - changed_at < CHECK_PAUSE
+    return bound.shape_key_rest(state, mesh_changed, lambda rest: mesh_data.shape_key_rest_positions(
+        obj, mesh_data.vertex_positions(mesh), rest))
 
 
 def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):
@@ -133,23 +97,19 @@ def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):
     bound any more (the status says why).
 
     Checked every frame (cheap): the armature, the Armature modifier's mask group, the bound bones
-    and their rest pose and B-Bone settings. Checked when someone else changed the mesh
-    (bindings.note_mesh_changed), once the changes paused (CHECK_PAUSE): the weights, the rest mesh,
-    the painted map. A changed painted map alone only has the map set again (by refresh_map).
+    and their rest pose and B-Bone settings. Checked when someone else changed the mesh, once the
+    changes paused (changes.py): the weights, the rest mesh, the painted map. A changed painted map
+    alone only has the map set again (by refresh_map).
 
     Returns (the BoundObject to use or None, the bindings.BindInputs read, or None).
     """
     reason = bound.skeleton.changed(obj, armature_object, skeleton.armature_mask(obj, armature_modifier))
     inputs = None
-    if reason is None and bound.inputs_changed_at is not None:
-        if _check_waits(obj, bound.inputs_changed_at):
-            return bound, None
-        bound.inputs_changed_at = None
+    if reason is None and SESSION.changes.take_due(obj):
         inputs = bindings.BindInputs(obj, armature_modifier, armature_object)
         parts = inputs.changed_parts(bound)
         if parts == ["painted map"]:
-            bound.map_key = None  # refresh_map sets the map again, from inputs
-            bound.digests = inputs.digests
+            bound.painted_map_changed(inputs.digests)  # refresh_map sets the map again, from inputs
         elif parts:
             reason = "the %s changed" % " and the ".join(parts)
     if reason is None:
@@ -159,6 +119,15 @@ def _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object):
 
 def is_main_thread():
     return threading.current_thread() is threading.main_thread()
+
+
+class LeftAlone(Exception):
+    """Why obj is left as it is this time (nothing written): its status."""
+
+    def __init__(self, message, level='INFO'):
+        super().__init__(message)
+        self.message = message
+        self.level = level
 
 
 class PassThrough(Exception):
@@ -174,63 +143,82 @@ class PassThrough(Exception):
 def correct_object(obj, depsgraph, check_topology=False):
     """Corrects obj as evaluated in depsgraph. Returns whether its offsets object was written.
 
-    Never raises for bad input: every problem becomes the object's status and a pass-through (zero
-    offsets), so that the panel always says what is shown. The stages, in order: whether to touch
-    the object at all (_paused), the binding (_current_binding), where the offsets go (_holder), the
-    rig (_armature), the binding following the object's changes, the evaluated positions and bones,
-    the core, and the status of what was written (_status_of_correction).
+    Never raises for bad input: every problem becomes the object's status and, once the object is
+    corrected at all, a pass-through (zero offsets), so that the panel always says what is shown.
+    Preconditions: obj has a modifier, and is not left alone this time (_modifier_to_run). The
+    computation, each stage raising PassThrough: the binding (_current_binding), where the offsets go
+    (_holder), the rig (_armature), the binding following the object's changes (_following_changes),
+    the evaluated positions and bones (_read_pose), the core (_correct). Then the status of what was
+    written (_status_of_correction).
     """
     modifier = node_group.find_modifier(obj)
     if modifier is None:
         return False
-    if not node_group.is_current(modifier.node_group):
-        # Deleted or edited by hand: what it does is no longer the correction the panel reports.
-        if not is_main_thread():
-            bindings.set_status(obj, 'ERROR', "The modifier's node group was deleted or edited: it is rebuilt at "
-                                              "the next frame shown in the viewport")
-            return False
-        node_group.repair_modifiers([obj])
-        modifier = node_group.find_modifier(obj)
-    if check_topology:
-        # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
-        bindings.note_mesh_changed(obj)
-    paused = _paused(obj, modifier, depsgraph)
-    if paused is not None:
-        bindings.set_status(obj, *paused)
+    try:
+        modifier = _modifier_to_run(obj, modifier, depsgraph, check_topology)
+    except LeftAlone as why:
+        SESSION.set_status(obj, why.level, why.message)
         return False
+
     bound = None
     try:
         bound = _current_binding(obj, depsgraph, check_topology)
         holder = _holder(obj, modifier, bound)
         armature_modifier, armature_object = _armature(obj, depsgraph)
-        previous_bound, previous_map = bound, bound.map_key
-        bound, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+        bound = _following_changes(obj, bound, depsgraph, armature_modifier, armature_object)
         if bound is None:
-            raise PassThrough()
-        bound = bindings.refresh_map(obj, bound, depsgraph, inputs)
-        if bound is None:
-            raise PassThrough()
-        if is_main_thread() and (obj.lvp.display != 'NONE' and bound is not previous_bound or
-                                 obj.lvp.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
-            display.update_display(obj)  # the colours follow the binding, alpha, beta and the effect
+            raise PassThrough()  # the status says why (bindings.rebind, refresh_map)
         _read_pose(obj, depsgraph, bound, armature_object)
         stats = _correct(obj, bound, check_topology)
     except PassThrough as why:
         if why.message is not None:
-            bindings.set_status(obj, why.level, why.message)
+            SESSION.set_status(obj, why.level, why.message)
         return offsets.write_zeros(obj, modifier, bound)
-    bindings.set_status(obj, *_status_of_correction(obj, depsgraph, bound, stats, armature_modifier))
+
+    SESSION.set_status(obj, *_status_of_correction(obj, depsgraph, bound, stats, armature_modifier))
     return offsets.write(holder, bound.offsets, bound)
 
 
-def _paused(obj, modifier, depsgraph):
-    """(level, status) when obj is left as it is this time (nothing written), else None."""
+def _modifier_to_run(obj, modifier, depsgraph, check_topology):
+    """obj's modifier, its node group rebuilt when it is not the add-on's (on the main thread). Raises
+    LeftAlone when obj is left as it is this time."""
+    if not node_group.is_current(modifier.node_group):
+        # Deleted or edited by hand: what it does is no longer the correction the panel reports.
+        if not is_main_thread():
+            raise LeftAlone("The modifier's node group was deleted or edited: it is rebuilt at the next frame "
+                            "shown in the viewport", 'ERROR')
+        node_group.repair_modifiers([obj])
+        modifier = node_group.find_modifier(obj)
+    if check_topology:
+        # Noted before anything returns early (Edit Mode, the modifier hidden): checked when corrected.
+        SESSION.note_mesh_changed(obj)
     if obj.mode in {'EDIT', 'SCULPT'}:
         # Those modes own the mesh data while they run; writing it from a handler would fight them.
-        return 'INFO', "Paused in %s Mode" % obj.mode.title()
+        raise LeftAlone("Paused in %s Mode" % obj.mode.title())
     if not node_group.modifier_enabled(modifier, depsgraph.mode):
-        return 'INFO', "The modifier is disabled in the %s" % _mode_name(depsgraph)
-    return None
+        raise LeftAlone("The modifier is disabled in the %s" % _mode_name(depsgraph))
+    return modifier
+
+
+def _following_changes(obj, bound, depsgraph, armature_modifier, armature_object):
+    """bound, or the binding that replaced it because the object changed (_follow_changes) or its map
+    settings did (bindings.refresh_map), the display's colours following it; None when obj cannot be
+    bound any more (the status says why)."""
+    previous_map = bound.map_key
+    followed, inputs = _follow_changes(obj, bound, depsgraph, armature_modifier, armature_object)
+    if followed is not None:
+        followed = bindings.refresh_map(obj, followed, depsgraph, inputs)
+    if followed is not None:
+        _follow_display(obj, followed, bound, previous_map)
+    return followed
+
+
+def _follow_display(obj, bound, previous_bound, previous_map):
+    """The display's colours follow the binding, alpha, beta and the effect (on the main thread)."""
+    settings = obj.lvp
+    if is_main_thread() and (settings.display != 'NONE' and bound is not previous_bound or
+                             settings.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
+        display.update_display(obj)
 
 
 def _mode_name(depsgraph):
@@ -248,7 +236,7 @@ def _current_binding(obj, depsgraph, check_topology):
     mesh = obj.data
     counts_changed = mesh_data.quick_topology_counts(mesh) != bound.topology.rsplit(" ", 1)[0]
     if counts_changed or check_topology:
-        bound.topology_changed = counts_changed or mesh_data.topology_signature(mesh) != bound.topology
+        bound.note_topology(counts_changed or mesh_data.topology_signature(mesh) != bound.topology)
     if bound.topology_changed:
         raise PassThrough(bindings.REBIND_NEEDED)
     return bound
@@ -262,7 +250,7 @@ def _holder(obj, modifier, bound):
             raise PassThrough("Passing the mesh through: %s has no offsets object of its own, which is made on the "
                               "main thread (render once from the viewport, or press Bind)" % obj.name)
         holder = offsets.new_offsets_object(obj, modifier, bound.vertex_count)
-        bound.written = None
+        bound.forget_written()
     if node_group.count_modifiers(obj) > 1:
         # A copy (Duplicate Modifier) would capture the corrected shape and add the offsets again.
         raise PassThrough("Passing the mesh through: %s has more than one Volume Preservation modifier; remove "
@@ -316,7 +304,7 @@ def _correct(obj, bound, check_topology):
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
-    bound.stats = stats
+    bound.note_corrected(stats)
     if stats["passed_through"]:
         raise PassThrough("Passing the mesh through: no finite correction exists at this pose (a joint folded onto "
                           "itself?)", 'WARNING')
@@ -398,7 +386,7 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
                         "missing (Edit Mode > Mesh > Normals > Recalculate Outside, then Bind)" % flipped)
     if warnings:
         return 'WARNING', "Correcting, but " + "; and ".join(warnings)
-    if bound.inputs_changed_at is not None:
+    if SESSION.changes.changed_at(obj) is not None:
         return 'INFO', "Correcting (the weights and the rest mesh are read again when the changes pause)"
     if bound.rebound_because is not None:
         return 'INFO', "Correcting (bound again by itself: %s)" % bound.rebound_because

@@ -25,8 +25,8 @@ OFFSETS_SOCKET_NAME = "Offsets"
 OFFSETS_OBJECT_PREFIX = "Volume Preservation offsets: "
 OFFSETS_OWNER_TAG = "lvp_offsets_of"
 
-# Point attribute on the ORIGINAL mesh where version 1 of the node group read the offsets; files
-# saved with it still have it (zero), and object.lvp_remove removes it.
+# Point attribute on the ORIGINAL mesh from which a node group of another layout reads the offsets:
+# files whose node group reads it keep it (zero) until object.lvp_remove removes it.
 OFFSET_ATTRIBUTE = "lvp_offset"
 # Point attributes that exist only on the EVALUATED mesh, written by the node group: the positions
 # that enter the modifier (what the Armature modifier produced) and the original vertex index,

@@ -9,15 +9,14 @@ never into the character's mesh:
                                                                           mesh: N loose vertices,
                                                                           vertex i at offset i
 
-Why not an attribute of the character's mesh (version 1 of the node group did that):
+Why not an attribute of the character's mesh:
 - a character linked from a library, as productions bring characters into shots by library
   override, keeps its mesh linked, and Blender ignores what add-ons write into it; the offsets
   object is local to the shot, and the override records which one the modifier uses;
 - objects that share one mesh (linked duplicates) each need their own correction;
 - on Blender 3.4 a tagged mesh is copied whole into its evaluated copy before the modifiers run
-  again: the object evaluated again after its offsets object changed takes 12.7 ms for 100k
-  vertices, after its own mesh changed 17-18.5 ms (BENCHMARKS.md). On 4.3 the Sample Index node
-  costs about 0.3 ms per evaluation instead.
+  again, so evaluating the object again costs less after its offsets object changed than after its
+  own mesh did (BENCHMARKS.md).
 
 The offsets object is in no collection (nothing to see, select or render) and is kept and saved
 because the modifier uses it. Its custom property names.OFFSETS_OWNER_TAG names the object it was
@@ -32,11 +31,11 @@ from array import array
 
 import bpy
 
-from . import bindings
 from . import blender_api
 from . import mesh_data
 from . import names
 from . import node_group
+from .session import SESSION
 
 
 def offsets_object(modifier):
@@ -104,7 +103,7 @@ def new_offsets_object(obj, modifier, vertex_count):
     # has it rebuild its relations at the next evaluation (tested: tests/blender/test_live.py,
     # TestDuplicates, a copy given a new offsets object from a handler is corrected on that frame).
     blender_api.set_modifier_input(modifier, identifier, holder)
-    bindings.expect_own_update(obj)
+    SESSION.changes.expect_own_update(obj)
     obj.update_tag()
     if previous is not None:
         delete_if_unused(previous)
@@ -125,7 +124,7 @@ def _name_no_offsets_object(obj, modifier):
     """obj's modifier then samples nothing: it passes the mesh through."""
     identifier = node_group.offsets_socket_identifier(modifier.node_group)
     blender_api.set_modifier_input(modifier, identifier, None)
-    bindings.expect_own_update(obj)
+    SESSION.changes.expect_own_update(obj)
     obj.update_tag()
 
 
@@ -144,10 +143,10 @@ def write(holder, offsets, bound=None):
     and tags its mesh for a new evaluation (which evaluates the corrected object again). Returns
     whether anything was written.
 
-    bound.written remembers what was last written, which saves reading it back every frame; it is
-    forgotten (None) whenever something else may have changed it (undo, a new offsets object).
+    bound remembers what was last written, which saves reading it back every frame; it forgets it
+    whenever something else may have changed it (undo, a new offsets object).
     """
-    if bound is not None and bound.written is not None and mesh_data.same_values(bound.written, offsets):
+    if bound is not None and bound.wrote(offsets):
         return False
     mesh = holder.data
     if len(mesh.vertices) * 3 != len(offsets):
@@ -156,15 +155,12 @@ def write(holder, offsets, bound=None):
         current = mesh_data.vertex_positions(mesh)
         if mesh_data.same_values(current, offsets):
             if bound is not None:
-                bound.written = current
+                bound.note_written(current)
             return False
     mesh_data.set_vertex_positions(mesh, offsets)
     mesh.update_tag()
     if bound is not None:
-        if bound.written is None:
-            bound.written = array('f', offsets)
-        else:
-            bound.written[:] = offsets  # in place: no new buffer per frame (it resizes when it must)
+        bound.note_written(offsets)
     return True
 
 

@@ -23,6 +23,7 @@ from . import names
 from . import node_group
 from . import offsets
 from . import skeleton
+from .session import SESSION
 
 
 def _target_objects(context):
@@ -86,43 +87,65 @@ def _report_errors(operator, errors):
     operator.report({'ERROR'}, "; ".join(errors) + ". Nothing was changed.")
 
 
-def _tag(obj):
-    obj.update_tag()
-    obj.data.update_tag()
+class _Refused(Exception):
+    """Why an operator cannot change an object: then it changes none of the selected objects."""
 
 
-class OBJECT_OT_lvp_add(bpy.types.Operator):
-    """Bind the selected skinned meshes and add a Volume Preservation modifier right after their Armature \
-modifier, so they keep their volume when joints bend"""
+def _plan_each(operator, context, plan, modes=('OBJECT',), mesh_too=False, discard=None):
+    """The plans of plan(obj) for every selected mesh (the work an operator will do on it, checked
+    before anything changes), or None with every reason reported when any of them cannot be changed:
+    an operator changes all of them or none. plan raises _Refused or bindings.BindError with the
+    reason; discard(plan) frees what the plans hold when they are not carried out."""
+    meshes, errors = _meshes_to_process(_target_objects(context))
+    plans = []
+    for obj in meshes:
+        try:
+            problem = _editable_error(obj, modes=modes, mesh_too=mesh_too)
+            if problem is not None:
+                raise _Refused(problem)
+            plans.append(plan(obj))
+        except (_Refused, bindings.BindError) as error:
+            errors.append(str(error))
+    if errors:
+        for each in plans if discard is not None else ():
+            discard(each)
+        _report_errors(operator, errors)
+        return None
+    return plans
 
-    bl_idname = "object.lvp_add"
-    bl_label = "Add Volume Preservation"
+
+class _OnSelectedMeshes:
+    """An operator on the selected meshes (or the active one), in Object Mode."""
+
     bl_options = {'REGISTER', 'UNDO'}
 
     @classmethod
     def poll(cls, context):
         return context.mode == 'OBJECT' and bool(_target_objects(context))
 
+
+def _tag(obj):
+    obj.update_tag()
+    obj.data.update_tag()
+
+
+class OBJECT_OT_lvp_add(_OnSelectedMeshes, bpy.types.Operator):
+    """Bind the selected skinned meshes and add a Volume Preservation modifier right after their Armature \
+modifier, so they keep their volume when joints bend"""
+
+    bl_idname = "object.lvp_add"
+    bl_label = "Add Volume Preservation"
+
     def execute(self, context):
-        meshes, errors = _meshes_to_process(_target_objects(context))
-        plans = []
-        for obj in meshes:
-            problem = _editable_error(obj)
-            if problem is None and node_group.find_modifier(obj) is not None:
-                problem = ("%s already has a Volume Preservation modifier: use Bind to bind it again, or Remove"
-                           % obj.name)
-            if problem is None:
-                try:
-                    armature_modifier, _armature_object = bindings.armature_of(obj)
-                    plans.append((obj, armature_modifier, bindings.bind(obj)))
-                except bindings.BindError as error:
-                    problem = str(error)
-            if problem is not None:
-                errors.append(problem)
-        if errors:
-            for _obj, _modifier, bound in plans:
-                bound.close()
-            _report_errors(self, errors)
+        def plan(obj):
+            if node_group.find_modifier(obj) is not None:
+                raise _Refused("%s already has a Volume Preservation modifier: use Bind to bind it again, or Remove"
+                               % obj.name)
+            armature_modifier, _armature_object = bindings.armature_of(obj)
+            return obj, armature_modifier, bindings.bind(obj)
+
+        plans = _plan_each(self, context, plan, discard=lambda each: each[2].close())
+        if plans is None:
             return {'CANCELLED'}
 
         added = []
@@ -169,12 +192,11 @@ modifier, so they keep their volume when joints bend"""
         return {'FINISHED'}
 
 
-class OBJECT_OT_lvp_bind(bpy.types.Operator):
+class OBJECT_OT_lvp_bind(_OnSelectedMeshes, bpy.types.Operator):
     """Bind the selected meshes again, as needed after a topology change (others are followed by themselves)"""
 
     bl_idname = "object.lvp_bind"
     bl_label = "Bind"
-    bl_options = {'REGISTER', 'UNDO'}
 
     @classmethod
     def poll(cls, context):
@@ -182,23 +204,14 @@ class OBJECT_OT_lvp_bind(bpy.types.Operator):
         return context.mode in {'OBJECT', 'PAINT_WEIGHT'} and bool(_target_objects(context))
 
     def execute(self, context):
-        meshes, errors = _meshes_to_process(_target_objects(context))
-        plans = []
-        for obj in meshes:
-            problem = _editable_error(obj, modes=('OBJECT', 'WEIGHT_PAINT'))
-            if problem is None and node_group.find_modifier(obj) is None:
-                problem = "%s has no Volume Preservation modifier: use Add Volume Preservation first" % obj.name
-            if problem is None:
-                try:
-                    plans.append((obj, bindings.bind(obj)))
-                except bindings.BindError as error:
-                    problem = str(error)
-            if problem is not None:
-                errors.append(problem)
-        if errors:
-            for _obj, bound in plans:
-                bound.close()
-            _report_errors(self, errors)
+        def plan(obj):
+            if node_group.find_modifier(obj) is None:
+                raise _Refused("%s has no Volume Preservation modifier: use Add Volume Preservation first" % obj.name)
+            return obj, bindings.bind(obj)
+
+        plans = _plan_each(self, context, plan, modes=('OBJECT', 'WEIGHT_PAINT'),
+                           discard=lambda each: each[1].close())
+        if plans is None:
             return {'CANCELLED'}
         for obj, bound in plans:
             node_group.repair_modifiers([obj])  # a node group deleted or edited by hand is rebuilt
@@ -224,7 +237,7 @@ def remove_from_object(obj):
             attribute = mesh.attributes.get(name)
             if attribute is not None:
                 mesh.attributes.remove(attribute)
-    bindings.forget(obj)
+    SESSION.forget(obj)
     settings = obj.lvp
     settings.bind_id = ""
     settings.topology_signature = ""
@@ -233,32 +246,22 @@ def remove_from_object(obj):
     _tag(obj)
 
 
-class OBJECT_OT_lvp_remove(bpy.types.Operator):
+class OBJECT_OT_lvp_remove(_OnSelectedMeshes, bpy.types.Operator):
     """Remove Volume Preservation from the selected meshes: the modifier, its node group when nothing \
 else uses it, and its attributes. The mesh is left exactly as it was"""
 
     bl_idname = "object.lvp_remove"
     bl_label = "Remove Volume Preservation"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    @classmethod
-    def poll(cls, context):
-        return context.mode == 'OBJECT' and bool(_target_objects(context))
 
     def execute(self, context):
-        meshes, errors = _meshes_to_process(_target_objects(context))
-        targets = []
-        for obj in meshes:
-            problem = _editable_error(obj)
-            if problem is None and node_group.find_modifier(obj) is None and not obj.lvp.bind_id and not any(
+        def plan(obj):
+            if node_group.find_modifier(obj) is None and not obj.lvp.bind_id and not any(
                     obj.data.attributes.get(name) is not None for name in names.ORIGINAL_MESH_ATTRIBUTES):
-                problem = "%s has no Volume Preservation modifier: nothing to remove" % obj.name
-            if problem is not None:
-                errors.append(problem)
-            else:
-                targets.append(obj)
-        if errors:
-            _report_errors(self, errors)
+                raise _Refused("%s has no Volume Preservation modifier: nothing to remove" % obj.name)
+            return obj
+
+        targets = _plan_each(self, context, plan)
+        if targets is None:
             return {'CANCELLED'}
         for obj in targets:
             remove_from_object(obj)
@@ -267,13 +270,12 @@ else uses it, and its attributes. The mesh is left exactly as it was"""
         return {'FINISHED'}
 
 
-class OBJECT_OT_lvp_auto_weights(bpy.types.Operator):
+class OBJECT_OT_lvp_auto_weights(_OnSelectedMeshes, bpy.types.Operator):
     """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
 write them into the deforming bones' vertex groups, replacing their weights"""
 
     bl_idname = "object.lvp_auto_weights"
     bl_label = "Volume Preservation Auto Weights"
-    bl_options = {'REGISTER', 'UNDO'}
 
     visibility: EnumProperty(
         name="Visibility Test",
@@ -300,42 +302,9 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         default=0.01, min=0.0, max=0.5,
     )
 
-    @classmethod
-    def poll(cls, context):
-        return context.mode == 'OBJECT' and bool(_target_objects(context))
-
     def execute(self, context):
-        meshes, errors = _meshes_to_process(_target_objects(context))
-        plans = []
-        for obj in meshes:
-            problem = _editable_error(obj, mesh_too=True)
-            if problem is None:
-                try:
-                    _armature_modifier, armature_object = bindings.armature_of(obj)
-                except bindings.BindError as error:
-                    problem = str(error)
-            if problem is None:
-                bone_names = [bone.name for bone in armature_object.data.bones if bone.use_deform]
-                if not bone_names:
-                    problem = "%s has no deforming bone: enable Deform on its bones" % armature_object.name
-                elif len(obj.data.polygons) == 0:
-                    problem = "%s has no faces: automatic weights need a surface mesh" % obj.name
-            if problem is None:
-                mesh = obj.data
-                rest_matrices, heads, tails = skeleton.rest_skeleton_arrays(obj, armature_object, bone_names)
-                try:
-                    weights = _lvp.auto_weights(
-                        mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads,
-                        tails, alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
-                        min_weight=self.min_weight)
-                except (ValueError, MemoryError) as error:
-                    problem = "Cannot compute weights for %s: %s" % (obj.name, error)
-                else:
-                    plans.append((obj, bone_names, weights))
-            if problem is not None:
-                errors.append(problem)
-        if errors:
-            _report_errors(self, errors)
+        plans = _plan_each(self, context, self._weights, mesh_too=True)
+        if plans is None:
             return {'CANCELLED'}
         rebound = []
         for obj, bone_names, (starts, bones, values) in plans:
@@ -355,6 +324,25 @@ write them into the deforming bones' vertex groups, replacing their weights"""
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self)
+
+    def _weights(self, obj):
+        """(obj, the deforming bones' names, the weights computed for them)."""
+        _armature_modifier, armature_object = bindings.armature_of(obj)
+        bone_names = [bone.name for bone in armature_object.data.bones if bone.use_deform]
+        if not bone_names:
+            raise _Refused("%s has no deforming bone: enable Deform on its bones" % armature_object.name)
+        if len(obj.data.polygons) == 0:
+            raise _Refused("%s has no faces: automatic weights need a surface mesh" % obj.name)
+        mesh = obj.data
+        rest_matrices, heads, tails = skeleton.rest_skeleton_arrays(obj, armature_object, bone_names)
+        try:
+            weights = _lvp.auto_weights(
+                mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
+                alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
+                min_weight=self.min_weight)
+        except (_lvp.Error, MemoryError) as error:
+            raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
+        return obj, bone_names, weights
 
 
 class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):
@@ -393,7 +381,7 @@ class OBJECT_OT_lvp_region_restriction_remove(bpy.types.Operator):
         index = min(settings.active_region_restriction, len(settings.region_restrictions) - 1)
         settings.region_restrictions.remove(index)
         settings.active_region_restriction = max(0, index - 1)
-        bindings.expect_own_update(obj)
+        SESSION.changes.expect_own_update(obj)
         obj.update_tag()
         return {'FINISHED'}
 
@@ -408,11 +396,4 @@ classes = (
 )
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

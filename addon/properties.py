@@ -10,8 +10,8 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
                        PointerProperty, StringProperty)
 
-from . import bindings
 from . import display
+from .session import SESSION
 
 # Every setting can be changed on a library override (a character linked into a shot) and is kept
 # in the shot's file; otherwise Blender would give it back the character file's value on reopening.
@@ -23,7 +23,7 @@ def _own_property_changed(settings, context):
     changed: not a change of its weights or rest mesh, which are not read again for it."""
     obj = settings.id_data
     if isinstance(obj, bpy.types.Object):
-        bindings.expect_own_update(obj)
+        SESSION.changes.expect_own_update(obj)
 
 
 def _settings_changed(settings, context):
@@ -32,6 +32,12 @@ def _settings_changed(settings, context):
         _own_property_changed(settings, context)
         # The handlers correct the object again with the new setting.
         obj.update_tag(refresh={'OBJECT'})
+
+
+def _setting(kind, **options):
+    """A setting of the correction (kind: FloatProperty...): overridable, and changing it has the object
+    corrected again with it."""
+    return kind(override=OVERRIDABLE, update=_settings_changed, **options)
 
 
 def _display_changed(settings, context):
@@ -63,78 +69,69 @@ DISPLAY_ITEMS = (
 class LVP_PG_region_restriction(bpy.types.PropertyGroup):
     """Restricts the distance term of one region's map to chosen bones (paper Fig. 11)."""
 
-    region: StringProperty(
-        override=OVERRIDABLE,
+    region: _setting(
+        StringProperty,
         name="Region",
         description="Deforming bone whose region is restricted",
-        update=_settings_changed,
     )
-    bones: StringProperty(
-        override=OVERRIDABLE,
+    bones: _setting(
+        StringProperty,
         name="Bones",
         description="Comma-separated bone names: the region's flesh is measured from these bones only "
                     "(e.g. the belly from the spine)",
-        update=_settings_changed,
     )
 
 
 class LVP_PG_settings(bpy.types.PropertyGroup):
     """Local Volume Preservation settings of one object."""
 
-    effect: EnumProperty(
-        override=OVERRIDABLE,
+    effect: _setting(
+        EnumProperty,
         name="Effect",
         description="How the lost volume is put back",
         items=EFFECT_ITEMS,
         default='ORGANIC',
-        update=_settings_changed,
     )
-    alpha: FloatProperty(
-        override=OVERRIDABLE,
+    alpha: _setting(
+        FloatProperty,
         name="Alpha",
         description="Concentration at the joints: higher keeps the correction closer to where no bone "
                     "dominates",
         default=1.0, min=0.0, soft_max=4.0,
-        update=_settings_changed,
     )
-    beta: FloatProperty(
-        override=OVERRIDABLE,
+    beta: _setting(
+        FloatProperty,
         name="Beta",
         description="Dependence on the distance to the bones: higher moves flesh far from the bone more "
                     "than flesh over it",
         default=1.0, min=0.0, soft_max=4.0,
-        update=_settings_changed,
     )
-    iterations: IntProperty(
-        override=OVERRIDABLE,
+    iterations: _setting(
+        IntProperty,
         name="Iterations",
         description="Correction passes per frame; 1 is the paper's single pass, more removes its "
                     "linearization error",
         default=8, min=1, max=64,
-        update=_settings_changed,
     )
-    tolerance: FloatProperty(
-        override=OVERRIDABLE,
+    tolerance: _setting(
+        FloatProperty,
         name="Tolerance",
         description="The passes stop once every region is this close to its rest volume (percent of the "
                     "region's volume); larger saves passes and leaves more of the error",
         subtype='PERCENTAGE',
         default=0.01, min=0.001, max=10.0, soft_max=1.0, precision=3, step=1,
-        update=_settings_changed,
     )
-    fold_over: BoolProperty(
-        override=OVERRIDABLE,
+    fold_over: _setting(
+        BoolProperty,
         name="Fold-Over Prevention",
         description="Keep the skin of a bending joint from folding through itself; squeezed flesh bulges "
                     "instead (paper 5.4)",
         default=False,
-        update=_settings_changed,
     )
-    painted_vertex_group: StringProperty(
-        override=OVERRIDABLE,
+    painted_vertex_group: _setting(
+        StringProperty,
         name="Painted Map",
         description="Vertex group whose weights say where the volume goes (Painted effect)",
-        update=_settings_changed,
     )
     region_restrictions: CollectionProperty(
         override={'LIBRARY_OVERRIDABLE', 'USE_INSERTION'},
@@ -175,14 +172,15 @@ classes = (
 )
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
 def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     bpy.types.Object.lvp = PointerProperty(type=LVP_PG_settings, name="Local Volume Preservation",
                                            override=OVERRIDABLE)
 
 
 def unregister():
     del bpy.types.Object.lvp
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

@@ -6,10 +6,9 @@ full at the default width of the Properties editor (panel_text.py)."""
 
 import bpy
 
-from . import bindings
-from . import handlers
 from . import node_group
 from . import panel_text
+from .session import SESSION
 
 STATUS_ICONS = {'INFO': 'CHECKMARK', 'WARNING': 'ERROR', 'ERROR': 'CANCEL'}
 
@@ -87,7 +86,7 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         column.prop(settings, "display")
 
         render = context.scene.render
-        if not render.use_lock_interface or handlers.render_without_lock:
+        if not render.use_lock_interface or SESSION.render_without_lock:
             box = layout.box()
             panel_text.wrapped_label(box, context, "F12 renders show the correction only with Render > Lock "
                                                    "Interface", icon='ERROR', boxed=True)
@@ -118,11 +117,11 @@ class LVP_PT_statistics(_SubPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         obj = context.object
-        status = bindings.status(obj)
+        status = SESSION.status(obj)
         if status is not None:
             level, message = status
             panel_text.wrapped_label(layout, context, message, icon=STATUS_ICONS.get(level, 'INFO'), boxed=True)
-        bound = bindings.entry(obj)
+        bound = SESSION.bound(obj)
         stats = bound.stats if bound is not None else None
         if not stats or (status is not None and status[0] == 'ERROR'):
             return
@@ -184,11 +183,4 @@ classes = (
 )
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -4,8 +4,10 @@
  * Built against the stable ABI (Py_LIMITED_API 0x030B0000) so that one _lvp.abi3.so loads in every Blender
  * on Python 3.11 and later. Arrays come in through the buffer protocol, so array.array, memoryview and numpy
  * arrays all work and numpy is never imported. Every size is checked here, before the core reads a byte,
- * because the core trusts its counts; everything else (indices, NaN, signs, options) is checked by the core
- * and its diagnostic becomes the ValueError, with the core's parameter names turned into this module's.
+ * because the core trusts its counts; everything else (indices, NaN, signs, options) is checked by the core.
+ * Every bad argument raises _lvp.Error, a ValueError that names the argument (.argument) and says what is
+ * wrong for code to branch on (.code: the core's result, or this module's for a buffer it cannot take); a
+ * core diagnostic is passed on with the core's parameter names turned into this module's.
  * Computing calls release the GIL while holding the buffer views, which keeps the exporters from resizing
  * or freeing the memory underneath.
  */
@@ -16,6 +18,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -46,16 +49,94 @@ typedef struct lvp_py__array {
 	lvp_py__kind kind;
 } lvp_py__array;
 
-/* The views one call holds; all are released together when the call ends. */
-typedef struct lvp_py__buffers {
+/* A core parameter name and the Python argument it comes from. */
+typedef struct lvp_py__rename {
+	const char *core;
+	const char *python;
+} lvp_py__rename;
+
+/* What the module keeps per interpreter: its exception type. */
+typedef struct lvp_py__state {
+	PyObject *error; /* _lvp.Error */
+} lvp_py__state;
+
+/* One call: the arguments' buffer views, all released together when the call ends, and how its errors are
+ * raised. */
+typedef struct lvp_py__call {
 	Py_buffer views[LVP_PY__MAX_BUFFERS];
 	int count;
-} lvp_py__buffers;
+	PyObject *error;                     /* _lvp.Error of the module called (borrowed) */
+	const lvp_py__rename *renames;       /* this call's core parameter names -> Python names, or NULL */
+	lvp_diagnostic diag;                 /* the core's, when it fails */
+} lvp_py__call;
 
-static void lvp_py__release_buffers(lvp_py__buffers *buffers)
+/* Starts a call into `module` (NULL when the module is gone, which raises). */
+static int lvp_py__begin(lvp_py__call *call, PyObject *module, const lvp_py__rename *renames)
 {
-	while (buffers->count > 0)
-		PyBuffer_Release(&buffers->views[--buffers->count]);
+	memset(call, 0, sizeof(*call));
+	call->renames = renames;
+	lvp_py__state *state = module ? PyModule_GetState(module) : NULL;
+	if (!state || !state->error) {
+		if (!PyErr_Occurred())
+			PyErr_SetString(PyExc_SystemError, "_lvp: the module's state is gone");
+		return -1;
+	}
+	call->error = state->error;
+	return 0;
+}
+
+/* Starts a call of a method of `type` (Binding), which knows its module. */
+static int lvp_py__begin_method(lvp_py__call *call, PyTypeObject *type, const lvp_py__rename *renames)
+{
+	return lvp_py__begin(call, PyType_GetModule(type), renames);
+}
+
+static void lvp_py__release(lvp_py__call *call)
+{
+	while (call->count > 0)
+		PyBuffer_Release(&call->views[--call->count]);
+}
+
+/* Ends a call whose arguments could not be taken (the error is set): NULL, for the caller to return. */
+static PyObject *lvp_py__abandon(lvp_py__call *call)
+{
+	lvp_py__release(call);
+	return NULL;
+}
+
+/* Makes an exception of `type` with the message `text` and sets it, with .code and .argument (NULL: None). */
+static void lvp_py__set_error(PyObject *type, PyObject *text, const char *code, const char *argument)
+{
+	PyObject *exception = text ? PyObject_CallFunctionObjArgs(type, text, NULL) : NULL;
+	if (!exception)
+		return; /* the failure to make it is the error set */
+	PyObject *code_object = PyUnicode_FromString(code);
+	PyObject *argument_object = argument ? PyUnicode_FromString(argument) : (Py_INCREF(Py_None), Py_None);
+	if (code_object && argument_object && PyObject_SetAttrString(exception, "code", code_object) == 0 &&
+	    PyObject_SetAttrString(exception, "argument", argument_object) == 0)
+		PyErr_SetObject(type, exception);
+	Py_XDECREF(code_object);
+	Py_XDECREF(argument_object);
+	Py_DECREF(exception);
+}
+
+/* Codes of the arguments this module refuses before the core sees them; the others are the core's. */
+#define LVP_PY__INVALID_BUFFER "invalid_buffer" /* not a buffer of the kind asked, or sharing memory */
+#define LVP_PY__INVALID_SIZE "invalid_size"
+#define LVP_PY__NULL_ARGUMENT "null_argument"
+#define LVP_PY__INVALID_OPTION "invalid_option"
+
+/* Raises _lvp.Error "<message>" about `argument`; the message starts with the argument's name. Returns -1. */
+static int lvp_py__argument_error(const lvp_py__call *call, const char *code, const char *argument, const char *format,
+                                  ...)
+{
+	va_list arguments;
+	va_start(arguments, format);
+	PyObject *text = PyUnicode_FromFormatV(format, arguments);
+	va_end(arguments);
+	lvp_py__set_error(call->error, text, code, argument);
+	Py_XDECREF(text);
+	return -1;
 }
 
 static char lvp_py__native_order(void)
@@ -88,24 +169,25 @@ static bool lvp_py__format_matches(const char *format, Py_ssize_t itemsize, lvp_
 	return false;
 }
 
-/* Raises ValueError "<name> must be a C-contiguous <kind> buffer ...; got <what>". */
-static int lvp_py__wrong_buffer(PyObject *object, const char *name, lvp_py__kind kind, bool writable,
-                                const char *problem)
+/* Raises "<name> must be a C-contiguous <kind> buffer ...; got <what>". */
+static int lvp_py__wrong_buffer(const lvp_py__call *call, PyObject *object, const char *name, lvp_py__kind kind,
+                                bool writable, const char *problem)
 {
 	PyObject *type_name = PyType_GetName(Py_TYPE(object));
 	if (!type_name)
 		return -1;
-	PyErr_Format(PyExc_ValueError, "%s must be a C-contiguous%s %s buffer such as %s; got %U (%s).", name,
-	             writable ? " writable" : "", lvp_py__kind_names[kind], lvp_py__kind_examples[kind], type_name,
-	             problem);
+	lvp_py__argument_error(call, object == Py_None ? LVP_PY__NULL_ARGUMENT : LVP_PY__INVALID_BUFFER, name,
+	                       "%s must be a C-contiguous%s %s buffer such as %s; got %U (%s).", name,
+	                       writable ? " writable" : "", lvp_py__kind_names[kind], lvp_py__kind_examples[kind],
+	                       type_name, problem);
 	Py_DECREF(type_name);
 	return -1;
 }
 
-/* Takes a view of `object` for the argument `name` into `buffers`, checking that it is a C-contiguous,
+/* Takes a view of `object` for the argument `name` into the call, checking that it is a C-contiguous,
  * aligned buffer of exactly `kind` items (and writable for outputs). `optional` lets None (or a missing
  * keyword, NULL) through as not given. Sizes are checked by the caller, which knows them. */
-static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObject *object, const char *name,
+static int lvp_py__take(lvp_py__call *call, lvp_py__array *r_array, PyObject *object, const char *name,
                         lvp_py__kind kind, bool writable, bool optional)
 {
 	memset(r_array, 0, sizeof(*r_array));
@@ -114,39 +196,40 @@ static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObje
 	if (optional && (!object || object == Py_None))
 		return 0;
 	if (!object || object == Py_None)
-		return lvp_py__wrong_buffer(Py_None, name, kind, writable, "required");
+		return lvp_py__wrong_buffer(call, Py_None, name, kind, writable, "required");
 	if (!PyObject_CheckBuffer(object))
-		return lvp_py__wrong_buffer(object, name, kind, writable, "no buffer protocol");
-	if (buffers->count >= LVP_PY__MAX_BUFFERS) {
+		return lvp_py__wrong_buffer(call, object, name, kind, writable, "no buffer protocol");
+	if (call->count >= LVP_PY__MAX_BUFFERS) {
 		PyErr_SetString(PyExc_SystemError, "_lvp: too many buffers in one call");
 		return -1;
 	}
-	Py_buffer *view = &buffers->views[buffers->count];
+	Py_buffer *view = &call->views[call->count];
 	/* Strides and format, read-only: then contiguity and writability are checked below with a message that
 	 * says what is wrong, instead of the exporter's generic BufferError. */
 	if (PyObject_GetBuffer(object, view, PyBUF_RECORDS_RO) != 0) {
 		PyObject *type, *value, *traceback;
 		PyErr_Fetch(&type, &value, &traceback);
-		PyErr_Format(PyExc_ValueError, "%s could not be read as a buffer (%S).", name, value ? value : Py_None);
+		lvp_py__argument_error(call, LVP_PY__INVALID_BUFFER, name, "%s could not be read as a buffer (%S).", name,
+		                       value ? value : Py_None);
 		Py_XDECREF(type);
 		Py_XDECREF(value);
 		Py_XDECREF(traceback);
 		return -1;
 	}
-	buffers->count++;
+	call->count++;
 	char problem[96];
 	if (!lvp_py__format_matches(view->format, view->itemsize, kind)) {
 		snprintf(problem, sizeof(problem), "item format '%.16s', itemsize %zd", view->format ? view->format : "B",
 		         view->itemsize);
-		return lvp_py__wrong_buffer(object, name, kind, writable, problem);
+		return lvp_py__wrong_buffer(call, object, name, kind, writable, problem);
 	}
 	if (!PyBuffer_IsContiguous(view, 'C'))
-		return lvp_py__wrong_buffer(object, name, kind, writable, "not C-contiguous; pass a contiguous copy");
+		return lvp_py__wrong_buffer(call, object, name, kind, writable, "not C-contiguous; pass a contiguous copy");
 	if (writable && view->readonly)
-		return lvp_py__wrong_buffer(object, name, kind, writable, "read-only");
+		return lvp_py__wrong_buffer(call, object, name, kind, writable, "read-only");
 	/* A memoryview cast from an odd byte offset can be misaligned; the core reads whole floats. */
 	if (view->len > 0 && (uintptr_t)view->buf % (uintptr_t)view->itemsize != 0)
-		return lvp_py__wrong_buffer(object, name, kind, writable, "not aligned to its item size");
+		return lvp_py__wrong_buffer(call, object, name, kind, writable, "not aligned to its item size");
 	r_array->given = true;
 	r_array->data = view->buf;
 	r_array->count = view->len / view->itemsize;
@@ -155,30 +238,28 @@ static int lvp_py__take(lvp_py__buffers *buffers, lvp_py__array *r_array, PyObje
 }
 
 /* Checks that an array holds exactly `expected` items; `why` says where the number comes from. */
-static int lvp_py__expect_count(const lvp_py__array *array, Py_ssize_t expected, const char *why)
+static int lvp_py__expect_count(const lvp_py__call *call, const lvp_py__array *array, Py_ssize_t expected,
+                                const char *why)
 {
 	if (!array->given || array->count == expected)
 		return 0;
-	PyErr_Format(PyExc_ValueError, "%s has %zd %s values; expected %zd (%s).", array->name, array->count,
-	             lvp_py__kind_names[array->kind], expected, why);
-	return -1;
+	return lvp_py__argument_error(call, LVP_PY__INVALID_SIZE, array->name, "%s has %zd %s values; expected %zd (%s).",
+	                              array->name, array->count, lvp_py__kind_names[array->kind], expected, why);
 }
 
 /* Checks that an array holds a positive multiple of `group` items, at most `limit` groups, and returns the
  * number of groups (vertices, triangles, bones). The limit keeps the counts inside the core's int32. */
-static int lvp_py__expect_groups(const lvp_py__array *array, Py_ssize_t group, Py_ssize_t limit, const char *what,
-                                 int32_t *r_groups)
+static int lvp_py__expect_groups(const lvp_py__call *call, const lvp_py__array *array, Py_ssize_t group,
+                                 Py_ssize_t limit, const char *what, int32_t *r_groups)
 {
-	if (array->count == 0 || array->count % group != 0) {
-		PyErr_Format(PyExc_ValueError, "%s has %zd %s values; expected %zd per %s, a positive multiple of %zd.",
-		             array->name, array->count, lvp_py__kind_names[array->kind], group, what, group);
-		return -1;
-	}
-	if (array->count / group > limit) {
-		PyErr_Format(PyExc_ValueError, "%s has %zd %ss; at most %zd are supported.", array->name,
-		             array->count / group, what, limit);
-		return -1;
-	}
+	if (array->count == 0 || array->count % group != 0)
+		return lvp_py__argument_error(call, LVP_PY__INVALID_SIZE, array->name,
+		                              "%s has %zd %s values; expected %zd per %s, a positive multiple of %zd.",
+		                              array->name, array->count, lvp_py__kind_names[array->kind], group, what, group);
+	if (array->count / group > limit)
+		return lvp_py__argument_error(call, LVP_PY__INVALID_SIZE, array->name,
+		                              "%s has %zd %ss; at most %zd are supported.", array->name, array->count / group,
+		                              what, limit);
 	*r_groups = (int32_t)(array->count / group);
 	return 0;
 }
@@ -193,74 +274,72 @@ static bool lvp_py__overlap(const lvp_py__array *a, const lvp_py__array *b)
 
 /* The core reads its inputs while it writes its outputs: an output sharing memory with an input would
  * corrupt the result without any error. */
-static int lvp_py__expect_apart(const lvp_py__array *output, const lvp_py__array *input)
+static int lvp_py__expect_apart(const lvp_py__call *call, const lvp_py__array *output, const lvp_py__array *input)
 {
 	if (!lvp_py__overlap(output, input))
 		return 0;
-	PyErr_Format(PyExc_ValueError, "%s shares memory with %s; pass a separate buffer.", output->name, input->name);
-	return -1;
+	return lvp_py__argument_error(call, LVP_PY__INVALID_BUFFER, output->name,
+	                              "%s shares memory with %s; pass a separate buffer.", output->name, input->name);
 }
 
 /* The CSR weights: offsets has vertex_count+1 entries and its last one is the length of bones and values,
  * which the core would otherwise read past. */
-static int lvp_py__expect_weights(const lvp_py__array *offsets, const lvp_py__array *bones, const lvp_py__array *values,
-                                  int32_t vertex_count)
+static int lvp_py__expect_weights(const lvp_py__call *call, const lvp_py__array *offsets, const lvp_py__array *bones,
+                                  const lvp_py__array *values, int32_t vertex_count)
 {
-	if (lvp_py__expect_count(offsets, (Py_ssize_t)vertex_count + 1, "one per vertex, plus one") != 0)
+	if (lvp_py__expect_count(call, offsets, (Py_ssize_t)vertex_count + 1, "one per vertex, plus one") != 0)
 		return -1;
 	int32_t total = ((const int32_t *)offsets->data)[vertex_count];
 	const lvp_py__array *influences[2] = {bones, values};
 	for (int i = 0; i < 2; ++i)
-		if (influences[i]->count != total) {
-			PyErr_Format(PyExc_ValueError,
-			             "%s has %zd %s values; expected %d, the number of influences that %s[%d] (its last entry) "
-			             "announces.",
-			             influences[i]->name, influences[i]->count, lvp_py__kind_names[influences[i]->kind],
-			             (int)total, offsets->name, (int)vertex_count);
-			return -1;
-		}
+		if (influences[i]->count != total)
+			return lvp_py__argument_error(
+			    call, LVP_PY__INVALID_SIZE, influences[i]->name,
+			    "%s has %zd %s values; expected %d, the number of influences that %s[%d] (its last entry) announces.",
+			    influences[i]->name, influences[i]->count, lvp_py__kind_names[influences[i]->kind], (int)total,
+			    offsets->name, (int)vertex_count);
 	return 0;
 }
 
 /* ---- scalar arguments ---------------------------------------------------------------------------------- */
 
-/* Scalars raise ValueError naming the argument too, so the add-on can report any bad input the same way. */
-static int lvp_py__wrong_scalar(PyObject *object, const char *name, const char *expected)
+/* Scalars raise _lvp.Error naming the argument too, so the add-on can report any bad input the same way. */
+static int lvp_py__wrong_scalar(const lvp_py__call *call, PyObject *object, const char *name, const char *expected)
 {
 	PyObject *type_name = PyType_GetName(Py_TYPE(object));
 	if (!type_name)
 		return -1;
-	PyErr_Format(PyExc_ValueError, "%s must be %s; got %U.", name, expected, type_name);
+	lvp_py__argument_error(call, LVP_PY__INVALID_OPTION, name, "%s must be %s; got %U.", name, expected, type_name);
 	Py_DECREF(type_name);
 	return -1;
 }
 
 /* NULL (keyword not given) keeps the default already in *r_value. */
-static int lvp_py__parse_float(PyObject *object, const char *name, float *r_value)
+static int lvp_py__parse_float(const lvp_py__call *call, PyObject *object, const char *name, float *r_value)
 {
 	if (!object)
 		return 0;
 	double value = PyFloat_AsDouble(object);
 	if (value == -1.0 && PyErr_Occurred()) {
 		PyErr_Clear();
-		return lvp_py__wrong_scalar(object, name, "a number");
+		return lvp_py__wrong_scalar(call, object, name, "a number");
 	}
 	if (isfinite(value) && fabs(value) > FLT_MAX) {
-		PyErr_Format(PyExc_ValueError, "%s is %R, outside the float32 range.", name, object);
-		return -1;
+		return lvp_py__argument_error(call, LVP_PY__INVALID_OPTION, name, "%s is %R, outside the float32 range.", name,
+		                              object);
 	}
 	*r_value = (float)value;
 	return 0;
 }
 
-static int lvp_py__parse_int(PyObject *object, const char *name, int32_t *r_value)
+static int lvp_py__parse_int(const lvp_py__call *call, PyObject *object, const char *name, int32_t *r_value)
 {
 	if (!object)
 		return 0;
 	PyObject *index = PyNumber_Index(object);
 	if (!index) {
 		PyErr_Clear();
-		return lvp_py__wrong_scalar(object, name, "an int");
+		return lvp_py__wrong_scalar(call, object, name, "an int");
 	}
 	int overflow = 0;
 	long value = PyLong_AsLongAndOverflow(index, &overflow);
@@ -268,29 +347,29 @@ static int lvp_py__parse_int(PyObject *object, const char *name, int32_t *r_valu
 	if (value == -1 && PyErr_Occurred())
 		return -1;
 	if (overflow || value < INT32_MIN || value > INT32_MAX) {
-		PyErr_Format(PyExc_ValueError, "%s is %R, outside the int32 range.", name, object);
-		return -1;
+		return lvp_py__argument_error(call, LVP_PY__INVALID_OPTION, name, "%s is %R, outside the int32 range.", name,
+		                              object);
 	}
 	*r_value = (int32_t)value;
 	return 0;
 }
 
-static int lvp_py__parse_bool(PyObject *object, const char *name, int32_t *r_value)
+static int lvp_py__parse_bool(const lvp_py__call *call, PyObject *object, const char *name, int32_t *r_value)
 {
 	if (!object)
 		return 0;
 	int truth = PyObject_IsTrue(object);
 	if (truth < 0) {
 		PyErr_Clear();
-		return lvp_py__wrong_scalar(object, name, "a bool");
+		return lvp_py__wrong_scalar(call, object, name, "a bool");
 	}
 	*r_value = truth;
 	return 0;
 }
 
 /* Enum arguments are Blender-style identifiers ('LOCAL', 'ORGANIC'); their index is the C enum value. */
-static int lvp_py__parse_choice(PyObject *object, const char *name, const char *const *choices, int choice_count,
-                                int *r_index)
+static int lvp_py__parse_choice(const lvp_py__call *call, PyObject *object, const char *name,
+                                const char *const *choices, int choice_count, int *r_index)
 {
 	if (!object)
 		return 0;
@@ -306,8 +385,8 @@ static int lvp_py__parse_choice(PyObject *object, const char *name, const char *
 		size_t used = strlen(list);
 		snprintf(list + used, sizeof(list) - used, "%s'%s'", i ? ", " : "", choices[i]);
 	}
-	PyErr_Format(PyExc_ValueError, "%s must be one of %s; got %R.", name, list, object);
-	return -1;
+	return lvp_py__argument_error(call, LVP_PY__INVALID_OPTION, name, "%s must be one of %s; got %R.", name, list,
+	                              object);
 }
 
 static const char *const lvp_py__mode_names[] = {"LOCAL", "GLOBAL"};
@@ -315,12 +394,6 @@ static const char *const lvp_py__map_names[] = {"ORGANIC", "RUBBER", "BOUNDARY_F
 static const char *const lvp_py__visibility_names[] = {"NORMAL", "EXACT", "NONE"};
 
 /* ---- core diagnostics -> Python exceptions ----------------------------------------------------------- */
-
-/* A core parameter name and the Python argument it comes from. */
-typedef struct lvp_py__rename {
-	const char *core;
-	const char *python;
-} lvp_py__rename;
 
 /* Names that mean the same argument in every call. */
 static const lvp_py__rename lvp_py__common_renames[] = {
@@ -414,46 +487,46 @@ static void lvp_py__rewrite(char *r_message, size_t capacity, const char *messag
 }
 
 /* Raises the exception for a failed core call: MemoryError when memory ran out, RuntimeError when worker
- * threads could not start (nothing the caller passed is wrong), ValueError otherwise. A ValueError's message
- * starts with the Python argument's name; the other two are not about an argument. */
-static void lvp_py__raise(lvp_result result, const lvp_diagnostic *diag, const lvp_py__rename *call_renames)
+ * threads could not start (nothing the caller passed is wrong), _lvp.Error otherwise, whose message starts
+ * with the Python argument's name. Each carries .code, the core's result without its prefix
+ * ("mesh_not_closed"), and .argument, the Python name of the argument at fault or None. */
+static void lvp_py__raise(const lvp_py__call *call, lvp_result result)
 {
+	const lvp_diagnostic *diag = &call->diag;
 	PyObject *type = result == lvp_error_out_of_memory ? PyExc_MemoryError
 	                 : result == lvp_error_thread      ? PyExc_RuntimeError
-	                                                   : PyExc_ValueError;
-	const char *name = lvp_py__python_name(diag->argument, call_renames);
+	                                                   : call->error;
+	const char *name = lvp_py__python_name(diag->argument, call->renames);
 	char message[sizeof(diag->message) + 128];
 	lvp_py__rewrite(message, sizeof(message), diag->message[0] ? diag->message : lvp_result_name(result),
 	                diag->argument, name);
 	size_t name_length = name ? strlen(name) : 0;
-	PyObject *text = type == PyExc_ValueError && name &&
-	                         !(strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length]))
-	                     ? PyUnicode_FromFormat("%s: %s", name, message)
-	                     : PyUnicode_FromString(message);
-	PyObject *exception = text ? PyObject_CallFunctionObjArgs(type, text, NULL) : NULL;
-	Py_XDECREF(text);
-	if (!exception)
-		return; /* the failure to make it is the error set */
-	/* What went wrong, for code to branch on (the text is for people): the core's result without
-	 * its prefix ("mesh_not_closed") and the Python name of the argument at fault, or None. */
+	bool starts_with_name =
+	    name && strncmp(message, name, name_length) == 0 && !lvp_py__identifier_char(message[name_length]);
+	PyObject *text = type == call->error && name && !starts_with_name ? PyUnicode_FromFormat("%s: %s", name, message)
+	                                                                  : PyUnicode_FromString(message);
 	const char *code = lvp_result_name(result);
 	const char *prefix = "lvp_error_";
 	if (strncmp(code, prefix, strlen(prefix)) == 0)
 		code += strlen(prefix);
-	PyObject *code_object = PyUnicode_FromString(code);
-	PyObject *argument_object = name ? PyUnicode_FromString(name) : (Py_INCREF(Py_None), Py_None);
-	if (code_object && argument_object && PyObject_SetAttrString(exception, "code", code_object) == 0 &&
-	    PyObject_SetAttrString(exception, "argument", argument_object) == 0)
-		PyErr_SetObject(type, exception);
-	Py_XDECREF(code_object);
-	Py_XDECREF(argument_object);
-	Py_DECREF(exception);
+	lvp_py__set_error(type, text, code, name);
+	Py_XDECREF(text);
+}
+
+/* Ends a call: releases its views and raises when the core's result is a failure. Returns 0 on success. */
+static int lvp_py__end(lvp_py__call *call, lvp_result result)
+{
+	lvp_py__release(call);
+	if (result == lvp_success)
+		return 0;
+	lvp_py__raise(call, result);
+	return -1;
 }
 
 /* ---- results as array.array -------------------------------------------------------------------------- */
 
 /* A new array.array of `typecode` holding a copy of `bytes` bytes at `data`. The array module is imported
- * per call (a dictionary lookup once loaded) so the module keeps no state. */
+ * per call (a dictionary lookup once loaded), which keeps it out of the module's state. */
 static PyObject *lvp_py__new_array(const char *typecode, const void *data, Py_ssize_t bytes)
 {
 	PyObject *array_module = PyImport_ImportModule("array");
@@ -476,48 +549,60 @@ static PyObject *lvp_py__new_array(const char *typecode, const void *data, Py_ss
 
 /* ---- stand-alone functions --------------------------------------------------------------------------- */
 
+/* Checks that the arrays of a unit (the weights, the skeleton) are given all or none; `names` lists them for
+ * the message. Returns whether they are given. */
+static int lvp_py__expect_together(const lvp_py__call *call, const lvp_py__array *const *parts, int count,
+                                   const char *what, const char *names, bool *r_given)
+{
+	bool any = false;
+	for (int i = 0; i < count; ++i)
+		any = any || parts[i]->given;
+	*r_given = any;
+	for (int i = 0; any && i < count; ++i)
+		if (!parts[i]->given)
+			return lvp_py__argument_error(call, LVP_PY__NULL_ARGUMENT, parts[i]->name,
+			                              "%s is None but the other %s arrays are given; pass %s together, or all "
+			                              "three as None.",
+			                              parts[i]->name, what, names);
+	return 0;
+}
+
 static const lvp_py__rename lvp_py__mesh_renames[] = {
     {"vertex_count", "positions"}, {"r_gradient", "out"}, {"r_normals", "out"}, {NULL, NULL}};
 
 /* Takes positions and triangles, the two inputs of every mesh function. */
-static int lvp_py__take_mesh(lvp_py__buffers *buffers, lvp_py__array *r_positions, lvp_py__array *r_triangles,
+static int lvp_py__take_mesh(lvp_py__call *call, lvp_py__array *r_positions, lvp_py__array *r_triangles,
                              PyObject *positions, PyObject *triangles, const char *positions_name,
                              int32_t *r_vertex_count, int32_t *r_triangle_count)
 {
-	if (lvp_py__take(buffers, r_positions, positions, positions_name, LVP_PY__FLOAT32, false, false) != 0 ||
-	    lvp_py__take(buffers, r_triangles, triangles, "triangles", LVP_PY__INT32, false, false) != 0 ||
-	    lvp_py__expect_groups(r_positions, 3, LVP_MAX_VERTICES, "vertex", r_vertex_count) != 0 ||
-	    lvp_py__expect_groups(r_triangles, 3, LVP_MAX_TRIANGLES, "triangle", r_triangle_count) != 0)
+	if (lvp_py__take(call, r_positions, positions, positions_name, LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(call, r_triangles, triangles, "triangles", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__expect_groups(call, r_positions, 3, LVP_MAX_VERTICES, "vertex", r_vertex_count) != 0 ||
+	    lvp_py__expect_groups(call, r_triangles, 3, LVP_MAX_TRIANGLES, "triangle", r_triangle_count) != 0)
 		return -1;
 	return 0;
 }
 
 static PyObject *lvp_py__mesh_volume(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
 	static char *keywords[] = {"positions", "triangles", NULL};
 	PyObject *positions_object, *triangles_object;
 	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO:mesh_volume", keywords, &positions_object, &triangles_object))
 		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_py__array positions, triangles;
-	int32_t vertex_count, triangle_count;
-	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
-	                      &vertex_count, &triangle_count) != 0) {
-		lvp_py__release_buffers(&buffers);
-		return NULL;
-	}
+	int32_t vertex_count = 0, triangle_count = 0;
+	if (lvp_py__begin(&call, module, lvp_py__mesh_renames) != 0 ||
+	    lvp_py__take_mesh(&call, &positions, &triangles, positions_object, triangles_object, "positions", &vertex_count,
+	                      &triangle_count) != 0)
+		return lvp_py__abandon(&call);
 	double volume = 0.0;
-	lvp_diagnostic diag = {0};
 	lvp_result result;
 	Py_BEGIN_ALLOW_THREADS;
-	result = lvp_mesh_volume(&volume, positions.data, vertex_count, triangles.data, triangle_count, &diag);
+	result = lvp_mesh_volume(&volume, positions.data, vertex_count, triangles.data, triangle_count, &call.diag);
 	Py_END_ALLOW_THREADS;
-	lvp_py__release_buffers(&buffers);
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__mesh_renames);
+	if (lvp_py__end(&call, result) != 0)
 		return NULL;
-	}
 	return PyFloat_FromDouble(volume);
 }
 
@@ -525,47 +610,41 @@ typedef lvp_result (*lvp_py__mesh_field)(float *r_values, const float *positions
                                          const int32_t *triangles, int32_t triangle_count, lvp_diagnostic *r_diag);
 
 /* volume_gradient and vertex_normals: out (float32[3N]) from positions and triangles. */
-static PyObject *lvp_py__mesh_field_call(PyObject *args, PyObject *kwargs, const char *format, lvp_py__mesh_field field)
+static PyObject *lvp_py__mesh_field_call(PyObject *module, PyObject *args, PyObject *kwargs, const char *format,
+                                         lvp_py__mesh_field field)
 {
 	static char *keywords[] = {"out", "positions", "triangles", NULL};
 	PyObject *out_object, *positions_object, *triangles_object;
 	if (!PyArg_ParseTupleAndKeywords(args, kwargs, format, keywords, &out_object, &positions_object,
 	                                 &triangles_object))
 		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_py__array out, positions, triangles;
-	int32_t vertex_count, triangle_count;
-	lvp_diagnostic diag = {0};
+	int32_t vertex_count = 0, triangle_count = 0;
+	if (lvp_py__begin(&call, module, lvp_py__mesh_renames) != 0 ||
+	    lvp_py__take_mesh(&call, &positions, &triangles, positions_object, triangles_object, "positions", &vertex_count,
+	                      &triangle_count) != 0 ||
+	    lvp_py__take(&call, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_count(&call, &out, (Py_ssize_t)vertex_count * 3, "3 per vertex of positions") != 0 ||
+	    lvp_py__expect_apart(&call, &out, &positions) != 0 || lvp_py__expect_apart(&call, &out, &triangles) != 0)
+		return lvp_py__abandon(&call);
 	lvp_result result;
-	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
-	                      &vertex_count, &triangle_count) != 0 ||
-	    lvp_py__take(&buffers, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
-	    lvp_py__expect_count(&out, (Py_ssize_t)vertex_count * 3, "3 per vertex of positions") != 0 ||
-	    lvp_py__expect_apart(&out, &positions) != 0 || lvp_py__expect_apart(&out, &triangles) != 0) {
-		lvp_py__release_buffers(&buffers);
-		return NULL;
-	}
 	Py_BEGIN_ALLOW_THREADS;
-	result = field(out.data, positions.data, vertex_count, triangles.data, triangle_count, &diag);
+	result = field(out.data, positions.data, vertex_count, triangles.data, triangle_count, &call.diag);
 	Py_END_ALLOW_THREADS;
-	lvp_py__release_buffers(&buffers);
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__mesh_renames);
+	if (lvp_py__end(&call, result) != 0)
 		return NULL;
-	}
 	Py_RETURN_NONE;
 }
 
 static PyObject *lvp_py__volume_gradient(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
-	return lvp_py__mesh_field_call(args, kwargs, "OOO:volume_gradient", lvp_volume_gradient);
+	return lvp_py__mesh_field_call(module, args, kwargs, "OOO:volume_gradient", lvp_volume_gradient);
 }
 
 static PyObject *lvp_py__vertex_normals(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
-	return lvp_py__mesh_field_call(args, kwargs, "OOO:vertex_normals", lvp_vertex_normals);
+	return lvp_py__mesh_field_call(module, args, kwargs, "OOO:vertex_normals", lvp_vertex_normals);
 }
 
 typedef lvp_result (*lvp_py__skinning)(float *r_positions, const float *rest_positions, int32_t vertex_count,
@@ -575,8 +654,19 @@ typedef lvp_result (*lvp_py__skinning)(float *r_positions, const float *rest_pos
 static const lvp_py__rename lvp_py__skin_renames[] = {
     {"vertex_count", "rest_positions"}, {"bone_count", "skin_matrices"}, {"r_positions", "out"}, {NULL, NULL}};
 
+/* Checks that out shares no memory with any of the inputs. */
+static int lvp_py__expect_apart_from_all(const lvp_py__call *call, const lvp_py__array *out,
+                                         const lvp_py__array *const *inputs, size_t input_count)
+{
+	for (size_t i = 0; i < input_count; ++i)
+		if (lvp_py__expect_apart(call, out, inputs[i]) != 0)
+			return -1;
+	return 0;
+}
+
 /* skin_linear and skin_dual_quaternion share their arguments. */
-static PyObject *lvp_py__skin_call(PyObject *args, PyObject *kwargs, const char *format, lvp_py__skinning skinning)
+static PyObject *lvp_py__skin_call(PyObject *module, PyObject *args, PyObject *kwargs, const char *format,
+                                   lvp_py__skinning skinning)
 {
 	static char *keywords[] = {"out", "rest_positions", "weight_offsets", "weight_bones", "weight_values",
 	                           "skin_matrices", NULL};
@@ -584,80 +674,63 @@ static PyObject *lvp_py__skin_call(PyObject *args, PyObject *kwargs, const char 
 	if (!PyArg_ParseTupleAndKeywords(args, kwargs, format, keywords, &objects[0], &objects[1], &objects[2],
 	                                 &objects[3], &objects[4], &objects[5]))
 		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_py__array out, rest, offsets, bones, values, matrices;
-	int32_t vertex_count, bone_count;
-	lvp_diagnostic diag = {0};
-	lvp_result result;
-	if (lvp_py__take(&buffers, &rest, objects[1], "rest_positions", LVP_PY__FLOAT32, false, false) != 0 ||
-	    lvp_py__take(&buffers, &offsets, objects[2], "weight_offsets", LVP_PY__INT32, false, false) != 0 ||
-	    lvp_py__take(&buffers, &bones, objects[3], "weight_bones", LVP_PY__INT32, false, false) != 0 ||
-	    lvp_py__take(&buffers, &values, objects[4], "weight_values", LVP_PY__FLOAT32, false, false) != 0 ||
-	    lvp_py__take(&buffers, &matrices, objects[5], "skin_matrices", LVP_PY__FLOAT32, false, false) != 0 ||
-	    lvp_py__take(&buffers, &out, objects[0], "out", LVP_PY__FLOAT32, true, false) != 0 ||
-	    lvp_py__expect_groups(&rest, 3, LVP_MAX_VERTICES, "vertex", &vertex_count) != 0 ||
-	    lvp_py__expect_groups(&matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
-	    lvp_py__expect_weights(&offsets, &bones, &values, vertex_count) != 0 ||
-	    lvp_py__expect_count(&out, (Py_ssize_t)vertex_count * 3, "3 per vertex of rest_positions") != 0) {
-		lvp_py__release_buffers(&buffers);
-		return NULL;
-	}
 	const lvp_py__array *inputs[] = {&rest, &offsets, &bones, &values, &matrices};
-	for (size_t i = 0; i < sizeof(inputs) / sizeof(inputs[0]); ++i)
-		if (lvp_py__expect_apart(&out, inputs[i]) != 0) {
-			lvp_py__release_buffers(&buffers);
-			return NULL;
-		}
+	int32_t vertex_count = 0, bone_count = 0;
+	if (lvp_py__begin(&call, module, lvp_py__skin_renames) != 0 ||
+	    lvp_py__take(&call, &rest, objects[1], "rest_positions", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &offsets, objects[2], "weight_offsets", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__take(&call, &bones, objects[3], "weight_bones", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__take(&call, &values, objects[4], "weight_values", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &matrices, objects[5], "skin_matrices", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &out, objects[0], "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_groups(&call, &rest, 3, LVP_MAX_VERTICES, "vertex", &vertex_count) != 0 ||
+	    lvp_py__expect_groups(&call, &matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
+	    lvp_py__expect_weights(&call, &offsets, &bones, &values, vertex_count) != 0 ||
+	    lvp_py__expect_count(&call, &out, (Py_ssize_t)vertex_count * 3, "3 per vertex of rest_positions") != 0 ||
+	    lvp_py__expect_apart_from_all(&call, &out, inputs, sizeof(inputs) / sizeof(inputs[0])) != 0)
+		return lvp_py__abandon(&call);
 	lvp_weights weights = {offsets.data, bones.data, values.data};
+	lvp_result result;
 	Py_BEGIN_ALLOW_THREADS;
-	result = skinning(out.data, rest.data, vertex_count, &weights, matrices.data, bone_count, &diag);
+	result = skinning(out.data, rest.data, vertex_count, &weights, matrices.data, bone_count, &call.diag);
 	Py_END_ALLOW_THREADS;
-	lvp_py__release_buffers(&buffers);
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__skin_renames);
+	if (lvp_py__end(&call, result) != 0)
 		return NULL;
-	}
 	Py_RETURN_NONE;
 }
 
 static PyObject *lvp_py__skin_linear(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
-	return lvp_py__skin_call(args, kwargs, "OOOOOO:skin_linear", lvp_skin_linear);
+	return lvp_py__skin_call(module, args, kwargs, "OOOOOO:skin_linear", lvp_skin_linear);
 }
 
 static PyObject *lvp_py__skin_dual_quaternion(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
-	return lvp_py__skin_call(args, kwargs, "OOOOOO:skin_dual_quaternion", lvp_skin_dual_quaternion);
+	return lvp_py__skin_call(module, args, kwargs, "OOOOOO:skin_dual_quaternion", lvp_skin_dual_quaternion);
 }
 
 /* Takes the skeleton arrays: rest_matrices gives the bone count, heads and tails follow it. All three may
  * be None together when `optional` (a prop without bones), and then r_skeleton is left NULL-filled. */
-static int lvp_py__take_skeleton(lvp_py__buffers *buffers, lvp_skeleton *r_skeleton, PyObject *matrices_object,
+static int lvp_py__take_skeleton(lvp_py__call *call, lvp_skeleton *r_skeleton, PyObject *matrices_object,
                                  PyObject *heads_object, PyObject *tails_object, bool optional)
 {
 	lvp_py__array matrices, heads, tails;
-	memset(r_skeleton, 0, sizeof(*r_skeleton));
-	if (lvp_py__take(buffers, &matrices, matrices_object, "rest_matrices", LVP_PY__FLOAT32, false, optional) != 0 ||
-	    lvp_py__take(buffers, &heads, heads_object, "heads", LVP_PY__FLOAT32, false, optional) != 0 ||
-	    lvp_py__take(buffers, &tails, tails_object, "tails", LVP_PY__FLOAT32, false, optional) != 0)
-		return -1;
-	if (!matrices.given && !heads.given && !tails.given)
-		return 0;
 	const lvp_py__array *parts[3] = {&matrices, &heads, &tails};
-	for (int i = 0; i < 3; ++i)
-		if (!parts[i]->given) {
-			PyErr_Format(PyExc_ValueError,
-			             "%s is None but the other skeleton arrays are given; pass rest_matrices, heads and tails "
-			             "together, or all three as None.",
-			             parts[i]->name);
-			return -1;
-		}
-	int32_t bone_count;
-	if (lvp_py__expect_groups(&matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
-	    lvp_py__expect_count(&heads, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0 ||
-	    lvp_py__expect_count(&tails, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0)
+	bool given = false;
+	memset(r_skeleton, 0, sizeof(*r_skeleton));
+	if (lvp_py__take(call, &matrices, matrices_object, "rest_matrices", LVP_PY__FLOAT32, false, optional) != 0 ||
+	    lvp_py__take(call, &heads, heads_object, "heads", LVP_PY__FLOAT32, false, optional) != 0 ||
+	    lvp_py__take(call, &tails, tails_object, "tails", LVP_PY__FLOAT32, false, optional) != 0 ||
+	    lvp_py__expect_together(call, parts, 3, "skeleton", "rest_matrices, heads and tails", &given) != 0)
+		return -1;
+	if (!given)
+		return 0;
+	int32_t bone_count = 0;
+	if (lvp_py__expect_groups(call, &matrices, 16, LVP_MAX_BONES, "bone", &bone_count) != 0 ||
+	    lvp_py__expect_count(call, &heads, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0 ||
+	    lvp_py__expect_count(call, &tails, (Py_ssize_t)bone_count * 3, "3 per bone of rest_matrices") != 0)
 		return -1;
 	r_skeleton->bone_count = bone_count;
 	r_skeleton->rest_matrices = matrices.data;
@@ -676,7 +749,6 @@ static const lvp_py__rename lvp_py__auto_weights_renames[] = {{"vertex_count", "
 
 static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject *kwargs)
 {
-	(void)module;
 	static char *keywords[] = {"positions",      "triangles",      "rest_matrices", "heads",      "tails", "alpha",
 	                           "visibility",     "normal_cos_max", "max_influences", "min_weight", NULL};
 	PyObject *positions_object, *triangles_object, *matrices_object, *heads_object, *tails_object;
@@ -685,32 +757,29 @@ static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject
 	                                 &triangles_object, &matrices_object, &heads_object, &tails_object, &alpha,
 	                                 &visibility, &normal_cos_max, &max_influences, &min_weight))
 		return NULL;
+	lvp_py__call call;
 	lvp_auto_weights_options options = lvp_auto_weights_default_options();
 	int visibility_index = (int)options.visibility;
-	if (lvp_py__parse_float(alpha, "alpha", &options.alpha) != 0 ||
-	    lvp_py__parse_choice(visibility, "visibility", lvp_py__visibility_names, 3, &visibility_index) != 0 ||
-	    lvp_py__parse_float(normal_cos_max, "normal_cos_max", &options.normal_cos_max) != 0 ||
-	    lvp_py__parse_int(max_influences, "max_influences", &options.max_influences) != 0 ||
-	    lvp_py__parse_float(min_weight, "min_weight", &options.min_weight) != 0)
-		return NULL;
-	options.visibility = (lvp_visibility)visibility_index;
-
-	lvp_py__buffers buffers = {.count = 0};
 	lvp_py__array positions, triangles;
 	lvp_skeleton skeleton;
-	int32_t vertex_count, triangle_count;
-	if (lvp_py__take_mesh(&buffers, &positions, &triangles, positions_object, triangles_object, "positions",
-	                      &vertex_count, &triangle_count) != 0 ||
-	    lvp_py__take_skeleton(&buffers, &skeleton, matrices_object, heads_object, tails_object, false) != 0) {
-		lvp_py__release_buffers(&buffers);
-		return NULL;
-	}
+	int32_t vertex_count = 0, triangle_count = 0;
+	if (lvp_py__begin(&call, module, lvp_py__auto_weights_renames) != 0 ||
+	    lvp_py__parse_float(&call, alpha, "alpha", &options.alpha) != 0 ||
+	    lvp_py__parse_choice(&call, visibility, "visibility", lvp_py__visibility_names, 3, &visibility_index) != 0 ||
+	    lvp_py__parse_float(&call, normal_cos_max, "normal_cos_max", &options.normal_cos_max) != 0 ||
+	    lvp_py__parse_int(&call, max_influences, "max_influences", &options.max_influences) != 0 ||
+	    lvp_py__parse_float(&call, min_weight, "min_weight", &options.min_weight) != 0 ||
+	    lvp_py__take_mesh(&call, &positions, &triangles, positions_object, triangles_object, "positions", &vertex_count,
+	                      &triangle_count) != 0 ||
+	    lvp_py__take_skeleton(&call, &skeleton, matrices_object, heads_object, tails_object, false) != 0)
+		return lvp_py__abandon(&call);
+	options.visibility = (lvp_visibility)visibility_index;
 	/* A negative bound means the options are invalid: the core says which one, given room for nothing. */
 	int64_t capacity = lvp_auto_weights_bound(vertex_count, skeleton.bone_count, &options);
 	if (capacity < 0)
 		capacity = 0;
 	if ((uint64_t)capacity > (uint64_t)PY_SSIZE_T_MAX / sizeof(int32_t)) {
-		lvp_py__release_buffers(&buffers);
+		lvp_py__release(&call);
 		return PyErr_NoMemory();
 	}
 	int32_t *offsets = PyMem_Malloc(sizeof(int32_t) * ((size_t)vertex_count + 1));
@@ -718,19 +787,17 @@ static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject
 	float *values = PyMem_Malloc(sizeof(float) * (capacity ? (size_t)capacity : 1));
 	PyObject *tuple = NULL;
 	if (!offsets || !bones || !values) {
+		lvp_py__release(&call);
 		PyErr_NoMemory();
 		goto done;
 	}
-	lvp_diagnostic diag = {0};
 	lvp_result result;
 	Py_BEGIN_ALLOW_THREADS;
 	result = lvp_auto_weights(offsets, bones, values, capacity, positions.data, vertex_count, triangles.data,
-	                          triangle_count, &skeleton, &options, &diag);
+	                          triangle_count, &skeleton, &options, &call.diag);
 	Py_END_ALLOW_THREADS;
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__auto_weights_renames);
+	if (lvp_py__end(&call, result) != 0)
 		goto done;
-	}
 	int32_t total = offsets[vertex_count];
 	if (total < 0 || total > capacity) {
 		PyErr_Format(PyExc_SystemError, "_lvp: auto_weights wrote %d influences into room for %lld.", (int)total,
@@ -750,7 +817,6 @@ done:
 	PyMem_Free(offsets);
 	PyMem_Free(bones);
 	PyMem_Free(values);
-	lvp_py__release_buffers(&buffers);
 	return tuple;
 }
 
@@ -800,41 +866,38 @@ typedef struct lvp_py__map_arguments {
 	PyObject *map, *alpha, *beta, *painted, *region_bone_offsets, *region_bones;
 } lvp_py__map_arguments;
 
-static int lvp_py__take_map(lvp_py__buffers *buffers, lvp_map_options *r_map, const lvp_py__map_arguments *arguments,
+static int lvp_py__take_map(lvp_py__call *call, lvp_map_options *r_map, const lvp_py__map_arguments *arguments,
                             int32_t vertex_count, int32_t bone_count)
 {
 	lvp_map_options map = lvp_bind_default_options().map;
 	int map_index = (int)map.map;
 	lvp_py__array painted, region_offsets, region_bones;
-	if (lvp_py__parse_choice(arguments->map, "map", lvp_py__map_names, 5, &map_index) != 0 ||
-	    lvp_py__parse_float(arguments->alpha, "alpha", &map.alpha) != 0 ||
-	    lvp_py__parse_float(arguments->beta, "beta", &map.beta) != 0 ||
-	    lvp_py__take(buffers, &painted, arguments->painted, "painted", LVP_PY__FLOAT32, false, true) != 0 ||
-	    lvp_py__take(buffers, &region_offsets, arguments->region_bone_offsets, "region_bone_offsets", LVP_PY__INT32,
+	if (lvp_py__parse_choice(call, arguments->map, "map", lvp_py__map_names, 5, &map_index) != 0 ||
+	    lvp_py__parse_float(call, arguments->alpha, "alpha", &map.alpha) != 0 ||
+	    lvp_py__parse_float(call, arguments->beta, "beta", &map.beta) != 0 ||
+	    lvp_py__take(call, &painted, arguments->painted, "painted", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take(call, &region_offsets, arguments->region_bone_offsets, "region_bone_offsets", LVP_PY__INT32,
 	                 false, true) != 0 ||
-	    lvp_py__take(buffers, &region_bones, arguments->region_bones, "region_bones", LVP_PY__INT32, false,
-	                 true) != 0 ||
-	    lvp_py__expect_count(&painted, vertex_count, "one per vertex") != 0)
+	    lvp_py__take(call, &region_bones, arguments->region_bones, "region_bones", LVP_PY__INT32, false, true) != 0 ||
+	    lvp_py__expect_count(call, &painted, vertex_count, "one per vertex") != 0)
 		return -1;
 	map.map = (lvp_map)map_index;
 	if (region_offsets.given != region_bones.given) {
-		PyErr_Format(PyExc_ValueError,
-		             "%s is None but %s is given; pass region_bone_offsets and region_bones together, or neither.",
-		             region_offsets.given ? "region_bones" : "region_bone_offsets",
-		             region_offsets.given ? "region_bone_offsets" : "region_bones");
-		return -1;
+		const char *missing = region_offsets.given ? "region_bones" : "region_bone_offsets";
+		return lvp_py__argument_error(
+		    call, LVP_PY__NULL_ARGUMENT, missing,
+		    "%s is None but %s is given; pass region_bone_offsets and region_bones together, or neither.", missing,
+		    region_offsets.given ? "region_bone_offsets" : "region_bones");
 	}
 	if (region_offsets.given) {
-		if (lvp_py__expect_count(&region_offsets, (Py_ssize_t)bone_count + 1, "one per bone, plus one") != 0)
+		if (lvp_py__expect_count(call, &region_offsets, (Py_ssize_t)bone_count + 1, "one per bone, plus one") != 0)
 			return -1;
 		int32_t total = ((const int32_t *)region_offsets.data)[bone_count];
-		if (region_bones.count != total) {
-			PyErr_Format(PyExc_ValueError,
-			             "region_bones has %zd int32 values; expected %d, the number that region_bone_offsets[%d] "
-			             "(its last entry) announces.",
-			             region_bones.count, (int)total, (int)bone_count);
-			return -1;
-		}
+		if (region_bones.count != total)
+			return lvp_py__argument_error(call, LVP_PY__INVALID_SIZE, "region_bones",
+			                              "region_bones has %zd int32 values; expected %d, the number that "
+			                              "region_bone_offsets[%d] (its last entry) announces.",
+			                              region_bones.count, (int)total, (int)bone_count);
 	}
 	map.painted = painted.data;
 	map.region_bone_offsets = region_offsets.data;
@@ -862,55 +925,40 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
 	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads))
 		return NULL;
+	lvp_py__call call;
 	lvp_bind_options options = lvp_bind_default_options();
 	int mode_index = (int)options.mode;
-	if (lvp_py__parse_choice(mode, "mode", lvp_py__mode_names, 2, &mode_index) != 0 ||
-	    lvp_py__parse_int(threads, "threads", &options.thread_count) != 0)
-		return NULL;
-	options.mode = (lvp_mode)mode_index;
-
-	lvp_py__buffers buffers = {.count = 0};
 	lvp_py__array rest, triangles, offsets, bones, values;
+	const lvp_py__array *weight_parts[3] = {&offsets, &bones, &values};
+	bool weights_given = false;
 	lvp_skeleton skeleton;
-	int32_t vertex_count, triangle_count;
-	if (lvp_py__take_mesh(&buffers, &rest, &triangles, rest_object, triangles_object, "rest_positions",
-	                      &vertex_count, &triangle_count) != 0 ||
-	    lvp_py__take(&buffers, &offsets, offsets_object, "weight_offsets", LVP_PY__INT32, false, true) != 0 ||
-	    lvp_py__take(&buffers, &bones, bones_object, "weight_bones", LVP_PY__INT32, false, true) != 0 ||
-	    lvp_py__take(&buffers, &values, values_object, "weight_values", LVP_PY__FLOAT32, false, true) != 0 ||
-	    lvp_py__take_skeleton(&buffers, &skeleton, matrices_object, heads_object, tails_object, true) != 0 ||
-	    lvp_py__take_map(&buffers, &options.map, &map_arguments, vertex_count, skeleton.bone_count) != 0)
-		goto failed;
-	/* The weights come as a unit, like the skeleton; None for all three is a prop without bones. */
-	const lvp_weights *weights_pointer = NULL;
+	int32_t vertex_count = 0, triangle_count = 0;
+	if (lvp_py__begin_method(&call, type, lvp_py__bind_renames) != 0 ||
+	    lvp_py__parse_choice(&call, mode, "mode", lvp_py__mode_names, 2, &mode_index) != 0 ||
+	    lvp_py__parse_int(&call, threads, "threads", &options.thread_count) != 0 ||
+	    lvp_py__take_mesh(&call, &rest, &triangles, rest_object, triangles_object, "rest_positions", &vertex_count,
+	                      &triangle_count) != 0 ||
+	    lvp_py__take(&call, &offsets, offsets_object, "weight_offsets", LVP_PY__INT32, false, true) != 0 ||
+	    lvp_py__take(&call, &bones, bones_object, "weight_bones", LVP_PY__INT32, false, true) != 0 ||
+	    lvp_py__take(&call, &values, values_object, "weight_values", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take_skeleton(&call, &skeleton, matrices_object, heads_object, tails_object, true) != 0 ||
+	    lvp_py__take_map(&call, &options.map, &map_arguments, vertex_count, skeleton.bone_count) != 0 ||
+	    /* The weights come as a unit, like the skeleton; None for all three is a prop without bones. */
+	    lvp_py__expect_together(&call, weight_parts, 3, "weight",
+	                            "weight_offsets, weight_bones and weight_values", &weights_given) != 0 ||
+	    (weights_given && lvp_py__expect_weights(&call, &offsets, &bones, &values, vertex_count) != 0))
+		return lvp_py__abandon(&call);
+	options.mode = (lvp_mode)mode_index;
 	lvp_weights weights = {offsets.data, bones.data, values.data};
-	if (offsets.given || bones.given || values.given) {
-		const lvp_py__array *parts[3] = {&offsets, &bones, &values};
-		for (int i = 0; i < 3; ++i)
-			if (!parts[i]->given) {
-				PyErr_Format(PyExc_ValueError,
-				             "%s is None but the other weight arrays are given; pass weight_offsets, weight_bones "
-				             "and weight_values together, or all three as None.",
-				             parts[i]->name);
-				goto failed;
-			}
-		if (lvp_py__expect_weights(&offsets, &bones, &values, vertex_count) != 0)
-			goto failed;
-		weights_pointer = &weights;
-	}
-
 	lvp_binding *binding = NULL;
-	lvp_diagnostic diag = {0};
 	lvp_result result;
 	Py_BEGIN_ALLOW_THREADS;
-	result = lvp_bind(&binding, rest.data, vertex_count, triangles.data, triangle_count, weights_pointer,
-	                  skeleton.rest_matrices ? &skeleton : NULL, &options, &diag);
+	result = lvp_bind(&binding, rest.data, vertex_count, triangles.data, triangle_count,
+	                  weights_given ? &weights : NULL, skeleton.rest_matrices ? &skeleton : NULL, &options,
+	                  &call.diag);
 	Py_END_ALLOW_THREADS;
-	lvp_py__release_buffers(&buffers);
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__bind_renames);
+	if (lvp_py__end(&call, result) != 0)
 		return NULL;
-	}
 	/* The type is final and not garbage-collected, so its tp_alloc is PyType_GenericAlloc. */
 	lvp_py__binding *self = (lvp_py__binding *)PyType_GenericAlloc(type, 0);
 	if (!self) {
@@ -921,10 +969,6 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	self->busy = 0;
 	self->mode = options.mode;
 	return (PyObject *)self;
-
-failed:
-	lvp_py__release_buffers(&buffers);
-	return NULL;
 }
 
 static void lvp_py__binding_dealloc(PyObject *object)
@@ -956,6 +1000,30 @@ static PyObject *lvp_py__binding_close(PyObject *object, PyObject *unused)
 	Py_RETURN_NONE;
 }
 
+/* Starts a call of a Binding method: the binding claimed (lvp_py__enter) and the call begun. On failure
+ * nothing is held and the error is set. */
+static int lvp_py__begin_claimed(lvp_py__call *call, lvp_py__binding *self, const lvp_py__rename *renames)
+{
+	if (lvp_py__begin_method(call, Py_TYPE((PyObject *)self), renames) != 0)
+		return -1;
+	return lvp_py__enter(self);
+}
+
+/* Ends a Binding method's call: gives the binding back, releases the views, raises when the core's result
+ * is a failure. Returns 0 on success. */
+static int lvp_py__end_claimed(lvp_py__call *call, lvp_py__binding *self, lvp_result result)
+{
+	lvp_py__leave(self);
+	return lvp_py__end(call, result);
+}
+
+/* Ends a Binding method's call whose arguments could not be taken: NULL, for the caller to return. */
+static PyObject *lvp_py__abandon_claimed(lvp_py__call *call, lvp_py__binding *self)
+{
+	lvp_py__leave(self);
+	return lvp_py__abandon(call);
+}
+
 static PyObject *lvp_py__binding_set_map(PyObject *object, PyObject *args, PyObject *kwargs)
 {
 	static char *keywords[] = {"map", "alpha", "beta", "painted", "region_bone_offsets", "region_bones", NULL};
@@ -965,42 +1033,35 @@ static PyObject *lvp_py__binding_set_map(PyObject *object, PyObject *args, PyObj
 	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
-	if (lvp_py__enter(self) != 0)
-		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_map_options map;
-	lvp_diagnostic diag = {0};
-	lvp_result result = lvp_success;
-	int failed = lvp_py__take_map(&buffers, &map, &map_arguments, lvp_vertex_count(self->binding),
-	                              lvp_bone_count(self->binding));
-	if (!failed) {
-		Py_BEGIN_ALLOW_THREADS;
-		result = lvp_set_map(self->binding, &map, &diag);
-		Py_END_ALLOW_THREADS;
-	}
-	lvp_py__release_buffers(&buffers);
-	lvp_py__leave(self);
-	if (failed)
+	if (lvp_py__begin_claimed(&call, self, NULL) != 0)
 		return NULL;
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, NULL);
+	if (lvp_py__take_map(&call, &map, &map_arguments, lvp_vertex_count(self->binding), lvp_bone_count(self->binding)) !=
+	    0)
+		return lvp_py__abandon_claimed(&call, self);
+	lvp_result result;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_set_map(self->binding, &map, &call.diag);
+	Py_END_ALLOW_THREADS;
+	if (lvp_py__end_claimed(&call, self, result) != 0)
 		return NULL;
-	}
 	Py_RETURN_NONE;
 }
 
 /* Takes the per-frame inputs shared by correct() and region_volume_changes(). */
-static int lvp_py__take_frame(lvp_py__buffers *buffers, lvp_py__array *r_positions, lvp_py__array *r_matrices,
+static int lvp_py__take_frame(lvp_py__call *call, lvp_py__array *r_positions, lvp_py__array *r_matrices,
                               lvp_py__array *r_rest, const lvp_binding *binding, PyObject *positions_object,
                               PyObject *matrices_object, PyObject *rest_object)
 {
 	Py_ssize_t vertex_values = (Py_ssize_t)lvp_vertex_count(binding) * 3;
-	if (lvp_py__take(buffers, r_positions, positions_object, "positions", LVP_PY__FLOAT32, false, false) != 0 ||
-	    lvp_py__take(buffers, r_matrices, matrices_object, "bone_matrices", LVP_PY__FLOAT32, false, true) != 0 ||
-	    lvp_py__take(buffers, r_rest, rest_object, "rest_positions", LVP_PY__FLOAT32, false, true) != 0 ||
-	    lvp_py__expect_count(r_positions, vertex_values, "3 per vertex of the binding") != 0 ||
-	    lvp_py__expect_count(r_matrices, (Py_ssize_t)lvp_bone_count(binding) * 16, "16 per bone of the binding") != 0 ||
-	    lvp_py__expect_count(r_rest, vertex_values, "3 per vertex of the binding") != 0)
+	Py_ssize_t matrix_values = (Py_ssize_t)lvp_bone_count(binding) * 16;
+	if (lvp_py__take(call, r_positions, positions_object, "positions", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(call, r_matrices, matrices_object, "bone_matrices", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take(call, r_rest, rest_object, "rest_positions", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__expect_count(call, r_positions, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(call, r_matrices, matrix_values, "16 per bone of the binding") != 0 ||
+	    lvp_py__expect_count(call, r_rest, vertex_values, "3 per vertex of the binding") != 0)
 		return -1;
 	/* An empty buffer for a binding without bones stands for "no matrices", like None. */
 	if (r_matrices->count == 0)
@@ -1027,69 +1088,59 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
 	                                 &iterations, &tolerance, &fold_over, &space_object))
 		return NULL;
-	lvp_frame_options options = lvp_frame_default_options();
-	if (lvp_py__parse_int(iterations, "iterations", &options.max_iterations) != 0 ||
-	    lvp_py__parse_float(tolerance, "tolerance", &options.tolerance) != 0 ||
-	    lvp_py__parse_bool(fold_over, "fold_over", &options.fold_over) != 0)
-		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
-	if (lvp_py__enter(self) != 0)
+	lvp_py__call call;
+	lvp_frame_options options = lvp_frame_default_options();
+	if (lvp_py__begin_method(&call, Py_TYPE(object), lvp_py__frame_renames) != 0 ||
+	    lvp_py__parse_int(&call, iterations, "iterations", &options.max_iterations) != 0 ||
+	    lvp_py__parse_float(&call, tolerance, "tolerance", &options.tolerance) != 0 ||
+	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 || lvp_py__enter(self) != 0)
 		return NULL;
 
-	lvp_py__buffers buffers = {.count = 0};
 	lvp_py__array positions, matrices, rest, out_positions, out_offsets, space;
-	lvp_frame_stats stats;
-	lvp_diagnostic diag = {0};
-	lvp_result result;
-	PyObject *dictionary = NULL;
 	Py_ssize_t vertex_values = (Py_ssize_t)lvp_vertex_count(self->binding) * 3;
-	if (lvp_py__take_frame(&buffers, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
+	if (lvp_py__take_frame(&call, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
 	                       rest_object) != 0 ||
-	    lvp_py__take(&buffers, &out_positions, out_positions_object, "out_positions", LVP_PY__FLOAT32, true,
-	                 true) != 0 ||
-	    lvp_py__take(&buffers, &out_offsets, out_offsets_object, "out_offsets", LVP_PY__FLOAT32, true, true) != 0 ||
-	    lvp_py__expect_count(&out_positions, vertex_values, "3 per vertex of the binding") != 0 ||
-	    lvp_py__expect_count(&out_offsets, vertex_values, "3 per vertex of the binding") != 0 ||
-	    lvp_py__take(&buffers, &space, space_object, "rigid_space", LVP_PY__FLOAT32, false, true) != 0 ||
-	    lvp_py__expect_count(&space, 16, "a 4x4 matrix, row-major") != 0)
-		goto done;
+	    lvp_py__take(&call, &out_positions, out_positions_object, "out_positions", LVP_PY__FLOAT32, true, true) != 0 ||
+	    lvp_py__take(&call, &out_offsets, out_offsets_object, "out_offsets", LVP_PY__FLOAT32, true, true) != 0 ||
+	    lvp_py__expect_count(&call, &out_positions, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(&call, &out_offsets, vertex_values, "3 per vertex of the binding") != 0 ||
+	    lvp_py__take(&call, &space, space_object, "rigid_space", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__expect_count(&call, &space, 16, "a 4x4 matrix, row-major") != 0)
+		return lvp_py__abandon_claimed(&call, self);
 	options.rigid_space = space.given ? space.data : NULL;
 	if (!out_positions.given && !out_offsets.given) {
-		PyErr_SetString(PyExc_ValueError,
-		                "out_positions and out_offsets are both None; pass at least one float32 buffer of 3 values "
-		                "per vertex.");
-		goto done;
+		lvp_py__argument_error(&call, LVP_PY__NULL_ARGUMENT, "out_positions",
+		                       "out_positions and out_offsets are both None; pass at least one float32 buffer of 3 "
+		                       "values per vertex.");
+		return lvp_py__abandon_claimed(&call, self);
 	}
 	/* The core corrects in place when out_positions is positions itself; any other sharing would mix reads
 	 * and writes. */
 	bool in_place = out_positions.data == positions.data && out_positions.bytes == positions.bytes;
-	if ((!in_place && lvp_py__expect_apart(&out_positions, &positions) != 0) ||
-	    lvp_py__expect_apart(&out_positions, &matrices) != 0 || lvp_py__expect_apart(&out_positions, &rest) != 0 ||
-	    lvp_py__expect_apart(&out_offsets, &positions) != 0 || lvp_py__expect_apart(&out_offsets, &matrices) != 0 ||
-	    lvp_py__expect_apart(&out_offsets, &rest) != 0 || lvp_py__expect_apart(&out_offsets, &out_positions) != 0)
-		goto done;
+	const lvp_py__array *inputs[] = {&matrices, &rest};
+	const lvp_py__array *before_offsets[] = {&positions, &matrices, &rest, &out_positions};
+	if ((!in_place && lvp_py__expect_apart(&call, &out_positions, &positions) != 0) ||
+	    lvp_py__expect_apart_from_all(&call, &out_positions, inputs, 2) != 0 ||
+	    lvp_py__expect_apart_from_all(&call, &out_offsets, before_offsets, 4) != 0)
+		return lvp_py__abandon_claimed(&call, self);
 
+	lvp_frame_stats stats;
+	lvp_result result;
 	Py_BEGIN_ALLOW_THREADS;
 	result = lvp_correct(out_positions.data, out_offsets.data, self->binding, positions.data, matrices.data, rest.data,
-	                     &options, &stats, &diag);
+	                     &options, &stats, &call.diag);
 	Py_END_ALLOW_THREADS;
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__frame_renames);
-		goto done;
-	}
-	dictionary = Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d}", "volume_rest",
-	                           stats.volume_rest, "volume_before", stats.volume_before, "volume_after", stats.volume_after,
-	                           "worst_region", (int)stats.worst_region, "worst_region_change_before",
-	                           stats.worst_region_change_before, "worst_region_change_after",
-	                           stats.worst_region_change_after, "iterations", (int)stats.iterations, "active_regions",
-	                           (int)stats.active_regions, "skipped_regions", (int)stats.skipped_regions,
-	                           "folded_vertices", (int)stats.folded_vertices, "max_displacement",
-	                           stats.max_displacement, "passed_through", (int)stats.passed_through,
-	                           "unskinned_distance", stats.unskinned_distance);
-done:
-	lvp_py__release_buffers(&buffers);
-	lvp_py__leave(self);
-	return dictionary;
+	if (lvp_py__end_claimed(&call, self, result) != 0)
+		return NULL;
+	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d}", "volume_rest", stats.volume_rest,
+	                     "volume_before", stats.volume_before, "volume_after", stats.volume_after, "worst_region",
+	                     (int)stats.worst_region, "worst_region_change_before", stats.worst_region_change_before,
+	                     "worst_region_change_after", stats.worst_region_change_after, "iterations",
+	                     (int)stats.iterations, "active_regions", (int)stats.active_regions, "skipped_regions",
+	                     (int)stats.skipped_regions, "folded_vertices", (int)stats.folded_vertices,
+	                     "max_displacement", stats.max_displacement, "passed_through", (int)stats.passed_through,
+	                     "unskinned_distance", stats.unskinned_distance);
 }
 
 static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObject *args, PyObject *kwargs)
@@ -1100,31 +1151,30 @@ static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObjec
 	                                 &matrices_object, &rest_object))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
-	if (lvp_py__enter(self) != 0)
+	lvp_py__call call;
+	if (lvp_py__begin_claimed(&call, self, lvp_py__frame_renames) != 0)
 		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
-	lvp_py__array positions, matrices, rest;
-	lvp_diagnostic diag = {0};
-	lvp_result result;
-	PyObject *tuple = NULL;
 	Py_ssize_t region_count = lvp_region_count(self->binding);
 	double *changes = PyMem_Malloc(sizeof(double) * 2 * (size_t)(region_count ? region_count : 1));
 	if (!changes) {
 		PyErr_NoMemory();
-		goto done;
+		return lvp_py__abandon_claimed(&call, self);
 	}
 	double *references = changes + region_count;
-	if (lvp_py__take_frame(&buffers, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
-	                       rest_object) != 0)
-		goto done;
-	Py_BEGIN_ALLOW_THREADS;
-	result = lvp_region_volume_changes(changes, references, self->binding, positions.data, matrices.data, rest.data,
-	                                   &diag);
-	Py_END_ALLOW_THREADS;
-	if (result != lvp_success) {
-		lvp_py__raise(result, &diag, lvp_py__frame_renames);
+	lvp_py__array positions, matrices, rest;
+	PyObject *tuple = NULL;
+	if (lvp_py__take_frame(&call, &positions, &matrices, &rest, self->binding, positions_object, matrices_object,
+	                       rest_object) != 0) {
+		lvp_py__abandon_claimed(&call, self);
 		goto done;
 	}
+	lvp_result result;
+	Py_BEGIN_ALLOW_THREADS;
+	result = lvp_region_volume_changes(changes, references, self->binding, positions.data, matrices.data, rest.data,
+	                                   &call.diag);
+	Py_END_ALLOW_THREADS;
+	if (lvp_py__end_claimed(&call, self, result) != 0)
+		goto done;
 	PyObject *arrays[2] = {lvp_py__new_array("d", changes, (Py_ssize_t)sizeof(double) * region_count),
 	                       lvp_py__new_array("d", references, (Py_ssize_t)sizeof(double) * region_count)};
 	if (arrays[0] && arrays[1])
@@ -1133,8 +1183,6 @@ static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObjec
 	Py_XDECREF(arrays[1]);
 done:
 	PyMem_Free(changes);
-	lvp_py__release_buffers(&buffers);
-	lvp_py__leave(self);
 	return tuple;
 }
 
@@ -1145,27 +1193,22 @@ static PyObject *lvp_py__binding_segmentation(PyObject *object, PyObject *args, 
 	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|OO:segmentation", keywords, &vertex_object, &triangle_object))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
-	if (lvp_py__enter(self) != 0)
-		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_py__array vertex_regions, triangle_regions;
-	int failed =
-	    lvp_py__take(&buffers, &vertex_regions, vertex_object, "out_vertex_regions", LVP_PY__INT32, true, true) != 0 ||
-	    lvp_py__take(&buffers, &triangle_regions, triangle_object, "out_triangle_regions", LVP_PY__INT32, true,
-	                 true) != 0 ||
-	    lvp_py__expect_count(&vertex_regions, lvp_vertex_count(self->binding), "one per vertex of the binding") != 0 ||
-	    lvp_py__expect_count(&triangle_regions, lvp_triangle_count(self->binding),
-	                         "one per triangle of the binding") != 0 ||
-	    lvp_py__expect_apart(&vertex_regions, &triangle_regions) != 0;
-	if (!failed) {
-		Py_BEGIN_ALLOW_THREADS;
-		lvp_get_segmentation(self->binding, vertex_regions.data, triangle_regions.data);
-		Py_END_ALLOW_THREADS;
-	}
-	lvp_py__release_buffers(&buffers);
-	lvp_py__leave(self);
-	if (failed)
+	if (lvp_py__begin_claimed(&call, self, NULL) != 0)
 		return NULL;
+	int32_t vertex_count = lvp_vertex_count(self->binding), triangle_count = lvp_triangle_count(self->binding);
+	if (lvp_py__take(&call, &vertex_regions, vertex_object, "out_vertex_regions", LVP_PY__INT32, true, true) != 0 ||
+	    lvp_py__take(&call, &triangle_regions, triangle_object, "out_triangle_regions", LVP_PY__INT32, true, true) !=
+	        0 ||
+	    lvp_py__expect_count(&call, &vertex_regions, vertex_count, "one per vertex of the binding") != 0 ||
+	    lvp_py__expect_count(&call, &triangle_regions, triangle_count, "one per triangle of the binding") != 0 ||
+	    lvp_py__expect_apart(&call, &vertex_regions, &triangle_regions) != 0)
+		return lvp_py__abandon_claimed(&call, self);
+	Py_BEGIN_ALLOW_THREADS;
+	lvp_get_segmentation(self->binding, vertex_regions.data, triangle_regions.data);
+	Py_END_ALLOW_THREADS;
+	lvp_py__end_claimed(&call, self, lvp_success);
 	Py_RETURN_NONE;
 }
 
@@ -1176,21 +1219,17 @@ static PyObject *lvp_py__binding_correction_map(PyObject *object, PyObject *args
 	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "O:correction_map", keywords, &out_object))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
-	if (lvp_py__enter(self) != 0)
-		return NULL;
-	lvp_py__buffers buffers = {.count = 0};
+	lvp_py__call call;
 	lvp_py__array out;
-	int failed = lvp_py__take(&buffers, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
-	             lvp_py__expect_count(&out, lvp_vertex_count(self->binding), "one per vertex of the binding") != 0;
-	if (!failed) {
-		Py_BEGIN_ALLOW_THREADS;
-		lvp_get_correction_map(self->binding, out.data);
-		Py_END_ALLOW_THREADS;
-	}
-	lvp_py__release_buffers(&buffers);
-	lvp_py__leave(self);
-	if (failed)
+	if (lvp_py__begin_claimed(&call, self, NULL) != 0)
 		return NULL;
+	if (lvp_py__take(&call, &out, out_object, "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_count(&call, &out, lvp_vertex_count(self->binding), "one per vertex of the binding") != 0)
+		return lvp_py__abandon_claimed(&call, self);
+	Py_BEGIN_ALLOW_THREADS;
+	lvp_get_correction_map(self->binding, out.data);
+	Py_END_ALLOW_THREADS;
+	lvp_py__end_claimed(&call, self, lvp_success);
 	Py_RETURN_NONE;
 }
 
@@ -1316,6 +1355,16 @@ static PyMethodDef lvp_py__functions[] = {
 
 static int lvp_py__exec(PyObject *module)
 {
+	lvp_py__state *state = PyModule_GetState(module);
+	state->error = PyErr_NewExceptionWithDoc(
+	    "_lvp.Error",
+	    "An argument the core or this module refuses. A ValueError whose message starts with the argument's "
+	    "name; .argument is that name (or None) and .code what is wrong, for code to branch on: the core's result "
+	    "without its prefix ('mesh_not_closed', 'index_out_of_range', 'invalid_size'...), or 'invalid_buffer' for "
+	    "an object that is not a buffer of the kind asked or that shares memory with another.",
+	    PyExc_ValueError, NULL);
+	if (!state->error || PyModule_AddObjectRef(module, "Error", state->error) != 0)
+		return -1;
 	PyObject *type = PyType_FromModuleAndSpec(module, &lvp_py__binding_spec, NULL);
 	if (!type)
 		return -1;
@@ -1325,6 +1374,26 @@ static int lvp_py__exec(PyObject *module)
 		return -1;
 	return PyModule_AddStringConstant(
 	    module, "version", LVP_PY__VERSION_STRING(LVP_VERSION_MAJOR, LVP_VERSION_MINOR, LVP_VERSION_PATCH));
+}
+
+static int lvp_py__traverse(PyObject *module, visitproc visit, void *arg)
+{
+	lvp_py__state *state = PyModule_GetState(module);
+	Py_VISIT(state ? state->error : NULL);
+	return 0;
+}
+
+static int lvp_py__clear(PyObject *module)
+{
+	lvp_py__state *state = PyModule_GetState(module);
+	if (state)
+		Py_CLEAR(state->error);
+	return 0;
+}
+
+static void lvp_py__free(void *module)
+{
+	lvp_py__clear((PyObject *)module);
 }
 
 #pragma GCC diagnostic push
@@ -1340,9 +1409,12 @@ static struct PyModuleDef lvp_py__module = {
     .m_name = "_lvp",
     .m_doc = "Local volume preservation for skinned meshes (Rohmer, Hahmann, Cani 2008): the C core's Python "
              "interface. Buffers go through the buffer protocol; see docs/python_module.md.",
-    .m_size = 0,
+    .m_size = sizeof(lvp_py__state),
     .m_methods = lvp_py__functions,
     .m_slots = lvp_py__module_slots,
+    .m_traverse = lvp_py__traverse,
+    .m_clear = lvp_py__clear,
+    .m_free = lvp_py__free,
 };
 
 PyMODINIT_FUNC PyInit__lvp(void)

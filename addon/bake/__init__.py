@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Baking the corrected animation to PC2 point caches (issue 4, docs/baking.md):
+"""Baking the corrected animation to PC2 point caches (docs/baking.md):
 
     pc2.py       the PC2 format, crash-safe part files, merging (pure Python, no bpy)
     capture.py   what is baked for an object at a frame, and the checks before baking
@@ -20,13 +20,14 @@ from . import operator
 from . import command
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(operator.classes)
+
+
 def register():
-    for cls in operator.classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     command.register()
 
 
 def unregister():
     command.unregister()
-    for cls in reversed(operator.classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

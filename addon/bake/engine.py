@@ -22,7 +22,7 @@ import time
 
 import bpy
 
-from .. import bindings
+from ..session import SESSION
 from . import capture
 from . import pc2
 from .capture import BakeError
@@ -158,7 +158,7 @@ class Bake:
         for target in self.targets:
             # A script may have changed weights or the rest mesh without an update since: the first
             # frame baked reads them again.
-            bindings.note_mesh_changed(target.reader.obj, at_once=True)
+            SESSION.note_mesh_changed(target.reader.obj, at_once=True)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         capture.check_evaluated([target.reader.obj for target in self.targets], depsgraph)
 

@@ -19,7 +19,7 @@ others hidden, while the joint bends from 0 to 90 degrees and back:
 A frame time is the wall time of scene.frame_set(frame), which is what playback pays: animation,
 the modifier stack, and for Volume Preservation its handler and Blender's second evaluation. The
 setups take turns every few frames (so that other load on the machine affects them alike) and the
-median over all frames is reported. Targets (issue 3): Volume Preservation at most 2.5x Armature
+median over all frames is reported. Targets: Volume Preservation at most 2.5x Armature
 alone and at most 0.25x Armature + Corrective Smooth.
 
 Where the time of Volume Preservation goes: the core's correction alone (Binding.correct on one
@@ -143,8 +143,8 @@ def main():
 
     # Where the time goes in Volume Preservation: the C core's correction alone, on one frame.
     scene.frame_set(half)
-    bound = addon.bindings.entry(ours)
-    status = addon.bindings.status(ours)
+    bound = addon.session.SESSION.bound(ours)
+    status = addon.session.SESSION.status(ours)
     correct_times = []
     for _repeat in range(5):
         start = time.perf_counter()

@@ -343,7 +343,7 @@ def core_skinned_positions(obj, rig, dual_quaternion=False):
     Armature modifier's mask) and their weights. lvp_correct() requires this to be what the Armature
     modifier made (lvp.h), float32[3N]."""
     addon = enable_addon()
-    bound = addon.bindings.entry(obj)
+    bound = addon.session.SESSION.bound(obj)
     core_skeleton = bound.skeleton
     mesh_data = addon.mesh_data
     rest = mesh_data.vertex_positions(obj.data)
@@ -486,7 +486,7 @@ class AddonTestCase(unittest.TestCase):
         self.assertLess(value, limit, "%s: %g is not below %g" % (message, value, limit))
 
     def status_of(self, obj):
-        return self.addon.bindings.status(obj)
+        return self.addon.session.SESSION.status(obj)
 
     def assertStatusContains(self, obj, text):
         status = self.status_of(obj)

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Baking to PC2 (issue 4, docs/baking.md): object.lvp_bake in this Blender, and the headless command
+"""Baking to PC2 (docs/baking.md): object.lvp_bake in this Blender, and the headless command
 (`-c lvp_bake` on 4.2+, `--python <add-on>/bake/lvp_bake.py --` everywhere) in a second Blender.
 
 - every baked frame equals the live evaluated mesh at that frame (bit for bit: the same floats);

@@ -34,9 +34,9 @@ addon = lvp_helpers.enable_addon()
 obj = bpy.data.objects[{name!r}]
 result = {{}}
 def after_render(*_arguments):
-    bound = addon.bindings.entry(obj)
+    bound = addon.session.SESSION.bound(obj)
     result["render_stats"] = dict(bound.stats) if bound is not None and bound.stats else None
-    result["render_status"] = list(addon.bindings.status(obj) or [])
+    result["render_status"] = list(addon.session.SESSION.status(obj) or [])
 bpy.app.handlers.render_post.append(after_render)
 scene = bpy.context.scene
 scene.render.engine = 'CYCLES'

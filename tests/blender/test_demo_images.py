@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The demo's pictures are checked, not only written (issue 5).
+"""The demo's pictures are checked, not only written.
 
 - The paper's cylinder bent to 90 degrees, rendered before (Armature only) and after (with Volume
   Preservation) by Cycles at low resolution with a transparent film: the two silhouettes must differ

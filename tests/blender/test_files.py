@@ -32,13 +32,13 @@ result = {{}}
 def dump(key):
     positions = lvp_helpers.evaluated_positions(obj)
     result[key] = list(positions)
-    status = addon.bindings.status(obj)
+    status = addon.session.SESSION.status(obj)
     result[key + "_status"] = list(status) if status else None
 dump("opened")
 for frame in {frames!r}:
     bpy.context.scene.frame_set(frame)
     dump("frame%d" % frame)
-result["bound"] = addon.bindings.entry(obj) is not None
+result["bound"] = addon.session.SESSION.bound(obj) is not None
 with open(out, "w") as file:
     json.dump(result, file)
 """
@@ -185,8 +185,8 @@ class TestSaveAndReopen(FileTestCase):
 
 
 class TestFilesOfVersionOne(FileTestCase):
-    """Files saved by version 1 of the add-on, whose node group read the offsets from an attribute of
-    the character's own mesh: opening one gives the modifier the current node group and an offsets
+    """Files whose node group reads the offsets from an attribute of the character's own mesh (another
+    layout of the group): opening one gives the modifier the current node group and an offsets
     object, with no user action."""
 
     @staticmethod

@@ -160,12 +160,12 @@ class TestWeightPaintMode(FollowTestCase):
         bpy.ops.object.mode_set(mode='WEIGHT_PAINT')
         self.repaint_weights()  # a stroke
         bpy.context.view_layer.update()
-        # While strokes come, the weights are not read again (about 70 ms for 100k vertices).
+        # While strokes come, the weights are not read again (a Python loop over the vertices).
         self.assertIs(self.bound(), before)
         self.assertStatusContains(self.obj, "read again when the changes pause")
         self.assertTrue(bpy.app.timers.is_registered(self.addon.handlers.after_mesh_changes))
         self.assertGreater(self.addon.handlers.after_mesh_changes(), 0.0, "the timer comes back after the pause")
-        time.sleep(self.addon.live.CHECK_PAUSE)
+        time.sleep(self.addon.changes.CHECK_PAUSE)
         self.assertIsNone(self.addon.handlers.after_mesh_changes(), "the timer tagged the object and stops")
         bpy.context.view_layer.update()
         self.assertFollowedNewWeights(before, "after painting")
@@ -173,16 +173,16 @@ class TestWeightPaintMode(FollowTestCase):
     def test_own_changes_read_nothing_again(self):
         """A setting, the display, a region restriction and Bind each have Blender report the mesh as
         changed; what the add-on did itself changed neither the weights nor the rest mesh (or was just
-        bound), so they are not read again (75-100 ms for 100k vertices once the changes pause). The
+        bound), so they are not read again (a Python loop over the vertices once the changes pause). The
         next stroke still is."""
         self.scene.frame_set(10)
         bpy.context.view_layer.objects.active = self.obj
         bpy.ops.object.mode_set(mode='WEIGHT_PAINT')
         bpy.context.view_layer.update()  # Blender reports entering the mode as a change of the mesh
-        time.sleep(self.addon.live.CHECK_PAUSE)
+        time.sleep(self.addon.changes.CHECK_PAUSE)
         self.addon.handlers.after_mesh_changes()
         bpy.context.view_layer.update()
-        self.assertEqual(self.addon.bindings.unchecked_mesh_changes(), [], "checked once painting paused")
+        self.assertEqual(self.addon.session.SESSION.changes.unread(), [], "checked once painting paused")
         offsets_before = helpers.offsets_of(self.obj)
         settings = self.obj.lvp
 
@@ -205,16 +205,16 @@ class TestWeightPaintMode(FollowTestCase):
         for change in (set_alpha, show_segmentation, restrict_a_region, bind):
             change()
             bpy.context.view_layer.update()
-            self.assertEqual(self.addon.bindings.unchecked_mesh_changes(), [], change.__name__)
+            self.assertEqual(self.addon.session.SESSION.changes.unread(), [], change.__name__)
             self.assertEqual(self.status_of(self.obj), ('INFO', "Correcting"), change.__name__)
         self.assertNotEqual(offsets_before.tobytes(), helpers.offsets_of(self.obj).tobytes(), "alpha 0.5 corrects")
         self.assertIn("lvp_segmentation", self.obj.data.attributes)
         before = self.bound()
         self.repaint_weights()
         bpy.context.view_layer.update()
-        self.assertEqual([name for name, _changed_at in self.addon.bindings.unchecked_mesh_changes()],
+        self.assertEqual([name for name, _changed_at in self.addon.session.SESSION.changes.unread()],
                          [self.obj.name], "a stroke after the add-on's own updates is a change")
-        time.sleep(self.addon.live.CHECK_PAUSE)
+        time.sleep(self.addon.changes.CHECK_PAUSE)
         self.assertIsNone(self.addon.handlers.after_mesh_changes())
         bpy.context.view_layer.update()
         self.assertFollowedNewWeights(before, "a stroke after the add-on's own updates")

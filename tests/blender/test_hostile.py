@@ -48,7 +48,7 @@ def assert_never_silently_wrong(test, obj, message):
     level, status = test.status_of(obj)
     shown = helpers.evaluated_positions(obj)
     if status.startswith("Correcting"):
-        stats = test.addon.bindings.entry(obj).stats
+        stats = test.addon.session.SESSION.bound(obj).stats
         triangles = helpers.mesh_triangles(obj.data)
         count = len(obj.data.vertices)
         if len(shown) != 3 * count:
@@ -160,7 +160,8 @@ class TestDeformedTwice(HostileTestCase):
         level, status = self.assertNeverSilentlyWrong(message="deformed twice")
         self.assertEqual(level, 'WARNING')
         self.assertIn("Parent Type to Object", status)
-        self.assertGreater(self.addon.bindings.entry(self.obj).stats["unskinned_distance"], 0.1)
+        stats = self.addon.session.SESSION.bound(self.obj).stats
+        self.assertGreater(stats["unskinned_distance"], 0.1)
 
 
 class TestCannotRestore(HostileTestCase):
@@ -376,7 +377,7 @@ class TestStrayVertex(helpers.AddonTestCase):
         level, status = assert_never_silently_wrong(self, obj, what)
         self.assertEqual(level, 'WARNING', "%s: %r" % (what, status))
         self.assertIn("vertex %d " % stray, status, what)
-        stats = self.addon.bindings.entry(obj).stats
+        stats = self.addon.session.SESSION.bound(obj).stats
         # A loose vertex is in no region: both are corrected. A vertex of the cap makes the upper
         # region's volume mostly its spike's, in which the bend's loss is lost (what the status says);
         # the lower region is still corrected.

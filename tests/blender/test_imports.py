@@ -42,7 +42,7 @@ def chain_character():
     bpy.ops.object.mode_set(mode='OBJECT')
     obj = helpers.link(bpy.data.objects.new("Tube", helpers.cylinder_mesh("Tube", rings=10, around=6)))
     # Smooth: glTF stores normals per vertex, and splits the vertices of a flat-shaded mesh at its
-    # sharp edges (a mesh of separate pieces, which issue 24's seams are about, not this test).
+    # sharp edges (a mesh of separate pieces, whose seams are not what this test is about).
     obj.data.polygons.foreach_set("use_smooth", [True] * len(obj.data.polygons))
     groups = [obj.vertex_groups.new(name="Bone%02d" % index) for index in range(BONES)]
     for vertex in obj.data.vertices:
@@ -92,7 +92,7 @@ class RoundTripTestCase(helpers.AddonTestCase):
             scene.frame_set(frame)
             level, status = self.status_of(obj)
             self.assertTrue(status.startswith("Correcting") and level == 'INFO', "%s, frame %d: %r" % (what, frame, status))
-            stats = self.addon.bindings.entry(obj).stats
+            stats = self.addon.session.SESSION.bound(obj).stats
             self.assertEqual(stats["unskinned_distance"], 0.0, "%s, frame %d: the bound skinning" % (what, frame))
             shown = helpers.volume(helpers.evaluated_positions(obj), triangles)
             self.assertSmallerThan(abs(shown / rest - 1.0), 1e-3, "%s, frame %d: shown volume" % (what, frame))

@@ -48,7 +48,7 @@ class CylinderTestCase(helpers.AddonTestCase):
         return corrected, plain
 
     def bound(self):
-        bound = self.addon.bindings.entry(self.obj)
+        bound = self.addon.session.SESSION.bound(self.obj)
         self.assertIsNotNone(bound)
         return bound
 
@@ -259,7 +259,7 @@ class TestSafety(CylinderTestCase):
 
     def test_diverged_correction_is_not_shown(self):
         self.scene.frame_set(10)
-        bound = self.addon.bindings.entry(self.obj)
+        bound = self.addon.session.SESSION.bound(self.obj)
         bound.displacement_limit = 1e-4  # pretend the core returned an absurd correction
         self.scene.frame_set(9)
         self.assertStatusContains(self.obj, "diverged")

@@ -253,7 +253,8 @@ class TestBindAndRemove(helpers.AddonTestCase):
         bpy.context.scene.frame_set(9)
         bpy.context.scene.frame_set(10)
         self.assertStatusContains(self.obj, "bound again by itself: the deforming bones with a vertex group changed")
-        self.assertEqual(self.addon.bindings.entry(self.obj).skeleton.bone_names, ["Lower", "Renamed"])
+        bound = self.addon.session.SESSION.bound(self.obj)
+        self.assertEqual(bound.skeleton.bone_names, ["Lower", "Renamed"])
         corrected, plain = self.errors()
         self.assertSmallerThan(corrected, 0.1 * plain, "after the rename")
 

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""README.md's install and bake commands, run as README writes them (issue 5: every command in README
-is exercised). The commands are read from README.md itself (tests/python/readme_commands.py), with
+"""README.md's install and bake commands, run as README writes them (every command in README is
+exercised). The commands are read from README.md itself (tests/python/readme_commands.py), with
 its placeholders replaced: `blender` by this Blender, `shot.blend` by a saved animated cylinder whose
 mesh is named Character, `/path/to/cache` by a fresh directory, and `~` by a fresh home directory
 (Blender's user directories are not redirected for these children, so README's paths are used).

@@ -53,7 +53,8 @@ class TestVisibility(CylinderTestCase):
         return instance
 
     def assertInstanceCorrected(self, obj, rig, message):
-        self.assertIsNotNone(self.addon.bindings.entry(obj), "%s: the character was never corrected" % message)
+        self.assertIsNotNone(self.addon.session.SESSION.bound(obj),
+                             "%s: the character was never corrected" % message)
         rest = helpers.mesh_positions(obj.data)
         triangles = helpers.mesh_triangles(obj.data)
         rest_volume = helpers.volume(rest, triangles)

@@ -6,6 +6,7 @@
  * general inflation of the paper's Fig. 2b, not a correction).
  */
 #include "lvp.h"
+#include "support/bind_rig.h"
 #include "support/check.h"
 #include "support/test_meshes.h"
 
@@ -63,14 +64,7 @@ static void free_cylinder(posed_cylinder *c)
 
 static lvp_binding *bind_rig(const test_rig *rig, lvp_bind_options options)
 {
-	lvp_weights weights = test_rig_weights(rig);
-	lvp_skeleton skeleton = test_rig_skeleton(rig);
-	lvp_binding *binding = NULL;
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_bind(&binding, rig->positions, rig->vertex_count, rig->triangles, rig->triangle_count, &weights,
-	                  &skeleton, &options, &diag),
-	         diag);
-	return binding;
+	return test_bind_rig(rig, &options);
 }
 
 static double volume(const float *positions, const test_rig *rig)
@@ -468,11 +462,9 @@ static void test_system_past_its_capacity(void)
 /* Short regions on a coarse tube (4 rings a bone, weights blended over half a bone), bent at
  * every joint: every vertex of a weight band is shared half and half by two bones, so no
  * multipliers tell neighbouring regions apart and the region system is singular (rows [1 2 1]).
- * Its damped least-squares solution (lvp.h, ALGORITHM 3) corrects them in one or two steps;
- * the per-region steps of eq. 5 that a singular system used to fall back to overshot each other
- * and took 5 steps on the 8-bone chain bent 40 degrees (8, the cap, before the iteration ended
- * on steps that gain too little) and 3 on the 64-bone tail. The whole mesh ends within the
- * tolerance, and every region within 1 % of its rest. */
+ * Its damped least-squares solution (lvp.h, ALGORITHM 3) corrects them in one or two steps,
+ * where per-region steps of eq. 5 would overshoot each other for several steps. The whole mesh
+ * ends within the tolerance, and every region within 1 % of its rest. */
 static void test_regions_that_cannot_be_told_apart(void)
 {
 	const struct {

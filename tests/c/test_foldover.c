@@ -5,6 +5,7 @@
  * still restored.
  */
 #include "lvp.h"
+#include "support/bind_rig.h"
 #include "support/check.h"
 #include "support/test_meshes.h"
 
@@ -68,13 +69,8 @@ static double largest_difference(const test_rig *rig, const float *a, const floa
 static int32_t correct_both_ways(bent_finger *f, float **r_volume_only, float **r_folded)
 {
 	int32_t n = f->rig.vertex_count;
-	lvp_weights weights = test_rig_weights(&f->rig);
-	lvp_skeleton skeleton = test_rig_skeleton(&f->rig);
-	lvp_binding *binding = NULL;
+	lvp_binding *binding = test_bind_rig(&f->rig, NULL);
 	lvp_diagnostic diag;
-	CHECK_OK(lvp_bind(&binding, f->rig.positions, n, f->rig.triangles, f->rig.triangle_count, &weights, &skeleton,
-	                  NULL, &diag),
-	         diag);
 	*r_volume_only = malloc(sizeof(float) * 3 * (size_t)n);
 	*r_folded = malloc(sizeof(float) * 3 * (size_t)n);
 	lvp_frame_options options = lvp_frame_default_options();
@@ -105,13 +101,8 @@ static void test_fold_over_removes_self_intersections(void)
 	for (size_t i = 0; i < sizeof(angles) / sizeof(angles[0]); ++i) {
 		bent_finger f = make_bent_finger(angles[i]);
 		int32_t n = f.rig.vertex_count;
-		lvp_weights weights = test_rig_weights(&f.rig);
-		lvp_skeleton skeleton = test_rig_skeleton(&f.rig);
-		lvp_binding *binding = NULL;
+		lvp_binding *binding = test_bind_rig(&f.rig, NULL);
 		lvp_diagnostic diag;
-		CHECK_OK(lvp_bind(&binding, f.rig.positions, n, f.rig.triangles, f.rig.triangle_count, &weights, &skeleton,
-		                  NULL, &diag),
-		         diag);
 		if (!binding)
 			continue;
 		float *plain_volume = malloc(sizeof(float) * 3 * (size_t)n), *folded = malloc(sizeof(float) * 3 * (size_t)n);
@@ -194,13 +185,8 @@ static void test_fold_over_idle_without_bend(void)
 {
 	bent_finger f = make_bent_finger(0);
 	int32_t n = f.rig.vertex_count;
-	lvp_weights weights = test_rig_weights(&f.rig);
-	lvp_skeleton skeleton = test_rig_skeleton(&f.rig);
-	lvp_binding *binding = NULL;
+	lvp_binding *binding = test_bind_rig(&f.rig, NULL);
 	lvp_diagnostic diag;
-	CHECK_OK(lvp_bind(&binding, f.rig.positions, n, f.rig.triangles, f.rig.triangle_count, &weights, &skeleton, NULL,
-	                  &diag),
-	         diag);
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)n);
 	lvp_frame_options options = lvp_frame_default_options();
 	options.fold_over = 1;

@@ -4,6 +4,7 @@
  * after (the paper reports 10 % -> 3 %). A leg far from every bent joint must not move at all.
  */
 #include "lvp.h"
+#include "support/bind_rig.h"
 #include "support/check.h"
 #include "support/test_meshes.h"
 
@@ -111,8 +112,6 @@ static void test_giraffe_bend(void)
 	}
 	giraffe_frame_pose(&frame, &rig);
 	const float *skinned = frame.skinned;
-	lvp_weights weights = test_rig_weights(&rig);
-	lvp_skeleton skeleton = test_rig_skeleton(&rig);
 	lvp_diagnostic diag;
 
 	printf("  giraffe, neck and legs bent: whole-body volume error (holes capped)\n");
@@ -122,10 +121,7 @@ static void test_giraffe_bend(void)
 	for (int m = 0; m < 2; ++m) {
 		lvp_bind_options options = lvp_bind_default_options();
 		options.map.map = maps[m];
-		lvp_binding *binding = NULL;
-		CHECK_OK(lvp_bind(&binding, rig.positions, n, rig.triangles, rig.triangle_count, &weights, &skeleton,
-		                  &options, &diag),
-		         diag);
+		lvp_binding *binding = test_bind_rig(&rig, &options);
 		if (!binding)
 			continue;
 		lvp_frame_options one = lvp_frame_default_options();
@@ -184,14 +180,10 @@ static void test_single_joints(void)
 	}
 	const char *joints[] = {"gi_neckC7", "gi_neckC4", "gi_head",  "gi_L_shoulder", "gi_R_shoulder", "gi_L_elbow",
 	                        "gi_L_hip",  "gi_L_knee", "gi_R_knee", "gi_tailA"};
-	int32_t n = rig.vertex_count, b = rig.bone_count;
+	int32_t b = rig.bone_count;
 	giraffe_frame frame = giraffe_frame_make(&rig);
-	lvp_weights weights = test_rig_weights(&rig);
-	lvp_skeleton skeleton = test_rig_skeleton(&rig);
 	lvp_diagnostic diag;
-	lvp_binding *binding = NULL;
-	CHECK_OK(lvp_bind(&binding, rig.positions, n, rig.triangles, rig.triangle_count, &weights, &skeleton, NULL, &diag),
-	         diag);
+	lvp_binding *binding = test_bind_rig(&rig, NULL);
 	int frames = 0, steps = 0, most_steps = 0;
 	double worst_before = 0.0, worst_after = 0.0, largest_offset = 0.0;
 	for (size_t j = 0; j < sizeof(joints) / sizeof(joints[0]) && binding; ++j) {
@@ -259,12 +251,8 @@ static void test_frames_independent(void)
 	float *alone = malloc(sizeof(float) * 3 * (size_t)n), *rest = malloc(sizeof(float) * 3 * (size_t)n);
 	for (int32_t i = 0; i < 3 * n; ++i) /* a shape key that swells the body by 2 % */
 		rest[i] = 1.02f * rig.positions[i];
-	lvp_weights weights = test_rig_weights(&rig);
-	lvp_skeleton skeleton = test_rig_skeleton(&rig);
 	lvp_diagnostic diag;
-	lvp_binding *animated = NULL;
-	CHECK_OK(lvp_bind(&animated, rig.positions, n, rig.triangles, rig.triangle_count, &weights, &skeleton, NULL, &diag),
-	         diag);
+	lvp_binding *animated = test_bind_rig(&rig, NULL);
 	int same = 0, folded = 0, count = (int)(sizeof(frames) / sizeof(frames[0]));
 	lvp_bind_options bind_options = lvp_bind_default_options();
 	for (int f = 0; f < count && animated; ++f) {
@@ -285,10 +273,7 @@ static void test_frames_independent(void)
 		lvp_frame_options options = lvp_frame_default_options();
 		options.fold_over = frames[f].fold_over;
 		const float *frame_rest = frames[f].shape_key ? rest : NULL;
-		lvp_binding *fresh = NULL;
-		CHECK_OK(lvp_bind(&fresh, rig.positions, n, rig.triangles, rig.triangle_count, &weights, &skeleton,
-		                  &bind_options, &diag),
-		         diag);
+		lvp_binding *fresh = test_bind_rig(&rig, &bind_options);
 		lvp_frame_stats stats;
 		CHECK_OK(lvp_correct(NULL, frame.offsets, animated, frame.skinned, frame.posed, frame_rest, &options, &stats,
 		                     &diag),

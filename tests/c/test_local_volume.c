@@ -6,6 +6,7 @@
  * open giraffe, deformed by skinning and by noise so that nothing cancels by symmetry.
  */
 #include "lvp.h"
+#include "support/bind_rig.h"
 #include "support/check.h"
 #include "support/test_meshes.h"
 
@@ -66,25 +67,12 @@ static double prism6(const vec3 *q, const vec3 *r)
 	return v;
 }
 
-/* The rig bound with the default options (NULL, reported, when that fails). */
-static lvp_binding *bind_with_defaults(const test_rig *rig)
-{
-	lvp_weights weights = test_rig_weights(rig);
-	lvp_skeleton skeleton = test_rig_skeleton(rig);
-	lvp_binding *binding = NULL;
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_bind(&binding, rig->positions, rig->vertex_count, rig->triangles, rig->triangle_count, &weights,
-	                  &skeleton, NULL, &diag),
-	         diag);
-	return binding;
-}
-
 /* Compares the core's region changes with the explicit prism sum; returns the largest
  * relative difference (to the region's reference volume). */
 static double compare_with_explicit(const test_rig *rig, const float *deformed, const float *posed)
 {
 	lvp_diagnostic diag;
-	lvp_binding *binding = bind_with_defaults(rig);
+	lvp_binding *binding = test_bind_rig(rig, NULL);
 	if (!binding)
 		return INFINITY;
 	int32_t s = lvp_region_count(binding);
@@ -191,7 +179,7 @@ static void test_rigid_motion_changes_nothing(void)
 	test_pose(posed, &rig, rotations);
 	float *deformed = deform(&rig, posed, 0.0);
 	lvp_diagnostic diag;
-	lvp_binding *binding = bind_with_defaults(&rig);
+	lvp_binding *binding = test_bind_rig(&rig, NULL);
 	double changes[2], references[2];
 	CHECK_OK(lvp_region_volume_changes(changes, references, binding, deformed, posed, NULL, &diag), diag);
 	CHECK(fabs(changes[0]) < 1e-5 * references[0] && fabs(changes[1]) < 1e-5 * references[1]);
@@ -221,7 +209,7 @@ static void test_static_triangles_enter_through_rest_sums(void)
 	}
 	float *deformed = deform(&rig, posed, 0.0);
 	lvp_diagnostic diag;
-	lvp_binding *binding = bind_with_defaults(&rig);
+	lvp_binding *binding = test_bind_rig(&rig, NULL);
 	if (!binding)
 		return;
 	double changes[8], references[8], volume = 0.0;

@@ -657,18 +657,6 @@ static void test_capacity_too_small_is_an_error(void)
 
 /* ---- errors -------------------------------------------------------------------------------------- */
 
-static void expect(lvp_result got, const lvp_diagnostic *diag, lvp_result want, const char *argument, int64_t index)
-{
-	CHECK(got == want);
-	if (got != want)
-		fprintf(stderr, "    got %s, want %s\n", lvp_result_name(got), lvp_result_name(want));
-	CHECK(diag->argument && strcmp(diag->argument, argument) == 0);
-	if (diag->argument && strcmp(diag->argument, argument) != 0)
-		fprintf(stderr, "    argument %s, want %s\n", diag->argument, argument);
-	CHECK(diag->index == index);
-	CHECK(strlen(diag->message) > 10);
-}
-
 static void test_error_paths_name_the_argument(void)
 {
 	builder *b = malloc(sizeof(builder));
@@ -685,44 +673,44 @@ static void test_error_paths_name_the_argument(void)
 	const float *p = b->positions;
 	const int32_t *t = b->triangles;
 	CHECK(n < 1024);
-	expect(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
-	       "r_offsets", -1);
-	expect(lvp_auto_weights(offsets, NULL, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
-	       "r_bones", -1);
-	expect(lvp_auto_weights(offsets, bones, NULL, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
-	       "r_values", -1);
-	expect(lvp_auto_weights(offsets, bones, values, cap, NULL, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
-	       "positions", -1);
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, NULL, f, &s, &o, &d), &d, lvp_error_null_argument,
-	       "triangles", -1);
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, 0, t, f, &s, &o, &d), &d, lvp_error_invalid_size,
-	       "vertex_count", -1);
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, 0, &s, &o, &d), &d, lvp_error_invalid_size,
-	       "triangle_count", -1);
+	CHECK_ERROR(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	            "r_offsets", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, NULL, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	            "r_bones", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, NULL, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	            "r_values", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, NULL, n, t, f, &s, &o, &d), &d, lvp_error_null_argument,
+	            "positions", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, NULL, f, &s, &o, &d), &d, lvp_error_null_argument,
+	            "triangles", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, 0, t, f, &s, &o, &d), &d, lvp_error_invalid_size,
+	            "vertex_count", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, 0, &s, &o, &d), &d, lvp_error_invalid_size,
+	            "triangle_count", -1);
 	int64_t first_last = 0; /* the first corner that names the last vertex */
 	while (t[first_last] != n - 1)
 		++first_last;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n - 1, t, f, &s, &o, &d), &d,
-	       lvp_error_index_out_of_range, "triangles", first_last);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n - 1, t, f, &s, &o, &d), &d,
+	            lvp_error_index_out_of_range, "triangles", first_last);
 	b->positions[10] = NAN;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
-	       "positions", 10);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
+	            "positions", 10);
 	b->positions[10] = 0.0f;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, NULL, &o, &d), &d, lvp_error_null_argument,
-	       "skeleton", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, NULL, &o, &d), &d, lvp_error_null_argument,
+	            "skeleton", -1);
 	broken = s, broken.bone_count = 0;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_invalid_size,
-	       "skeleton.bone_count", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_invalid_size,
+	            "skeleton.bone_count", -1);
 	broken = s, broken.tails = NULL;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_null_argument,
-	       "skeleton.tails", -1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &broken, &o, &d), &d, lvp_error_null_argument,
+	            "skeleton.tails", -1);
 	b->heads[4] = INFINITY;
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
-	       "skeleton.heads", 4);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_not_finite,
+	            "skeleton.heads", 4);
 	b->heads[4] = 0.0f;
 	b->rest_matrices[16 + 5] = 0.0f; /* bone 1's rest matrix loses its y axis */
-	expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_singular_matrix,
-	       "skeleton.rest_matrices", 1);
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &o, &d), &d, lvp_error_singular_matrix,
+	            "skeleton.rest_matrices", 1);
 	b->rest_matrices[16 + 5] = 1.0f;
 	const struct {
 		const char *argument;
@@ -740,8 +728,8 @@ static void test_error_paths_name_the_argument(void)
 		bad = o;
 		bad.alpha = options[i].alpha, bad.normal_cos_max = options[i].cos_max, bad.min_weight = options[i].min_weight;
 		bad.visibility = (lvp_visibility)options[i].visibility, bad.max_influences = options[i].max_influences;
-		expect(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d, lvp_error_invalid_option,
-		       options[i].argument, -1);
+		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
+		            lvp_error_invalid_option, options[i].argument, -1);
 	}
 	/* NULL options are the defaults */
 	CHECK_OK(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, NULL, &d), d);

@@ -81,8 +81,11 @@ int main(int argc, char **argv)
 	char expected[1024];
 	snprintf(expected, sizeof(expected),
 	         "PyModuleDef_Init _lvp\n"
+	         "PyModule_GetState module=yes\n"
+	         "PyErr_NewExceptionWithDoc _lvp.Error doc=yes dict=none\n"
+	         "PyModule_AddObjectRef Error module=yes value=exception\n"
 	         "PyType_FromModuleAndSpec _lvp.Binding module=yes bases=none\n"
-	         "PyModule_AddObjectRef Binding module=yes type=yes\n"
+	         "PyModule_AddObjectRef Binding module=yes value=type\n"
 	         "PyModule_AddStringConstant version=%s module=yes\n",
 	         argv[2]);
 	printf("calls into python3.dll:\n%s", lvp_stub_log());

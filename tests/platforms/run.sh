@@ -148,7 +148,7 @@ windows_python_imports() {
 		awk '/DLL Name: python3.dll/ { inside = 1; getline; next } inside && NF == 0 { inside = 0 } inside { print $NF }'
 }
 
-# python3_stub.c's python3.dll: its four functions, plus a trap for every other name _lvp.pyd imports
+# python3_stub.c's python3.dll: the functions initialisation calls, plus a trap for every other name _lvp.pyd imports
 # from python3.dll (the stable ABI's data symbols among them as plain data).
 build_python3_stub() {
 	local dir="$1" pyd="$2" config="$3"

@@ -578,13 +578,16 @@ class TestThreads(unittest.TestCase):
 
 
 class TestErrors(unittest.TestCase):
-    """Every bad argument raises ValueError whose message starts with the argument's name."""
+    """Every bad argument raises _lvp.Error, a ValueError whose message starts with the argument's name and
+    whose .argument is that name."""
 
     def assertValueErrorNames(self, name, call, *args, **kwargs):
-        with self.assertRaises(ValueError, msg=f'{name}: no ValueError') as caught:
+        with self.assertRaises(_lvp.Error, msg=f'{name}: no _lvp.Error') as caught:
             call(*args, **kwargs)
         message = str(caught.exception)
         self.assertTrue(message.startswith(name), f'the message does not start with {name!r}: {message}')
+        self.assertEqual(caught.exception.argument, name, message)
+        self.assertIsInstance(caught.exception.code, str, message)
         # Every view taken before the refusal was released: an array still exported cannot be resized.
         for value in list(args) + list(kwargs.values()):
             if isinstance(value, array.array):
@@ -657,19 +660,33 @@ class TestErrors(unittest.TestCase):
             self.assertValueErrorNames('skin_matrices', function, **dict(arguments, skin_matrices=matrices))
 
     def test_errors_carry_their_code(self):
-        """A core error says what went wrong for code too, not only for people: .code (the core's result
-        without its prefix) and .argument (the Python name at fault, or None)."""
+        """A bad argument says what went wrong for code too, not only for people: .code (the core's result
+        without its prefix, or this module's for a buffer it cannot take) and .argument (the Python name at
+        fault, or None)."""
+        self.assertTrue(issubclass(_lvp.Error, ValueError))
         tube = Tube()
         values = array.array('f', tube.weight_values)
         values[5] = -0.5
-        with self.assertRaises(ValueError) as caught:
+        with self.assertRaises(_lvp.Error) as caught:
             _lvp.skin_linear(zeros('f', 3 * tube.vertex_count), tube.positions, tube.weight_offsets,
                              tube.weight_bones, values, tube.skin_matrices(0.5))
         self.assertEqual((caught.exception.code, caught.exception.argument), ('negative_weight', 'weight_values'))
         opened = array.array('i', tube.triangles[3:])  # one triangle less: a hole
-        with self.assertRaises(ValueError) as caught:
+        with self.assertRaises(_lvp.Error) as caught:
             _lvp.Binding(tube.positions, opened, None, None, None, None, None, None, mode='GLOBAL', map='UNIFORM')
         self.assertEqual(caught.exception.code, 'mesh_not_closed', str(caught.exception))
+        refused_here = [
+            ('invalid_size', 'positions', lambda: _lvp.mesh_volume(array.array('f', [0.0] * 4), tube.triangles)),
+            ('invalid_buffer', 'triangles', lambda: _lvp.mesh_volume(tube.positions, array.array('f', [0.0] * 3))),
+            ('null_argument', 'triangles', lambda: _lvp.mesh_volume(tube.positions, None)),
+            ('invalid_option', 'visibility', lambda: _lvp.auto_weights(
+                tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tube.tails, visibility='SOME')),
+        ]
+        for code, argument, call in refused_here:
+            with self.subTest(code=code), self.assertRaises(_lvp.Error) as caught:
+                call()
+            self.assertEqual((caught.exception.code, caught.exception.argument), (code, argument),
+                             str(caught.exception))
 
     def test_auto_weights(self):
         tube = Tube()

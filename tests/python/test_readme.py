@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""README.md cannot go stale: its sections come in the order of issue 5, every command it shows is one
+"""README.md cannot go stale: its sections come in their agreed order (SECTIONS), every command it shows is one
 that the build or a test runs (readme_commands.COMMANDS; an unknown command fails), its paths, names,
 parameters and pictures exist, and its measured tables are what the code measures.
 
@@ -138,7 +138,7 @@ class TestReadmeContent(unittest.TestCase):
     def setUp(self):
         self.text = readme_commands.read_readme()
 
-    def test_sections_in_the_issue_order(self):
+    def test_sections_in_their_order(self):
         self.assertEqual(readme_commands.headings(self.text), SECTIONS)
 
     def test_images_exist_and_are_png(self):
@@ -216,7 +216,7 @@ class TestReadmeContent(unittest.TestCase):
                 re.findall(r"`(lvp_\w+)\(\)`", self.text):
             self.assertIn("object." + idname, labels, "README names an operator object.%s that does not exist" % idname)
 
-    def test_operator_ids_of_issue_3_and_4(self):
+    def test_operator_ids_are_named(self):
         for idname in ("lvp_add", "lvp_bind", "lvp_remove", "lvp_auto_weights", "lvp_bake"):
             self.assertIn(idname, self.text)
 

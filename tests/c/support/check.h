@@ -5,8 +5,13 @@
 #ifndef LVP_TEST_CHECK_H
 #define LVP_TEST_CHECK_H
 
+#include "lvp.h"
+
 #include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 
 static int check__failures;
 
@@ -44,6 +49,34 @@ static inline int check_failures(void)
 			++check__failures;                                                                                         \
 		}                                                                                                              \
 	} while (0)
+
+/* Counts a failure of `what` at file:line when !ok, as CHECK does at the caller's line. */
+static inline bool check__report(bool ok, const char *what, const char *file, int line)
+{
+	if (!ok) {
+		fprintf(stderr, "  FAIL %s:%d: %s\n", file, line, what);
+		++check__failures;
+	}
+	return ok;
+}
+
+static inline void check__error(lvp_result got, const lvp_diagnostic *diag, lvp_result want, const char *argument,
+                                int64_t index, const char *file, int line)
+{
+	if (!check__report(got == want, "got == want", file, line))
+		fprintf(stderr, "    got %s, want %s\n", lvp_result_name(got), lvp_result_name(want));
+	check__report(diag->argument && strcmp(diag->argument, argument) == 0,
+	              "diag->argument && strcmp(diag->argument, argument) == 0", file, line);
+	if (diag->argument && strcmp(diag->argument, argument) != 0)
+		fprintf(stderr, "    argument %s, want %s\n", diag->argument, argument);
+	check__report(diag->index == index, "diag->index == index", file, line);
+	check__report(strlen(diag->message) > 10, "strlen(diag->message) > 10", file, line);
+}
+
+/* A call that must fail with `want` and a diagnostic that names `argument` and `index` (-1: no item) in a
+ * sentence. */
+#define CHECK_ERROR(got, diag, want, argument, index)                                                                  \
+	check__error((got), (diag), (want), (argument), (index), __FILE__, __LINE__)
 
 #define RUN(test)                                                                                                      \
 	do {                                                                                                               \

@@ -174,17 +174,6 @@ static int test__load_obj(test_rig *rig, char *text)
 	return 0;
 }
 
-/* Row-major 4x4 product r = a * b (r may alias a or b). */
-static void test__giraffe_mul(double *r_m, const double *a, const double *b)
-{
-	double out[16];
-	for (int r = 0; r < 4; ++r)
-		for (int c = 0; c < 4; ++c)
-			out[4 * r + c] =
-			    a[4 * r] * b[c] + a[4 * r + 1] * b[4 + c] + a[4 * r + 2] * b[8 + c] + a[4 * r + 3] * b[12 + c];
-	memcpy(r_m, out, sizeof(out));
-}
-
 static int test__load_skeleton(test_rig *rig, char *names, char *parents, char *translations, char *rotations)
 {
 	int32_t b = 0;
@@ -236,7 +225,7 @@ static int test__load_skeleton(test_rig *rig, char *names, char *parents, char *
 		if (p < 0)
 			memcpy(world + 16 * j, local, sizeof(local));
 		else
-			test__giraffe_mul(world + 16 * j, world + 16 * p, local);
+			test_multiply_matrices_double(world + 16 * j, world + 16 * p, local);
 		for (int k = 0; k < 16; ++k)
 			rig->rest_matrices[16 * j + k] = (float)world[16 * j + k];
 		for (int i = 0; i < 3; ++i)

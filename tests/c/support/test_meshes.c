@@ -337,7 +337,7 @@ static void test__mat_load(double *r_m, const float *m)
 		r_m[i] = m[i];
 }
 
-static void test__mat_mul(double *r_m, const double *a, const double *b)
+void test_multiply_matrices_double(double r_m[16], const double a[16], const double b[16])
 {
 	double out[16];
 	for (int r = 0; r < 4; ++r)
@@ -432,9 +432,9 @@ void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations
 				test__mat_rotation(rot, q[0] / len, q[1] / len, q[2] / len, q[3]);
 				/* The axis is in the bone's rest frame, whose origin is the head: conjugating by
 				 * the rest frame turns it about the head in world space. */
-				test__mat_mul(world, rest, rot);
-				test__mat_mul(world, world, rest_inv);
-				test__mat_mul(d, d, world);
+				test_multiply_matrices_double(world, rest, rot);
+				test_multiply_matrices_double(world, world, rest_inv);
+				test_multiply_matrices_double(d, d, world);
 			}
 			done[i] = 1;
 			++progress;
@@ -453,7 +453,7 @@ void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations
 	for (int32_t i = 0; i < b; ++i) {
 		double rest[16], posed[16];
 		test__mat_load(rest, rig->rest_matrices + 16 * i);
-		test__mat_mul(posed, delta + 16 * i, rest);
+		test_multiply_matrices_double(posed, delta + 16 * i, rest);
 		for (int k = 0; k < 16; ++k)
 			r_posed[16 * i + k] = (float)posed[k];
 	}
@@ -466,7 +466,7 @@ void test_multiply_matrices(float r[16], const float a[16], const float b[16])
 	double x[16], y[16], product[16];
 	test__mat_load(x, a);
 	test__mat_load(y, b);
-	test__mat_mul(product, x, y);
+	test_multiply_matrices_double(product, x, y);
 	for (int k = 0; k < 16; ++k)
 		r[k] = (float)product[k];
 }
@@ -486,7 +486,7 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed)
 		test__mat_load(rest, rig->rest_matrices + 16 * i);
 		test__mat_load(p, posed + 16 * i);
 		test__mat_inverse(rest_inv, rest);
-		test__mat_mul(s, p, rest_inv);
+		test_multiply_matrices_double(s, p, rest_inv);
 		for (int k = 0; k < 16; ++k)
 			r_skin[16 * i + k] = (float)s[k];
 	}

@@ -75,6 +75,8 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
 
 /* r = a * b, 4x4 row-major (r may be a or b). */
 void test_multiply_matrices(float r[16], const float a[16], const float b[16]);
+/* The same in double precision. */
+void test_multiply_matrices_double(double r[16], const double a[16], const double b[16]);
 
 /* A posed bone frame (16 floats, row-major) times a scale in its own frame: the bone scaled by
  * sx, sy, sz along its axes (Y along the bone) about its head, as Blender scales a pose bone. */

@@ -290,36 +290,52 @@ def _read_pose(obj, depsgraph, bound, armature_object):
 
 
 def _correct(obj, bound, check_topology):
-    """The core's correction of bound.positions into bound.offsets; its statistics."""
+    """The core's correction of bound.positions into bound.offsets; its statistics. Where Fold-Over
+    Prevention fails at this pose (no finite result, or a blown-up one), the frame is corrected without
+    it, and stats["fold_over_failed"] says why, rather than the whole mesh falling back to plain skinning."""
     rest_positions = None
     if obj.data.shape_keys is not None:
         rest_positions = _shape_key_rest(obj, bound, check_topology)
+    fold_over = obj.lvp.fold_over and bound.mode == 'LOCAL'
+    stats, failure = _core_correction(obj, bound, rest_positions, fold_over)
+    if failure is not None and fold_over:
+        stats, without = _core_correction(obj, bound, rest_positions, False)
+        if without is None:
+            stats["fold_over_failed"] = failure.message
+        failure = without
+    bound.note_corrected(stats)
+    if failure is not None:
+        raise failure
+    return stats
+
+
+def _core_correction(obj, bound, rest_positions, fold_over):
+    """(stats, None) for a correction that may be shown, or (stats, PassThrough) saying why not."""
     settings = obj.lvp
     try:
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
                                       rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
-                                      fold_over=settings.fold_over and bound.mode == 'LOCAL')
+                                      fold_over=fold_over)
     except (ValueError, MemoryError) as error:
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
-    bound.note_corrected(stats)
     if stats["passed_through"]:
-        raise PassThrough("Passing the mesh through: no finite correction exists at this pose (a joint folded onto "
-                          "itself?)", 'WARNING')
+        return stats, PassThrough("Passing the mesh through: no finite correction exists at this pose (a joint "
+                                  "folded onto itself?)", 'WARNING')
     rest = stats["volume_rest"]
     if stats["unskinned_distance"] > 0.0 and abs(stats["volume_after"] - rest) > abs(stats["volume_before"] - rest):
         # Positions that are not the bound skinning (an evaluation older than the weights) are measured
         # right, but the map and the regions are the binding's: when that made things worse, show none.
-        raise PassThrough("Passing the mesh through: " + _not_the_bound_skinning(obj, stats), 'WARNING')
+        return stats, PassThrough("Passing the mesh through: " + _not_the_bound_skinning(obj, stats), 'WARNING')
     displacement = stats["max_displacement"]
     if not displacement <= bound.displacement_limit:  # also catches NaN
         # A safety net, not a feature: never show a blown-up mesh to the animator.
-        raise PassThrough("The correction diverged at this pose (largest offset %.3g, above %.3g, a quarter of the "
-                          "mesh size): showing plain skinning for this frame"
-                          % (displacement, bound.displacement_limit), 'WARNING')
-    return stats
+        return stats, PassThrough("The correction diverged at this pose (largest offset %.3g, above %.3g, a "
+                                  "quarter of the mesh size): showing plain skinning for this frame"
+                                  % (displacement, bound.displacement_limit), 'WARNING')
+    return stats, None
 
 
 def _deformed_by_parent(obj):
@@ -336,6 +352,15 @@ def _not_the_bound_skinning(obj, stats):
                 "before the Armature modifier does: set Parent Type to Object")
     return ("the mesh entering Volume Preservation is not the skinning of the bound mesh by these bones (off by up "
             "to %.3g): press Bind if the weights or the rig changed" % stats["unskinned_distance"])
+
+
+def _reason(message):
+    """A pass-through's message (_core_correction) as the reason inside another sentence."""
+    if message.startswith("Passing the mesh through: "):
+        return message[len("Passing the mesh through: "):]
+    if message.startswith("The correction "):
+        message = "it " + message[len("The correction "):]
+    return message.split(": showing plain skinning")[0]
 
 
 def _volume_shortfall(bound, stats):
@@ -374,6 +399,9 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
         vertex, distance = bound.stray_vertex
         warnings.append("vertex %d lies %.3g away from the armature, a stray? Its region's volume is measured "
                         "wrong; move it back or delete it, then Bind" % (vertex, distance))
+    if stats.get("fold_over_failed"):
+        warnings.append("Fold-Over Prevention is left out at this pose, where it failed (%s)"
+                        % _reason(stats["fold_over_failed"]))
     shortfall = _volume_shortfall(bound, stats)
     if shortfall is not None:
         warnings.append(shortfall)

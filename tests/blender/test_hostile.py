@@ -178,6 +178,31 @@ class TestCannotRestore(HostileTestCase):
         self.assertIn("the volume comes back only", status)
 
 
+class TestFoldOverFails(HostileTestCase):
+    """Where Fold-Over Prevention fails at a pose (here: its result is larger than the add-on shows,
+    the limit set between the two results), the frame is corrected without it and the panel says so;
+    the mesh is not dropped to plain skinning."""
+
+    def test_corrected_without_fold_over(self):
+        helpers.keyframe_bend(self.rig, {10: 150.0})
+        self.show_frame(10)
+        bound = self.addon.session.SESSION.bound(self.obj)
+        alone = bound.stats["max_displacement"]
+        shown_alone = helpers.evaluated_positions(self.obj)
+        self.obj.lvp.fold_over = True
+        self.show_frame(10)
+        with_fold_over = bound.stats["max_displacement"]
+        self.assertGreater(with_fold_over, 1.05 * alone, "fold-over moves the skin further at 150 degrees")
+        self.assertFalse(bound.stats.get("fold_over_failed"))
+        bound.displacement_limit = 0.5 * (alone + with_fold_over)
+        self.show_frame(10)
+        level, status = self.assertNeverSilentlyWrong(message="fold-over beyond the limit")
+        self.assertEqual(level, 'WARNING', status)
+        self.assertIn("Fold-Over Prevention is left out at this pose, where it failed (it diverged", status)
+        self.assertSmallerThan(helpers.max_distance(helpers.evaluated_positions(self.obj), shown_alone), 1e-6,
+                               "the frame shows Volume Preservation without fold-over")
+
+
 class TestTopologyEdits(HostileTestCase):
     """1. A topology edit that keeps the counts (Flip Normals, Rotate Edge, Sort Elements), then a
     weight change."""

@@ -196,7 +196,7 @@ static void lvp__assemble_diagonals(lvp_binding *binding, int32_t begin, int32_t
 static inline void lvp__assemble_range(const lvp_binding *binding, double *sums, int32_t first, int32_t last,
                                        bool by_rows)
 {
-	int32_t dense = binding->system.profile.count, cells = binding->system.profile.cells, stride = dense + 1;
+	int32_t held = binding->system.profile.count, cells = binding->system.profile.cells, stride = held + 1;
 	/* Read once: the stores below are doubles, which the compiler must otherwise assume may
 	 * change what the binding points to. */
 	const lvp__system_place *place = binding->system.place;
@@ -204,7 +204,7 @@ static inline void lvp__assemble_range(const lvp_binding *binding, double *sums,
 	const int32_t *slot_offsets = binding->mesh.slot_offsets, *slot_region = binding->mesh.slot_region;
 	const float *slot_g = binding->measure.slot_g, *vertex_g = binding->measure.vertex_g;
 	const double *kappa = binding->rig.kappa;
-	const lvp__system_place outside = {dense, INT32_MAX, 0, 0}; /* the triangles without region */
+	const lvp__system_place outside = {held, INT32_MAX, 0, 0}; /* the triangles without region */
 	double *gains = sums + lvp__assembly_gains_at(binding);
 	memset(sums, 0, sizeof(double) * (size_t)(gains + stride - sums));
 	for (int32_t v = first; v < last; ++v) {
@@ -216,7 +216,7 @@ static inline void lvp__assemble_range(const lvp_binding *binding, double *sums,
 		for (int32_t slot = slot_offsets[k]; slot < slot_offsets[k + 1]; ++slot) {
 			int32_t s = slot_region[slot];
 			lvp__system_place row = s >= 0 ? place[s] : outside;
-			bool first_slot = slot == slot_offsets[k], in_system = row.index < dense;
+			bool first_slot = slot == slot_offsets[k], in_system = row.index < held;
 			if (!first_slot && !in_system)
 				continue; /* nothing for this slot; the first one also carries the gains */
 			double coefficient = in_system ? kappa[s] * slot_g[slot] : 0.0;
@@ -312,7 +312,7 @@ static void lvp__uniform_multipliers(lvp_binding *binding, int32_t m)
 static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->step.active;
-	int32_t dense = lvp__system_layout(binding, m);
+	int32_t held = lvp__system_layout(binding, m);
 	for (int32_t i = 0; i < m; ++i)
 		binding->step.region_touched[active[i]] = 1;
 
@@ -326,16 +326,16 @@ static double lvp__assemble_step(lvp_binding *binding, int32_t m)
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->step.movable_entries), lvp__assemble_chunks, &context, chunks, 1);
 	binding->system.assembly_chunks = chunks;
 	lvp__sum_system(binding);
-	for (int32_t j = 0; j < dense; ++j)
+	for (int32_t j = 0; j < held; ++j)
 		binding->step.total_gain[active[j]] = binding->system.column_gain[j];
-	if (m > dense)
-		lvp__assemble_diagonals(binding, dense, m);
+	if (m > held)
+		lvp__assemble_diagonals(binding, held, m);
 	/* What equal multipliers do to each region: its row of the system (past the regions the
 	 * system holds, its diagonal). */
 	lvp__system_row_sums(binding);
 	for (int32_t i = 0; i < m; ++i)
 		binding->step.uniform_gain[active[i]] =
-		    i < dense ? binding->system.row_sums[i] : binding->step.diagonal[active[i]];
+		    i < held ? binding->system.row_sums[i] : binding->step.diagonal[active[i]];
 	return lvp__error_norm(binding);
 }
 
@@ -344,11 +344,11 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 {
 	const int32_t *active = binding->step.active;
 	const lvp__profile *profile = &binding->system.profile;
-	int32_t dense = profile->count;
+	int32_t held = profile->count;
 	/* The regions' own step, towards their targets; each region's diagonal for the per-region
 	 * fallback. */
 	double largest_diagonal = 0.0;
-	for (int32_t i = 0; i < dense; ++i) {
+	for (int32_t i = 0; i < held; ++i) {
 		double diagonal = binding->system.matrix[profile->lower[i] + i];
 		largest_diagonal = fmax(largest_diagonal, fabs(diagonal));
 		binding->step.diagonal[active[i]] = diagonal;
@@ -358,7 +358,7 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 	for (int32_t i = 0; i < m; ++i) {
 		int32_t t = active[i];
 		double diagonal = binding->step.diagonal[t], mu;
-		if (i < dense && solved)
+		if (i < held && solved)
 			mu = binding->system.solution[i];
 		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
 			mu = diagonal > 1e-12 * largest_diagonal ? (binding->step.target[t] - binding->step.change[t]) / diagonal

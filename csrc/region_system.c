@@ -323,15 +323,15 @@ int32_t lvp__system_layout(lvp_binding *binding, int32_t m)
 {
 	lvp__system_firsts(binding, m);
 	const lvp__profile *p = &binding->system.profile;
-	int32_t dense = lvp__lay_out(&binding->system.profile, m, binding->system.capacity);
-	lvp__system_place outside = {dense, INT32_MAX, 0, 0};
+	int32_t held = lvp__lay_out(&binding->system.profile, m, binding->system.capacity);
+	lvp__system_place outside = {held, INT32_MAX, 0, 0};
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		binding->system.place[r] = outside;
-	for (int32_t i = 0; i < dense; ++i) {
+	for (int32_t i = 0; i < held; ++i) {
 		lvp__system_place place = {i, p->first[i], p->lower[i], p->upper[i]};
 		binding->system.place[binding->step.active[i]] = place;
 	}
-	return dense;
+	return held;
 }
 
 void lvp__sum_system(lvp_binding *binding)

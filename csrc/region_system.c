@@ -457,27 +457,11 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 
 void lvp__region_system_free(lvp__region_system *system)
 {
-	void *arrays[] = {system->coupling_offsets,
-	                  system->coupling,
-	                  system->solve_order,
-	                  system->profile.first,
-	                  system->profile.lower,
-	                  system->profile.upper,
-	                  system->normal_profile.first,
-	                  system->normal_profile.lower,
-	                  system->normal_profile.upper,
-	                  system->place,
-	                  system->matrix,
-	                  system->factor,
-	                  system->normal,
-	                  system->assembly,
-	                  system->column_gain,
-	                  system->row_sums,
-	                  system->rhs,
-	                  system->solution,
-	                  system->row_values,
-	                  system->row_last,
-	                  system->still};
+	void *arrays[] = {system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
+	                  system->profile.lower, system->profile.upper, system->normal_profile.first,
+	                  system->normal_profile.lower, system->normal_profile.upper, system->place, system->matrix,
+	                  system->factor, system->normal, system->assembly, system->column_gain, system->row_sums,
+	                  system->rhs, system->solution, system->row_values, system->row_last, system->still};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

@@ -158,6 +158,14 @@ def bbone_mapping_mode(bone):
     return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
 
 
+def bone_selected(armature_object, name):
+    """Whether bone `name` is selected: a pose bone's state from 5.0 on, the bone's before."""
+    pose_bone = armature_object.pose.bones.get(name) if armature_object.pose else None
+    if pose_bone is not None and hasattr(pose_bone, "select"):
+        return pose_bone.select
+    return armature_object.data.bones[name].select
+
+
 # ---- application handlers -------------------------------------------------------------------
 
 

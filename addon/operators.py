@@ -16,6 +16,7 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty
 
 from . import _lvp
 from . import bindings
+from . import blender_api
 from . import display
 from . import live
 from . import mesh_data
@@ -277,6 +278,16 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     bl_idname = "object.lvp_auto_weights"
     bl_label = "Volume Preservation Auto Weights"
 
+    bones: EnumProperty(
+        name="Bones",
+        description="Which bones get weights; the other bones' vertex groups are left as they are",
+        items=(
+            ('DEFORM', "Deforming Bones", "Every bone with Deform on"),
+            ('SELECTED', "Selected Bones", "The selected bones with Deform on (select them in Pose Mode): leave "
+             "out the bones that are not for this mesh, such as a face's bones for a body"),
+        ),
+        default='DEFORM',
+    )
     visibility: EnumProperty(
         name="Visibility Test",
         description="How a bone hidden from a vertex (behind the surface) is detected",
@@ -331,6 +342,11 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         bone_names = [bone.name for bone in armature_object.data.bones if bone.use_deform]
         if not bone_names:
             raise _Refused("%s has no deforming bone: enable Deform on its bones" % armature_object.name)
+        if self.bones == 'SELECTED':
+            bone_names = [name for name in bone_names if blender_api.bone_selected(armature_object, name)]
+            if not bone_names:
+                raise _Refused("No deforming bone of %s is selected: select the bones to weight in Pose Mode, or "
+                               "choose Bones: Deforming Bones" % armature_object.name)
         if len(obj.data.polygons) == 0:
             raise _Refused("%s has no faces: automatic weights need a surface mesh" % obj.name)
         mesh = obj.data

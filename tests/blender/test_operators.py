@@ -369,6 +369,29 @@ class TestAutoWeights(helpers.AddonTestCase):
         corrected, plain = helpers.volume_errors(self.obj)
         self.assertSmallerThan(corrected, 0.1 * plain, "with automatic weights")
 
+    def select_bones(self, *names):
+        """Selects these bones of the rig (a pose bone's state from 5.0 on, the bone's before)."""
+        for bone in self.rig.data.bones:
+            pose_bone = self.rig.pose.bones[bone.name]
+            holder = pose_bone if hasattr(pose_bone, "select") else bone
+            holder.select = bone.name in names
+
+    def test_selected_bones_only(self):
+        self.obj.vertex_groups.new(name="Upper").add([5, 6], 0.25, 'REPLACE')
+        self.select_bones("Lower")
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_auto_weights(bones='SELECTED'), {'FINISHED'})
+        lower = self.weights("Lower")
+        self.assertEqual(len(lower), len(self.obj.data.vertices), "the selected bone weights every vertex")
+        self.assertTrue(all(abs(weight - 1.0) < 1e-6 for weight in lower.values()))
+        self.assertEqual(self.weights("Upper"), {5: 0.25, 6: 0.25}, "the bone not selected is left as it was")
+        self.assertEqual(self.weights("Keep"), {0: 0.5, 1: 0.5, 2: 0.5})
+        self.select_bones()
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.object.lvp_auto_weights(bones='SELECTED')
+        self.assertIn("No deforming bone of Rig is selected", str(raised.exception))
+        self.assertEqual(self.weights("Upper"), {5: 0.25, 6: 0.25})
+
     def test_undo_restores_previous_weights(self):
         bpy.ops.ed.undo_push(message="before")
         helpers.select_only(self.obj)

@@ -43,7 +43,7 @@ def arguments():
 
 
 def status_text(addon, obj):
-    status = addon.bindings.status(obj)
+    status = addon.session.SESSION.status(obj)
     return "%s: %s" % status if status else "-"
 
 

@@ -5,6 +5,7 @@ and the volume comes back. The hand of real_cases.py closes into a fist; its glT
 with 1400 vertices more along the UV seams.
 """
 
+import os
 import unittest
 
 import bpy
@@ -54,6 +55,25 @@ class TestGLTFHand(unittest.TestCase):
 
     def test_fist(self):
         self.assertLikeTheWeldedHand(real_cases.HAND_FRAMES[1])
+
+
+class TestMeasureQuality(unittest.TestCase):
+    """measure_quality.py, which README names for the surface numbers, runs and measures the hand as
+    built and through glTF alike."""
+
+    def test_hand(self):
+        if not real_cases.enable_gltf():
+            self.skipTest("this Blender cannot import glTF (no numpy, or no glTF add-on)")
+        script = os.path.join(os.environ["LVP_REPO"], "tests", "blender", "measure_quality.py")
+        completed = helpers.run_blender(["--factory-startup", "--python", script, "--", "--cases", "hand"],
+                                        with_addon=False)
+        self.assertEqual(completed.returncode, 0, completed.stdout[-3000:])
+        rows = [line.split() for line in completed.stdout.splitlines() if line.strip().startswith("VP ")]
+        self.assertEqual(len(rows), 8, "VP at 4 poses, the hand and its glTF round trip")
+        self.assertEqual(rows[:4], rows[4:], "the round trip measures as the hand")
+        for row in rows:
+            self.assertLess(abs(float(row[1])), 0.01, "volume kept: %s" % row)
+            self.assertEqual(float(row[6]), 0.0, "no crack: %s" % row)
 
 
 if __name__ == "__main__":

@@ -132,12 +132,14 @@ class LeftAlone(Exception):
 
 class PassThrough(Exception):
     """Why obj's mesh is shown as plain skinning this frame. message: the object's status, or None
-    when the binding code already set it (bindings.ensure, rebind, refresh_map)."""
+    when the binding code already set it (bindings.ensure, rebind, refresh_map); reason, where given:
+    the cause alone, to go inside another sentence."""
 
-    def __init__(self, message=None, level='ERROR'):
+    def __init__(self, message=None, level='ERROR', reason=None):
         super().__init__(message)
         self.message = message
         self.level = level
+        self.reason = reason
 
 
 def correct_object(obj, depsgraph, check_topology=False):
@@ -301,7 +303,7 @@ def _correct(obj, bound, check_topology):
     if failure is not None and fold_over:
         stats, without = _core_correction(obj, bound, rest_positions, False)
         if without is None:
-            stats["fold_over_failed"] = failure.message
+            stats["fold_over_failed"] = failure.reason
         failure = without
     bound.note_corrected(stats)
     if failure is not None:
@@ -322,19 +324,21 @@ def _core_correction(obj, bound, rest_positions, fold_over):
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
     stats["mode"] = bound.mode
     if stats["passed_through"]:
-        return stats, PassThrough("Passing the mesh through: no finite correction exists at this pose (a joint "
-                                  "folded onto itself?)", 'WARNING')
+        reason = "no finite correction exists at this pose (a joint folded onto itself?)"
+        return stats, PassThrough("Passing the mesh through: " + reason, 'WARNING', reason)
     rest = stats["volume_rest"]
     if stats["unskinned_distance"] > 0.0 and abs(stats["volume_after"] - rest) > abs(stats["volume_before"] - rest):
         # Positions that are not the bound skinning (an evaluation older than the weights) are measured
         # right, but the map and the regions are the binding's: when that made things worse, show none.
-        return stats, PassThrough("Passing the mesh through: " + _not_the_bound_skinning(obj, stats), 'WARNING')
+        reason = _not_the_bound_skinning(obj, stats)
+        return stats, PassThrough("Passing the mesh through: " + reason, 'WARNING', reason)
     displacement = stats["max_displacement"]
     if not displacement <= bound.displacement_limit:  # also catches NaN
         # A safety net, not a feature: never show a blown-up mesh to the animator.
-        return stats, PassThrough("The correction diverged at this pose (largest offset %.3g, above %.3g, a "
-                                  "quarter of the mesh size): showing plain skinning for this frame"
-                                  % (displacement, bound.displacement_limit), 'WARNING')
+        diverged = ("diverged at this pose (largest offset %.3g, above %.3g, a quarter of the mesh size)"
+                    % (displacement, bound.displacement_limit))
+        return stats, PassThrough("The correction %s: showing plain skinning for this frame" % diverged, 'WARNING',
+                                  "it " + diverged)
     return stats, None
 
 
@@ -354,16 +358,7 @@ def _not_the_bound_skinning(obj, stats):
             "to %.3g): press Bind if the weights or the rig changed" % stats["unskinned_distance"])
 
 
-def _reason(message):
-    """A pass-through's message (_core_correction) as the reason inside another sentence."""
-    if message.startswith("Passing the mesh through: "):
-        return message[len("Passing the mesh through: "):]
-    if message.startswith("The correction "):
-        message = "it " + message[len("The correction "):]
-    return message.split(": showing plain skinning")[0]
-
-
-def _volume_shortfall(bound, stats):
+def _volume_shortfall(stats):
     """What is left when the correction could not bring the volume back at this pose (neither the whole
     mesh nor its worst region at least halfway back: a map that cannot move the skin there, steps that
     made things worse and were undone), or None."""
@@ -401,8 +396,8 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
                         "wrong; move it back or delete it, then Bind" % (vertex, distance))
     if stats.get("fold_over_failed"):
         warnings.append("Fold-Over Prevention is left out at this pose, where it failed (%s)"
-                        % _reason(stats["fold_over_failed"]))
-    shortfall = _volume_shortfall(bound, stats)
+                        % stats["fold_over_failed"])
+    shortfall = _volume_shortfall(stats)
     if shortfall is not None:
         warnings.append(shortfall)
     if stats.get("skipped_regions"):

@@ -27,8 +27,9 @@ from mathutils import Euler, Vector, kdtree
 # ---- closed smooth surfaces from spheres --------------------------------------------------------
 
 
-def _sphere(centre, radii, rings=10, around=16):
-    """(vertices, quads and triangles) of an axis-aligned ellipsoid."""
+def ellipsoid(centre, radii, rings=10, around=16):
+    """(vertices, quads and triangles) of an axis-aligned ellipsoid, wound outward: two poles and rings x
+    around vertices, each quad (ring, step), (ring + 1, step), (ring + 1, step + 1), (ring, step + 1)."""
     cx, cy, cz = centre
     rx, ry, rz = radii
     vertices = [(cx, cy, cz + rz)]
@@ -72,7 +73,7 @@ def closed_surface(name, spheres, voxel_size, smoothing=6):
     show. Smooth shaded."""
     vertices, faces = [], []
     for centre, radii in spheres:
-        sphere_vertices, sphere_faces = _sphere(centre, radii)
+        sphere_vertices, sphere_faces = ellipsoid(centre, radii)
         base = len(vertices)
         vertices += sphere_vertices
         faces += [tuple(base + v for v in face) for face in sphere_faces]

@@ -8,32 +8,16 @@ which must measure exactly as its welded self. No add-on involved: these tests h
 import math
 import unittest
 
+import real_cases
 import surface_quality as quality
 
 
 def uv_sphere(rings=12, around=16, radius=1.0, centre=(0.0, 0.0, 0.0)):
-    """(points, triangles) of a closed sphere wound outward: two poles and rings x around vertices."""
-    cx, cy, cz = centre
-    points = [(cx, cy, cz + radius)]
-    for ring in range(1, rings):
-        polar = math.pi * ring / rings
-        for step in range(around):
-            azimuth = 2.0 * math.pi * step / around
-            points.append((cx + radius * math.sin(polar) * math.cos(azimuth),
-                           cy + radius * math.sin(polar) * math.sin(azimuth), cz + radius * math.cos(polar)))
-    points.append((cx, cy, cz - radius))
-    south = len(points) - 1
-
-    def vertex(ring, step):
-        return 1 + (ring - 1) * around + step % around
-
-    triangles = [(0, vertex(1, step), vertex(1, step + 1)) for step in range(around)]
-    for ring in range(1, rings - 1):
-        for step in range(around):
-            a, b = vertex(ring, step), vertex(ring, step + 1)
-            c, d = vertex(ring + 1, step + 1), vertex(ring + 1, step)
-            triangles += [(a, d, c), (a, c, b)]
-    triangles += [(south, vertex(rings - 1, step + 1), vertex(rings - 1, step)) for step in range(around)]
+    """(points, triangles) of a closed sphere wound outward (real_cases.ellipsoid, its quads cut in two)."""
+    points, faces = real_cases.ellipsoid(centre, (radius, radius, radius), rings, around)
+    triangles = []
+    for face in faces:
+        triangles += [face] if len(face) == 3 else [(face[0], face[1], face[2]), (face[0], face[2], face[3])]
     return points, triangles
 
 

@@ -662,16 +662,16 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 		float offset[3] = {out[0] - in[0], out[1] - in[1], out[2] - in[2]};
 		largest = fmax(largest, (double)offset[0] * offset[0] + (double)offset[1] * offset[1] +
 		                            (double)offset[2] * offset[2]);
+		/* The point's vertices, its first (whose input it is, exactly) first; a point is its vertex
+		 * when nothing is welded. Another copy keeps its own input, moved by the point's offset. */
 		int32_t first = weld->copies ? weld->copy_offsets[p] : 0, last = weld->copies ? weld->copy_offsets[p + 1] : 1;
 		for (int32_t i = first; i < last; ++i) {
 			int32_t k = weld->copies ? weld->copies[i] : p;
 			for (int c = 0; c < 3; ++c) {
 				if (r_offsets)
 					r_offsets[3 * k + c] = offset[c];
-				/* a point's first vertex is its input exactly; another copy keeps its own input */
 				if (r_positions)
-					r_positions[3 * k + c] =
-					    k == lvp__point_vertex(binding, p) ? out[c] : caller_positions[3 * k + c] + offset[c];
+					r_positions[3 * k + c] = i == first ? out[c] : caller_positions[3 * k + c] + offset[c];
 			}
 		}
 	}

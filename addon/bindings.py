@@ -225,7 +225,8 @@ def bind(obj, depsgraph=None, inputs=None):
     mode = mode_of(settings)
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
-                               mode=mode, threads=thread_count(), **map_arguments(obj, settings, core_skeleton, inputs))
+                               mode=mode, threads=thread_count(), bone_groups=core_skeleton.bone_groups(),
+                               **map_arguments(obj, settings, core_skeleton, inputs))
     except _lvp.Error as error:
         message = str(error)
         if error.code == "mesh_not_closed":

@@ -198,9 +198,8 @@ class CoreSkeleton:
         name, joint = self.bones[region]
         if joint == STILL:
             return "kept still by the Armature modifier's vertex group %r" % self.mask[0]
-        if joint == PLAIN:
-            return name
-        return "%s (B-Bone joint %d of 0-%d)" % (name, joint, self.segments[name])
+        # A B-Bone's joints are corrected as one (bone_groups): the core names the bone by its first.
+        return name
 
     def core_bones_of(self, name):
         """Indices of the core bones that stand for the bone called name (empty when not bound)."""
@@ -209,6 +208,16 @@ class CoreSkeleton:
             return []
         count = 1 if self.segments[name] == 1 else self.segments[name] + 1
         return list(range(first, first + count))
+
+    def bone_groups(self):
+        """Per core bone, the first core bone of its bone (int32): the joints of a B-Bone are corrected
+        together, with one multiplier (lvp.h, GROUPS); None when no bone is a B-Bone."""
+        if not self.has_bbones:
+            return None
+        groups = mesh_data.int_array(len(self.bones))
+        for index, (name, _joint) in enumerate(self.bones):
+            groups[index] = index if name is None else self.first_core_bone[name]
+        return groups
 
     def bone_index(self, region):
         """Index in bone_names of the bone a core bone belongs to (-1 for the still bone)."""

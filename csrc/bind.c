@@ -122,6 +122,13 @@ lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_
 		if ((result = lvp__check_weights(weights, vertex_count, skeleton->bone_count, r_diag)))
 			return result;
 	}
+	if (options->bone_groups && options->mode == LVP_MODE_LOCAL)
+		for (int32_t i = 0; i < skeleton->bone_count; ++i)
+			if (options->bone_groups[i] < 0 || options->bone_groups[i] >= skeleton->bone_count)
+				return lvp__fail(r_diag, lvp_error_index_out_of_range, "options.bone_groups", i,
+				                 "options.bone_groups[%d] is %d; a group is named by a value in [0, %d), the "
+				                 "bone count (bones with the same value form one group).",
+				                 (int)i, (int)options->bone_groups[i], (int)skeleton->bone_count);
 
 	/* Vertices at the same rest position are one point (weld.c): from here on, bind works on the
 	 * points, and so does every frame. */
@@ -199,7 +206,7 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	if (!lvp__measure_alloc(binding) || !lvp__fold_alloc(binding))
 		return lvp__bind_out_of_memory(binding, r_diag);
 	if ((result = lvp__build_borders(binding, r_diag)) ||
-	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_region_system(binding, r_diag)) ||
+	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_region_system(binding, options->mode == LVP_MODE_LOCAL ? options->bone_groups : NULL, r_diag)) ||
 	    (result = lvp__build_stretch_pairs(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);

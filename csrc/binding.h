@@ -244,7 +244,13 @@ typedef struct lvp__measure {
  * ways), the order it is solved in, and its profile over the step's active regions (the step's
  * active[i] is row and column i). */
 typedef struct lvp__region_system {
-	int32_t *coupling_offsets; /* region_count+1 */
+	/* The groups of regions corrected with one multiplier (lvp.h, GROUPS); a region alone is a
+	 * group of one. The system's unknowns are the groups, each named by its leader (its first
+	 * region): its rows and columns sum those of its regions. */
+	int32_t *group_leader;     /* per region */
+	int32_t *group_offsets;    /* region_count+1: a leader's regions, leader first; empty for the others */
+	int32_t *group_regions;
+	int32_t *coupling_offsets; /* region_count+1, between leaders */
 	int32_t *coupling;
 	int32_t *solve_order;      /* per region: the regions in the order the system is solved in */
 	int32_t capacity;          /* cells of matrix and factor (at most LVP__SYSTEM_CELLS) */
@@ -409,6 +415,14 @@ static inline int32_t lvp__find_slot(const lvp_binding *binding, int32_t k, int3
 static inline int32_t lvp__region_part(const lvp_binding *binding, int32_t r)
 {
 	return binding->parts.region_part && r >= 0 ? binding->parts.region_part[r] : 0;
+}
+
+/* The regions of the group that region `leader` leads (lvp__region_system): [*r_first, *r_last) of
+ * system.group_regions, the leader first; empty when it leads none. */
+static inline void lvp__group_range(const lvp_binding *binding, int32_t leader, int32_t *r_first, int32_t *r_last)
+{
+	*r_first = binding->system.group_offsets[leader];
+	*r_last = binding->system.group_offsets[leader + 1];
 }
 
 /* Each stage's memory: _alloc (at bind, after the stages it is sized by; false when out of
@@ -598,9 +612,10 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
                               double *r_off);
 
 /* region_system.c */
-/* The coupling of the regions, their solve order and the system's storage (binding.h); after
+/* The groups of the regions (bone_groups: lvp.h, GROUPS; NULL, each region alone), their
+ * coupling, their solve order and the system's storage (binding.h); after
  * lvp__build_region_corners. */
-lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag);
+lvp_result lvp__build_region_system(lvp_binding *binding, const int32_t *bone_groups, lvp_diagnostic *r_diag);
 /* Lays out the system of a step over active[0..m) (in solve order, active_index set) in
  * system.profile and system.place; returns how many of them it holds (the first ones), up to
  * system_capacity. */

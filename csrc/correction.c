@@ -103,6 +103,37 @@ static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
 	return binding->frame_map.gamma[k] > 0.0f && !binding->fold.held[k];
 }
 
+/* What the solve sees of a group (lvp.h, GROUPS): the sums over its regions of their changes,
+ * targets and reference volumes; it is left out when one of its regions is skipped (a singular
+ * bone) or none of them can move. A region alone is a group of itself. */
+typedef struct lvp__group_state {
+	double change, target, reference, reference_change; /* reference_change: the bones' scales' */
+	bool skipped, movable;
+} lvp__group_state;
+
+static lvp__group_state lvp__group_state_of(const lvp_binding *binding, int32_t leader)
+{
+	lvp__group_state state = {0.0, 0.0, 0.0, 0.0, false, false};
+	int32_t first, last;
+	lvp__group_range(binding, leader, &first, &last);
+	for (int32_t g = first; g < last; ++g) {
+		int32_t r = binding->system.group_regions[g];
+		state.change += binding->step.change[r];
+		state.target += binding->step.target[r];
+		state.reference += binding->measure.reference_volume[r];
+		state.reference_change += binding->stretch.change[r];
+		state.skipped = state.skipped || binding->rig.region_skipped[r];
+		state.movable = state.movable || binding->step.region_movable[r];
+	}
+	return state;
+}
+
+/* Whether region r leads its group (the others answer through it). */
+static inline bool lvp__leads(const lvp_binding *binding, int32_t r)
+{
+	return binding->system.group_leader[r] == r;
+}
+
 /* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t
  * over their support (the step's multipliers in applied_mu), listing the moved ones from
  * moved[begin] on; chunk_moved of the chunk says how many. */
@@ -127,14 +158,24 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 	binding->step.chunk_moved[begin / LVP__GRAIN] = written - begin;
 }
 
-/* Moves step.positions by the multipliers of the given regions (in mu[]), remembering the step
+/* applied_mu of every region of the groups the given leaders lead: the leader's mu, or zero. */
+static void lvp__set_applied(lvp_binding *binding, const int32_t *leaders, int32_t count, bool on)
+{
+	for (int32_t j = 0; j < count; ++j) {
+		int32_t first, last;
+		lvp__group_range(binding, leaders[j], &first, &last);
+		for (int32_t g = first; g < last; ++g)
+			binding->step.applied_mu[binding->system.group_regions[g]] = on ? binding->step.mu[leaders[j]] : 0.0;
+	}
+}
+
+/* Moves step.positions by the multipliers of the given groups (in mu[], by leader), remembering the step
  * (lvp__undo_step). Only dynamic vertices can move (their map is zero otherwise). Split over
  * the threads in chunks of dynamic vertices; the moved list is then closed up in chunk order,
  * the same for any threads. */
 static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions, int32_t count)
 {
-	for (int32_t j = 0; j < count; ++j)
-		binding->step.applied_mu[regions[j]] = binding->step.mu[regions[j]];
+	lvp__set_applied(binding, regions, count, true);
 	int32_t dynamic = binding->dynamic.vertex_count, chunks = (dynamic + LVP__GRAIN - 1) / LVP__GRAIN;
 	for (int32_t i = 0; i < chunks; ++i)
 		binding->step.chunk_moved[i] = -1; /* a serial run is one call over all chunks */
@@ -150,8 +191,7 @@ static void lvp__apply_multipliers(lvp_binding *binding, const int32_t *regions,
 		}
 		binding->step.moved_count += moved;
 	}
-	for (int32_t j = 0; j < count; ++j)
-		binding->step.applied_mu[regions[j]] = 0.0;
+	lvp__set_applied(binding, regions, count, false);
 }
 
 typedef struct lvp__assembly_context {
@@ -159,8 +199,8 @@ typedef struct lvp__assembly_context {
 	int32_t chunk_size;
 } lvp__assembly_context;
 
-/* Past the regions the system holds: the diagonal of columns [begin, end) and what they do to
- * the whole mesh. Only where a step's profile would take more than LVP__SYSTEM_CELLS (binding.h). */
+/* Past the groups the system holds: the diagonal of columns [begin, end) and what they do to
+ * the whole mesh (by leader). Only where a step's profile would take more than LVP__SYSTEM_CELLS (binding.h). */
 static void lvp__assemble_diagonals(lvp_binding *binding, int32_t begin, int32_t end)
 {
 	for (int32_t j = begin; j < end; ++j)
@@ -172,15 +212,17 @@ static void lvp__assemble_diagonals(lvp_binding *binding, int32_t begin, int32_t
 		lvp__support support = lvp__vertex_support(binding, k);
 		double g = binding->measure.vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g;
 		for (int32_t i = 0; i < support.count; ++i) {
-			int32_t t = support.regions[i];
+			int32_t t = binding->system.group_leader[support.regions[i]];
 			int32_t j = binding->step.active_index[t];
 			if (j < begin || j >= end)
 				continue;
 			double weight = gain * support.phi[i];
 			binding->step.total_gain[t] += weight * g;
-			for (int32_t slot = binding->mesh.slot_offsets[k]; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
-				if (binding->mesh.slot_region[slot] == t)
-					binding->step.diagonal[t] += binding->rig.kappa[t] * binding->measure.slot_g[slot] * weight;
+			for (int32_t slot = binding->mesh.slot_offsets[k]; slot < binding->mesh.slot_offsets[k + 1]; ++slot) {
+				int32_t s = binding->mesh.slot_region[slot];
+				if (s >= 0 && binding->system.group_leader[s] == t)
+					binding->step.diagonal[t] += binding->rig.kappa[s] * binding->measure.slot_g[slot] * weight;
+			}
 		}
 	}
 }
@@ -352,7 +394,8 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 		double diagonal = binding->system.matrix[profile->lower[i] + i];
 		largest_diagonal = fmax(largest_diagonal, fabs(diagonal));
 		binding->step.diagonal[active[i]] = diagonal;
-		binding->system.rhs[i] = binding->step.target[active[i]] - binding->step.change[active[i]];
+		lvp__group_state group = lvp__group_state_of(binding, active[i]);
+		binding->system.rhs[i] = group.target - group.change;
 	}
 	bool solved = lvp__solve_system(binding, largest_diagonal);
 	for (int32_t i = 0; i < m; ++i) {
@@ -360,9 +403,10 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 		double diagonal = binding->step.diagonal[t], mu;
 		if (i < held && solved)
 			mu = binding->system.solution[i];
-		else /* past the regions the system holds, or a system not solved: the region's own eq. 5 step */
-			mu = diagonal > 1e-12 * largest_diagonal ? (binding->step.target[t] - binding->step.change[t]) / diagonal
-			                                         : 0.0;
+		else { /* past the groups the system holds, or a system not solved: the group's own eq. 5 step */
+			lvp__group_state group = lvp__group_state_of(binding, t);
+			mu = diagonal > 1e-12 * largest_diagonal ? (group.target - group.change) / diagonal : 0.0;
+		}
 		binding->step.mu[t] = isfinite(mu) ? mu : 0.0;
 	}
 	memset(binding->parts.uniform, 0, sizeof(double) * (size_t)binding->parts.count);
@@ -380,7 +424,7 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 	lvp__apply_multipliers(binding, active, m);
 }
 
-/* When some region is off its target by more than the tolerance (or, spreading the whole
+/* The groups to correct, by leader (lvp.h, GROUPS; a region alone is a group). When some group is off its target by more than the tolerance (or, spreading the whole
  * mesh's change, the whole mesh or one of its parts is off its rest volume): that region, and every region already
  * corrected this frame (so that a corrected region is held at its volume while its neighbours
  * are fixed, instead of being let go and disturbed again). Regions the map cannot move are
@@ -397,10 +441,12 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 		binding->step.active_index[r] = -1;
 	for (int32_t i = 0; i < binding->region_count; ++i) {
 		int32_t r = binding->system.solve_order[i]; /* the system's order (region_system.c) */
-		double reference = binding->measure.reference_volume[r];
-		if (binding->rig.region_skipped[r] || !(reference > 0.0) || !binding->step.region_movable[r])
+		if (!lvp__leads(binding, r))
 			continue;
-		bool off = fabs(binding->step.change[r] - binding->step.target[r]) > tolerance * reference;
+		lvp__group_state group = lvp__group_state_of(binding, r);
+		if (group.skipped || !(group.reference > 0.0) || !group.movable)
+			continue;
+		bool off = fabs(group.change - group.target) > tolerance * group.reference;
 		any_off = any_off || off;
 		if (off || binding->step.region_touched[r]) {
 			binding->step.active_index[r] = m;
@@ -455,17 +501,19 @@ static void lvp__remeasure(lvp_binding *binding, const lvp__region_sums *totals)
 	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
 }
 
-/* Sum over the regions of their squared relative distance to their targets, and, spreading
+/* Sum over the groups of their squared relative distance to their targets, and, spreading
  * the whole mesh's change, the whole mesh's (or each part's) squared relative change: what the
  * iterations decrease. */
 static double lvp__error_norm(lvp_binding *binding)
 {
 	double sum = 0.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		double reference = binding->measure.reference_volume[r];
-		if (binding->rig.region_skipped[r] || !(reference > 0.0))
+		if (!lvp__leads(binding, r))
 			continue;
-		double off = (binding->step.change[r] - binding->step.target[r]) / reference;
+		lvp__group_state group = lvp__group_state_of(binding, r);
+		if (group.skipped || !(group.reference > 0.0))
+			continue;
+		double off = (group.change - group.target) / group.reference;
 		sum += off * off;
 	}
 	if (binding->step.spread_total) {
@@ -548,7 +596,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			double gain =
 			    (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
 			for (int32_t i = 0; i < support.count; ++i)
-				if (support.phi[i] > 0.0f && binding->step.region_touched[support.regions[i]])
+				if (support.phi[i] > 0.0f && binding->step.region_touched[binding->system.group_leader[support.regions[i]]])
 					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
 		}
 		bool any = false;
@@ -617,15 +665,25 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
 	return steps + lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
 }
 
+/* The group's change against the change its bones' scales give it, relative to its reference. */
+static double lvp__group_relative_change(const lvp_binding *binding, int32_t leader)
+{
+	lvp__group_state group = lvp__group_state_of(binding, leader);
+	return (group.change - group.reference_change) / group.reference;
+}
+
+/* The group (by leader) furthest from its volume, and how far (*r_relative). */
 static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
 {
 	int32_t worst = -1;
 	double largest = -1.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		double reference = binding->measure.reference_volume[r];
-		if (binding->rig.region_skipped[r] || !(reference > 0.0))
+		if (!lvp__leads(binding, r))
 			continue;
-		double relative = (binding->step.change[r] - binding->stretch.change[r]) / reference;
+		lvp__group_state group = lvp__group_state_of(binding, r);
+		if (group.skipped || !(group.reference > 0.0))
+			continue;
+		double relative = lvp__group_relative_change(binding, r);
 		if (fabs(relative) > largest) {
 			largest = fabs(relative);
 			worst = r;
@@ -778,9 +836,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	stats.volume_after = lvp__pass_volume(binding, binding->step.positions);
 	if (stats.worst_region >= 0) {
-		stats.worst_region_change_after =
-		    (binding->step.change[stats.worst_region] - binding->stretch.change[stats.worst_region]) /
-		    binding->measure.reference_volume[stats.worst_region];
+		stats.worst_region_change_after = lvp__group_relative_change(binding, stats.worst_region);
 		stats.worst_region = lvp__caller_bone(binding, stats.worst_region); /* its bone, in local mode */
 	}
 	stats.skipped_regions = lvp__count_skipped(binding);

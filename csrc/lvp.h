@@ -82,6 +82,17 @@
  *   together, so nothing moves where the skin moved rigidly. Every map is as smooth over the
  *   surface as the weights are.
  *
+ * GROUPS (one multiplier for several bones)
+ *
+ *   lvp_bind_options.bone_groups joins bones that are one bone to the animator: the joints of a
+ *   B-Bone, which share its weights between them (a vertex between joints i and i + 1 moves with
+ *   both). Each joint keeps its region and is measured in its own frame, but the regions of a
+ *   group are corrected as one: one multiplier, aiming at the sum of their changes. Corrected
+ *   apart, neighbouring joints of one bone are nearly indistinguishable to the correction, and
+ *   their multipliers pull against each other (a ridge where one bone should bulge smoothly).
+ *   A group's regions stay apart in separate parts (SEGMENTATION). Stats and warnings speak of
+ *   the group by its first bone.
+ *
  * SEGMENTATION (paper 5.2)
  *
  *   Region s is the set of vertices whose largest normalized weight is on bone s (ties go to
@@ -334,6 +345,10 @@ typedef struct lvp_bind_options {
 	lvp_mode mode;
 	lvp_map_options map;
 	int32_t thread_count; /* worker threads for lvp_correct(); 1..LVP_MAX_THREADS, default 1 */
+	/* Optional, local mode: bones whose regions are corrected together, with one multiplier
+	 * (GROUPS). bone_count values in [0, bone_count): bones with the same value form one group.
+	 * NULL (default): every bone alone. */
+	const int32_t *bone_groups;
 } lvp_bind_options;
 
 lvp_bind_options lvp_bind_default_options(void);
@@ -396,14 +411,15 @@ typedef struct lvp_frame_stats {
 	double volume_before;     /* of the input positions */
 	double volume_after;      /* of the corrected positions */
 	int32_t worst_region;     /* region with the largest relative change before correction, -1 if none
-	                             (of separate parts, the part's bone: SEGMENTATION) */
+	                             (of separate parts, the part's bone: SEGMENTATION; of a group, its
+	                             first bone, and the group's change: GROUPS) */
 	double worst_region_change_before; /* its (V - V_rest) / V_ref, signed; where bones are scaled
 	                                      against each other, less the change their scales give it
 	                                      (ALGORITHM, 3) */
 	double worst_region_change_after;
 	int32_t iterations;       /* correction steps done, fold-over rounds included */
 	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's
-	                             region in each separate part counts once */
+	                             region in each separate part counts once, a group once */
 	int32_t skipped_regions;  /* regions left as they were: their posed bone is singular (scaled to zero) */
 	int32_t folded_vertices;  /* vertices moved back to a contact surface */
 	double max_displacement;  /* largest |offset| written */

@@ -915,20 +915,21 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	                           "weight_values",  "rest_matrices", "heads",            "tails",
 	                           "mode",           "map",       "alpha",               "beta",
 	                           "painted",        "region_bone_offsets", "region_bones", "threads",
-	                           NULL};
+	                           "bone_groups",    NULL};
 	PyObject *rest_object, *triangles_object, *offsets_object, *bones_object, *values_object;
-	PyObject *matrices_object, *heads_object, *tails_object, *mode = NULL, *threads = NULL;
+	PyObject *matrices_object, *heads_object, *tails_object, *mode = NULL, *threads = NULL, *groups_object = NULL;
 	lvp_py__map_arguments map_arguments = {NULL, NULL, NULL, NULL, NULL, NULL};
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOO:Binding", keywords, &rest_object,
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOOO:Binding", keywords, &rest_object,
 	                                 &triangles_object, &offsets_object, &bones_object, &values_object,
 	                                 &matrices_object, &heads_object, &tails_object, &mode, &map_arguments.map,
 	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
-	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads))
+	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads,
+	                                 &groups_object))
 		return NULL;
 	lvp_py__call call;
 	lvp_bind_options options = lvp_bind_default_options();
 	int mode_index = (int)options.mode;
-	lvp_py__array rest, triangles, offsets, bones, values;
+	lvp_py__array rest, triangles, offsets, bones, values, groups;
 	const lvp_py__array *weight_parts[3] = {&offsets, &bones, &values};
 	bool weights_given = false;
 	lvp_skeleton skeleton;
@@ -946,9 +947,13 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	    /* The weights come as a unit, like the skeleton; None for all three is a prop without bones. */
 	    lvp_py__expect_together(&call, weight_parts, 3, "weight",
 	                            "weight_offsets, weight_bones and weight_values", &weights_given) != 0 ||
-	    (weights_given && lvp_py__expect_weights(&call, &offsets, &bones, &values, vertex_count) != 0))
+	    (weights_given && lvp_py__expect_weights(&call, &offsets, &bones, &values, vertex_count) != 0) ||
+	    lvp_py__take(&call, &groups, groups_object, "bone_groups", LVP_PY__INT32, false, true) != 0 ||
+	    (skeleton.rest_matrices &&
+	     lvp_py__expect_count(&call, &groups, skeleton.bone_count, "one per bone of rest_matrices") != 0))
 		return lvp_py__abandon(&call);
 	options.mode = (lvp_mode)mode_index;
+	options.bone_groups = groups.given && skeleton.rest_matrices ? groups.data : NULL; /* none: the core says so */
 	lvp_weights weights = {offsets.data, bones.data, values.data};
 	lvp_binding *binding = NULL;
 	lvp_result result;
@@ -1312,7 +1317,7 @@ static PyGetSetDef lvp_py__binding_getset[] = {
 static PyType_Slot lvp_py__binding_slots[] = {
     {Py_tp_doc, "Binding(rest_positions, triangles, weight_offsets, weight_bones, weight_values, rest_matrices, "
                 "heads, tails, *, mode='LOCAL', map='ORGANIC', alpha=1.0, beta=1.0, painted=None, "
-                "region_bone_offsets=None, region_bones=None, threads=1)\n"
+                "region_bone_offsets=None, region_bones=None, threads=1, bone_groups=None)\n"
                 "A mesh bound to its skeleton and weights at rest; corrects frames. One call at a time per object."},
     {Py_tp_new, lvp_py__binding_new},
     {Py_tp_dealloc, lvp_py__binding_dealloc},

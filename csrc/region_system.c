@@ -2,6 +2,10 @@
  * region_system.c - the storage and the solve of the coupled region system of a correction step
  * (correction.c: sum_t M_st mu_t = rhs_s over the active regions).
  *
+ * The unknowns are groups of regions (lvp.h, GROUPS; a region alone is a group of one), each
+ * named by its first region, its leader: a group's row sums its regions' volume answers, its
+ * column is what its one multiplier does through all of them.
+ *
  * Which regions couple is known at bind: region t's multiplier moves the vertices that bone t
  * weights, and region s's volume answers at the corners of its triangles, so M_st can be nonzero
  * only when some corner of s's triangles has a weight of t. On a skeleton that is a few
@@ -101,12 +105,59 @@ static bool lvp__profile_solve(double *a, const lvp__profile *profile, double *x
 	return true;
 }
 
-/* ---- at bind: the coupling and the order -------------------------------------------------------- */
+/* ---- at bind: the groups, the coupling and the order ------------------------------------------ */
 
-/* The regions coupled with each region, both ways (coupling_offsets, coupling): t with a weight on
- * a corner of s's triangles, or s with one on a corner of t's. Every bone of a vertex's weights
- * counts, and its region, whatever the map (lvp_set_map can change which of them reach it:
- * correction.c, lvp__vertex_support). */
+/* The groups (lvp.h, GROUPS): region r belongs with the regions whose caller bones have its
+ * bone's bone_groups value, in its part; the first of them leads. Without bone_groups (or in the
+ * global mode) every region leads a group of itself. */
+static bool lvp__build_groups(lvp_binding *binding, const int32_t *bone_groups)
+{
+	int32_t s = binding->region_count;
+	lvp__region_system *system = &binding->system;
+	bool ok = true;
+	system->group_leader = lvp__calloc((size_t)s, sizeof(int32_t), &ok);
+	system->group_offsets = lvp__calloc((size_t)s + 1, sizeof(int32_t), &ok);
+	system->group_regions = lvp__calloc((size_t)s, sizeof(int32_t), &ok);
+	uint64_t *keys = bone_groups ? lvp__calloc((size_t)s, sizeof(uint64_t), &ok) : NULL;
+	if (!ok) {
+		free(keys);
+		return false;
+	}
+	for (int32_t r = 0; r < s; ++r)
+		system->group_leader[r] = r;
+	if (keys) {
+		/* (group, part) in the high half, the region in the low: sorted, each group's regions are
+		 * one run in region order, its leader first. */
+		uint64_t parts = (uint64_t)binding->parts.count;
+		for (int32_t r = 0; r < s; ++r) {
+			uint64_t group = (uint64_t)bone_groups[lvp__caller_bone(binding, r)];
+			keys[r] = ((group * parts + (uint64_t)lvp__region_part(binding, r)) << 32) | (uint64_t)r;
+		}
+		qsort(keys, (size_t)s, sizeof(uint64_t), lvp__compare_u64);
+		for (int32_t i = 1; i < s; ++i)
+			if (keys[i] >> 32 == keys[i - 1] >> 32)
+				system->group_leader[keys[i] & 0xffffffffu] = system->group_leader[keys[i - 1] & 0xffffffffu];
+		free(keys);
+	}
+	for (int32_t r = 0; r < s; ++r)
+		system->group_offsets[system->group_leader[r] + 1]++;
+	for (int32_t r = 0; r < s; ++r)
+		system->group_offsets[r + 1] += system->group_offsets[r];
+	int32_t *fill = lvp__calloc((size_t)s, sizeof(int32_t), &ok);
+	if (!ok)
+		return false;
+	for (int32_t r = 0; r < s; ++r) { /* in region order: the leader first */
+		int32_t leader = system->group_leader[r];
+		system->group_regions[system->group_offsets[leader] + fill[leader]++] = r;
+	}
+	free(fill);
+	return true;
+}
+
+/* The groups coupled with each group, both ways, between leaders (coupling_offsets, coupling): t
+ * with a weight on a corner of s's triangles, or s with one on a corner of t's, for some regions s
+ * and t of the two groups. Every bone of a vertex's weights counts, and its region, whatever the
+ * map (lvp_set_map can change which of them reach it: correction.c, lvp__vertex_support). */
 static bool lvp__build_coupling(lvp_binding *binding)
 {
 	int32_t s = binding->region_count;
@@ -129,6 +180,9 @@ static bool lvp__build_coupling(lvp_binding *binding)
 				if (t < 0 || t >= s || seen[t] == r)
 					continue;
 				seen[t] = r;
+				int32_t row = binding->system.group_leader[r], column = binding->system.group_leader[t];
+				if (row == column)
+					continue;
 				if (count + 2 > capacity) {
 					uint64_t *grown = realloc(pairs, sizeof(uint64_t) * capacity * 2);
 					if (!grown) {
@@ -138,8 +192,8 @@ static bool lvp__build_coupling(lvp_binding *binding)
 					pairs = grown;
 					capacity *= 2;
 				}
-				pairs[count++] = (uint64_t)r * (uint64_t)s + (uint64_t)t;
-				pairs[count++] = (uint64_t)t * (uint64_t)s + (uint64_t)r;
+				pairs[count++] = (uint64_t)row * (uint64_t)s + (uint64_t)column;
+				pairs[count++] = (uint64_t)column * (uint64_t)s + (uint64_t)row;
 			}
 		}
 	}
@@ -257,7 +311,7 @@ static bool lvp__normal_layout(lvp_binding *binding)
 	return lvp__lay_out(normal, m, binding->system.normal_capacity) == m;
 }
 
-lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag)
+lvp_result lvp__build_region_system(lvp_binding *binding, const int32_t *bone_groups, lvp_diagnostic *r_diag)
 {
 	int32_t s = binding->region_count;
 	size_t n = s > 0 ? (size_t)s : 1;
@@ -282,7 +336,7 @@ lvp_result lvp__build_region_system(lvp_binding *binding, lvp_diagnostic *r_diag
 	          binding->system.row_last && binding->system.still && binding->system.column_gain &&
 	          binding->system.row_sums && binding->system.rhs && binding->system.solution &&
 	          binding->system.row_values && binding->system.place;
-	ok = ok && lvp__build_coupling(binding) && lvp__order_regions(binding);
+	ok = ok && lvp__build_groups(binding, bone_groups) && lvp__build_coupling(binding) && lvp__order_regions(binding);
 	if (ok) {
 		/* The capacities: the profiles of every region active at once (a step's, of fewer
 		 * regions, is never larger: compacting an order only brings coupled regions closer),
@@ -329,7 +383,10 @@ int32_t lvp__system_layout(lvp_binding *binding, int32_t m)
 		binding->system.place[r] = outside;
 	for (int32_t i = 0; i < held; ++i) {
 		lvp__system_place place = {i, p->first[i], p->lower[i], p->upper[i]};
-		binding->system.place[binding->step.active[i]] = place;
+		int32_t first, last; /* every region of the group answers to its place */
+		lvp__group_range(binding, binding->step.active[i], &first, &last);
+		for (int32_t g = first; g < last; ++g)
+			binding->system.place[binding->system.group_regions[g]] = place;
 	}
 	return held;
 }
@@ -457,7 +514,7 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 
 void lvp__region_system_free(lvp__region_system *system)
 {
-	void *arrays[] = {system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
+	void *arrays[] = {system->group_leader, system->group_offsets, system->group_regions, system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
 	                  system->profile.lower, system->profile.upper, system->normal_profile.first,
 	                  system->normal_profile.lower, system->normal_profile.upper, system->place, system->matrix,
 	                  system->factor, system->normal, system->assembly, system->column_gain, system->row_sums,

@@ -14,12 +14,15 @@ scaled.
 
 import json
 import os
+import unittest
 from array import array
 
 import bpy
 from mathutils import Euler, Matrix
 
 import lvp_helpers as helpers
+import real_cases
+import surface_quality as quality
 from test_live import CylinderTestCase
 
 SEGMENTS = 4
@@ -95,7 +98,8 @@ class TestBBones(BBoneTestCase):
         self.assertGreater(plain, 0.01, "plain skinning of curved B-Bones changes the volume")
         self.assertSmallerThan(corrected, 1e-3, "corrected volume error (plain %g)" % plain)
         self.assertStatusContains(self.obj, "Correcting")
-        self.assertIn("B-Bone joint", self.bound().stats["worst_region_name"])
+        # The joints of a B-Bone are one region to the user: the panel names the bone.
+        self.assertIn(self.bound().stats["worst_region_name"], ("Lower", "Upper"))
 
     def test_rest_and_rigid_motion_are_left_alone(self):
         self.scene.frame_set(1)
@@ -182,3 +186,41 @@ class TestBBonesCurvedMapping(BBoneTestCase):
 
     def test_core_skinning_is_blenders(self):
         self.assertCoreSkinningIsBlenders()
+
+
+class TestRigifyBBonesBulgeAsOneBone(unittest.TestCase):
+    """Rigify's limbs and spine are B-Bones of 8 to 10 segments: corrected joint by joint, neighbouring
+    joints of one bone pull against each other and the bulge comes out rough. Corrected as one bone (the
+    core's bone groups, lvp.h GROUPS), on the Rigify human of real_cases.py posed hard (elbows and knees past
+    110 degrees, hips at 90): measured before the groups, roughness 0.97 of the largest offset, 507 creases
+    added (one per 27 edges), 303 crossing pairs against plain skinning's 240; with them 0.54, 145 and 251.
+    QUALITY.md's own targets (a quarter, one crease per 300 edges, never more crossings) are not met yet: these
+    bounds hold what the groups give."""
+
+    @classmethod
+    def setUpClass(cls):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        if not real_cases.enable_rigify():
+            raise unittest.SkipTest("this Blender has no Rigify add-on")
+        helpers.enable_addon()
+        cls.body, cls.rig = real_cases.rigify_human()
+        cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
+        helpers.add_volume_preservation(cls.body)
+        real_cases.pose_rigify_human(cls.rig, 1.0)
+        bpy.context.view_layer.update()
+        plain = helpers.uncorrected_positions(cls.body)
+        cls.measured = quality.measure_pose(cls.mesh, plain, {"vp": helpers.evaluated_positions(cls.body)})
+
+    def test_volume_is_restored(self):
+        self.assertLess(self.measured["plain"]["volume"], -0.02)
+        self.assertLess(abs(self.measured["vp"]["volume"]), 1e-3)
+
+    def test_the_bulge_is_smoother(self):
+        vp = self.measured["vp"]
+        edges = len(self.mesh.interior_edges())
+        self.assertLess(vp["roughness"], 0.65 * vp["largest_offset"], vp)
+        self.assertLess(vp["creases"], edges / 70, vp)
+
+    def test_hardly_more_crossings_than_plain_skinning(self):
+        self.assertLessEqual(self.measured["vp"]["crossings"], 1.1 * self.measured["plain"]["crossings"],
+                             self.measured)

@@ -110,6 +110,10 @@ static void test_bind_errors_name_the_argument(void)
 	options = lvp_bind_default_options();
 	options.thread_count = 0;
 	expect_bind_error(rig, &options, lvp_error_invalid_option, "options.thread_count");
+	int32_t groups[2] = {0, 2}; /* a group is named by a bone index */
+	options = lvp_bind_default_options();
+	options.bone_groups = groups;
+	expect_bind_error(rig, &options, lvp_error_index_out_of_range, "options.bone_groups");
 	options = lvp_bind_default_options();
 	options.map.map = LVP_MAP_PAINTED; /* without the painted values */
 	expect_bind_error(rig, &options, lvp_error_null_argument, "map.painted");

@@ -480,6 +480,18 @@ class TestBinding(unittest.TestCase):
             results.append(out)
         self.assertEqual(results[0], results[1])
 
+    def test_bone_groups(self):
+        # The tube's two bones as one group: one multiplier for both, so nothing tells the bend's two sides
+        # apart, and the volume still comes back.
+        tube = Tube()
+        angle = math.radians(80)
+        positions, matrices = tube.skinned(angle), tube.bone_matrices(angle)
+        out = zeros('f', 3 * tube.vertex_count)
+        stats = tube.binding(bone_groups=array.array('i', [1, 1])).correct(positions, matrices, out_positions=out)
+        rest_volume = volume(tube.positions, tube.triangles)
+        self.assertLess(abs(volume(out, tube.triangles) - rest_volume) / rest_volume, 1e-3)
+        self.assertEqual(stats['active_regions'], 1)
+
     def test_close(self):
         tube = Tube()
         binding = tube.binding()
@@ -706,16 +718,17 @@ class TestErrors(unittest.TestCase):
                 'weight_bones': tube.weight_bones, 'weight_values': tube.weight_values,
                 'rest_matrices': tube.rest_matrices, 'heads': tube.heads, 'tails': tube.tails,
                 'painted': array.array('f', [1.0] * tube.vertex_count),
-                'region_bone_offsets': array.array('i', [0, 1, 2]), 'region_bones': array.array('i', [0, 1])}
+                'region_bone_offsets': array.array('i', [0, 1, 2]), 'region_bones': array.array('i', [0, 1]),
+                'bone_groups': array.array('i', [0, 1])}
 
     def test_binding_buffers(self):
         tube = Tube()
         optional = ('weight_offsets', 'weight_bones', 'weight_values', 'rest_matrices', 'heads', 'tails', 'painted',
-                    'region_bone_offsets', 'region_bones')
+                    'region_bone_offsets', 'region_bones', 'bone_groups')
         self.check_every_buffer(_lvp.Binding, self.binding_arguments(tube), optional=optional)
         # None for one array of a group that must come together.
         for name in optional:
-            if name != 'painted':
+            if name not in ('painted', 'bone_groups'):
                 with self.subTest(argument=name, bad='None alone'):
                     self.assertValueErrorNames(name, _lvp.Binding, **dict(self.binding_arguments(tube), **{name: None}))
 
@@ -757,6 +770,9 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('painted', _lvp.Binding, **dict(arguments, painted=None), map='PAINTED')
         region_bones = array.array('i', [0, 5])
         self.assertValueErrorNames('region_bones', _lvp.Binding, **dict(arguments, region_bones=region_bones))
+        # A group is named by a bone index, one per bone.
+        self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0, 2])))
+        self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0])))
         # A character needs its weights and bones; only a prop in GLOBAL mode goes without.
         no_weights = dict(arguments, weight_offsets=None, weight_bones=None, weight_values=None)
         self.assertValueErrorNames('weight_offsets', _lvp.Binding, **no_weights)

@@ -3,7 +3,8 @@
 Rigify human posed hard and a hand closing into a fist, each as built and through a glTF round trip (split at
 its UV seams). Per case and pose it prints the whole-mesh volume change, crossing pairs, creases added,
 roughness, largest offset and crack of plain skinning, Volume Preservation (VP) and VP with Fold-Over Prevention
-(VP+fold), and what the add-on's panel says; with --render DIR, one close-up per case at its hardest pose (plain |
+(VP+fold), and what the add-on's panel says; for the hand, how much VP's offsets jump from frame to frame of its
+animation against the skin's motion (popping); with --render DIR, one close-up per case at its hardest pose (plain |
 VP | VP+fold) into DIR. Nothing is asserted: these are the numbers issues 24-26 are judged by.
 
     tests/blender/blender_chroot.sh 5.2 run -b --factory-startup --python tests/blender/measure_quality.py \
@@ -84,6 +85,26 @@ def measure_pose(addon, obj, mesh, label):
     print("  %-22s (measured in %.2f s; roughness, largest offset and crack in mean rest edge lengths)"
           % ("", seconds))
     return measured
+
+
+def measure_animation(obj, frames):
+    """Prints, for each frame of `frames` after the first, the largest change of a Volume Preservation offset
+    since the frame before over the largest motion of plain skinning's skin (surface_quality.offset_change_ratio):
+    a fraction where the correction follows the motion, 1 or more where it pops."""
+    scene = bpy.context.scene
+    before = None
+    ratios = []
+    for frame in frames:
+        scene.frame_set(frame)
+        plain = helpers.uncorrected_positions(obj)
+        offsets = quality.offsets_between(plain, helpers.evaluated_positions(obj))
+        if before is not None:
+            ratios.append((frame, quality.offset_change_ratio(before[0], offsets, before[1], plain)))
+        before = (offsets, plain)
+    worst = max(ratios, key=lambda item: item[1])
+    print("  animation, frames %d-%d: offset change against skin motion, largest %.2f at frame %d; by frame: %s"
+          % (frames[0], frames[-1], worst[1], worst[0], " ".join("%.2f" % ratio for _frame, ratio in ratios)))
+    return ratios
 
 
 def measure_case(addon, title, obj, poses):
@@ -199,6 +220,7 @@ def main():
         helpers.add_volume_preservation(*(obj for _title, obj in objects))
         for title, obj in objects:
             measure_case(addon, title, obj, hand_poses())
+            measure_animation(obj, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))
         if options.render:
             for title, obj in objects:
                 bpy.context.scene.frame_set(real_cases.HAND_FRAMES[1])

@@ -7,6 +7,8 @@ positions and triangles: what an animator sees, not only the volume.
 - creases added: edges whose dihedral angle grows by more than 30 degrees over plain skinning's;
 - roughness of the correction: per vertex, |offset - mean offset of its edge neighbours|, and the largest
   offset, both in mean rest edge lengths;
+- popping across an animation: the largest change of an offset from one frame to the next, against the
+  largest motion of the skin (plain skinning) between them;
 - a weld map: vertices at the same rest position are one point of the skin.
 
 Every measure except the volume works on the WELDED mesh, so a mesh split at its UV seams (as glTF's importer
@@ -294,6 +296,18 @@ def roughness(offsets, mesh):
         if value > worst:
             worst, worst_vertex = value, vertex
     return worst / unit, largest / unit, worst_vertex
+
+
+def offset_change_ratio(offsets_before, offsets, plain_before, plain):
+    """How far the correction jumps between two frames of a smooth motion: the largest change of a vertex's offset
+    over the largest motion of a vertex of plain skinning between them (0 when the skin did not move). A
+    correction that follows the motion changes its offsets by a fraction of it; a pop (a region starting or
+    stopping being corrected, another way of solving taken) by as much as the skin moved or more."""
+    before, now = points_of(offsets_before), points_of(offsets)
+    skin_before, skin = points_of(plain_before), points_of(plain)
+    moved = max((_length(_sub(p, q)) for p, q in zip(skin, skin_before)), default=0.0)
+    changed = max((_length(_sub(p, q)) for p, q in zip(now, before)), default=0.0)
+    return changed / moved if moved > 0.0 else 0.0
 
 
 def crack(offsets, mesh):

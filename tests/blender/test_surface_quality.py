@@ -194,6 +194,34 @@ class TestRoughness(unittest.TestCase):
         self.assertGreater(rough, 0.8 / self.mesh.mean_rest_edge_length)
 
 
+class TestPopping(unittest.TestCase):
+    """offset_change_ratio: a bulge that grows with the bend changes by a fraction of the skin's motion; one that
+    appears at once (a region starting to be corrected) by more than the skin moved."""
+
+    def setUp(self):
+        self.points, _triangles = grid(11)
+        # The skin turns a little between the two frames: the far corner moves most, by 0.1 * its distance.
+        self.plain_before = list(self.points)
+        self.plain = [(x, y, 0.1 * x) for x, y, _z in self.points]
+        self.motion = max(0.1 * x for x, _y, _z in self.points)
+
+    def bump(self, height):
+        return [(0.0, 0.0, height * math.exp(-((x - 5) ** 2 + (y - 5) ** 2) / 8.0)) for x, y, _z in self.points]
+
+    def test_a_bulge_that_follows_the_motion(self):
+        ratio = quality.offset_change_ratio(self.bump(0.20), self.bump(0.25), self.plain_before, self.plain)
+        self.assertAlmostEqual(ratio, 0.05 / self.motion, places=9)
+        self.assertLess(ratio, 0.25)
+
+    def test_a_bulge_that_pops(self):
+        ratio = quality.offset_change_ratio(self.bump(0.0), self.bump(1.5), self.plain_before, self.plain)
+        self.assertAlmostEqual(ratio, 1.5 / self.motion, places=9)
+        self.assertGreater(ratio, 1.0)
+
+    def test_no_motion_no_ratio(self):
+        self.assertEqual(quality.offset_change_ratio(self.bump(0.0), self.bump(1.0), self.points, self.points), 0.0)
+
+
 class TestVolume(unittest.TestCase):
 
     def test_sphere_volume_and_its_change(self):

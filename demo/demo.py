@@ -15,6 +15,7 @@ import sys
 import time
 
 import bpy
+from mathutils import Vector
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
@@ -191,6 +192,28 @@ class Demo:
                  for title, change, count in zip(titles, changes, crossings)]
         self.before_after("finger_fold", objects, camera, lines)
 
+    def rigify(self):
+        """Rigify's human posed hard, close up: the left leg (knee and hip) and the left elbow."""
+        self.new_scene(420, 420)
+        plain, dual, corrected, rig = scenes.rigify_trio()
+        dual.hide_render = True
+        for obj in (plain, corrected):
+            render.smooth(obj)
+            render.set_material(obj, render.skin_material())
+        triangles = scenes.triangles_of(plain)
+        rest = scenes.rest_volume(plain)
+        changes = [scenes.volume_change(obj, triangles, rest) for obj in (plain, dual, corrected)]
+        self.rows.append(("Rigify human, elbows, knees and hips bent hard", changes[0], changes[1], changes[2]))
+        bones = rig.pose.bones
+        knee, hip = (rig.matrix_world @ bones[name].head for name in ("DEF-shin.L", "DEF-thigh.L"))
+        elbow = rig.matrix_world @ bones["DEF-forearm.L"].head
+        lines = (("Armature only", "volume %+.1f %%" % (100 * changes[0])),
+                 ("Armature + Volume Preservation", "volume %+.2f %%" % (100 * changes[2])))
+        for name, target, view_from, size in (("rigify_leg", (knee + hip) / 2, Vector((1.5, -0.6, 0.3)), 0.75),
+                                              ("rigify_elbow", elbow, Vector((0.6, -1.2, 0.5)), 0.45)):
+            camera = render.add_camera(tuple(target + view_from), tuple(target), (0.0, 0.0, 1.0), size)
+            self.before_after(name, (plain, corrected), camera, lines)
+
     def volume_plot(self):
         helpers.reset_scene()
         changes = self.sweep_changes
@@ -243,7 +266,7 @@ def main():
     print("Local Volume Preservation demo: Blender %s, add-on from %s"
           % (bpy.app.version_string, os.path.dirname(addon.__file__)))
     demo = Demo(os.path.abspath(args.out), args.quick)
-    for step in (demo.sweep, demo.cylinder, demo.giraffe, demo.finger, demo.volume_plot):
+    for step in (demo.sweep, demo.cylinder, demo.giraffe, demo.finger, demo.rigify, demo.volume_plot):
         step_start = time.monotonic()
         step()
         print("[demo] %s: %.1f s" % (step.__name__, time.monotonic() - step_start))

@@ -17,6 +17,7 @@ from mathutils.bvhtree import BVHTree
 
 import giraffe_import
 import lvp_helpers as helpers
+import real_cases
 
 # The giraffe's pose: neck bent down (forward: it is Y-up and looks along +Z) and the left hind leg
 # folded back at the knee.
@@ -255,3 +256,26 @@ def crossing_face_pairs(obj):
         if first < second and not set(faces[first]) & set(faces[second]):
             count += 1
     return count
+
+
+# ---- a Rigify character ----------------------------------------------------------------------------
+
+
+def rigify_trio():
+    """(plain, preserve_volume, corrected, rig): the Rigify human of tests/blender/real_cases.py (Rigify's
+    generated rig, a closed body parented With Automatic Weights), three times on one rig posed hard (elbows and
+    knees past 110 degrees, hips bent): Armature only, Armature with Preserve Volume, and with Volume
+    Preservation. Raises RuntimeError when this Blender has no Rigify."""
+    corrected, rig = real_cases.rigify_human()
+    copies = []
+    for name in ("BodyPlain", "BodyPreserveVolume"):
+        copy = corrected.copy()
+        copy.data = corrected.data.copy()
+        copy.name = name
+        bpy.context.scene.collection.objects.link(copy)
+        copies.append(copy)
+    copies[1].modifiers["Armature"].use_deform_preserve_volume = True
+    add_volume_preservation(corrected)
+    real_cases.pose_rigify_human(rig, 1.0)
+    bpy.context.view_layer.update()
+    return copies[0], copies[1], corrected, rig

@@ -206,7 +206,9 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	if (!lvp__measure_alloc(binding) || !lvp__fold_alloc(binding))
 		return lvp__bind_out_of_memory(binding, r_diag);
 	if ((result = lvp__build_borders(binding, r_diag)) ||
-	    (result = lvp__build_region_corners(binding, r_diag)) || (result = lvp__build_region_system(binding, options->mode == LVP_MODE_LOCAL ? options->bone_groups : NULL, r_diag)) ||
+	    (result = lvp__build_region_corners(binding, r_diag)) ||
+	    (result = lvp__build_region_system(
+	         binding, options->mode == LVP_MODE_LOCAL ? options->bone_groups : NULL, r_diag)) ||
 	    (result = lvp__build_stretch_pairs(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);

@@ -200,7 +200,8 @@ typedef struct lvp__assembly_context {
 } lvp__assembly_context;
 
 /* Past the groups the system holds: the diagonal of columns [begin, end) and what they do to
- * the whole mesh (by leader). Only where a step's profile would take more than LVP__SYSTEM_CELLS (binding.h). */
+ * the whole mesh (by leader). Only where a step's profile would take more than
+ * LVP__SYSTEM_CELLS (binding.h). */
 static void lvp__assemble_diagonals(lvp_binding *binding, int32_t begin, int32_t end)
 {
 	for (int32_t j = begin; j < end; ++j)
@@ -424,11 +425,12 @@ static void lvp__take_step(lvp_binding *binding, int32_t m)
 	lvp__apply_multipliers(binding, active, m);
 }
 
-/* The groups to correct, by leader (lvp.h, GROUPS; a region alone is a group). When some group is off its target by more than the tolerance (or, spreading the whole
- * mesh's change, the whole mesh or one of its parts is off its rest volume): that region, and every region already
- * corrected this frame (so that a corrected region is held at its volume while its neighbours
- * are fixed, instead of being let go and disturbed again). Regions the map cannot move are
- * left out. Returns the number of active regions, 0 when all are within tolerance. */
+/* The groups to correct, by leader (lvp.h, GROUPS; a region alone is a group of one). When some
+ * group is off its target by more than the tolerance (or, spreading the whole mesh's change, the
+ * whole mesh or one of its parts is off its rest volume): that group, and every group already
+ * corrected this frame (so that a corrected group is held at its volume while its neighbours are
+ * fixed, instead of being let go and disturbed again). Groups the map cannot move are left out.
+ * Returns the number of active groups, 0 when all are within tolerance. */
 static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 {
 	int32_t m = 0;
@@ -595,9 +597,11 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			lvp__support support = lvp__vertex_support(binding, k);
 			double gain =
 			    (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
-			for (int32_t i = 0; i < support.count; ++i)
-				if (support.phi[i] > 0.0f && binding->step.region_touched[binding->system.group_leader[support.regions[i]]])
+			for (int32_t i = 0; i < support.count; ++i) {
+				int32_t group = binding->system.group_leader[support.regions[i]];
+				if (support.phi[i] > 0.0f && binding->step.region_touched[group])
 					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
+			}
 		}
 		bool any = false;
 		for (int32_t j = 0; j < touched; ++j) {

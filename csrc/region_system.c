@@ -514,7 +514,8 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal)
 
 void lvp__region_system_free(lvp__region_system *system)
 {
-	void *arrays[] = {system->group_leader, system->group_offsets, system->group_regions, system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
+	void *arrays[] = {system->group_leader, system->group_offsets, system->group_regions,
+	                  system->coupling_offsets, system->coupling, system->solve_order, system->profile.first,
 	                  system->profile.lower, system->profile.upper, system->normal_profile.first,
 	                  system->normal_profile.lower, system->normal_profile.upper, system->place, system->matrix,
 	                  system->factor, system->normal, system->assembly, system->column_gain, system->row_sums,

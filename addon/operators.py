@@ -312,6 +312,12 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         description="Drop weights below this, then normalize again",
         default=0.01, min=0.0, max=0.5,
     )
+    smoothing: IntProperty(
+        name="Smoothing",
+        description="Steps of smoothing the weights over the surface, so that neighbouring vertices have similar "
+        "weights (0: the paper's weights as they are)",
+        default=0, min=0, max=1000,
+    )
 
     def execute(self, context):
         plans = _plan_each(self, context, self._weights, mesh_too=True)
@@ -355,7 +361,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             weights = _lvp.auto_weights(
                 mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
-                min_weight=self.min_weight)
+                min_weight=self.min_weight, smoothing_iterations=self.smoothing)
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

@@ -299,8 +299,10 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     )
     alpha: FloatProperty(
         name="Falloff",
-        description="Weight = (bone length / distance) ^ falloff, before normalization",
-        default=2.0, min=0.1, soft_max=8.0,
+        description="Weight = (bone length / distance) ^ falloff, before normalization and smoothing: high keeps "
+        "each bone to its own flesh (the paper's 2 spreads a bone over its neighbours' skin, which loses volume "
+        "at every bend)",
+        default=16.0, min=0.1, soft_max=32.0,
     )
     max_influences: IntProperty(
         name="Max Influences",
@@ -314,9 +316,10 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     )
     smoothing: IntProperty(
         name="Smoothing",
-        description="Steps of smoothing the weights over the surface, so that neighbouring vertices have similar "
-        "weights (0: the paper's weights as they are)",
-        default=0, min=0, max=1000,
+        description="Steps of smoothing the weights along the mesh's edges, so that neighbouring vertices have "
+        "similar weights and the skin blends between bones (each step widens a blend by about an edge; 0: the "
+        "paper's weights as they are)",
+        default=10, min=0, max=1000,
     )
 
     def execute(self, context):

@@ -12,7 +12,7 @@ it reports an ERROR that says what is wrong and how to fix it.
 """
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from . import _lvp
 from . import bindings
@@ -285,8 +285,16 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             ('DEFORM', "Deforming Bones", "Every bone with Deform on"),
             ('SELECTED', "Selected Bones", "The selected bones with Deform on (select them in Pose Mode): leave "
              "out the bones that are not for this mesh, such as a face's bones for a body"),
+            ('COLLECTIONS', "Bone Collections", "The bones with Deform on in the bone collections named in "
+             "Collections (before Blender 4.0: bone groups, or bone layers named Layer 1 to Layer 32)"),
         ),
         default='DEFORM',
+    )
+    collections: StringProperty(
+        name="Collections",
+        description="Bones: Bone Collections: the names of the bone collections whose deforming bones get weights, "
+        "separated by commas",
+        default="",
     )
     visibility: EnumProperty(
         name="Visibility Test",
@@ -356,6 +364,8 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             if not bone_names:
                 raise _Refused("No deforming bone of %s is selected: select the bones to weight in Pose Mode, or "
                                "choose Bones: Deforming Bones" % armature_object.name)
+        if self.bones == 'COLLECTIONS':
+            bone_names = self._in_collections(armature_object, bone_names)
         if len(obj.data.polygons) == 0:
             raise _Refused("%s has no faces: automatic weights need a surface mesh" % obj.name)
         mesh = obj.data
@@ -368,6 +378,25 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights
+
+    def _in_collections(self, armature_object, bone_names):
+        """The names of bone_names that are in a bone collection named in self.collections."""
+        wanted = [name.strip() for name in self.collections.split(",") if name.strip()]
+        collections = blender_api.bone_collections(armature_object)
+        known = ", ".join(sorted(collections)) or "none"
+        if not wanted:
+            raise _Refused("Bones: Bone Collections needs the names of bone collections in Collections (%s has: %s)"
+                           % (armature_object.name, known))
+        missing = [name for name in wanted if name not in collections]
+        if missing:
+            raise _Refused("%s has no bone collection named %s (it has: %s)"
+                           % (armature_object.name, ", ".join(repr(name) for name in missing), known))
+        members = set().union(*(collections[name] for name in wanted))
+        chosen = [name for name in bone_names if name in members]
+        if not chosen:
+            raise _Refused("No deforming bone of %s is in %s: turn Deform on for their bones, or choose other "
+                           "collections" % (armature_object.name, ", ".join(repr(name) for name in wanted)))
+        return chosen
 
 
 class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):

@@ -148,6 +148,10 @@ static inline double lvp__relative_weight(double ratio, double alpha)
 		return sqrt(ratio);
 	if (alpha == 4.0)
 		return ratio * ratio;
+	if (alpha == 16.0) { /* the add-on's default */
+		double r4 = (ratio * ratio) * (ratio * ratio);
+		return r4 * r4;
+	}
 	return pow(ratio, 0.5 * alpha);
 }
 

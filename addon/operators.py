@@ -271,6 +271,13 @@ else uses it, and its attributes. The mesh is left exactly as it was"""
         return {'FINISHED'}
 
 
+def _diagonal(positions):
+    """The diagonal of the bounding box of packed float[3] positions."""
+    if not positions:
+        return 0.0
+    return sum((max(positions[axis::3]) - min(positions[axis::3])) ** 2 for axis in range(3)) ** 0.5
+
+
 class OBJECT_OT_lvp_auto_weights(_OnSelectedMeshes, bpy.types.Operator):
     """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
 write them into the deforming bones' vertex groups, replacing their weights"""
@@ -322,12 +329,12 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         description="Drop weights below this, then normalize again",
         default=0.01, min=0.0, max=0.5,
     )
-    smoothing: IntProperty(
-        name="Smoothing",
-        description="Steps of smoothing the weights along the mesh's edges, so that neighbouring vertices have "
-        "similar weights and the skin blends between bones (each step widens a blend by about an edge; 0: the "
-        "paper's weights as they are)",
-        default=10, min=0, max=1000,
+    blend_width: FloatProperty(
+        name="Blend Width",
+        description="How far the weights are smoothed along the mesh's edges, so that neighbouring vertices have "
+        "similar weights and the skin blends between bones: a fraction of the mesh's size (the diagonal of its "
+        "bounding box), the same at any resolution (0: the paper's weights as they are)",
+        default=0.025, min=0.0, soft_max=0.2, precision=3,
     )
 
     def execute(self, context):
@@ -370,11 +377,12 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             raise _Refused("%s has no faces: automatic weights need a surface mesh" % obj.name)
         mesh = obj.data
         rest_matrices, heads, tails = skeleton.rest_skeleton_arrays(obj, armature_object, bone_names)
+        positions = mesh_data.vertex_positions(mesh)
         try:
             weights = _lvp.auto_weights(
-                mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
+                positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
-                min_weight=self.min_weight, smoothing_iterations=self.smoothing)
+                min_weight=self.min_weight, smoothing_length=self.blend_width * _diagonal(positions))
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

@@ -291,6 +291,8 @@ typedef struct lvp_auto_weights_options {
 	float min_weight;       /* drop normalized weights below this, renormalize; default 0.01 */
 	int32_t smoothing_iterations; /* steps of diffusion over the surface (SMOOTHING below); 0 = none,
 	                                 up to LVP_MAX_SMOOTHING_ITERATIONS, default 0 */
+	float smoothing_length; /* > 0: instead, as many steps as blend over about this distance (SMOOTHING);
+	                           mesh units, finite, default 0 */
 } lvp_auto_weights_options;
 
 lvp_auto_weights_options lvp_auto_weights_default_options(void);
@@ -311,14 +313,17 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  *
  * SMOOTHING (options.smoothing_iterations > 0): the rows above, kept to their 8 strongest bones
  * (max_influences and min_weight not applied yet), are diffused over the mesh's edges: each
- * iteration replaces every vertex's row by (its row + the mean of its edge neighbours' rows) / 2,
+ * iteration replaces every vertex's row by the mean of its row and its edge neighbours' rows,
  * keeps the 8 strongest bones and renormalizes; then max_influences and min_weight prune as above
  * (so with max_influences 0 a row has at most 8 bones). Visibility is judged before, not during,
  * the diffusion. Weight flows only along edges: separate pieces, and parts that touch or cross
  * without sharing vertices, never share weight; vertices at one position but not joined by an
- * edge (split seams) are smoothed separately. A blend widens by about one edge per few steps, so
- * its width follows the mesh's resolution. With a high alpha (nearest bone first, e.g. 16) and 10
- * iterations this gives weights close to Blender's heat weights on a closed body (README). */
+ * edge (split seams) are smoothed separately. A border between bones spreads over about
+ * sqrt(2 steps) edges, so a fixed number of steps blends over a distance that shrinks as the mesh
+ * gets denser; options.smoothing_length > 0 takes ceil((smoothing_length / mean edge length)^2 / 2)
+ * steps instead (at most LVP_MAX_SMOOTHING_ITERATIONS), about the same blend at any resolution.
+ * With a high alpha (nearest bone first, e.g. 16) this gives weights close to Blender's heat
+ * weights on a closed body (README). */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,

@@ -40,6 +40,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	options.max_influences = 4;
 	options.min_weight = 0.01f;
 	options.smoothing_iterations = 0;
+	options.smoothing_length = 0.0f;
 	return options;
 }
 
@@ -92,6 +93,11 @@ static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diag
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_iterations", -1,
 		                 "options.smoothing_iterations is %d; use 0 (none) to %d (default 0).",
 		                 (int)o->smoothing_iterations, LVP_MAX_SMOOTHING_ITERATIONS);
+	if (!(isfinite(o->smoothing_length) && o->smoothing_length >= 0.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_length", -1,
+		                 "options.smoothing_length is %g; it is a distance in the mesh's units, 0 (use "
+		                 "smoothing_iterations) or above.",
+		                 (double)o->smoothing_length);
 	return lvp_success;
 }
 
@@ -348,9 +354,9 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
  * enters or leaves the strongest few; and with the paper's alpha = 2 they are so wide that a shin takes weight
  * from the thigh and the belly from the thighs, which loses volume at every bend. A high alpha keeps each
  * bone on its own flesh (close to the nearest visible bone), and the smoothing makes the borders between bones
- * continuous: each step replaces every row by (row_k + mean of the neighbours' rows) / 2, kept to the strongest
- * LVP__SMOOTH_ROW bones and renormalized. Visibility decides the rows before the smoothing, not during it: the
- * normal test flips across the crotch and the armpit, and a bone barred from the vertices it is hidden from
+ * continuous: each step replaces every row by the mean of its own and its edge neighbours' rows, kept to the
+ * strongest LVP__SMOOTH_ROW bones and renormalized. Visibility decides the rows before the smoothing, not during
+ * it: the normal test flips across the crotch and the armpit, and a bone barred from the vertices it is hidden from
  * there would leave a hard seam (both thighs at weight 1 across one edge) exactly where the skin must blend.
  * Diffusion follows the mesh's edges only: separate pieces never share weight, and parts that touch or
  * intersect without sharing vertices do not blend. Each step widens a border by about one edge, so the width
@@ -453,8 +459,19 @@ static void lvp__smoothing_step(lvp__smoothing *smooth, int32_t vertex_count)
 		int32_t begin = smooth->neighbour_offsets[k], end = smooth->neighbour_offsets[k + 1];
 		const int32_t *own = smooth->bones + (int64_t)k * stride;
 		int32_t own_count = smooth->counts[k], touched = 0;
-		double share = end > begin ? 0.5 / (double)(end - begin) : 0.0;
-		double self = end > begin ? 0.5 : 1.0;
+		/* Most of the skin is one bone's alone, and so are its neighbours: the average is the row itself. */
+		bool alone = own_count == 1;
+		for (int32_t e = begin; e < end && alone; ++e) {
+			int32_t u = smooth->neighbours[e];
+			alone = smooth->counts[u] == 1 && smooth->bones[(int64_t)u * stride] == own[0];
+		}
+		if (alone) {
+			smooth->next_bones[(int64_t)k * stride] = own[0];
+			smooth->next_values[(int64_t)k * stride] = 1.0f;
+			smooth->next_counts[k] = 1;
+			continue;
+		}
+		double share = 1.0 / (double)(end - begin + 1), self = share;
 		for (int32_t j = 0; j < own_count; ++j) {
 			smooth->accum[own[j]] += self * smooth->values[(int64_t)k * stride + j];
 			smooth->touched[touched++] = own[j];
@@ -516,10 +533,32 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__s
 	return kept;
 }
 
+/* Steps for a blend about `length` wide: explicit diffusion spreads a border over about sqrt(2 steps) edges
+ * (each step moves weight by about an edge, either way), so a mesh twice as dense needs four times the steps
+ * for the same width. */
+static int32_t lvp__steps_for_length(const lvp__smoothing *smooth, const float *positions, int32_t vertex_count,
+                                     double length)
+{
+	double sum = 0.0;
+	int64_t count = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		lvp__vec3 p = lvp__load(positions + 3 * (int64_t)k);
+		for (int32_t e = smooth->neighbour_offsets[k]; e < smooth->neighbour_offsets[k + 1]; ++e) {
+			lvp__vec3 d = lvp__sub(lvp__load(positions + 3 * (int64_t)smooth->neighbours[e]), p);
+			sum += sqrt(lvp__dot(d, d));
+			++count;
+		}
+	}
+	if (count == 0 || !(sum > 0.0))
+		return 0; /* no edge of any length: nothing to diffuse over */
+	double ratio = length / (sum / (double)count), steps = ceil(0.5 * ratio * ratio);
+	return steps < LVP_MAX_SMOOTHING_ITERATIONS ? (int32_t)steps : LVP_MAX_SMOOTHING_ITERATIONS;
+}
+
 /* Fills the smoothing's rows with the 5.1 weights of ctx (kept to stride bones) and diffuses them. Returns
  * false when memory runs out. */
 static bool lvp__smooth_weights(lvp__smoothing *smooth, lvp__weights_context *ctx, const int32_t *triangles,
-                                int32_t vertex_count, int32_t triangle_count, int32_t iterations)
+                                int32_t vertex_count, int32_t triangle_count, int32_t iterations, double length)
 {
 	size_t n = (size_t)vertex_count, b = (size_t)ctx->bone_count;
 	int32_t stride = ctx->bone_count < LVP__SMOOTH_ROW ? ctx->bone_count : LVP__SMOOTH_ROW;
@@ -541,6 +580,8 @@ static bool lvp__smooth_weights(lvp__smoothing *smooth, lvp__weights_context *ct
 	smooth->next_values = smooth->values + cells;
 	if (!lvp__build_neighbours(smooth, triangles, vertex_count, triangle_count))
 		return false;
+	if (length > 0.0)
+		iterations = lvp__steps_for_length(smooth, ctx->positions, vertex_count, length);
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
@@ -659,15 +700,15 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .blockers = blockers,
 	};
 	lvp__smoothing smooth = {0};
-	bool smoothed = options->smoothing_iterations > 0;
+	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f;
 	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count,
-	                                     options->smoothing_iterations)) {
+	                                     options->smoothing_iterations, (double)options->smoothing_length)) {
 		lvp__free_smoothing(&smooth);
 		lvp__bvh_free(&bvh);
 		free(memory);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
 		                 "could not allocate the work memory to smooth the automatic weights of %d vertices; "
-		                 "set options.smoothing_iterations to 0 to do without.",
+		                 "set options.smoothing_iterations and smoothing_length to 0 to do without.",
 		                 (int)vertex_count);
 	}
 	int64_t total = 0;

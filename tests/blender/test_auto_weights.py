@@ -6,7 +6,7 @@ on the same mesh.
 The paper's weights alone (falloff 2, no smoothing) spread every bone over its neighbours' skin: at the
 hard pose of real_cases.pose_rigify_human() plain skinning lost 10.4 % of the volume (heat weights: 3.3 %),
 and the weights jumped by 1.0 across single edges (heat weights: at most 0.8). What must hold with the
-operator's defaults (falloff 16, smoothing 10):
+operator's defaults (falloff 16, blend width 0.025):
 
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
@@ -195,10 +195,10 @@ class TestWhereHeatWeightsFail(helpers.AddonTestCase):
     def test_crossing_parts(self):
         # A bar through the upper part of the body, crossing its surface (no shared vertices): it follows Upper.
         # The normal test sees Upper only tangentially from the top of the bar inside the body and gives three
-        # vertices there to Lower; the smoothing spreads that over the bar (up to 0.11 of a vertex's weight). The
-        # exact test has no such verdict.
+        # vertices there to Lower; the smoothing spreads that over the bar (0.29 of the weight of the vertex that
+        # keeps most of it). The exact test has no such verdict.
         body = self.body()
-        for visibility, least in (('NORMAL', 0.85), ('EXACT', 0.99)):
+        for visibility, least in (('NORMAL', 0.65), ('EXACT', 0.99)):
             bar_part = capped_tube((0.0, 0.0, 3.3), 'X', 0.25, 2.4)
             obj, rows = self.weighted("Crossing" + visibility, *self.join(body, bar_part), visibility=visibility)
             bar = range(len(body[0]), len(rows))

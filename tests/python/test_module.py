@@ -289,6 +289,8 @@ class TestGeometry(unittest.TestCase):
         sharp = _lvp.auto_weights(*arguments, alpha=16.0)
         smooth = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_iterations=10)
         self.assertNotEqual(list(sharp[2]), list(smooth[2]))
+        by_length = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_length=0.5)
+        self.assertNotEqual(list(sharp[2]), list(by_length[2]))
         offsets, bones, values = smooth
         for vertex in range(tube.vertex_count):
             row = values[offsets[vertex]:offsets[vertex + 1]]
@@ -727,6 +729,7 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('smoothing_iterations', _lvp.auto_weights, **arguments, smoothing_iterations=-1)
         self.assertValueErrorNames('smoothing_iterations', _lvp.auto_weights, **arguments,
                                    smoothing_iterations=1001)
+        self.assertValueErrorNames('smoothing_length', _lvp.auto_weights, **arguments, smoothing_length=-0.5)
 
     def binding_arguments(self, tube):
         return {'rest_positions': tube.positions, 'triangles': tube.triangles, 'weight_offsets': tube.weight_offsets,

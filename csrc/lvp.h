@@ -156,7 +156,7 @@
  * PERFORMANCE
  *
  *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries); lvp_auto_weights():
- *   O(N B) with the normal test, O(N B log F) with the exact test. Per frame, only the skin
+ *   O(N B) with the normal test, O(N B log F) with the exact test, plus O(N) per smoothing step. Per frame, only the skin
  *   around the joints that bend is visited: a triangle that its region's bone carries rigidly
  *   enters the measurement in closed form (which relies on `positions` being the skinning of
  *   the rest, as lvp_correct() says, and is checked each frame on a sample). Per step, a few

@@ -166,6 +166,27 @@ def bone_selected(armature_object, name):
     return armature_object.data.bones[name].select
 
 
+def bone_collections(armature_object):
+    """{name: set of the bone names in it}: the armature's bone collections from 4.0 on (nested ones
+    included: collections_all from 4.1, collections in 4.0, where they are flat); before 4.0, where
+    there are none, its bone groups by name and its bone layers as "Layer 1" to "Layer 32"."""
+    armature = armature_object.data
+    collections = getattr(armature, "collections_all", None)
+    if collections is None:
+        collections = getattr(armature, "collections", None)
+    if collections is not None:
+        return {collection.name: {bone.name for bone in collection.bones} for collection in collections}
+    result = {}
+    for index in range(32):
+        members = {bone.name for bone in armature.bones if bone.layers[index]}
+        if members:
+            result["Layer %d" % (index + 1)] = members
+    if armature_object.pose is not None:
+        for group in armature_object.pose.bone_groups:
+            result[group.name] = {bone.name for bone in armature_object.pose.bones if bone.bone_group == group}
+    return result
+
+
 # ---- application handlers -------------------------------------------------------------------
 
 

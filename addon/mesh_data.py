@@ -160,12 +160,21 @@ def replace_vertex_group_weights(mesh_object, bone_names, offsets, bones, values
     for vertex in range(vertex_count):
         for entry in range(offsets[vertex], offsets[vertex + 1]):
             per_bone[bones[entry]][vertex] = values[entry]
-    all_vertices = list(range(vertex_count))
-    for bone_index, name in enumerate(bone_names):
+    groups = []
+    for name in bone_names:
         group = mesh_object.vertex_groups.get(name)
-        if group is None:
-            group = mesh_object.vertex_groups.new(name=name)
-        group.remove(all_vertices)
+        groups.append(group if group is not None else mesh_object.vertex_groups.new(name=name))
+    # Each group is cleared of the vertices it holds, found in one pass over the mesh: removing every vertex
+    # from every group costs vertices x bones calls (seconds for 100k vertices on a rig of 160 bones).
+    members = {group.index: [] for group in groups}
+    for vertex in mesh_object.data.vertices:
+        for element in vertex.groups:
+            held = members.get(element.group)
+            if held is not None:
+                held.append(vertex.index)
+    for bone_index, group in enumerate(groups):
+        if members[group.index]:
+            group.remove(members[group.index])
         by_weight = {}
         for vertex, weight in per_bone[bone_index].items():
             by_weight.setdefault(weight, []).append(vertex)

@@ -12,7 +12,7 @@ it reports an ERROR that says what is wrong and how to fix it.
 """
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from . import _lvp
 from . import bindings
@@ -271,6 +271,13 @@ else uses it, and its attributes. The mesh is left exactly as it was"""
         return {'FINISHED'}
 
 
+def _diagonal(positions):
+    """The diagonal of the bounding box of packed float[3] positions."""
+    if not positions:
+        return 0.0
+    return sum((max(positions[axis::3]) - min(positions[axis::3])) ** 2 for axis in range(3)) ** 0.5
+
+
 class OBJECT_OT_lvp_auto_weights(_OnSelectedMeshes, bpy.types.Operator):
     """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
 write them into the deforming bones' vertex groups, replacing their weights"""
@@ -285,8 +292,16 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             ('DEFORM', "Deforming Bones", "Every bone with Deform on"),
             ('SELECTED', "Selected Bones", "The selected bones with Deform on (select them in Pose Mode): leave "
              "out the bones that are not for this mesh, such as a face's bones for a body"),
+            ('COLLECTIONS', "Bone Collections", "The bones with Deform on in the bone collections named in "
+             "Collections (before Blender 4.0: bone groups, or bone layers named Layer 1 to Layer 32)"),
         ),
         default='DEFORM',
+    )
+    collections: StringProperty(
+        name="Collections",
+        description="Bones: Bone Collections: the names of the bone collections whose deforming bones get weights, "
+        "separated by commas",
+        default="",
     )
     visibility: EnumProperty(
         name="Visibility Test",
@@ -299,8 +314,10 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     )
     alpha: FloatProperty(
         name="Falloff",
-        description="Weight = (bone length / distance) ^ falloff, before normalization",
-        default=2.0, min=0.1, soft_max=8.0,
+        description="Weight = (bone length / distance) ^ falloff, before normalization and smoothing: high keeps "
+        "each bone to its own flesh (the paper's 2 spreads a bone over its neighbours' skin, which loses volume "
+        "at every bend)",
+        default=16.0, min=0.1, soft_max=32.0,
     )
     max_influences: IntProperty(
         name="Max Influences",
@@ -311,6 +328,13 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         name="Min Weight",
         description="Drop weights below this, then normalize again",
         default=0.01, min=0.0, max=0.5,
+    )
+    blend_width: FloatProperty(
+        name="Blend Width",
+        description="How far the weights are smoothed along the mesh's edges, so that neighbouring vertices have "
+        "similar weights and the skin blends between bones: a fraction of the mesh's size (the diagonal of its "
+        "bounding box), the same at any resolution (0: the paper's weights as they are)",
+        default=0.025, min=0.0, soft_max=0.2, precision=3,
     )
 
     def execute(self, context):
@@ -347,18 +371,40 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             if not bone_names:
                 raise _Refused("No deforming bone of %s is selected: select the bones to weight in Pose Mode, or "
                                "choose Bones: Deforming Bones" % armature_object.name)
+        if self.bones == 'COLLECTIONS':
+            bone_names = self._in_collections(armature_object, bone_names)
         if len(obj.data.polygons) == 0:
             raise _Refused("%s has no faces: automatic weights need a surface mesh" % obj.name)
         mesh = obj.data
         rest_matrices, heads, tails = skeleton.rest_skeleton_arrays(obj, armature_object, bone_names)
+        positions = mesh_data.vertex_positions(mesh)
         try:
             weights = _lvp.auto_weights(
-                mesh_data.vertex_positions(mesh), mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
+                positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
-                min_weight=self.min_weight)
+                min_weight=self.min_weight, smoothing_length=self.blend_width * _diagonal(positions))
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights
+
+    def _in_collections(self, armature_object, bone_names):
+        """The names of bone_names that are in a bone collection named in self.collections."""
+        wanted = [name.strip() for name in self.collections.split(",") if name.strip()]
+        collections = blender_api.bone_collections(armature_object)
+        known = ", ".join(sorted(collections)) or "none"
+        if not wanted:
+            raise _Refused("Bones: Bone Collections needs the names of bone collections in Collections (%s has: %s)"
+                           % (armature_object.name, known))
+        missing = [name for name in wanted if name not in collections]
+        if missing:
+            raise _Refused("%s has no bone collection named %s (it has: %s)"
+                           % (armature_object.name, ", ".join(repr(name) for name in missing), known))
+        members = set().union(*(collections[name] for name in wanted))
+        chosen = [name for name in bone_names if name in members]
+        if not chosen:
+            raise _Refused("No deforming bone of %s is in %s: turn Deform on for their bones, or choose other "
+                           "collections" % (armature_object.name, ", ".join(repr(name) for name in wanted)))
+        return chosen
 
 
 class OBJECT_OT_lvp_region_restriction_add(bpy.types.Operator):

@@ -156,7 +156,7 @@
  * PERFORMANCE
  *
  *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries); lvp_auto_weights():
- *   O(N B) with the normal test, O(N B log F) with the exact test. Per frame, only the skin
+ *   O(N B) with the normal test, O(N B log F) with the exact test, plus O(N) per smoothing step. Per frame, only the skin
  *   around the joints that bend is visited: a triangle that its region's bone carries rigidly
  *   enters the measurement in closed form (which relies on `positions` being the skinning of
  *   the rest, as lvp_correct() says, and is checked each frame on a sample). Per step, a few
@@ -184,6 +184,7 @@ extern "C" {
 #define LVP_MAX_TRIANGLES (1 << 27)
 #define LVP_MAX_BONES (1 << 16)
 #define LVP_MAX_THREADS 64
+#define LVP_MAX_SMOOTHING_ITERATIONS 1000
 
 typedef enum lvp_result {
 	lvp_success = 0,
@@ -288,6 +289,10 @@ typedef struct lvp_auto_weights_options {
 	                           inward) */
 	int32_t max_influences; /* keep the strongest ones, renormalized; 0 = all, default 4 */
 	float min_weight;       /* drop normalized weights below this, renormalize; default 0.01 */
+	int32_t smoothing_iterations; /* steps of diffusion over the surface (SMOOTHING below); 0 = none,
+	                                 up to LVP_MAX_SMOOTHING_ITERATIONS, default 0 */
+	float smoothing_length; /* > 0: instead, as many steps as blend over about this distance (SMOOTHING);
+	                           mesh units, finite, default 0 */
 } lvp_auto_weights_options;
 
 lvp_auto_weights_options lvp_auto_weights_default_options(void);
@@ -304,7 +309,21 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * r_offsets: vertex_count+1; r_bones and r_values: capacity entries (use
  * lvp_auto_weights_bound(); a smaller capacity works through a temporary buffer of up to
  * `capacity` entries and fails, outputs untouched, with the needed size if it is too small).
- * Rows are sorted by decreasing weight. */
+ * Rows are sorted by decreasing weight.
+ *
+ * SMOOTHING (options.smoothing_iterations > 0): the rows above, kept to their 8 strongest bones
+ * (max_influences and min_weight not applied yet), are diffused over the mesh's edges: each
+ * iteration replaces every vertex's row by the mean of its row and its edge neighbours' rows,
+ * keeps the 8 strongest bones and renormalizes; then max_influences and min_weight prune as above
+ * (so with max_influences 0 a row has at most 8 bones). Visibility is judged before, not during,
+ * the diffusion. Weight flows only along edges: separate pieces, and parts that touch or cross
+ * without sharing vertices, never share weight; vertices at one position but not joined by an
+ * edge (split seams) are smoothed separately. A border between bones spreads over about
+ * sqrt(2 steps) edges, so a fixed number of steps blends over a distance that shrinks as the mesh
+ * gets denser; options.smoothing_length > 0 takes ceil((smoothing_length / mean edge length)^2 / 2)
+ * steps instead (at most LVP_MAX_SMOOTHING_ITERATIONS), about the same blend at any resolution.
+ * With a high alpha (nearest bone first, e.g. 16) this gives weights close to Blender's heat
+ * weights on a closed body (README). */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,

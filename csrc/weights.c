@@ -12,6 +12,9 @@
  * The output is what testing every bone would give (the tests check it against a brute force), but
  * a vertex casts a few paths instead of one per bone; and the triangle that hid a bone from the previous
  * vertex is tried first, since neighbours are usually hidden by the same wall.
+ *
+ * Optionally (smoothing_iterations > 0) the rows are then diffused over the surface's edges, which makes
+ * them continuous; see "smoothing over the surface" below.
  */
 #include "bvh.h"
 #include "lvp_internal.h"
@@ -36,6 +39,8 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	options.normal_cos_max = 0.0f;
 	options.max_influences = 4;
 	options.min_weight = 0.01f;
+	options.smoothing_iterations = 0;
+	options.smoothing_length = 0.0f;
 	return options;
 }
 
@@ -84,6 +89,15 @@ static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diag
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.min_weight", -1,
 		                 "options.min_weight is %g; it is a normalized weight, in [0, 1] (default 0.01).",
 		                 (double)o->min_weight);
+	if (o->smoothing_iterations < 0 || o->smoothing_iterations > LVP_MAX_SMOOTHING_ITERATIONS)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_iterations", -1,
+		                 "options.smoothing_iterations is %d; use 0 (none) to %d (default 0).",
+		                 (int)o->smoothing_iterations, LVP_MAX_SMOOTHING_ITERATIONS);
+	if (!(isfinite(o->smoothing_length) && o->smoothing_length >= 0.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_length", -1,
+		                 "options.smoothing_length is %g; it is a distance in the mesh's units, 0 (use "
+		                 "smoothing_iterations) or above.",
+		                 (double)o->smoothing_length);
 	return lvp_success;
 }
 
@@ -140,6 +154,10 @@ static inline double lvp__relative_weight(double ratio, double alpha)
 		return sqrt(ratio);
 	if (alpha == 4.0)
 		return ratio * ratio;
+	if (alpha == 16.0) { /* the add-on's default */
+		double r4 = (ratio * ratio) * (ratio * ratio);
+		return r4 * r4;
+	}
 	return pow(ratio, 0.5 * alpha);
 }
 
@@ -330,6 +348,251 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
 	return lvp__write_row(r_bones, r_values, ctx->visible, kept);
 }
 
+/* ---- smoothing over the surface ----------------------------------------------------------------------
+ *
+ * The 5.1 weights change abruptly between neighbouring vertices wherever a bone's visibility flips or a bone
+ * enters or leaves the strongest few; and with the paper's alpha = 2 they are so wide that a shin takes weight
+ * from the thigh and the belly from the thighs, which loses volume at every bend. A high alpha keeps each
+ * bone on its own flesh (close to the nearest visible bone), and the smoothing makes the borders between bones
+ * continuous: each step replaces every row by the mean of its own and its edge neighbours' rows, kept to the
+ * strongest LVP__SMOOTH_ROW bones and renormalized. Visibility decides the rows before the smoothing, not during
+ * it: the normal test flips across the crotch and the armpit, and a bone barred from the vertices it is hidden from
+ * there would leave a hard seam (both thighs at weight 1 across one edge) exactly where the skin must blend.
+ * Diffusion follows the mesh's edges only: separate pieces never share weight, and parts that touch or
+ * intersect without sharing vertices do not blend. Each step widens a border by about one edge, so the width
+ * of the blend is counted in edges, not in metres. */
+
+/* Bones per row while smoothing: room for the blends of a few bones around a joint. */
+#define LVP__SMOOTH_ROW 8
+
+typedef struct lvp__smoothing {
+	int32_t stride; /* entries per row */
+	int32_t *counts, *bones;
+	float *values;
+	int32_t *next_counts, *next_bones;
+	float *next_values;
+	int32_t *neighbour_offsets, *neighbours; /* the edge neighbours of each vertex, CSR */
+	double *accum;                           /* bone_count, 0 between vertices */
+	int32_t *touched;                        /* bone_count */
+	void *memory;
+} lvp__smoothing;
+
+static int lvp__compare_int32(const void *a, const void *b)
+{
+	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+	return (x > y) - (x < y);
+}
+
+static void lvp__free_smoothing(lvp__smoothing *smooth)
+{
+	free(smooth->memory);
+	free(smooth->neighbours);
+	smooth->memory = NULL;
+	smooth->neighbours = NULL;
+}
+
+/* The edge neighbours of every vertex, each listed once (degenerate triangles' repeated corners left out). */
+static bool lvp__build_neighbours(lvp__smoothing *smooth, const int32_t *triangles, int32_t vertex_count,
+                                  int32_t triangle_count)
+{
+	int32_t *offsets = smooth->neighbour_offsets;
+	memset(offsets, 0, sizeof(int32_t) * ((size_t)vertex_count + 1));
+	for (int64_t t = 0; t < triangle_count; ++t)
+		for (int c = 0; c < 3; ++c)
+			offsets[triangles[3 * t + c] + 1] += 2;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		offsets[k + 1] += offsets[k];
+	int32_t *list = malloc(sizeof(int32_t) * ((size_t)offsets[vertex_count] + 1));
+	if (!list)
+		return false;
+	int32_t *cursor = smooth->next_counts; /* free until the first step */
+	memcpy(cursor, offsets, sizeof(int32_t) * (size_t)vertex_count);
+	for (int64_t t = 0; t < triangle_count; ++t) {
+		const int32_t *corner = triangles + 3 * t;
+		for (int c = 0; c < 3; ++c) {
+			int32_t a = corner[c], b = corner[(c + 1) % 3], o = corner[(c + 2) % 3];
+			list[cursor[a]++] = b;
+			list[cursor[a]++] = o;
+		}
+	}
+	/* Sort and compact each list in place; the offsets shrink to the distinct neighbours. */
+	int32_t written = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t begin = offsets[k], end = offsets[k + 1];
+		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
+		offsets[k] = written;
+		for (int32_t j = begin; j < end; ++j)
+			if (list[j] != k && (written == offsets[k] || list[written - 1] != list[j]))
+				list[written++] = list[j];
+	}
+	offsets[vertex_count] = written;
+	smooth->neighbours = list;
+	return true;
+}
+
+/* Inserts (bone, w) into the row of at most `room` entries sorted by decreasing weight, ties to the lower
+ * bone; returns the new length. */
+static int32_t lvp__insert_sorted(int32_t *bones, double *weights, int32_t length, int32_t room, int32_t bone,
+                                  double w)
+{
+	if (length == room &&
+	    !(w > weights[length - 1] || (w == weights[length - 1] && bone < bones[length - 1])))
+		return length;
+	int32_t at = length < room ? length++ : length - 1;
+	while (at > 0 && (weights[at - 1] < w || (weights[at - 1] == w && bones[at - 1] > bone))) {
+		bones[at] = bones[at - 1];
+		weights[at] = weights[at - 1];
+		--at;
+	}
+	bones[at] = bone;
+	weights[at] = w;
+	return length;
+}
+
+/* One step of the diffusion, from the current rows into the next ones, then swapped. */
+static void lvp__smoothing_step(lvp__smoothing *smooth, int32_t vertex_count)
+{
+	int32_t stride = smooth->stride;
+	int32_t row_bones[LVP__SMOOTH_ROW];
+	double row_weights[LVP__SMOOTH_ROW];
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t begin = smooth->neighbour_offsets[k], end = smooth->neighbour_offsets[k + 1];
+		const int32_t *own = smooth->bones + (int64_t)k * stride;
+		int32_t own_count = smooth->counts[k], touched = 0;
+		/* Most of the skin is one bone's alone, and so are its neighbours: the average is the row itself. */
+		bool alone = own_count == 1;
+		for (int32_t e = begin; e < end && alone; ++e) {
+			int32_t u = smooth->neighbours[e];
+			alone = smooth->counts[u] == 1 && smooth->bones[(int64_t)u * stride] == own[0];
+		}
+		if (alone) {
+			smooth->next_bones[(int64_t)k * stride] = own[0];
+			smooth->next_values[(int64_t)k * stride] = 1.0f;
+			smooth->next_counts[k] = 1;
+			continue;
+		}
+		double share = 1.0 / (double)(end - begin + 1), self = share;
+		for (int32_t j = 0; j < own_count; ++j) {
+			smooth->accum[own[j]] += self * smooth->values[(int64_t)k * stride + j];
+			smooth->touched[touched++] = own[j];
+		}
+		for (int32_t e = begin; e < end; ++e) {
+			int32_t u = smooth->neighbours[e];
+			for (int32_t j = 0; j < smooth->counts[u]; ++j) {
+				int32_t bone = smooth->bones[(int64_t)u * stride + j];
+				float value = smooth->values[(int64_t)u * stride + j];
+				if (smooth->accum[bone] == 0.0)
+					smooth->touched[touched++] = bone;
+				smooth->accum[bone] += share * (double)value;
+			}
+		}
+		int32_t length = 0;
+		double sum = 0.0;
+		for (int32_t j = 0; j < touched; ++j) {
+			int32_t bone = smooth->touched[j];
+			if (smooth->accum[bone] > 0.0)
+				length = lvp__insert_sorted(row_bones, row_weights, length, stride, bone, smooth->accum[bone]);
+			smooth->accum[bone] = 0.0;
+		}
+		for (int32_t j = 0; j < length; ++j)
+			sum += row_weights[j];
+		for (int32_t j = 0; j < length; ++j) {
+			smooth->next_bones[(int64_t)k * stride + j] = row_bones[j];
+			smooth->next_values[(int64_t)k * stride + j] = (float)(row_weights[j] / sum);
+		}
+		smooth->next_counts[k] = length;
+	}
+	int32_t *swap_ints = smooth->counts;
+	smooth->counts = smooth->next_counts, smooth->next_counts = swap_ints;
+	swap_ints = smooth->bones;
+	smooth->bones = smooth->next_bones, smooth->next_bones = swap_ints;
+	float *swap_floats = smooth->values;
+	smooth->values = smooth->next_values, smooth->next_values = swap_floats;
+}
+
+/* The smoothed row of vertex k pruned as the options say (the strongest max_influences of weight at least
+ * min_weight of the row's sum, the strongest alone when none is), renormalized; returns its length. */
+static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__smoothing *smooth,
+                                 const lvp__weights_context *ctx, int32_t k)
+{
+	const int32_t *bones = smooth->bones + (int64_t)k * smooth->stride;
+	const float *values = smooth->values + (int64_t)k * smooth->stride;
+	int32_t count = smooth->counts[k], kept = 0;
+	double sum = 0.0, kept_sum = 0.0;
+	for (int32_t j = 0; j < count; ++j)
+		sum += values[j];
+	while (kept < count && (ctx->max_influences == 0 || kept < ctx->max_influences) &&
+	       values[kept] >= ctx->min_weight * sum && values[kept] > 0.0f)
+		kept_sum += values[kept++];
+	if (kept == 0)
+		kept_sum = values[kept++];
+	for (int32_t j = 0; j < kept; ++j) {
+		r_bones[j] = bones[j];
+		r_values[j] = (float)(values[j] / kept_sum);
+	}
+	return kept;
+}
+
+/* Steps for a blend about `length` wide: explicit diffusion spreads a border over about sqrt(2 steps) edges
+ * (each step moves weight by about an edge, either way), so a mesh twice as dense needs four times the steps
+ * for the same width. */
+static int32_t lvp__steps_for_length(const lvp__smoothing *smooth, const float *positions, int32_t vertex_count,
+                                     double length)
+{
+	double sum = 0.0;
+	int64_t count = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		lvp__vec3 p = lvp__load(positions + 3 * (int64_t)k);
+		for (int32_t e = smooth->neighbour_offsets[k]; e < smooth->neighbour_offsets[k + 1]; ++e) {
+			lvp__vec3 d = lvp__sub(lvp__load(positions + 3 * (int64_t)smooth->neighbours[e]), p);
+			sum += sqrt(lvp__dot(d, d));
+			++count;
+		}
+	}
+	if (count == 0 || !(sum > 0.0))
+		return 0; /* no edge of any length: nothing to diffuse over */
+	double ratio = length / (sum / (double)count), steps = ceil(0.5 * ratio * ratio);
+	return steps < LVP_MAX_SMOOTHING_ITERATIONS ? (int32_t)steps : LVP_MAX_SMOOTHING_ITERATIONS;
+}
+
+/* Fills the smoothing's rows with the 5.1 weights of ctx (kept to stride bones) and diffuses them. Returns
+ * false when memory runs out. */
+static bool lvp__smooth_weights(lvp__smoothing *smooth, lvp__weights_context *ctx, const int32_t *triangles,
+                                int32_t vertex_count, int32_t triangle_count, int32_t iterations, double length)
+{
+	size_t n = (size_t)vertex_count, b = (size_t)ctx->bone_count;
+	int32_t stride = ctx->bone_count < LVP__SMOOTH_ROW ? ctx->bone_count : LVP__SMOOTH_ROW;
+	size_t cells = n * (size_t)stride;
+	size_t bytes = sizeof(double) * b + sizeof(int32_t) * (b + 3 * n + 1) + 2 * (sizeof(int32_t) + sizeof(float)) * cells;
+	unsigned char *memory = calloc(1, bytes);
+	if (!memory)
+		return false;
+	smooth->memory = memory;
+	smooth->stride = stride;
+	smooth->accum = (double *)memory;
+	smooth->touched = (int32_t *)(smooth->accum + b);
+	smooth->counts = smooth->touched + b;
+	smooth->next_counts = smooth->counts + n;
+	smooth->neighbour_offsets = smooth->next_counts + n;
+	smooth->bones = smooth->neighbour_offsets + n + 1;
+	smooth->next_bones = smooth->bones + cells;
+	smooth->values = (float *)(smooth->next_bones + cells);
+	smooth->next_values = smooth->values + cells;
+	if (!lvp__build_neighbours(smooth, triangles, vertex_count, triangle_count))
+		return false;
+	if (length > 0.0)
+		iterations = lvp__steps_for_length(smooth, ctx->positions, vertex_count, length);
+	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
+	lvp__weights_context raw = *ctx;
+	raw.max_influences = stride;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
+		                                        smooth->values + (int64_t)k * stride, &raw, k);
+	for (int32_t step = 0; step < iterations; ++step)
+		lvp__smoothing_step(smooth, vertex_count);
+	return true;
+}
+
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,
@@ -436,20 +699,35 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .visible = visible,
 	    .blockers = blockers,
 	};
+	lvp__smoothing smooth = {0};
+	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f;
+	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count,
+	                                     options->smoothing_iterations, (double)options->smoothing_length)) {
+		lvp__free_smoothing(&smooth);
+		lvp__bvh_free(&bvh);
+		free(memory);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
+		                 "could not allocate the work memory to smooth the automatic weights of %d vertices; "
+		                 "set options.smoothing_iterations and smoothing_length to 0 to do without.",
+		                 (int)vertex_count);
+	}
 	int64_t total = 0;
 	for (int32_t k = 0; k < vertex_count; ++k) {
 		offsets[k] = (int32_t)(total <= limit ? total : limit);
 		if (total + row_bound <= limit) {
-			total += lvp__vertex_weights(out_bones + total, out_values + total, &ctx, k);
+			total += smoothed ? lvp__smoothed_row(out_bones + total, out_values + total, &smooth, &ctx, k)
+			                  : lvp__vertex_weights(out_bones + total, out_values + total, &ctx, k);
 			continue;
 		}
-		int32_t length = lvp__vertex_weights(row_bones, row_values, &ctx, k);
+		int32_t length = smoothed ? lvp__smoothed_row(row_bones, row_values, &smooth, &ctx, k)
+		                          : lvp__vertex_weights(row_bones, row_values, &ctx, k);
 		if (total + length <= limit) {
 			memcpy(out_bones + total, row_bones, sizeof(int32_t) * (size_t)length);
 			memcpy(out_values + total, row_values, sizeof(float) * (size_t)length);
 		}
 		total += length; /* past the limit, rows are still counted, to report the capacity needed */
 	}
+	lvp__free_smoothing(&smooth);
 	lvp__bvh_free(&bvh);
 	if (total > limit) {
 		free(memory);

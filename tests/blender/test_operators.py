@@ -392,6 +392,34 @@ class TestAutoWeights(helpers.AddonTestCase):
         self.assertIn("No deforming bone of Rig is selected", str(raised.exception))
         self.assertEqual(self.weights("Upper"), {5: 0.25, 6: 0.25})
 
+    def put_in_collection(self, bone_name, collection_name):
+        """A bone collection from 4.0 on, a bone group before (blender_api.bone_collections)."""
+        if hasattr(self.rig.data, "collections"):
+            self.rig.data.collections.new(collection_name).assign(self.rig.data.bones[bone_name])
+        else:
+            self.rig.pose.bones[bone_name].bone_group = self.rig.pose.bone_groups.new(name=collection_name)
+
+    def test_bone_collections(self):
+        self.obj.vertex_groups.new(name="Upper").add([5, 6], 0.25, 'REPLACE')
+        self.put_in_collection("Lower", "Legs")
+        self.put_in_collection("Upper", "Arms")
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_auto_weights(bones='COLLECTIONS', collections=" Legs "), {'FINISHED'})
+        lower = self.weights("Lower")
+        self.assertEqual(len(lower), len(self.obj.data.vertices), "the bone in Legs weights every vertex")
+        self.assertEqual(self.weights("Upper"), {5: 0.25, 6: 0.25}, "the bone in Arms is left as it was")
+        self.assertEqual(bpy.ops.object.lvp_auto_weights(bones='COLLECTIONS', collections="Legs,Arms"), {'FINISHED'})
+        self.check_weights()
+        for collections, message in (("Tail", "Rig has no bone collection named 'Tail' (it has: Arms, "),
+                                     ("", "needs the names of bone collections")):
+            with self.assertRaises(RuntimeError) as raised:
+                bpy.ops.object.lvp_auto_weights(bones='COLLECTIONS', collections=collections)
+            self.assertIn(message, str(raised.exception))
+        self.rig.data.bones["Lower"].use_deform = False
+        with self.assertRaises(RuntimeError) as raised:
+            bpy.ops.object.lvp_auto_weights(bones='COLLECTIONS', collections="Legs")
+        self.assertIn("No deforming bone of Rig is in 'Legs'", str(raised.exception))
+
     def test_undo_restores_previous_weights(self):
         bpy.ops.ed.undo_push(message="before")
         helpers.select_only(self.obj)

@@ -592,6 +592,150 @@ static void test_degenerate_geometry_is_handled(void)
 	free(b);
 }
 
+/* ---- smoothing ----------------------------------------------------------------------------------- */
+
+/* The largest change of any bone's weight across an edge of the mesh. */
+static double largest_edge_jump(const builder *b, const result *r)
+{
+	double worst = 0.0;
+	for (int32_t t = 0; t < b->triangle_count; ++t)
+		for (int c = 0; c < 3; ++c) {
+			int32_t u = b->triangles[3 * t + c], v = b->triangles[3 * t + (c + 1) % 3];
+			for (int32_t bone = 0; bone < b->bone_count; ++bone) {
+				double jump = fabs((double)weight_of(r, u, bone) - (double)weight_of(r, v, bone));
+				worst = jump > worst ? jump : worst;
+			}
+		}
+	return worst;
+}
+
+/* A straight arm (a tube of radius 0.2 along z in [0, 3], rings 0.1 apart) on three bones of length 1. The
+ * sharp weights of a high alpha jump across the rings next to each joint; smoothed, they change gradually,
+ * and each bone still holds the middle of its own segment. */
+static void test_smoothing_makes_weights_continuous(void)
+{
+	builder *b = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	double centres[31][3];
+	for (int i = 0; i < 31; ++i)
+		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
+	add_tube(b, (const double(*)[3])centres, 31, 0.2, 16, y_axis);
+	for (int i = 0; i < 3; ++i)
+		add_bone(b, 0, 0, i, 0, 0, i + 1);
+	int32_t isolated = add_vertex(b, 0.0, 0.5, 1.5); /* no edge: it keeps its own weights */
+	for (int vis = 0; vis < 3; ++vis) {
+		lvp_auto_weights_options o = options_with((lvp_visibility)vis);
+		o.alpha = 16.0f;
+		result sharp = compute(b, &o);
+		o.smoothing_iterations = 5;
+		result smooth = compute(b, &o);
+		check_rows(b, &smooth, &o);
+		double before = largest_edge_jump(b, &sharp), after = largest_edge_jump(b, &smooth);
+		CHECK(before > 0.3);
+		CHECK(after < 0.6 * before); /* 0.36 -> 0.20 */
+		for (int32_t v = 0; v < 31 * 16; ++v) {
+			double z = b->positions[3 * v + 2];
+			for (int i = 0; i < 3; ++i)
+				if (fabs(z - (i + 0.5)) < 0.15)
+					CHECK(weight_of(&smooth, v, i) > 0.95f);
+		}
+		CHECK(smooth.offsets[isolated + 1] - smooth.offsets[isolated] == sharp.offsets[isolated + 1] -
+		                                                                     sharp.offsets[isolated]);
+		CHECK(weight_of(&smooth, isolated, 1) == weight_of(&sharp, isolated, 1));
+		result_free(&sharp);
+		result_free(&smooth);
+	}
+	free(b);
+}
+
+/* The straight arm of test_smoothing_makes_weights_continuous with rings `spacing` apart and as many around
+ * as keep its triangles' shape: every edge scales with spacing. */
+static void make_arm(builder *b, double spacing)
+{
+	memset(b, 0, sizeof(*b));
+	int rings = (int)lround(3.0 / spacing) + 1;
+	double(*centres)[3] = malloc(sizeof(double[3]) * (size_t)rings);
+	for (int i = 0; i < rings; ++i)
+		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = spacing * i;
+	add_tube(b, (const double(*)[3])centres, rings, 0.2, (int)lround(1.6 / spacing), y_axis);
+	free(centres);
+	for (int i = 0; i < 3; ++i)
+		add_bone(b, 0, 0, i, 0, 0, i + 1);
+}
+
+/* How wide the blend of bones 0 and 1 is along the arm: the integral over z of 4 w0 w1 (1 where they are
+ * even, 0 where one holds alone), along the line of the rings' first vertices. */
+static double blend_width(const result *r, double spacing)
+{
+	int around = (int)lround(1.6 / spacing), rings = (int)lround(3.0 / spacing) + 1;
+	double width = 0.0;
+	for (int i = 0; i < rings && spacing * i < 2.0; ++i) {
+		int32_t v = i * around;
+		width += 4.0 * (double)weight_of(r, v, 0) * (double)weight_of(r, v, 1) * spacing;
+	}
+	return width;
+}
+
+/* smoothing_length blends over about the same distance on the arm at two resolutions, where a fixed number
+ * of steps blends over half the distance on the mesh twice as dense. */
+static void test_smoothing_length_follows_the_resolution(void)
+{
+	builder *coarse = malloc(sizeof(builder)), *fine = malloc(sizeof(builder));
+	make_arm(coarse, 0.1);
+	make_arm(fine, 0.05);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	o.smoothing_iterations = 10;
+	result coarse_steps = compute(coarse, &o), fine_steps = compute(fine, &o);
+	double coarse_width = blend_width(&coarse_steps, 0.1), fine_width = blend_width(&fine_steps, 0.05);
+	CHECK(fine_width < 0.75 * coarse_width); /* 0.45 -> 0.29 */
+	o.smoothing_iterations = 0;
+	o.smoothing_length = 0.35f;
+	result coarse_length = compute(coarse, &o), fine_length = compute(fine, &o);
+	check_rows(fine, &fine_length, &o);
+	double coarse_blend = blend_width(&coarse_length, 0.1), fine_blend = blend_width(&fine_length, 0.05);
+	CHECK(fine_blend > 0.8 * coarse_blend && fine_blend < 1.25 * coarse_blend); /* 0.49 -> 0.47 */
+	result_free(&coarse_steps);
+	result_free(&fine_steps);
+	result_free(&coarse_length);
+	result_free(&fine_length);
+	free(coarse);
+	free(fine);
+}
+
+/* Weight flows along edges only: the two fingers (separate pieces, 0.1 apart) are weighted as each alone,
+ * bit for bit, though the smoothing changes both. */
+static void test_smoothing_keeps_separate_pieces_apart(void)
+{
+	builder *both = malloc(sizeof(builder)), *alone = malloc(sizeof(builder));
+	int32_t split;
+	make_fingers(both, &split);
+	*alone = *both;
+	alone->vertex_count = split;
+	alone->triangle_count = 0;
+	for (int32_t t = 0; t < both->triangle_count; ++t)
+		if (both->triangles[3 * t] < split)
+			add_triangle(alone, both->triangles[3 * t], both->triangles[3 * t + 1], both->triangles[3 * t + 2]);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NONE); /* each finger takes both bones */
+	result raw = compute(both, &o);
+	o.smoothing_iterations = 20;
+	result together = compute(both, &o), separate = compute(alone, &o);
+	check_rows(both, &together, &o);
+	CHECK(memcmp(together.offsets, separate.offsets, sizeof(int32_t) * ((size_t)split + 1)) == 0);
+	int32_t total = separate.offsets[split];
+	CHECK(memcmp(together.bones, separate.bones, sizeof(int32_t) * (size_t)total) == 0);
+	CHECK(memcmp(together.values, separate.values, sizeof(float) * (size_t)total) == 0);
+	int32_t changed = 0;
+	for (int32_t v = 0; v < split; ++v)
+		changed += fabsf(weight_of(&raw, v, 1) - weight_of(&together, v, 1)) > 1e-3f;
+	CHECK(changed > split / 4);
+	result_free(&raw);
+	result_free(&together);
+	result_free(&separate);
+	free(both);
+	free(alone);
+}
+
 /* ---- sizes --------------------------------------------------------------------------------------- */
 
 static void test_bound(void)
@@ -731,6 +875,20 @@ static void test_error_paths_name_the_argument(void)
 		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
 		            lvp_error_invalid_option, options[i].argument, -1);
 	}
+	const int32_t bad_iterations[] = {-1, LVP_MAX_SMOOTHING_ITERATIONS + 1};
+	for (size_t i = 0; i < 2; ++i) {
+		bad = o;
+		bad.smoothing_iterations = bad_iterations[i];
+		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
+		            lvp_error_invalid_option, "options.smoothing_iterations", -1);
+	}
+	const float bad_lengths[] = {-1.0f, NAN, INFINITY};
+	for (size_t i = 0; i < 3; ++i) {
+		bad = o;
+		bad.smoothing_length = bad_lengths[i];
+		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
+		            lvp_error_invalid_option, "options.smoothing_length", -1);
+	}
 	/* NULL options are the defaults */
 	CHECK_OK(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, NULL, &d), d);
 	CHECK(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, NULL) == lvp_error_null_argument);
@@ -747,6 +905,9 @@ int main(void)
 	RUN(test_zero_length_bone_gets_no_weight);
 	RUN(test_vertex_on_a_bone);
 	RUN(test_degenerate_geometry_is_handled);
+	RUN(test_smoothing_makes_weights_continuous);
+	RUN(test_smoothing_keeps_separate_pieces_apart);
+	RUN(test_smoothing_length_follows_the_resolution);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

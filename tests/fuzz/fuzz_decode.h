@@ -978,6 +978,14 @@ static void fuzz_run(const uint8_t *data, size_t size)
 	auto_options.normal_cos_max = fuzz_option_float(r, auto_options.normal_cos_max);
 	auto_options.max_influences = (int32_t)(fuzz_byte(r) % 8) - 1;
 	auto_options.min_weight = fuzz_option_float(r, auto_options.min_weight);
+	/* Smoothing from bits of the flags already read, so that the bytes after them decode as before. */
+	uint8_t smoothing = (uint8_t)((auto_flags >> 4) & 3);
+	if (smoothing == 1)
+		auto_options.smoothing_iterations = 3;
+	else if (smoothing == 2)
+		auto_options.smoothing_length = auto_options.alpha; /* any float the fuzzer gave, some invalid */
+	else if (smoothing == 3)
+		auto_options.smoothing_iterations = (auto_flags & 64) ? -1 : LVP_MAX_SMOOTHING_ITERATIONS;
 	const lvp_auto_weights_options *auto_used = (auto_flags & 1) ? NULL : &auto_options;
 	int64_t bound = lvp_auto_weights_bound(vertex_count, bone_count, auto_used);
 	int32_t *auto_offsets = fuzz_alloc((size_t)c.vertex_count + 1, sizeof(int32_t));

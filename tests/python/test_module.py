@@ -283,6 +283,20 @@ class TestGeometry(unittest.TestCase):
         self.assertEqual(list(offsets), list(range(tube.vertex_count + 1)))
         self.assertTrue(all(value == 1.0 for value in values))
 
+    def test_auto_weights_smoothing(self):
+        tube = Tube()
+        arguments = (tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tube.tails)
+        sharp = _lvp.auto_weights(*arguments, alpha=16.0)
+        smooth = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_iterations=10)
+        self.assertNotEqual(list(sharp[2]), list(smooth[2]))
+        by_length = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_length=0.5)
+        self.assertNotEqual(list(sharp[2]), list(by_length[2]))
+        offsets, bones, values = smooth
+        for vertex in range(tube.vertex_count):
+            row = values[offsets[vertex]:offsets[vertex + 1]]
+            self.assertAlmostEqual(sum(row), 1.0, places=5, msg=f'vertex {vertex}')
+            self.assertEqual(list(row), sorted(row, reverse=True))
+
 
 # ---- Binding -------------------------------------------------------------------------------------------------------
 
@@ -712,6 +726,10 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('max_influences', _lvp.auto_weights, **arguments, max_influences=-1)
         self.assertValueErrorNames('max_influences', _lvp.auto_weights, **arguments, max_influences=2 ** 40)
         self.assertValueErrorNames('max_influences', _lvp.auto_weights, **arguments, max_influences=1.5)
+        self.assertValueErrorNames('smoothing_iterations', _lvp.auto_weights, **arguments, smoothing_iterations=-1)
+        self.assertValueErrorNames('smoothing_iterations', _lvp.auto_weights, **arguments,
+                                   smoothing_iterations=1001)
+        self.assertValueErrorNames('smoothing_length', _lvp.auto_weights, **arguments, smoothing_length=-0.5)
 
     def binding_arguments(self, tube):
         return {'rest_positions': tube.positions, 'triangles': tube.triangles, 'weight_offsets': tube.weight_offsets,

@@ -1,0 +1,229 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Auto Weights on a production rig: Rigify's human (160 deforming bones: B-Bone limbs and spine, face
+bones inside the head) with a closed smooth body, against Blender's heat weights (With Automatic Weights)
+on the same mesh.
+
+The paper's weights alone (falloff 2, no smoothing) spread every bone over its neighbours' skin: at the
+hard pose of real_cases.pose_rigify_human() plain skinning lost 10.4 % of the volume (heat weights: 3.3 %),
+and the weights jumped by 1.0 across single edges (heat weights: at most 0.8). What must hold with the
+operator's defaults (falloff 16, blend width 0.025):
+
+- weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
+  are no larger than with heat weights;
+- plain skinning at the hard pose loses at most 1.5 times the volume it loses with heat weights, and
+  crosses itself at most 1.5 times as much;
+- the face's bones, inside the head, take no weight below the neck.
+
+Falloff 2 fails the first two; falloff 16 without smoothing keeps the volume but crosses itself too much
+(8 without smoothing: 458 crossing pairs against 240).
+"""
+
+import math
+import unittest
+
+import bpy
+
+import lvp_helpers as helpers
+import real_cases
+import surface_quality as quality
+
+
+def normalized_rows(obj, bone_names):
+    """Each vertex's weights over bone_names as {bone name: weight}, normalized by their sum as the Armature
+    modifier does."""
+    names = {obj.vertex_groups[name].index: name for name in bone_names if name in obj.vertex_groups}
+    rows = []
+    for vertex in obj.data.vertices:
+        row = {names[element.group]: element.weight for element in vertex.groups
+               if element.group in names and element.weight > 0.0}
+        total = sum(row.values())
+        rows.append({name: weight / total for name, weight in row.items()} if total > 0.0 else {})
+    return rows
+
+
+def edge_jumps(mesh, rows):
+    """The largest change of any bone's weight across each edge of the mesh, sorted."""
+    jumps = []
+    for edge in mesh.edges:
+        first, second = rows[edge.vertices[0]], rows[edge.vertices[1]]
+        jumps.append(max(abs(first.get(name, 0.0) - second.get(name, 0.0)) for name in set(first) | set(second)))
+    return sorted(jumps)
+
+
+class TestRigifyHuman(unittest.TestCase):
+    measured = {}
+
+    @classmethod
+    def setUpClass(cls):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        if not real_cases.enable_rigify():
+            raise unittest.SkipTest("this Blender has no Rigify add-on")
+        helpers.enable_addon()
+        cls.body, cls.rig = real_cases.rigify_human()
+        cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
+        cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
+        cls.measured["heat"] = cls.measure()
+        helpers.select_only(cls.body)
+        bpy.context.view_layer.objects.active = cls.body
+        cls.result = bpy.ops.object.lvp_auto_weights()
+        cls.measured["auto"] = cls.measure()
+
+    @classmethod
+    def measure(cls):
+        rows = normalized_rows(cls.body, cls.bone_names)
+        jumps = edge_jumps(cls.body.data, rows)
+        real_cases.pose_rigify_human(cls.rig, 1.0)
+        posed = helpers.evaluated_positions(cls.body)
+        real_cases.pose_rigify_human(cls.rig, 0.0)
+        return {"rows": rows, "largest jump": jumps[-1], "jump p99": jumps[int(0.99 * (len(jumps) - 1))],
+                "volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
+                "crossings": quality.count_crossing_pairs(posed, cls.mesh)}
+
+    def summary(self):
+        return {name: {key: value for key, value in measured.items() if key != "rows"}
+                for name, measured in self.measured.items()}
+
+    def test_every_vertex_is_weighted(self):
+        self.assertEqual(self.result, {'FINISHED'})
+        self.assertTrue(all(self.measured["auto"]["rows"]))
+
+    def test_weights_are_continuous(self):
+        heat, auto = self.measured["heat"], self.measured["auto"]
+        self.assertLessEqual(auto["largest jump"], heat["largest jump"], self.summary())
+        self.assertLessEqual(auto["jump p99"], heat["jump p99"], self.summary())
+
+    def test_plain_skinning_keeps_volume_as_with_heat_weights(self):
+        heat, auto = self.measured["heat"], self.measured["auto"]
+        self.assertLess(heat["volume"], -0.01, "the pose is hard enough to lose volume")
+        self.assertGreater(auto["volume"], 1.5 * heat["volume"], self.summary())
+
+    def test_crosses_itself_no_more_than_with_heat_weights(self):
+        heat, auto = self.measured["heat"], self.measured["auto"]
+        self.assertLessEqual(auto["crossings"], 1.5 * heat["crossings"], self.summary())
+
+    def test_face_bones_stay_in_the_head(self):
+        bones = self.rig.data.bones
+        neck = bones["DEF-spine.004"].head_local.z
+        face = [name for name in self.bone_names if bones[name].head_local.z > bones["DEF-spine.006"].head_local.z]
+        self.assertGreater(len(face), 50, "Rigify's face bones")
+        for vertex, row in zip(self.body.data.vertices, self.measured["auto"]["rows"]):
+            if vertex.co.z < neck:
+                self.assertFalse(set(row) & set(face), "vertex %d at %s" % (vertex.index, tuple(vertex.co)))
+
+
+def capped_tube(centre, axis, radius, length, rings=8, around=12):
+    """(vertices, faces) of a closed tube of `rings` rings from centre - axis * length / 2 to centre + axis *
+    length / 2, axis one of 'X', 'Z'."""
+    vertices, faces = [], []
+    for ring in range(rings):
+        along = length * (ring / (rings - 1) - 0.5)
+        for step in range(around):
+            angle = 2.0 * math.pi * step / around
+            a, b = radius * math.cos(angle), radius * math.sin(angle)
+            offset = (a, b, along) if axis == 'Z' else (along, a, b)
+            vertices.append(tuple(c + o for c, o in zip(centre, offset)))
+    for ring in range(rings - 1):
+        for step in range(around):
+            first, second = ring * around + step, ring * around + (step + 1) % around
+            faces.append((first, second, second + around, first + around))
+    faces.append(tuple(reversed(range(around))))
+    faces.append(tuple((rings - 1) * around + step for step in range(around)))
+    return vertices, faces
+
+
+class TestWhereHeatWeightsFail(helpers.AddonTestCase):
+    """Meshes outside what heat weighting is made for (one closed surface around the bones): a piece that no
+    bone is inside, parts that cross each other, a non-manifold edge. The paper's cylinder on two bones
+    ("Lower" z 0-2, "Upper" z 2-4) with such a part added to the same mesh; each part must be weighted whole
+    and follow the bone it is around. Measured with With Automatic Weights on 3.4 and 5.2: the bracelet's 96
+    vertices get no weight at all; the crossing bar and the fin these simple cases are weighted right (heat
+    weighting fails on such parts of real meshes, with "failed to find solution for one or more bones")."""
+
+    def setUp(self):
+        super().setUp()
+        self.rig = helpers.two_bone_armature()
+
+    def weighted(self, name, vertices, faces, visibility='NORMAL'):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata(vertices, [], faces)
+        mesh.validate()
+        mesh.update()
+        obj = helpers.link(bpy.data.objects.new(name, mesh))
+        obj.parent = self.rig
+        helpers.add_armature_modifier(obj, self.rig)
+        helpers.select_only(obj)
+        self.assertEqual(bpy.ops.object.lvp_auto_weights(visibility=visibility), {'FINISHED'})
+        rows = normalized_rows(obj, ["Lower", "Upper"])
+        for index, row in enumerate(rows):
+            self.assertAlmostEqual(sum(row.values()), 1.0, places=5, msg="vertex %d" % index)
+        return obj, rows
+
+    def bent_moves(self, obj):
+        """How far each vertex moves when Upper bends 90 degrees."""
+        bpy.context.view_layer.update()
+        rest = helpers.evaluated_positions(obj)
+        helpers.bend(self.rig, 90.0)
+        bpy.context.view_layer.update()
+        posed = helpers.evaluated_positions(obj)
+        helpers.bend(self.rig, 0.0)
+        return helpers.vertex_distances(rest, posed)
+
+    def body(self, caps=True):
+        mesh = helpers.cylinder_mesh("Body", caps=caps)
+        vertices = [tuple(vertex.co) for vertex in mesh.vertices]
+        faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
+        bpy.data.meshes.remove(mesh)
+        return vertices, faces
+
+    def join(self, *parts):
+        vertices, faces = [], []
+        for part_vertices, part_faces in parts:
+            faces += [tuple(index + len(vertices) for index in face) for face in part_faces]
+            vertices += part_vertices
+        return vertices, faces
+
+    def test_separate_piece(self):
+        # A bracelet around the lower bone, 0.2 off the skin: a piece of its own that no bone is inside.
+        body = self.body()
+        obj, rows = self.weighted("Pieces", *self.join(body, capped_tube((0.0, 0.0, 0.8), 'Z', 0.7, 0.4)))
+        bracelet = range(len(body[0]), len(rows))
+        self.assertTrue(all(rows[index].get("Lower", 0.0) > 0.999 for index in bracelet),
+                        [rows[index] for index in bracelet][:4])
+        moves = self.bent_moves(obj)
+        self.assertLess(max(moves[index] for index in bracelet), 1e-5)
+
+    def test_crossing_parts(self):
+        # A bar through the upper part of the body, crossing its surface (no shared vertices): it follows Upper.
+        # The normal test sees Upper only tangentially from the top of the bar inside the body and gives three
+        # vertices there to Lower; the smoothing spreads that over the bar (0.29 of the weight of the vertex that
+        # keeps most of it). The exact test has no such verdict.
+        body = self.body()
+        for visibility, least in (('NORMAL', 0.65), ('EXACT', 0.99)):
+            bar_part = capped_tube((0.0, 0.0, 3.3), 'X', 0.25, 2.4)
+            obj, rows = self.weighted("Crossing" + visibility, *self.join(body, bar_part), visibility=visibility)
+            bar = range(len(body[0]), len(rows))
+            self.assertGreater(min(rows[index].get("Upper", 0.0) for index in bar), least, visibility)
+            moves = self.bent_moves(obj)
+            self.assertGreater(min(moves[index] for index in bar), 0.5, visibility)
+
+    def test_non_manifold(self):
+        # The body open at both ends, with a fin on one of its edges (an edge with three faces) near the lower
+        # end: it follows Lower, as the skin around it does (the blend of the joint reaches z = 0.6).
+        vertices, faces = self.body(caps=False)
+        edge = (3 * 16, 3 * 16 + 1)  # an edge along the ring at z = 0.8
+        fin = len(vertices)
+        vertices += [(1.0, 0.0, 0.8), (1.0, 0.4, 0.8)]
+        faces.append((edge[0], edge[1], fin + 1, fin))
+        obj, rows = self.weighted("NonManifold", vertices, faces)
+        jumps = edge_jumps(obj.data, rows)
+        self.assertLess(jumps[-1], 0.35)
+        moves = self.bent_moves(obj)
+        low = [index for index, vertex in enumerate(vertices) if vertex[2] < 0.6]
+        self.assertLess(max(moves[index] for index in (fin, fin + 1)), 1e-5)
+        self.assertLess(max(moves[index] for index in low), 1e-5)
+        high = [index for index, vertex in enumerate(vertices) if vertex[2] > 3.0]
+        self.assertGreater(min(moves[index] for index in high), 0.5)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -156,14 +156,14 @@
  * PERFORMANCE
  *
  *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries); lvp_auto_weights():
- *   O(N B) with the normal test, O(N B log F) with the exact test, plus O(N) per smoothing step. Per frame, only the skin
- *   around the joints that bend is visited: a triangle that its region's bone carries rigidly
- *   enters the measurement in closed form (which relies on `positions` being the skinning of
- *   the rest, as lvp_correct() says, and is checked each frame on a sample). Per step, a few
- *   passes over those triangles and vertices, and a solve of the active regions' system within
- *   its profile (a chain of m regions O(m), regions coupled all with all m^3 / 3), in at most
- *   65,536 cells; the regions past what fits take the single-region step of eq. 5. Measured
- *   times: BENCHMARKS.md.
+ *   O(N B) with the normal test, O(N B log F) with the exact test, plus O(N) per smoothing step.
+ *   Per frame, only the skin around the joints that bend is visited: a triangle that its
+ *   region's bone carries rigidly enters the measurement in closed form (which relies on
+ *   `positions` being the skinning of the rest, as lvp_correct() says, and is checked each frame
+ *   on a sample). Per step, a few passes over those triangles and vertices, and a solve of the
+ *   active regions' system within its profile (a chain of m regions O(m), regions coupled all
+ *   with all m^3 / 3), in at most 65,536 cells; the regions past what fits take the
+ *   single-region step of eq. 5. Measured times: BENCHMARKS.md.
  */
 #ifndef LVP_H
 #define LVP_H

@@ -132,7 +132,7 @@ class TestGLTF(RoundTripTestCase):
     def setUp(self):
         super().setUp()
         if not real_cases.enable_gltf():
-            self.skipTest("this Blender cannot import glTF (no numpy, or no glTF add-on)")
+            self.skipTest("this Blender cannot import glTF here (real_cases.enable_gltf says why)")
 
     def test_gltf_round_trip(self):
         obj = self.round_trip(

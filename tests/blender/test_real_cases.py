@@ -130,7 +130,7 @@ class TestGLTFRoundTrip(unittest.TestCase):
     def setUp(self):
         reset()
         if not real_cases.enable_gltf():
-            self.skipTest("this Blender cannot import glTF (no numpy)")
+            self.skipTest("this Blender cannot import glTF here (real_cases.enable_gltf says why)")
 
     def test_split_at_seams_same_shape_same_weights(self):
         obj, rig = real_cases.hand()

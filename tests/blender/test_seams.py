@@ -21,7 +21,7 @@ class TestGLTFHand(unittest.TestCase):
     def setUpClass(cls):
         bpy.ops.wm.read_homefile(use_empty=True)
         if not real_cases.enable_gltf():
-            raise unittest.SkipTest("this Blender cannot import glTF (no numpy, or no glTF add-on)")
+            raise unittest.SkipTest("this Blender cannot import glTF here (real_cases.enable_gltf says why)")
         helpers.enable_addon()
         cls.hand, rig = real_cases.hand()
         cls.split = real_cases.gltf_round_trip(cls.hand, rig, helpers.fresh_directory("seams"))
@@ -63,7 +63,7 @@ class TestMeasureQuality(unittest.TestCase):
 
     def test_hand(self):
         if not real_cases.enable_gltf():
-            self.skipTest("this Blender cannot import glTF (no numpy, or no glTF add-on)")
+            self.skipTest("this Blender cannot import glTF here (real_cases.enable_gltf says why)")
         script = os.path.join(os.environ["LVP_REPO"], "tests", "blender", "measure_quality.py")
         completed = helpers.run_blender(["--factory-startup", "--python", script, "--", "--cases", "hand"],
                                         with_addon=False)

@@ -669,11 +669,10 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
 	return steps + lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
 }
 
-/* The group's change against the change its bones' scales give it, relative to its reference. */
-static double lvp__group_relative_change(const lvp_binding *binding, int32_t leader)
+/* A group's change against the change its bones' scales give it, relative to its reference. */
+static double lvp__relative_change(const lvp__group_state *group)
 {
-	lvp__group_state group = lvp__group_state_of(binding, leader);
-	return (group.change - group.reference_change) / group.reference;
+	return (group->change - group->reference_change) / group->reference;
 }
 
 /* The group (by leader) furthest from its volume, and how far (*r_relative). */
@@ -687,7 +686,7 @@ static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
 		lvp__group_state group = lvp__group_state_of(binding, r);
 		if (group.skipped || !(group.reference > 0.0))
 			continue;
-		double relative = lvp__group_relative_change(binding, r);
+		double relative = lvp__relative_change(&group);
 		if (fabs(relative) > largest) {
 			largest = fabs(relative);
 			worst = r;
@@ -840,7 +839,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	stats.volume_after = lvp__pass_volume(binding, binding->step.positions);
 	if (stats.worst_region >= 0) {
-		stats.worst_region_change_after = lvp__group_relative_change(binding, stats.worst_region);
+		lvp__group_state worst = lvp__group_state_of(binding, stats.worst_region);
+		stats.worst_region_change_after = lvp__relative_change(&worst);
 		stats.worst_region = lvp__caller_bone(binding, stats.worst_region); /* its bone, in local mode */
 	}
 	stats.skipped_regions = lvp__count_skipped(binding);

@@ -150,9 +150,9 @@ class Demo:
                            ("Armature + Volume Preservation", "volume %+.2f %%" % (100 * changes[1]))))
         self.colours("cylinder_maps", corrected, camera)
 
-    def giraffe(self):
-        self.new_scene(440, 440)
-        plain, corrected, dual = scenes.giraffe_pair()
+    def character_trio(self, name, plain, dual, corrected):
+        """Skins plain and corrected for rendering, hides dual (Preserve Volume: measured, not rendered), and
+        adds the three volume changes to the summary table as `name`; returns them."""
         dual.hide_render = True
         for obj in (plain, corrected):
             render.smooth(obj)
@@ -160,7 +160,13 @@ class Demo:
         triangles = scenes.triangles_of(plain)
         rest = scenes.rest_volume(plain)
         changes = [scenes.volume_change(obj, triangles, rest) for obj in (plain, dual, corrected)]
-        self.rows.append(("giraffe, neck bent down, a knee folded", changes[0], changes[1], changes[2]))
+        self.rows.append((name, changes[0], changes[1], changes[2]))
+        return changes
+
+    def giraffe(self):
+        self.new_scene(440, 440)
+        plain, corrected, dual = scenes.giraffe_pair()
+        changes = self.character_trio("giraffe, neck bent down, a knee folded", plain, dual, corrected)
         camera = render.add_camera((-6.0, 0.5, 0.06), (0.0, 0.5, 0.06), (0.0, 1.0, 0.0), 1.15)
         self.before_after("giraffe", (plain, corrected), camera,
                           (("Armature only", "volume %+.1f %%" % (100 * changes[0])),
@@ -196,14 +202,7 @@ class Demo:
         """Rigify's human posed hard, close up: the left leg (knee and hip) and the left elbow."""
         self.new_scene(420, 420)
         plain, dual, corrected, rig = scenes.rigify_trio()
-        dual.hide_render = True
-        for obj in (plain, corrected):
-            render.smooth(obj)
-            render.set_material(obj, render.skin_material())
-        triangles = scenes.triangles_of(plain)
-        rest = scenes.rest_volume(plain)
-        changes = [scenes.volume_change(obj, triangles, rest) for obj in (plain, dual, corrected)]
-        self.rows.append(("Rigify human, elbows, knees and hips bent hard", changes[0], changes[1], changes[2]))
+        changes = self.character_trio("Rigify human, elbows, knees and hips bent hard", plain, dual, corrected)
         bones = rig.pose.bones
         knee, hip = (rig.matrix_world @ bones[name].head for name in ("DEF-shin.L", "DEF-thigh.L"))
         elbow = rig.matrix_world @ bones["DEF-forearm.L"].head

@@ -116,6 +116,16 @@ def mode_of(settings):
     return 'GLOBAL' if settings.effect == 'GLOBAL' else 'LOCAL'
 
 
+def bulge_width_of(settings):
+    """The core's bulge width: none in the global mode, where the one region is the whole mesh."""
+    return 0.0 if mode_of(settings) == 'GLOBAL' else round(float(settings.bulge_width), 6)
+
+
+def shape_of(settings):
+    """The settings that the binding is built with and that only a new bind changes."""
+    return (mode_of(settings), bulge_width_of(settings))
+
+
 def map_arguments(obj, settings, core_skeleton, inputs=None):
     """Keyword arguments of Binding() / Binding.set_map() for the object's settings. inputs: a
     BindInputs just read (its painted map is used), else the painted map is read from obj.
@@ -222,11 +232,11 @@ def bind(obj, depsgraph=None, inputs=None):
     unweighted = sum(1 for vertex in range(len(offsets) - 1) if offsets[vertex] == offsets[vertex + 1])
     core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_object, depsgraph, inputs)
     rest_matrices, heads, tails = core_skeleton.rest_arrays()
-    mode = mode_of(settings)
+    shape = shape_of(settings)
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
-                               mode=mode, threads=thread_count(), bone_groups=core_skeleton.bone_groups(),
-                               **map_arguments(obj, settings, core_skeleton, inputs))
+                               mode=shape[0], threads=thread_count(), bone_groups=core_skeleton.bone_groups(),
+                               bulge_width=shape[1], **map_arguments(obj, settings, core_skeleton, inputs))
     except _lvp.Error as error:
         message = str(error)
         if error.code == "mesh_not_closed":
@@ -236,7 +246,7 @@ def bind(obj, depsgraph=None, inputs=None):
     except MemoryError:
         raise BindError("Not enough memory to bind %s" % obj.name) from None
     return BoundObject(binding, core_skeleton, len(mesh.vertices), mesh_data.topology_signature(mesh),
-                       settings.bind_id, map_key(settings), mode, digests=inputs.digests,
+                       settings.bind_id, map_key(settings), shape, digests=inputs.digests,
                        displacement_limit=DISPLACEMENT_LIMIT * mesh_data.bounding_box_diagonal(positions),
                        unweighted_vertices=unweighted, stray_vertex=stray_vertex(positions, heads, tails))
 
@@ -313,14 +323,14 @@ def ensure(obj, depsgraph=None):
 
 def refresh_map(obj, bound, depsgraph=None, inputs=None):
     """Applies changed map settings to the binding. Returns the BoundObject to use (a new one when the
-    effect switched between local and global), or None with the status set when it cannot be done.
+    effect switched between local and global or the bulge width changed), or None with the status set when it cannot be done.
     inputs: a BindInputs of obj just read (its painted map is used), or None."""
     settings = obj.lvp
     key = map_key(settings)
+    if shape_of(settings) != bound.shape:
+        return rebind(obj, bound, depsgraph, inputs=inputs)
     if key == bound.map_key:
         return bound
-    if mode_of(settings) != bound.mode:
-        return rebind(obj, bound, depsgraph, inputs=inputs)
     try:
         bound.binding.set_map(**map_arguments(obj, settings, bound.skeleton, inputs))
     except (BindError, ValueError) as error:

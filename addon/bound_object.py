@@ -14,7 +14,7 @@ from . import mesh_data
 class BoundObject:
     """An object's binding and everything needed to correct a frame with it."""
 
-    def __init__(self, binding, core_skeleton, vertex_count, topology, bind_id, map_key, mode, *, digests,
+    def __init__(self, binding, core_skeleton, vertex_count, topology, bind_id, map_key, shape, *, digests,
                  displacement_limit, unweighted_vertices, stray_vertex):
         # What the binding is made of (bindings.py).
         self.binding = binding
@@ -23,7 +23,8 @@ class BoundObject:
         self.topology = topology
         self.bind_id = bind_id
         self.map_key = map_key
-        self.mode = mode
+        self.shape = shape                  # bindings.shape_of: what only a new bind changes
+        self.mode = shape[0]
         self.digests = digests              # BindInputs.digests of what this binding was made of
         self.displacement_limit = displacement_limit  # see bindings.DISPLACEMENT_LIMIT
         self.unweighted_vertices = unweighted_vertices  # vertices without weight on a bound bone

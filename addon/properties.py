@@ -106,6 +106,14 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
                     "than flesh over it",
         default=1.0, min=0.0, soft_max=4.0,
     )
+    bulge_width: _setting(
+        FloatProperty,
+        name="Bulge Width",
+        description="How far the restored volume spreads around a bending joint, in multiples of the "
+                    "flesh's thickness there (its distance to the bone); 0 keeps it to the band where the "
+                    "weights blend, as the paper does",
+        default=1.0, min=0.0, max=8.0, soft_max=3.0,
+    )
     iterations: _setting(
         IntProperty,
         name="Iterations",

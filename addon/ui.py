@@ -77,6 +77,9 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         shaping.prop(settings, "alpha")
         if settings.effect != 'RUBBER':
             shaping.prop(settings, "beta")
+        bulge = column.column()
+        bulge.active = settings.effect != 'GLOBAL'
+        bulge.prop(settings, "bulge_width")
         column.prop(settings, "iterations")
         column.prop(settings, "tolerance")
         # A heading names the checkbox in the names' column, as Blender's own panels do.

@@ -43,6 +43,7 @@ void lvp_free(lvp_binding *binding)
 	lvp__weld_free(&binding->weld);
 	lvp__rig_free(&binding->rig);
 	lvp__mesh_free(&binding->mesh);
+	lvp__reach_free(&binding->reach);
 	lvp__map_free(&binding->map);
 	lvp__frame_map_free(&binding->frame_map);
 	lvp__borders_free(&binding->borders);
@@ -65,6 +66,10 @@ static lvp_result lvp__check_bind_options(const lvp_bind_options *options, lvp_d
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.thread_count", -1,
 		                 "options.thread_count is %d; it must be between 1 and %d.", (int)options->thread_count,
 		                 LVP_MAX_THREADS);
+	if (!(options->bulge_width >= 0.0f && options->bulge_width <= LVP_MAX_BULGE_WIDTH))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.bulge_width", -1,
+		                 "options.bulge_width is %g; use 0 (the weights' band) to %g times the flesh's thickness.",
+		                 (double)options->bulge_width, (double)LVP_MAX_BULGE_WIDTH);
 	return lvp_success;
 }
 
@@ -205,7 +210,8 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	}
 	if (!lvp__measure_alloc(binding) || !lvp__fold_alloc(binding))
 		return lvp__bind_out_of_memory(binding, r_diag);
-	if ((result = lvp__build_borders(binding, r_diag)) ||
+	if ((result = lvp__build_reach(binding, options->bulge_width, r_diag)) ||
+	    (result = lvp__build_borders(binding, r_diag)) ||
 	    (result = lvp__build_region_corners(binding, r_diag)) ||
 	    (result = lvp__build_region_system(
 	         binding, options->mode == LVP_MODE_LOCAL ? options->bone_groups : NULL, r_diag)) ||

@@ -158,6 +158,18 @@ typedef struct lvp__map {
 	bool soft_support;
 } lvp__map;
 
+/* The reach (reach.c): phi_ks, how region s's multiplier reaches vertex k, by rows like the
+ * weights'. Without a bulge width the rows are the skinning weights themselves (the arrays point
+ * into rig and mesh, own is false); with one, the weights diffused over the surface. */
+typedef struct lvp__reach {
+	int32_t *offsets;         /* vertex_count+1 */
+	int32_t *regions;         /* internal bones */
+	float *phi;
+	float *largest;           /* per vertex: its largest phi (w_k of the maps) */
+	bool own;                 /* the arrays are the reach's own (else the rig's and mesh's) */
+	int32_t steps;            /* diffusion steps taken at bind (0 without a bulge width) */
+} lvp__reach;
+
 /* This frame's map and the vertices' classes (frame_map.c). */
 typedef struct lvp__frame_map {
 	float *gamma;             /* per vertex: the bind map times the deformation weighting */
@@ -357,6 +369,7 @@ struct lvp_binding {
 	lvp__weld weld;
 	lvp__rig rig;
 	lvp__mesh mesh;
+	lvp__reach reach;
 	lvp__map map;
 	lvp__frame_map frame_map;
 	lvp__borders borders;
@@ -500,6 +513,11 @@ lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_dia
 
 /* map.c */
 lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
+
+/* reach.c */
+/* The reach for a bulge width (lvp.h, BULGE WIDTH; 0: the weights), after the segmentation. */
+lvp_result lvp__build_reach(lvp_binding *binding, float bulge_width, lvp_diagnostic *r_diag);
+void lvp__reach_free(lvp__reach *reach);
 lvp_result lvp__check_map_options(const lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag);
 
 /* borders.c */

@@ -71,7 +71,7 @@ static void lvp__undo_step(lvp_binding *binding)
 }
 
 /* The support of vertex k (binding.h, soft_support): the regions whose multipliers reach it,
- * each with its phi_kt. Entries with phi <= 0 are none. Read where it is used, vertex by vertex,
+ * each with its phi_kt (reach.c). Entries with phi <= 0 are none. Read where it is used, vertex by vertex,
  * so a step walks the dynamic vertices in order instead of each region's list of them. */
 typedef struct lvp__support {
 	const int32_t *regions;
@@ -85,10 +85,10 @@ static inline lvp__support lvp__vertex_support(const lvp_binding *binding, int32
 	static const float one = 1.0f;
 	lvp__support support;
 	if (binding->map.soft_support) {
-		int32_t begin = binding->rig.weight_offsets[k];
-		support.regions = binding->rig.weight_bones + begin;
-		support.phi = binding->rig.weight_values + begin;
-		support.count = binding->rig.weight_offsets[k + 1] - begin;
+		int32_t begin = binding->reach.offsets[k];
+		support.regions = binding->reach.regions + begin;
+		support.phi = binding->reach.phi + begin;
+		support.count = binding->reach.offsets[k + 1] - begin;
 	} else {
 		support.regions = binding->mode == LVP_MODE_LOCAL ? binding->mesh.vertex_region + k : &global_region;
 		support.phi = &one;

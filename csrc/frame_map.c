@@ -107,7 +107,8 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 	return spread < noise ? 0.0f : spread;
 }
 
-/* The skin classes of vertex k's bones (with weight), each with the sum of their weights:
+/* The skin classes of the bones that reach vertex k (reach.c: its weights' bones without a bulge
+ * width), each with the sum of their phi:
  * bones of one class move it alike, so a_k needs one displacement per class. Returns the
  * number of classes, or -1 when there are more than LVP__SPREAD_KEPT (then taken bone by
  * bone). */
@@ -115,11 +116,11 @@ static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_
                                    float r_weight[LVP__SPREAD_KEPT])
 {
 	int32_t count = 0;
-	for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
-		float w = binding->rig.weight_values[e];
+	for (int32_t e = binding->reach.offsets[k]; e < binding->reach.offsets[k + 1]; ++e) {
+		float w = binding->reach.phi[e];
 		if (!(w > 0.0f))
 			continue;
-		int32_t c = binding->frame_map.skin_class[binding->rig.weight_bones[e]], i = 0;
+		int32_t c = binding->frame_map.skin_class[binding->reach.regions[e]], i = 0;
 		while (i < count && r_class[i] != c)
 			++i;
 		if (i == count) {
@@ -133,7 +134,7 @@ static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_
 	return count;
 }
 
-/* a_k of vertex k, its bones in more than one class: one displacement per class. */
+/* a_k of vertex k: one displacement per class of the bones that reach it. */
 static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int32_t k)
 {
 	int32_t classes[LVP__SPREAD_KEPT];
@@ -141,9 +142,9 @@ static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int3
 	int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
 	if (class_count >= 0)
 		return lvp__spread(binding, p, classes, class_weight, class_count);
-	int32_t first = binding->rig.weight_offsets[k];
-	return lvp__spread(binding, p, binding->rig.weight_bones + first, binding->rig.weight_values + first,
-	                   binding->rig.weight_offsets[k + 1] - first);
+	int32_t first = binding->reach.offsets[k];
+	return lvp__spread(binding, p, binding->reach.regions + first, binding->reach.phi + first,
+	                   binding->reach.offsets[k + 1] - first);
 }
 
 /* This frame's map at vertex k of the given class (lvp__vertex_class). */
@@ -152,8 +153,10 @@ static inline float lvp__frame_gamma(const lvp_binding *binding, const float *re
 	float gamma = binding->map.gamma[k];
 	if (!binding->map.options.deformation_weighted)
 		return gamma;
-	if (!(gamma > 0.0f) || vertex_class >= 0)
+	if (!(gamma > 0.0f) || (vertex_class >= 0 && !binding->reach.own))
 		return 0.0f; /* all its bones in one class: it moves rigidly */
+	/* With a bulge width the regions that reach a vertex are more than its bones: a vertex that
+	 * moves rigidly is still moved by a joint that bends near it. */
 	return gamma * lvp__vertex_spread(binding, rest + 3 * k, k);
 }
 

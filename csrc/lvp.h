@@ -93,6 +93,23 @@
  *   A group's regions stay apart in separate parts (SEGMENTATION). Stats and warnings speak of
  *   the group by its first bone.
  *
+ * BULGE WIDTH (how far a region's correction spreads)
+ *
+ *   phi_ks above is the skinning weight, so a region's correction stays in the band where its
+ *   weights blend: a band narrower than the limb is thick (automatic weights often are) brings
+ *   the whole lost volume back in a ring a few edges wide, a ridge. lvp_bind_options.bulge_width
+ *   > 0 (local mode) takes phi from the weights diffused over the surface instead, for the
+ *   correction alone (the skinning is the caller's): each vertex's rows blend over about
+ *   bulge_width times the flesh's thickness there (its rest distance to the nearest of its bones),
+ *   by explicit steps along the edges, ceil((bulge_width thickness / its mean edge)^2 / 2) at the
+ *   vertex that needs the most, the others diffusing slower in proportion, at most 128 steps (a
+ *   dense mesh of thick flesh is then spread less than asked). w_k of the maps and the
+ *   deformation weighting a_k are taken from the diffused rows too, so a bulge can reach skin
+ *   that one bone carries rigidly, near a joint that bends. Entries under 1e-3 of their row's
+ *   largest are dropped. The volume comes back as exactly as without it, in a lower, wider,
+ *   smoother bulge; weight flows only along edges, so it never reaches a separate part. 1 fits a
+ *   limb (README measures it); a wider bulge also moves more skin each frame (PERFORMANCE).
+ *
  * SEGMENTATION (paper 5.2)
  *
  *   Region s is the set of vertices whose largest normalized weight is on bone s (ties go to
@@ -155,9 +172,11 @@
  *
  * PERFORMANCE
  *
- *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries); lvp_auto_weights():
- *   O(N B) with the normal test, O(N B log F) with the exact test, plus O(N) per smoothing step.
- *   Per frame, only the skin around the joints that bend is visited: a triangle that its
+ *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries), plus O(N) per step
+ *   of the bulge width's diffusion (at most 128); lvp_auto_weights(): O(N B) with the normal
+ *   test, O(N B log F) with the exact test, plus O(N) per smoothing step.
+ *   Per frame, only the skin around the joints that bend is visited (with a bulge width, the skin
+ *   its diffused rows reach): a triangle that its
  *   region's bone carries rigidly enters the measurement in closed form (which relies on
  *   `positions` being the skinning of the rest, as lvp_correct() says, and is checked each frame
  *   on a sample). Per step, a few passes over those triangles and vertices, and a solve of the
@@ -185,6 +204,7 @@ extern "C" {
 #define LVP_MAX_BONES (1 << 16)
 #define LVP_MAX_THREADS 64
 #define LVP_MAX_SMOOTHING_ITERATIONS 1000
+#define LVP_MAX_BULGE_WIDTH 8.0f
 
 typedef enum lvp_result {
 	lvp_success = 0,
@@ -368,6 +388,10 @@ typedef struct lvp_bind_options {
 	 * (GROUPS). bone_count values in [0, bone_count): bones with the same value form one group.
 	 * NULL (default): every bone alone. */
 	const int32_t *bone_groups;
+	/* Local mode: how far each region's correction spreads, in multiples of the flesh's thickness
+	 * (BULGE WIDTH). 0 (default): over the band where the weights blend (the paper); up to
+	 * LVP_MAX_BULGE_WIDTH. */
+	float bulge_width;
 } lvp_bind_options;
 
 lvp_bind_options lvp_bind_default_options(void);

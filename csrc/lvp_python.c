@@ -408,6 +408,7 @@ static const lvp_py__rename lvp_py__common_renames[] = {
     {"skeleton.tails", "tails"},
     {"triangle_count", "triangles"},
     {"options.thread_count", "threads"},
+    {"options.bulge_width", "bulge_width"},
     {"thread_count", "threads"},
     {"options.max_iterations", "iterations"},
     {"max_iterations", "iterations"},
@@ -920,16 +921,17 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	                           "weight_values",  "rest_matrices", "heads",            "tails",
 	                           "mode",           "map",       "alpha",               "beta",
 	                           "painted",        "region_bone_offsets", "region_bones", "threads",
-	                           "bone_groups",    NULL};
+	                           "bone_groups",    "bulge_width", NULL};
 	PyObject *rest_object, *triangles_object, *offsets_object, *bones_object, *values_object;
 	PyObject *matrices_object, *heads_object, *tails_object, *mode = NULL, *threads = NULL, *groups_object = NULL;
+	PyObject *bulge_width = NULL;
 	lvp_py__map_arguments map_arguments = {NULL, NULL, NULL, NULL, NULL, NULL};
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOOO:Binding", keywords, &rest_object,
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOOOO:Binding", keywords, &rest_object,
 	                                 &triangles_object, &offsets_object, &bones_object, &values_object,
 	                                 &matrices_object, &heads_object, &tails_object, &mode, &map_arguments.map,
 	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
 	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads,
-	                                 &groups_object))
+	                                 &groups_object, &bulge_width))
 		return NULL;
 	lvp_py__call call;
 	lvp_bind_options options = lvp_bind_default_options();
@@ -942,6 +944,7 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	if (lvp_py__begin_method(&call, type, lvp_py__bind_renames) != 0 ||
 	    lvp_py__parse_choice(&call, mode, "mode", lvp_py__mode_names, 2, &mode_index) != 0 ||
 	    lvp_py__parse_int(&call, threads, "threads", &options.thread_count) != 0 ||
+	    lvp_py__parse_float(&call, bulge_width, "bulge_width", &options.bulge_width) != 0 ||
 	    lvp_py__take_mesh(&call, &rest, &triangles, rest_object, triangles_object, "rest_positions", &vertex_count,
 	                      &triangle_count) != 0 ||
 	    lvp_py__take(&call, &offsets, offsets_object, "weight_offsets", LVP_PY__INT32, false, true) != 0 ||
@@ -1322,7 +1325,7 @@ static PyGetSetDef lvp_py__binding_getset[] = {
 static PyType_Slot lvp_py__binding_slots[] = {
     {Py_tp_doc, "Binding(rest_positions, triangles, weight_offsets, weight_bones, weight_values, rest_matrices, "
                 "heads, tails, *, mode='LOCAL', map='ORGANIC', alpha=1.0, beta=1.0, painted=None, "
-                "region_bone_offsets=None, region_bones=None, threads=1, bone_groups=None)\n"
+                "region_bone_offsets=None, region_bones=None, threads=1, bone_groups=None, bulge_width=0.0)\n"
                 "A mesh bound to its skeleton and weights at rest; corrects frames. One call at a time per object."},
     {Py_tp_new, lvp_py__binding_new},
     {Py_tp_dealloc, lvp_py__binding_dealloc},

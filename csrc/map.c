@@ -138,7 +138,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 			distance = lvp__vertex_distance(binding, k, bones, count);
 		}
 		binding->map.distance[k] = (float)distance;
-		double log_gamma = lvp__log_map(map, binding->mesh.max_weight[k], distance, lvp__point_vertex(binding, k));
+		double log_gamma = lvp__log_map(map, binding->reach.largest[k], distance, lvp__point_vertex(binding, k));
 		/* Unweighted vertices belong to no region in local mode: they never move. */
 		if (local && region < 0)
 			log_gamma = -INFINITY;

@@ -155,9 +155,9 @@ static bool lvp__build_groups(lvp_binding *binding, const int32_t *bone_groups)
 }
 
 /* The groups coupled with each group, both ways, between leaders (coupling_offsets, coupling): t
- * with a weight on a corner of s's triangles, or s with one on a corner of t's, for some regions s
- * and t of the two groups. Every bone of a vertex's weights counts, and its region, whatever the
- * map (lvp_set_map can change which of them reach it: correction.c, lvp__vertex_support). */
+ * reaching a corner of s's triangles (reach.c), or s one of t's, for some regions s and t of the
+ * two groups. Every region of a vertex's reach counts, and its own region, whatever the map
+ * (lvp_set_map can change which of them reach it: correction.c, lvp__vertex_support). */
 static bool lvp__build_coupling(lvp_binding *binding)
 {
 	int32_t s = binding->region_count;
@@ -168,15 +168,15 @@ static bool lvp__build_coupling(lvp_binding *binding)
 	bool ok = binding->system.coupling_offsets && seen && pairs;
 	for (int32_t r = 0; r < s && ok; ++r)
 		seen[r] = -1;
-	for (int32_t r = 0; r < s && ok && binding->rig.weight_offsets; ++r) {
+	for (int32_t r = 0; r < s && ok && binding->reach.offsets; ++r) {
 		seen[r] = r;
 		for (int32_t c = binding->mesh.region_corner_offsets[r]; c < binding->mesh.region_corner_offsets[r + 1] && ok;
 		     ++c) {
 			int32_t k = binding->mesh.region_corners[c];
-			/* its weights' bones, then its own region (a vertex without weight has one too) */
-			for (int32_t w = binding->rig.weight_offsets[k]; w <= binding->rig.weight_offsets[k + 1]; ++w) {
-				int32_t t = w < binding->rig.weight_offsets[k + 1] ? binding->rig.weight_bones[w]
-				                                                   : binding->mesh.vertex_region[k];
+			/* the regions that reach it, then its own region (a vertex without weight has one too) */
+			for (int32_t w = binding->reach.offsets[k]; w <= binding->reach.offsets[k + 1]; ++w) {
+				int32_t t = w < binding->reach.offsets[k + 1] ? binding->reach.regions[w]
+				                                              : binding->mesh.vertex_region[k];
 				if (t < 0 || t >= s || seen[t] == r)
 					continue;
 				seen[t] = r;

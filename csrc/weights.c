@@ -17,6 +17,7 @@
  * them continuous; see "smoothing over the surface" below.
  */
 #include "bvh.h"
+#include "diffusion.h"
 #include "lvp_internal.h"
 
 #include <stdint.h>
@@ -355,164 +356,14 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
  * from the thigh and the belly from the thighs, which loses volume at every bend. A high alpha keeps each
  * bone on its own flesh (close to the nearest visible bone), and the smoothing makes the borders between bones
  * continuous: each step replaces every row by the mean of its own and its edge neighbours' rows, kept to the
- * strongest LVP__SMOOTH_ROW bones and renormalized. Visibility decides the rows before the smoothing, not during
+ * strongest LVP__DIFFUSION_ROW bones and renormalized (diffusion.c). Visibility decides the rows before the smoothing, not during
  * it: the normal test flips across the crotch and the armpit, and a bone barred from the vertices it is hidden from
  * there would leave a hard seam (both thighs at weight 1 across one edge) exactly where the skin must blend.
- * Diffusion follows the mesh's edges only: separate pieces never share weight, and parts that touch or
- * intersect without sharing vertices do not blend. Each step widens a border by about one edge, so the width
- * of the blend is counted in edges, not in metres. */
-
-/* Bones per row while smoothing: room for the blends of a few bones around a joint. */
-#define LVP__SMOOTH_ROW 8
-
-typedef struct lvp__smoothing {
-	int32_t stride; /* entries per row */
-	int32_t *counts, *bones;
-	float *values;
-	int32_t *next_counts, *next_bones;
-	float *next_values;
-	int32_t *neighbour_offsets, *neighbours; /* the edge neighbours of each vertex, CSR */
-	double *accum;                           /* bone_count, 0 between vertices */
-	int32_t *touched;                        /* bone_count */
-	void *memory;
-} lvp__smoothing;
-
-static int lvp__compare_int32(const void *a, const void *b)
-{
-	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-	return (x > y) - (x < y);
-}
-
-static void lvp__free_smoothing(lvp__smoothing *smooth)
-{
-	free(smooth->memory);
-	free(smooth->neighbours);
-	smooth->memory = NULL;
-	smooth->neighbours = NULL;
-}
-
-/* The edge neighbours of every vertex, each listed once (degenerate triangles' repeated corners left out). */
-static bool lvp__build_neighbours(lvp__smoothing *smooth, const int32_t *triangles, int32_t vertex_count,
-                                  int32_t triangle_count)
-{
-	int32_t *offsets = smooth->neighbour_offsets;
-	memset(offsets, 0, sizeof(int32_t) * ((size_t)vertex_count + 1));
-	for (int64_t t = 0; t < triangle_count; ++t)
-		for (int c = 0; c < 3; ++c)
-			offsets[triangles[3 * t + c] + 1] += 2;
-	for (int32_t k = 0; k < vertex_count; ++k)
-		offsets[k + 1] += offsets[k];
-	int32_t *list = malloc(sizeof(int32_t) * ((size_t)offsets[vertex_count] + 1));
-	if (!list)
-		return false;
-	int32_t *cursor = smooth->next_counts; /* free until the first step */
-	memcpy(cursor, offsets, sizeof(int32_t) * (size_t)vertex_count);
-	for (int64_t t = 0; t < triangle_count; ++t) {
-		const int32_t *corner = triangles + 3 * t;
-		for (int c = 0; c < 3; ++c) {
-			int32_t a = corner[c], b = corner[(c + 1) % 3], o = corner[(c + 2) % 3];
-			list[cursor[a]++] = b;
-			list[cursor[a]++] = o;
-		}
-	}
-	/* Sort and compact each list in place; the offsets shrink to the distinct neighbours. */
-	int32_t written = 0;
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		int32_t begin = offsets[k], end = offsets[k + 1];
-		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
-		offsets[k] = written;
-		for (int32_t j = begin; j < end; ++j)
-			if (list[j] != k && (written == offsets[k] || list[written - 1] != list[j]))
-				list[written++] = list[j];
-	}
-	offsets[vertex_count] = written;
-	smooth->neighbours = list;
-	return true;
-}
-
-/* Inserts (bone, w) into the row of at most `room` entries sorted by decreasing weight, ties to the lower
- * bone; returns the new length. */
-static int32_t lvp__insert_sorted(int32_t *bones, double *weights, int32_t length, int32_t room, int32_t bone,
-                                  double w)
-{
-	if (length == room &&
-	    !(w > weights[length - 1] || (w == weights[length - 1] && bone < bones[length - 1])))
-		return length;
-	int32_t at = length < room ? length++ : length - 1;
-	while (at > 0 && (weights[at - 1] < w || (weights[at - 1] == w && bones[at - 1] > bone))) {
-		bones[at] = bones[at - 1];
-		weights[at] = weights[at - 1];
-		--at;
-	}
-	bones[at] = bone;
-	weights[at] = w;
-	return length;
-}
-
-/* One step of the diffusion, from the current rows into the next ones, then swapped. */
-static void lvp__smoothing_step(lvp__smoothing *smooth, int32_t vertex_count)
-{
-	int32_t stride = smooth->stride;
-	int32_t row_bones[LVP__SMOOTH_ROW];
-	double row_weights[LVP__SMOOTH_ROW];
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		int32_t begin = smooth->neighbour_offsets[k], end = smooth->neighbour_offsets[k + 1];
-		const int32_t *own = smooth->bones + (int64_t)k * stride;
-		int32_t own_count = smooth->counts[k], touched = 0;
-		/* Most of the skin is one bone's alone, and so are its neighbours: the average is the row itself. */
-		bool alone = own_count == 1;
-		for (int32_t e = begin; e < end && alone; ++e) {
-			int32_t u = smooth->neighbours[e];
-			alone = smooth->counts[u] == 1 && smooth->bones[(int64_t)u * stride] == own[0];
-		}
-		if (alone) {
-			smooth->next_bones[(int64_t)k * stride] = own[0];
-			smooth->next_values[(int64_t)k * stride] = 1.0f;
-			smooth->next_counts[k] = 1;
-			continue;
-		}
-		double share = 1.0 / (double)(end - begin + 1), self = share;
-		for (int32_t j = 0; j < own_count; ++j) {
-			smooth->accum[own[j]] += self * smooth->values[(int64_t)k * stride + j];
-			smooth->touched[touched++] = own[j];
-		}
-		for (int32_t e = begin; e < end; ++e) {
-			int32_t u = smooth->neighbours[e];
-			for (int32_t j = 0; j < smooth->counts[u]; ++j) {
-				int32_t bone = smooth->bones[(int64_t)u * stride + j];
-				float value = smooth->values[(int64_t)u * stride + j];
-				if (smooth->accum[bone] == 0.0)
-					smooth->touched[touched++] = bone;
-				smooth->accum[bone] += share * (double)value;
-			}
-		}
-		int32_t length = 0;
-		double sum = 0.0;
-		for (int32_t j = 0; j < touched; ++j) {
-			int32_t bone = smooth->touched[j];
-			if (smooth->accum[bone] > 0.0)
-				length = lvp__insert_sorted(row_bones, row_weights, length, stride, bone, smooth->accum[bone]);
-			smooth->accum[bone] = 0.0;
-		}
-		for (int32_t j = 0; j < length; ++j)
-			sum += row_weights[j];
-		for (int32_t j = 0; j < length; ++j) {
-			smooth->next_bones[(int64_t)k * stride + j] = row_bones[j];
-			smooth->next_values[(int64_t)k * stride + j] = (float)(row_weights[j] / sum);
-		}
-		smooth->next_counts[k] = length;
-	}
-	int32_t *swap_ints = smooth->counts;
-	smooth->counts = smooth->next_counts, smooth->next_counts = swap_ints;
-	swap_ints = smooth->bones;
-	smooth->bones = smooth->next_bones, smooth->next_bones = swap_ints;
-	float *swap_floats = smooth->values;
-	smooth->values = smooth->next_values, smooth->next_values = swap_floats;
-}
+ * Each step widens a border by about one edge, so the width of the blend is counted in edges, not in metres. */
 
 /* The smoothed row of vertex k pruned as the options say (the strongest max_influences of weight at least
  * min_weight of the row's sum, the strongest alone when none is), renormalized; returns its length. */
-static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__smoothing *smooth,
+static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__diffusion *smooth,
                                  const lvp__weights_context *ctx, int32_t k)
 {
 	const int32_t *bones = smooth->bones + (int64_t)k * smooth->stride;
@@ -533,55 +384,17 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__s
 	return kept;
 }
 
-/* Steps for a blend about `length` wide: explicit diffusion spreads a border over about sqrt(2 steps) edges
- * (each step moves weight by about an edge, either way), so a mesh twice as dense needs four times the steps
- * for the same width. */
-static int32_t lvp__steps_for_length(const lvp__smoothing *smooth, const float *positions, int32_t vertex_count,
-                                     double length)
-{
-	double sum = 0.0;
-	int64_t count = 0;
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		lvp__vec3 p = lvp__load(positions + 3 * (int64_t)k);
-		for (int32_t e = smooth->neighbour_offsets[k]; e < smooth->neighbour_offsets[k + 1]; ++e) {
-			lvp__vec3 d = lvp__sub(lvp__load(positions + 3 * (int64_t)smooth->neighbours[e]), p);
-			sum += sqrt(lvp__dot(d, d));
-			++count;
-		}
-	}
-	if (count == 0 || !(sum > 0.0))
-		return 0; /* no edge of any length: nothing to diffuse over */
-	double ratio = length / (sum / (double)count), steps = ceil(0.5 * ratio * ratio);
-	return steps < LVP_MAX_SMOOTHING_ITERATIONS ? (int32_t)steps : LVP_MAX_SMOOTHING_ITERATIONS;
-}
-
 /* Fills the smoothing's rows with the 5.1 weights of ctx (kept to stride bones) and diffuses them. Returns
  * false when memory runs out. */
-static bool lvp__smooth_weights(lvp__smoothing *smooth, lvp__weights_context *ctx, const int32_t *triangles,
+static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ctx, const int32_t *triangles,
                                 int32_t vertex_count, int32_t triangle_count, int32_t iterations, double length)
 {
-	size_t n = (size_t)vertex_count, b = (size_t)ctx->bone_count;
-	int32_t stride = ctx->bone_count < LVP__SMOOTH_ROW ? ctx->bone_count : LVP__SMOOTH_ROW;
-	size_t cells = n * (size_t)stride;
-	size_t bytes = sizeof(double) * b + sizeof(int32_t) * (b + 3 * n + 1) + 2 * (sizeof(int32_t) + sizeof(float)) * cells;
-	unsigned char *memory = calloc(1, bytes);
-	if (!memory)
-		return false;
-	smooth->memory = memory;
-	smooth->stride = stride;
-	smooth->accum = (double *)memory;
-	smooth->touched = (int32_t *)(smooth->accum + b);
-	smooth->counts = smooth->touched + b;
-	smooth->next_counts = smooth->counts + n;
-	smooth->neighbour_offsets = smooth->next_counts + n;
-	smooth->bones = smooth->neighbour_offsets + n + 1;
-	smooth->next_bones = smooth->bones + cells;
-	smooth->values = (float *)(smooth->next_bones + cells);
-	smooth->next_values = smooth->values + cells;
-	if (!lvp__build_neighbours(smooth, triangles, vertex_count, triangle_count))
+	int32_t stride = ctx->bone_count < LVP__DIFFUSION_ROW ? ctx->bone_count : LVP__DIFFUSION_ROW;
+	if (!lvp__diffusion_init(smooth, triangles, vertex_count, triangle_count, ctx->bone_count, stride))
 		return false;
 	if (length > 0.0)
-		iterations = lvp__steps_for_length(smooth, ctx->positions, vertex_count, length);
+		iterations = lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions, vertex_count),
+		                                  LVP_MAX_SMOOTHING_ITERATIONS);
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
@@ -589,7 +402,7 @@ static bool lvp__smooth_weights(lvp__smoothing *smooth, lvp__weights_context *ct
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
 	for (int32_t step = 0; step < iterations; ++step)
-		lvp__smoothing_step(smooth, vertex_count);
+		lvp__diffusion_step(smooth, vertex_count, NULL);
 	return true;
 }
 
@@ -699,11 +512,11 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .visible = visible,
 	    .blockers = blockers,
 	};
-	lvp__smoothing smooth = {0};
+	lvp__diffusion smooth = {0};
 	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f;
 	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count,
 	                                     options->smoothing_iterations, (double)options->smoothing_length)) {
-		lvp__free_smoothing(&smooth);
+		lvp__diffusion_free(&smooth);
 		lvp__bvh_free(&bvh);
 		free(memory);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
@@ -727,7 +540,7 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 		}
 		total += length; /* past the limit, rows are still counted, to report the capacity needed */
 	}
-	lvp__free_smoothing(&smooth);
+	lvp__diffusion_free(&smooth);
 	lvp__bvh_free(&bvh);
 	if (total > limit) {
 		free(memory);

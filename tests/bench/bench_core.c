@@ -43,6 +43,7 @@ typedef struct bench_case {
 	const char *pose;   /* what is bent */
 	float *rotations;   /* bone_count*4 */
 	float stretch;      /* every other bone scaled by it about its head (1: none): squash and stretch */
+	float bulge_width;  /* lvp_bind_options.bulge_width (0, the core's default: none; the add-on's is 1) */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -56,6 +57,7 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	lvp_skeleton skeleton = test_rig_skeleton(rig);
 	lvp_bind_options options = lvp_bind_default_options();
 	options.thread_count = threads;
+	options.bulge_width = c->bulge_width;
 	lvp_binding *binding = NULL;
 	lvp_diagnostic diag;
 	double start = now();
@@ -204,10 +206,15 @@ int main(void)
 			c.pose = all ? "every joint" : "one joint";
 			c.rotations = chain_pose(c.rig.bone_count, all, 40.0);
 			c.stretch = 1.0f;
+			c.bulge_width = 0.0f;
 			run_case(&c, cores);
 			if (i == 1 && all) { /* the cost of bones scaled against each other (lvp.h, ALGORITHM 5) */
 				c.pose = "every joint, every other bone x1.2";
 				c.stretch = 1.2f;
+				run_case(&c, cores);
+				c.pose = "every joint, bulge width 1"; /* the add-on's default (lvp.h, BULGE WIDTH) */
+				c.stretch = 1.0f;
+				c.bulge_width = 1.0f;
 				run_case(&c, cores);
 			}
 			free(c.rotations);
@@ -228,6 +235,7 @@ int main(void)
 		tail.pose = "every joint, 5 degrees";
 		tail.rotations = chain_pose(tail.rig.bone_count, 1, 5.0);
 		tail.stretch = 1.0f;
+		tail.bulge_width = 0.0f;
 		run_case(&tail, cores);
 		free(tail.rotations);
 		test_rig_free(&tail.rig);
@@ -246,7 +254,13 @@ int main(void)
 		c.pose = "neck, 2 legs";
 		c.rotations = giraffe_pose(&c.rig);
 		c.stretch = 1.0f;
+		c.bulge_width = 0.0f;
 		run_case(&c, cores);
+		if (i == 1) {
+			c.pose = "neck, 2 legs, bulge width 1";
+			c.bulge_width = 1.0f;
+			run_case(&c, cores);
+		}
 		free(c.rotations);
 		if (levels[i])
 			test_rig_free(&c.rig);
@@ -260,6 +274,7 @@ int main(void)
 	split.pose = "neck, 2 legs";
 	split.rotations = giraffe_pose(&split.rig);
 	split.stretch = 1.0f;
+	split.bulge_width = 0.0f;
 	run_case(&split, cores);
 	free(split.rotations);
 	free(original);

@@ -40,6 +40,7 @@ def arguments():
     parser.add_argument("--cases", default="body,hand", help="comma-separated: body, hand")
     parser.add_argument("--no-gltf", action="store_true", help="leave out the glTF round-tripped versions")
     parser.add_argument("--render", metavar="DIR", help="render a close-up per case at its hardest pose into DIR")
+    parser.add_argument("--bulge-width", type=float, help="the objects' Bulge Width (default: the add-on's)")
     return parser.parse_args(argv)
 
 
@@ -191,6 +192,14 @@ def render_close_up(addon, directory, name, obj, target, view_from, size):
     return render.side_by_side(os.path.join(directory, name + ".png"), paths, outline_first=True, remove_parts=False)
 
 
+def add_volume_preservation(options, objects):
+    helpers.add_volume_preservation(*(obj for _title, obj in objects))
+    for _title, obj in objects:
+        if options.bulge_width is not None:
+            obj.lvp.bulge_width = options.bulge_width
+        print("%s: Bulge Width %g" % (obj.name, obj.lvp.bulge_width))
+
+
 def main():
     options = arguments()
     addon = helpers.enable_addon()
@@ -201,7 +210,7 @@ def main():
     if "body" in cases:
         helpers.reset_scene()
         objects, rig = build_body(not options.no_gltf)
-        helpers.add_volume_preservation(*(obj for _title, obj in objects))
+        add_volume_preservation(options, objects)
         for title, obj in objects:
             measure_case(addon, title, obj, body_poses(rig))
         if options.render:
@@ -217,7 +226,7 @@ def main():
     if "hand" in cases:
         helpers.reset_scene()
         objects, rig = build_hand(not options.no_gltf)
-        helpers.add_volume_preservation(*(obj for _title, obj in objects))
+        add_volume_preservation(options, objects)
         for title, obj in objects:
             measure_case(addon, title, obj, hand_poses())
             measure_animation(obj, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))

@@ -133,6 +133,51 @@ class TestRigifyArm(helpers.AddonTestCase):
         self.assertLessEqual(vp["creases"], 10, vp)
         self.assertLess(vp["roughness"], 0.5 * vp["largest_offset"], vp)
 
+    def bulge_along_the_arm(self):
+        """(length along the arm over which the skin moved: four standard deviations of the offsets'
+        lengths over the rings, the largest offset), in rest units."""
+        offsets = helpers.offsets_of(self.obj)
+        positions = helpers.mesh_positions(self.obj.data)
+        ring_at = [Vector(positions[3 * AROUND * ring:3 * AROUND * ring + 3]) for ring in range(RINGS)]
+        along = [0.0]
+        for ring in range(1, RINGS):
+            along.append(along[-1] + (ring_at[ring] - ring_at[ring - 1]).length)
+        lengths = [Vector(offsets[3 * k:3 * k + 3]).length for k in range(RINGS * AROUND)]
+        moved = [sum(lengths[AROUND * ring:AROUND * (ring + 1)]) for ring in range(RINGS)]
+        total = sum(moved)
+        mean = sum(m * a for m, a in zip(moved, along)) / total
+        deviation = math.sqrt(max(sum(m * (a - mean) ** 2 for m, a in zip(moved, along)) / total, 0.0))
+        return 4.0 * deviation, max(lengths)
+
+    def test_the_bulge_spreads_over_the_flesh(self):
+        # Heat weights blend over a band narrower than the arm is thick. With the default Bulge Width the
+        # elbow's bulge spreads wider along the arm, lower and smoother than over the band alone (Bulge
+        # Width 0), with the same volume back and no more creases or crossings.
+        mesh = quality.WeldedMesh(helpers.mesh_positions(self.obj.data), helpers.mesh_triangles(self.obj.data))
+        self.assertEqual(self.obj.lvp.bulge_width, 1.0)
+        self.bend_elbow(90.0)
+        plain = helpers.uncorrected_positions(self.obj)
+        measured = {}
+        for width in (0.0, 1.0):
+            self.obj.lvp.bulge_width = width
+            bpy.context.view_layer.update()
+            self.assertStatusContains(self.obj, "Correcting")
+            vp = quality.measure_pose(mesh, plain, {"vp": helpers.evaluated_positions(self.obj)})
+            extent, largest = self.bulge_along_the_arm()
+            measured[width] = dict(vp["vp"], extent=extent, largest=largest, plain_crossings=vp["plain"]["crossings"])
+            print("\n    Rigify arm at 90 degrees, Bulge Width %g: moved over %.3f, largest offset %.4f, roughness "
+                  "%.2f of it, %d creases, %d crossing pairs (plain %d), volume %+.4f %%"
+                  % (width, extent, largest, vp["vp"]["roughness"] / vp["vp"]["largest_offset"],
+                     vp["vp"]["creases"], vp["vp"]["crossings"], vp["plain"]["crossings"], 100 * vp["vp"]["volume"]))
+        band, flesh = measured[0.0], measured[1.0]
+        self.assertLess(abs(flesh["volume"]), 1e-4, flesh)
+        self.assertGreater(flesh["extent"], 1.15 * band["extent"], measured)
+        self.assertLess(flesh["largest"], 0.85 * band["largest"], measured)
+        self.assertLess(flesh["roughness"] / flesh["largest_offset"],
+                        0.85 * band["roughness"] / band["largest_offset"], measured)
+        self.assertLessEqual(flesh["creases"], band["creases"], measured)
+        self.assertLessEqual(flesh["crossings"], band["crossings"], measured)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -506,6 +506,21 @@ class TestBinding(unittest.TestCase):
         self.assertLess(abs(volume(out, tube.triangles) - rest_volume) / rest_volume, 1e-3)
         self.assertEqual(stats['active_regions'], 1)
 
+    def test_bulge_width(self):
+        # A wider bulge restores the same volume with a smaller largest offset.
+        tube = Tube()
+        angle = math.radians(80)
+        positions, matrices = tube.skinned(angle), tube.bone_matrices(angle)
+        rest_volume = volume(tube.positions, tube.triangles)
+        largest = []
+        for width in (0.0, 1.0):
+            out = zeros('f', 3 * tube.vertex_count)
+            offsets = zeros('f', 3 * tube.vertex_count)
+            tube.binding(bulge_width=width).correct(positions, matrices, out_positions=out, out_offsets=offsets)
+            self.assertLess(abs(volume(out, tube.triangles) - rest_volume) / rest_volume, 1e-3)
+            largest.append(max(math.dist(offsets[3 * k:3 * k + 3], (0, 0, 0)) for k in range(tube.vertex_count)))
+        self.assertLess(largest[1], largest[0])
+
     def test_close(self):
         tube = Tube()
         binding = tube.binding()
@@ -791,6 +806,8 @@ class TestErrors(unittest.TestCase):
         # A group is named by a bone index, one per bone.
         self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0, 2])))
         self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0])))
+        for bad in (-1.0, 9.0, math.nan, 'wide'):
+            self.assertValueErrorNames('bulge_width', _lvp.Binding, **arguments, bulge_width=bad)
         # A character needs its weights and bones; only a prop in GLOBAL mode goes without.
         no_weights = dict(arguments, weight_offsets=None, weight_bones=None, weight_values=None)
         self.assertValueErrorNames('weight_offsets', _lvp.Binding, **no_weights)

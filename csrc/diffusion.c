@@ -1,0 +1,197 @@
+/*
+ * diffusion.c - rows of bone weights diffused over a mesh's edges (diffusion.h): explicit steps of
+ * the mean of a row and its edge neighbours' rows, kept to the strongest few bones. Weight flows
+ * only along edges: separate pieces, and parts that touch or cross without sharing vertices, never
+ * share weight. Most of a skin is one bone's alone, and so are its neighbours: those rows are
+ * copied, so a step costs what the blends cost.
+ */
+#include "diffusion.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static int lvp__compare_int32(const void *a, const void *b)
+{
+	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+	return (x > y) - (x < y);
+}
+
+/* The edge neighbours of every vertex, each listed once (degenerate triangles' repeated corners left out). */
+static bool lvp__build_neighbours(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
+                                  int32_t triangle_count)
+{
+	int32_t *offsets = diffusion->neighbour_offsets;
+	memset(offsets, 0, sizeof(int32_t) * ((size_t)vertex_count + 1));
+	for (int64_t t = 0; t < triangle_count; ++t)
+		for (int c = 0; c < 3; ++c)
+			offsets[triangles[3 * t + c] + 1] += 2;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		offsets[k + 1] += offsets[k];
+	int32_t *list = malloc(sizeof(int32_t) * ((size_t)offsets[vertex_count] + 1));
+	if (!list)
+		return false;
+	int32_t *cursor = diffusion->next_counts; /* free until the first step */
+	memcpy(cursor, offsets, sizeof(int32_t) * (size_t)vertex_count);
+	for (int64_t t = 0; t < triangle_count; ++t) {
+		const int32_t *corner = triangles + 3 * t;
+		for (int c = 0; c < 3; ++c) {
+			int32_t a = corner[c], b = corner[(c + 1) % 3], o = corner[(c + 2) % 3];
+			list[cursor[a]++] = b;
+			list[cursor[a]++] = o;
+		}
+	}
+	/* Sort and compact each list in place; the offsets shrink to the distinct neighbours. */
+	int32_t written = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t begin = offsets[k], end = offsets[k + 1];
+		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
+		offsets[k] = written;
+		for (int32_t j = begin; j < end; ++j)
+			if (list[j] != k && (written == offsets[k] || list[written - 1] != list[j]))
+				list[written++] = list[j];
+	}
+	offsets[vertex_count] = written;
+	diffusion->neighbours = list;
+	return true;
+}
+
+bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
+                         int32_t triangle_count, int32_t bone_count, int32_t stride)
+{
+	memset(diffusion, 0, sizeof(*diffusion));
+	size_t n = (size_t)vertex_count, b = (size_t)bone_count, cells = n * (size_t)stride;
+	size_t bytes = sizeof(double) * b + sizeof(int32_t) * (b + 3 * n + 1) + 2 * (sizeof(int32_t) + sizeof(float)) * cells;
+	unsigned char *memory = calloc(1, bytes);
+	if (!memory)
+		return false;
+	diffusion->memory = memory;
+	diffusion->stride = stride;
+	diffusion->accum = (double *)memory;
+	diffusion->touched = (int32_t *)(diffusion->accum + b);
+	diffusion->counts = diffusion->touched + b;
+	diffusion->next_counts = diffusion->counts + n;
+	diffusion->neighbour_offsets = diffusion->next_counts + n;
+	diffusion->bones = diffusion->neighbour_offsets + n + 1;
+	diffusion->next_bones = diffusion->bones + cells;
+	diffusion->values = (float *)(diffusion->next_bones + cells);
+	diffusion->next_values = diffusion->values + cells;
+	return lvp__build_neighbours(diffusion, triangles, vertex_count, triangle_count);
+}
+
+void lvp__diffusion_free(lvp__diffusion *diffusion)
+{
+	free(diffusion->memory);
+	free(diffusion->neighbours);
+	diffusion->memory = NULL;
+	diffusion->neighbours = NULL;
+}
+
+/* Inserts (bone, w) into the row of at most `room` entries sorted by decreasing weight, ties to the lower
+ * bone; returns the new length. */
+static int32_t lvp__insert_sorted(int32_t *bones, double *weights, int32_t length, int32_t room, int32_t bone,
+                                  double w)
+{
+	if (length == room &&
+	    !(w > weights[length - 1] || (w == weights[length - 1] && bone < bones[length - 1])))
+		return length;
+	int32_t at = length < room ? length++ : length - 1;
+	while (at > 0 && (weights[at - 1] < w || (weights[at - 1] == w && bones[at - 1] > bone))) {
+		bones[at] = bones[at - 1];
+		weights[at] = weights[at - 1];
+		--at;
+	}
+	bones[at] = bone;
+	weights[at] = w;
+	return length;
+}
+
+/* Whether vertex k's row is one bone, and so is every neighbour's, the same one. */
+static bool lvp__alone(const lvp__diffusion *diffusion, int32_t k)
+{
+	int32_t stride = diffusion->stride, bone = diffusion->bones[(int64_t)k * stride];
+	if (diffusion->counts[k] != 1)
+		return false;
+	for (int32_t e = diffusion->neighbour_offsets[k]; e < diffusion->neighbour_offsets[k + 1]; ++e) {
+		int32_t u = diffusion->neighbours[e];
+		if (diffusion->counts[u] != 1 || diffusion->bones[(int64_t)u * stride] != bone)
+			return false;
+	}
+	return true;
+}
+
+void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates)
+{
+	int32_t stride = diffusion->stride;
+	int32_t *row_bones = diffusion->next_bones, *bones = diffusion->bones;
+	double row_weights[LVP__DIFFUSION_MAX_ROW];
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t begin = diffusion->neighbour_offsets[k], end = diffusion->neighbour_offsets[k + 1];
+		int64_t at = (int64_t)k * stride;
+		const int32_t *own = bones + at;
+		int32_t own_count = diffusion->counts[k], touched = 0;
+		double rate = rates ? (double)rates[k] : 1.0;
+		if (!(rate > 0.0) || lvp__alone(diffusion, k)) {
+			memcpy(row_bones + at, own, sizeof(int32_t) * (size_t)own_count);
+			memcpy(diffusion->next_values + at, diffusion->values + at, sizeof(float) * (size_t)own_count);
+			diffusion->next_counts[k] = own_count;
+			continue;
+		}
+		double share = rate / (double)(end - begin + 1), self = 1.0 - rate + share;
+		for (int32_t j = 0; j < own_count; ++j) {
+			diffusion->accum[own[j]] += self * diffusion->values[at + j];
+			diffusion->touched[touched++] = own[j];
+		}
+		for (int32_t e = begin; e < end; ++e) {
+			int32_t u = diffusion->neighbours[e];
+			for (int32_t j = 0; j < diffusion->counts[u]; ++j) {
+				int32_t bone = bones[(int64_t)u * stride + j];
+				float value = diffusion->values[(int64_t)u * stride + j];
+				if (diffusion->accum[bone] == 0.0)
+					diffusion->touched[touched++] = bone;
+				diffusion->accum[bone] += share * (double)value;
+			}
+		}
+		int32_t length = 0;
+		double sum = 0.0;
+		for (int32_t j = 0; j < touched; ++j) {
+			int32_t bone = diffusion->touched[j];
+			if (diffusion->accum[bone] > 0.0)
+				length = lvp__insert_sorted(row_bones + at, row_weights, length, stride, bone, diffusion->accum[bone]);
+			diffusion->accum[bone] = 0.0;
+		}
+		for (int32_t j = 0; j < length; ++j)
+			sum += row_weights[j];
+		for (int32_t j = 0; j < length; ++j)
+			diffusion->next_values[at + j] = (float)(row_weights[j] / sum);
+		diffusion->next_counts[k] = length;
+	}
+	int32_t *swap_ints = diffusion->counts;
+	diffusion->counts = diffusion->next_counts, diffusion->next_counts = swap_ints;
+	swap_ints = diffusion->bones;
+	diffusion->bones = diffusion->next_bones, diffusion->next_bones = swap_ints;
+	float *swap_floats = diffusion->values;
+	diffusion->values = diffusion->next_values, diffusion->next_values = swap_floats;
+}
+
+double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count)
+{
+	double sum = 0.0;
+	int64_t count = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		lvp__vec3 p = lvp__load(positions + 3 * (int64_t)k);
+		for (int32_t e = diffusion->neighbour_offsets[k]; e < diffusion->neighbour_offsets[k + 1]; ++e) {
+			lvp__vec3 d = lvp__sub(lvp__load(positions + 3 * (int64_t)diffusion->neighbours[e]), p);
+			sum += sqrt(lvp__dot(d, d));
+			++count;
+		}
+	}
+	return count > 0 ? sum / (double)count : 0.0;
+}
+
+int32_t lvp__diffusion_steps(double length, double edge, int32_t most)
+{
+	if (!(edge > 0.0) || !(length > 0.0))
+		return 0; /* no edge of any length: nothing to diffuse over */
+	double ratio = length / edge, steps = ceil(0.5 * ratio * ratio);
+	return steps < (double)most ? (int32_t)steps : most;
+}

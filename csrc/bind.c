@@ -210,6 +210,13 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	}
 	if (!lvp__measure_alloc(binding) || !lvp__fold_alloc(binding))
 		return lvp__bind_out_of_memory(binding, r_diag);
+	/* The workers also share the bind's diffusion (reach.c). */
+	if (lvp__pool_create(&binding->pool, options->thread_count) != lvp_success) {
+		lvp_free(binding);
+		return lvp__fail(r_diag, lvp_error_thread, "options.thread_count", -1,
+		                 "the %d worker threads could not be started; use fewer threads (or 1).",
+		                 (int)options->thread_count - 1);
+	}
 	if ((result = lvp__build_reach(binding, options->bulge_width, r_diag)) ||
 	    (result = lvp__build_borders(binding, r_diag)) ||
 	    (result = lvp__build_region_corners(binding, r_diag)) ||
@@ -219,12 +226,6 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;
-	}
-	if (lvp__pool_create(&binding->pool, options->thread_count) != lvp_success) {
-		lvp_free(binding);
-		return lvp__fail(r_diag, lvp_error_thread, "options.thread_count", -1,
-		                 "the %d worker threads could not be started; use fewer threads (or 1).",
-		                 (int)options->thread_count - 1);
 	}
 	lvp__reference_volumes(binding);
 	binding->rest_volume = lvp__volume_of(binding, binding->rest_positions);

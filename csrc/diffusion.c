@@ -6,6 +6,7 @@
  * copied, so a step costs what the blends cost.
  */
 #include "diffusion.h"
+#include "threads.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -59,16 +60,21 @@ bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, in
                          int32_t triangle_count, int32_t bone_count, int32_t stride)
 {
 	memset(diffusion, 0, sizeof(*diffusion));
-	size_t n = (size_t)vertex_count, b = (size_t)bone_count, cells = n * (size_t)stride;
-	size_t bytes = sizeof(double) * b + sizeof(int32_t) * (b + 3 * n + 1) + 2 * (sizeof(int32_t) + sizeof(float)) * cells;
+	int64_t chunks = LVP__DIFFUSION_CHUNKS;
+	diffusion->grain = (int32_t)(((int64_t)vertex_count + chunks - 1) / chunks);
+	diffusion->grain = diffusion->grain > 4096 ? diffusion->grain : 4096;
+	diffusion->bone_count = bone_count;
+	size_t n = (size_t)vertex_count, cells = n * (size_t)stride, scratch = (size_t)chunks * (size_t)bone_count;
+	size_t bytes = sizeof(double) * scratch + sizeof(int32_t) * (scratch + 3 * n + 1) +
+	               2 * (sizeof(int32_t) + sizeof(float)) * cells;
 	unsigned char *memory = calloc(1, bytes);
 	if (!memory)
 		return false;
 	diffusion->memory = memory;
 	diffusion->stride = stride;
 	diffusion->accum = (double *)memory;
-	diffusion->touched = (int32_t *)(diffusion->accum + b);
-	diffusion->counts = diffusion->touched + b;
+	diffusion->touched = (int32_t *)(diffusion->accum + scratch);
+	diffusion->counts = diffusion->touched + scratch;
 	diffusion->next_counts = diffusion->counts + n;
 	diffusion->neighbour_offsets = diffusion->next_counts + n;
 	diffusion->bones = diffusion->neighbour_offsets + n + 1;
@@ -119,52 +125,73 @@ static bool lvp__alone(const lvp__diffusion *diffusion, int32_t k)
 	return true;
 }
 
-void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates)
+/* The next row of vertex k (diffusion.h, lvp__diffusion_step), summed in `accum` (bone_count, zero
+ * before and after) with the bones met listed in `touched`, in the order first met. */
+static void lvp__diffuse_vertex(lvp__diffusion *diffusion, int32_t k, double rate, double *accum, int32_t *touched)
 {
 	int32_t stride = diffusion->stride;
-	int32_t *row_bones = diffusion->next_bones, *bones = diffusion->bones;
-	double row_weights[LVP__DIFFUSION_MAX_ROW];
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		int32_t begin = diffusion->neighbour_offsets[k], end = diffusion->neighbour_offsets[k + 1];
-		int64_t at = (int64_t)k * stride;
-		const int32_t *own = bones + at;
-		int32_t own_count = diffusion->counts[k], touched = 0;
-		double rate = rates ? (double)rates[k] : 1.0;
-		if (!(rate > 0.0) || lvp__alone(diffusion, k)) {
-			memcpy(row_bones + at, own, sizeof(int32_t) * (size_t)own_count);
-			memcpy(diffusion->next_values + at, diffusion->values + at, sizeof(float) * (size_t)own_count);
-			diffusion->next_counts[k] = own_count;
-			continue;
-		}
-		double share = rate / (double)(end - begin + 1), self = 1.0 - rate + share;
-		for (int32_t j = 0; j < own_count; ++j) {
-			diffusion->accum[own[j]] += self * diffusion->values[at + j];
-			diffusion->touched[touched++] = own[j];
-		}
-		for (int32_t e = begin; e < end; ++e) {
-			int32_t u = diffusion->neighbours[e];
-			for (int32_t j = 0; j < diffusion->counts[u]; ++j) {
-				int32_t bone = bones[(int64_t)u * stride + j];
-				float value = diffusion->values[(int64_t)u * stride + j];
-				if (diffusion->accum[bone] == 0.0)
-					diffusion->touched[touched++] = bone;
-				diffusion->accum[bone] += share * (double)value;
-			}
-		}
-		int32_t length = 0;
-		double sum = 0.0;
-		for (int32_t j = 0; j < touched; ++j) {
-			int32_t bone = diffusion->touched[j];
-			if (diffusion->accum[bone] > 0.0)
-				length = lvp__insert_sorted(row_bones + at, row_weights, length, stride, bone, diffusion->accum[bone]);
-			diffusion->accum[bone] = 0.0;
-		}
-		for (int32_t j = 0; j < length; ++j)
-			sum += row_weights[j];
-		for (int32_t j = 0; j < length; ++j)
-			diffusion->next_values[at + j] = (float)(row_weights[j] / sum);
-		diffusion->next_counts[k] = length;
+	int64_t at = (int64_t)k * stride;
+	int32_t own_count = diffusion->counts[k], touched_count = 0;
+	if (!(rate > 0.0) || lvp__alone(diffusion, k)) {
+		memcpy(diffusion->next_bones + at, diffusion->bones + at, sizeof(int32_t) * (size_t)own_count);
+		memcpy(diffusion->next_values + at, diffusion->values + at, sizeof(float) * (size_t)own_count);
+		diffusion->next_counts[k] = own_count;
+		return;
 	}
+	int32_t begin = diffusion->neighbour_offsets[k], end = diffusion->neighbour_offsets[k + 1];
+	double share = rate / (double)(end - begin + 1), self = 1.0 - rate + share;
+	for (int32_t j = 0; j < own_count; ++j) {
+		int32_t bone = diffusion->bones[at + j];
+		if (accum[bone] == 0.0)
+			touched[touched_count++] = bone;
+		accum[bone] += self * (double)diffusion->values[at + j];
+	}
+	for (int32_t e = begin; e < end; ++e) {
+		int32_t u = diffusion->neighbours[e];
+		int64_t row = (int64_t)u * stride;
+		for (int32_t j = 0; j < diffusion->counts[u]; ++j) {
+			int32_t bone = diffusion->bones[row + j];
+			if (accum[bone] == 0.0)
+				touched[touched_count++] = bone;
+			accum[bone] += share * (double)diffusion->values[row + j];
+		}
+	}
+	double row_weights[LVP__DIFFUSION_MAX_ROW], sum = 0.0;
+	int32_t length = 0;
+	for (int32_t i = 0; i < touched_count; ++i) {
+		int32_t bone = touched[i];
+		if (accum[bone] > 0.0)
+			length = lvp__insert_sorted(diffusion->next_bones + at, row_weights, length, stride, bone, accum[bone]);
+		accum[bone] = 0.0;
+	}
+	for (int32_t j = 0; j < length; ++j)
+		sum += row_weights[j];
+	for (int32_t j = 0; j < length; ++j)
+		diffusion->next_values[at + j] = (float)(row_weights[j] / sum);
+	diffusion->next_counts[k] = length;
+}
+
+typedef struct lvp__diffusion_loop {
+	lvp__diffusion *diffusion;
+	const float *rates;
+} lvp__diffusion_loop;
+
+/* A chunk of vertices, with the chunk's own scratch: chunks run on any thread, each on its own. */
+static void lvp__diffusion_task(void *context, int32_t begin, int32_t end)
+{
+	const lvp__diffusion_loop *loop = context;
+	lvp__diffusion *diffusion = loop->diffusion;
+	int64_t chunk = begin / diffusion->grain;
+	double *accum = diffusion->accum + chunk * diffusion->bone_count;
+	int32_t *touched = diffusion->touched + chunk * diffusion->bone_count;
+	for (int32_t k = begin; k < end; ++k)
+		lvp__diffuse_vertex(diffusion, k, loop->rates ? (double)loop->rates[k] : 1.0, accum, touched);
+}
+
+void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates, lvp__pool *pool)
+{
+	lvp__diffusion_loop loop = {diffusion, rates};
+	lvp__parallel_for(pool, lvp__diffusion_task, &loop, vertex_count, diffusion->grain);
 	int32_t *swap_ints = diffusion->counts;
 	diffusion->counts = diffusion->next_counts, diffusion->next_counts = swap_ints;
 	swap_ints = diffusion->bones;

@@ -7,11 +7,14 @@
 #define LVP_DIFFUSION_H
 
 #include "lvp_internal.h"
+#include "threads.h"
 
 /* Bones per row while diffusing: room for the blends of a few bones around a joint; at most
  * LVP__DIFFUSION_MAX_ROW (rows with more keep their strongest). */
 #define LVP__DIFFUSION_ROW 8
 #define LVP__DIFFUSION_MAX_ROW 32
+/* A step's vertices are cut into at most this many chunks, each with scratch of its own. */
+#define LVP__DIFFUSION_CHUNKS 16
 
 /* Rows of `stride` entries, sorted by decreasing weight: counts[k] bones of vertex k at
  * bones + k * stride, their weights at values + k * stride (they sum to 1 after a step). */
@@ -22,22 +25,27 @@ typedef struct lvp__diffusion {
 	int32_t *next_counts, *next_bones;
 	float *next_values;
 	int32_t *neighbour_offsets, *neighbours; /* the edge neighbours of each vertex, CSR */
-	double *accum;                           /* bone_count, 0 between vertices */
-	int32_t *touched;                        /* bone_count */
+	/* Scratch of each chunk of `grain` vertices (at most LVP__DIFFUSION_CHUNKS): bone_count sums,
+	 * zero between vertices, and the bones a vertex met. */
+	double *accum;
+	int32_t *touched;
+	int32_t bone_count, grain;
 	void *memory;
 } lvp__diffusion;
 
-/* Allocates rows of `stride` entries for vertex_count vertices over bone_count bones and finds
- * the edge neighbours of the triangles (degenerate corners left out). The rows start empty: the
- * caller fills counts, bones and values. Returns false when memory runs out (free it anyway). */
+/* Allocates rows of `stride` entries (at most LVP__DIFFUSION_MAX_ROW) for vertex_count vertices
+ * over bone_count bones and finds the edge neighbours of the triangles (degenerate corners left
+ * out). The rows start empty: the caller fills counts, bones and values. Returns false when
+ * memory runs out (free it anyway). */
 bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
                          int32_t triangle_count, int32_t bone_count, int32_t stride);
 void lvp__diffusion_free(lvp__diffusion *diffusion);
 
 /* One step: every row becomes (1 - rate_k) of itself plus rate_k of the mean of its own and its
  * edge neighbours' rows, kept to the `stride` strongest bones and renormalized. rates NULL: 1
- * for every vertex. A row of one bone among neighbours of that bone alone is copied. */
-void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates);
+ * for every vertex. A row of one bone among neighbours of that bone alone is copied. Rows are
+ * independent within a step: split over the pool's threads (NULL: this thread), the same result. */
+void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates, lvp__pool *pool);
 
 /* The mean length of the edges (each counted from both ends); 0 when there is none. */
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);

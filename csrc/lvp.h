@@ -102,8 +102,9 @@
  *   correction alone (the skinning is the caller's): each vertex's rows blend over about
  *   bulge_width times the flesh's thickness there (its rest distance to the nearest of its bones),
  *   by explicit steps along the edges, ceil((bulge_width thickness / its mean edge)^2 / 2) at the
- *   vertex that needs the most, the others diffusing slower in proportion, at most 128 steps (a
- *   dense mesh of thick flesh is then spread less than asked). w_k of the maps and the
+ *   vertex that needs the most, the others diffusing slower in proportion, at most 32 steps
+ *   (about 8 edges: a dense mesh of thick flesh is spread less than asked). Rows keep their 8
+ *   strongest bones. w_k of the maps and the
  *   deformation weighting a_k are taken from the diffused rows too, so a bulge can reach skin
  *   that one bone carries rigidly, near a joint that bends. Entries under 1e-3 of their row's
  *   largest are dropped. The volume comes back as exactly as without it, in a lower, wider,
@@ -173,7 +174,7 @@
  * PERFORMANCE
  *
  *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries), plus O(N) per step
- *   of the bulge width's diffusion (at most 128); lvp_auto_weights(): O(N B) with the normal
+ *   of the bulge width's diffusion (at most 32); lvp_auto_weights(): O(N B) with the normal
  *   test, O(N B log F) with the exact test, plus O(N) per smoothing step.
  *   Per frame, only the skin around the joints that bend is visited (with a bulge width, the skin
  *   its diffused rows reach): a triangle that its

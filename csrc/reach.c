@@ -16,7 +16,7 @@
 
 /* Most diffusion steps at bind: the steps grow with (thickness / edge length)^2, so a dense mesh
  * of thick flesh is widened less than asked rather than bound slowly (lvp.h, PERFORMANCE). */
-#define LVP__REACH_MOST_STEPS 128
+#define LVP__REACH_MOST_STEPS 32
 /* Entries below this fraction of their row's largest are dropped: they would cost each frame
  * and move nothing. */
 #define LVP__REACH_FLOOR 1e-3f
@@ -139,14 +139,10 @@ lvp_result lvp__build_reach(lvp_binding *binding, float bulge_width, lvp_diagnos
 	if (!(bulge_width > 0.0f) || binding->mode != LVP_MODE_LOCAL || !binding->rig.weight_offsets ||
 	    binding->bone_count == 0)
 		return lvp_success;
-	int32_t n = binding->vertex_count, longest = 0;
-	for (int32_t k = 0; k < n; ++k) {
-		int32_t length = binding->rig.weight_offsets[k + 1] - binding->rig.weight_offsets[k];
-		longest = length > longest ? length : longest;
-	}
-	int32_t stride = longest > LVP__DIFFUSION_ROW ? longest : LVP__DIFFUSION_ROW;
-	stride = stride < LVP__DIFFUSION_MAX_ROW ? stride : LVP__DIFFUSION_MAX_ROW;
-	stride = stride < binding->bone_count ? stride : binding->bone_count;
+	/* Rows of the 8 strongest bones: room for the joints around a vertex, and the cost of a step
+	 * bounded (artist weights can name 15 bones, a third of them under 1 %). */
+	int32_t n = binding->vertex_count;
+	int32_t stride = binding->bone_count < LVP__DIFFUSION_ROW ? binding->bone_count : LVP__DIFFUSION_ROW;
 
 	lvp__diffusion diffusion = {0};
 	lvp__reach reach = {0};
@@ -162,7 +158,7 @@ lvp_result lvp__build_reach(lvp_binding *binding, float bulge_width, lvp_diagnos
 			lvp__load_row(&diffusion, binding, k);
 		reach.steps = lvp__reach_rates(rates, binding, &diffusion, (double)bulge_width);
 		for (int32_t step = 0; step < reach.steps; ++step)
-			lvp__diffusion_step(&diffusion, n, rates);
+			lvp__diffusion_step(&diffusion, n, rates, binding->pool);
 		ok = lvp__store_rows(&reach, &diffusion, n);
 	}
 	lvp__diffusion_free(&diffusion);

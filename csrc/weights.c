@@ -402,7 +402,7 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
 	for (int32_t step = 0; step < iterations; ++step)
-		lvp__diffusion_step(smooth, vertex_count, NULL);
+		lvp__diffusion_step(smooth, vertex_count, NULL, NULL);
 	return true;
 }
 

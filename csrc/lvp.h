@@ -106,7 +106,7 @@
  *   (about 8 edges: a dense mesh of thick flesh is spread less than asked). Rows keep their 8
  *   strongest bones. w_k of the maps and the
  *   deformation weighting a_k are taken from the diffused rows too, so a bulge can reach skin
- *   that one bone carries rigidly, near a joint that bends. Entries under 1e-3 of their row's
+ *   that one bone carries rigidly, near a joint that bends. Entries under 1 % of their row's
  *   largest are dropped. The volume comes back as exactly as without it, in a lower, wider,
  *   smoother bulge; weight flows only along edges, so it never reaches a separate part. 1 fits a
  *   limb (README measures it); a wider bulge also moves more skin each frame (PERFORMANCE).

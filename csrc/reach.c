@@ -19,7 +19,7 @@
 #define LVP__REACH_MOST_STEPS 32
 /* Entries below this fraction of their row's largest are dropped: they would cost each frame
  * and move nothing. */
-#define LVP__REACH_FLOOR 1e-3f
+#define LVP__REACH_FLOOR 1e-2f
 
 void lvp__reach_free(lvp__reach *reach)
 {

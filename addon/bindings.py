@@ -233,10 +233,14 @@ def bind(obj, depsgraph=None, inputs=None):
     core_skeleton, (offsets, bones, values) = _core_skeleton(obj, armature_object, depsgraph, inputs)
     rest_matrices, heads, tails = core_skeleton.rest_arrays()
     shape = shape_of(settings)
+    # The skin the Armature modifier's vertex group keeps still is a bone of its own to the core (the
+    # still bone): a bulge spread over the surface would reach it and move it. The panel greys the
+    # setting out there.
+    bulge_width = shape[1] if core_skeleton.still_bone is None else 0.0
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
                                mode=shape[0], threads=thread_count(), bone_groups=core_skeleton.bone_groups(),
-                               bulge_width=shape[1], **map_arguments(obj, settings, core_skeleton, inputs))
+                               bulge_width=bulge_width, **map_arguments(obj, settings, core_skeleton, inputs))
     except _lvp.Error as error:
         message = str(error)
         if error.code == "mesh_not_closed":

@@ -318,10 +318,11 @@ def _core_correction(obj, bound, rest_positions, fold_over):
         stats = bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=bound.offsets,
                                       rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
-                                      fold_over=fold_over)
+                                      fold_over=fold_over, displacement_limit=bound.displacement_limit)
     except (ValueError, MemoryError) as error:
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])
+    stats["given_up_region_name"] = bound.skeleton.region_name(stats["given_up_region"])
     stats["mode"] = bound.mode
     if stats["passed_through"]:
         reason = "no finite correction exists at this pose (a joint folded onto itself?)"
@@ -374,6 +375,19 @@ def _volume_shortfall(stats):
             % (100.0 * before, 100.0 * after, stats["worst_region_name"], 100.0 * region_after))
 
 
+def _given_up(stats):
+    """Which regions the core left as plain skinning at this pose, and why (lvp.h, DEGRADING), or None."""
+    count = stats["given_up_regions"]
+    if not count:
+        return None
+    others = " and %d more" % (count - 1) if count > 1 else ""
+    why = ("its correction moved the skin too far (a joint folded onto itself?)" if stats["given_up_diverged"]
+           else "its volume could not be brought back, and its steps held back the others' (a joint folded onto "
+                "itself?)")
+    return ("region %s%s left as plain skinning at this pose, the rest corrected: %s"
+            % (stats["given_up_region_name"], others, why))
+
+
 def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
     """(level, message) of a frame corrected with stats: "Correcting", and what holds it back."""
     warnings = []
@@ -397,8 +411,11 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
     if stats.get("fold_over_failed"):
         warnings.append("Fold-Over Prevention is left out at this pose, where it failed (%s)"
                         % stats["fold_over_failed"])
+    given_up = _given_up(stats)
+    if given_up is not None:
+        warnings.append(given_up)
     shortfall = _volume_shortfall(stats)
-    if shortfall is not None:
+    if shortfall is not None and given_up is None:
         warnings.append(shortfall)
     if stats.get("skipped_regions"):
         warnings.append("%d region(s) of a bone scaled to zero left as they are (nothing to restore)"

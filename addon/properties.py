@@ -111,7 +111,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         name="Bulge Width",
         description="How far the restored volume spreads around a bending joint, in multiples of the "
                     "flesh's thickness there (its distance to the bone); 0 keeps it to the band where the "
-                    "weights blend, as the paper does",
+                    "weights blend, as the paper does. Not used where the Armature modifier has a Vertex Group",
         default=1.0, min=0.0, max=8.0, soft_max=3.0,
     )
     iterations: _setting(

@@ -77,8 +77,10 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         shaping.prop(settings, "alpha")
         if settings.effect != 'RUBBER':
             shaping.prop(settings, "beta")
+        # Not used where the Armature modifier's vertex group keeps skin still (bindings.bind).
+        armature = node_group.find_armature_modifier(obj)
         bulge = column.column()
-        bulge.active = settings.effect != 'GLOBAL'
+        bulge.active = settings.effect != 'GLOBAL' and not (armature is not None and armature.vertex_group)
         bulge.prop(settings, "bulge_width")
         column.prop(settings, "iterations")
         column.prop(settings, "tolerance")

@@ -348,6 +348,9 @@ typedef struct lvp__step {
 	int32_t *active_index;     /* per region: its index in active, or -1 */
 	double *mu;                /* per region: its multiplier of the last step */
 	double *applied_mu;        /* per region: mu of the regions a step applies, else 0 (kept zero) */
+	double *moved_by;          /* per region: the sum of |mu| its steps applied this attempt */
+	uint8_t *given_up;         /* per region: its group is left out of this frame (lvp_correct) */
+	bool any_given_up;
 	bool spread_total;         /* steps also restore each part's volume (lvp__correct_volumes) */
 	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers */
 } lvp__step;

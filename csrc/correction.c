@@ -31,6 +31,10 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.tolerance", -1,
 		                 "options.tolerance is %g; it must be above 0 and below 1 (a relative volume).",
 		                 (double)options->tolerance);
+	if (!(options->displacement_limit >= 0.0f))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.displacement_limit", -1,
+		                 "options.displacement_limit is %g; use 0 (no limit) or a distance above 0 (infinity: none either).",
+		                 (double)options->displacement_limit);
 	if (options->rigid_space) {
 		lvp_result result = lvp__check_float_array(options->rigid_space, 16, "options.rigid_space", r_diag);
 		if (result)
@@ -122,7 +126,7 @@ static lvp__group_state lvp__group_state_of(const lvp_binding *binding, int32_t 
 		state.target += binding->step.target[r];
 		state.reference += binding->measure.reference_volume[r];
 		state.reference_change += binding->stretch.change[r];
-		state.skipped = state.skipped || binding->rig.region_skipped[r];
+		state.skipped = state.skipped || binding->rig.region_skipped[r] || binding->step.given_up[r];
 		state.movable = state.movable || binding->step.region_movable[r];
 	}
 	return state;
@@ -164,8 +168,12 @@ static void lvp__set_applied(lvp_binding *binding, const int32_t *leaders, int32
 	for (int32_t j = 0; j < count; ++j) {
 		int32_t first, last;
 		lvp__group_range(binding, leaders[j], &first, &last);
-		for (int32_t g = first; g < last; ++g)
-			binding->step.applied_mu[binding->system.group_regions[g]] = on ? binding->step.mu[leaders[j]] : 0.0;
+		for (int32_t g = first; g < last; ++g) {
+			int32_t r = binding->system.group_regions[g];
+			binding->step.applied_mu[r] = on ? binding->step.mu[leaders[j]] : 0.0;
+			if (on)
+				binding->step.moved_by[r] += fabs(binding->step.mu[leaders[j]]);
+		}
 	}
 }
 
@@ -656,7 +664,10 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
                                     const float *rest_positions, const lvp__region_sums *totals,
                                     int32_t *r_first_active)
 {
-	bool failed, whole_mesh = binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding);
+	/* With a group given up, the whole mesh is not restored: its loss would be pushed into the
+	 * groups still corrected. */
+	bool failed, whole_mesh = binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding) &&
+	                          !binding->step.any_given_up;
 	binding->step.spread_total = whole_mesh;
 	int32_t steps = lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations,
 	                                       r_first_active, &failed);
@@ -739,6 +750,128 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 	return sqrt(largest);
 }
 
+/* One attempt at the frame's correction, from the input positions: the volume steps, then
+ * fold-over when asked. Fills the statistics of the steps (iterations, active regions, folded
+ * vertices), and on the first attempt the volume and the worst group before correction. Groups given up
+ * (step.given_up) are left out. */
+static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *options, int32_t attempt,
+                                 const float *positions, const float *rest_positions,
+                                 const lvp__region_sums *totals, lvp_frame_stats *stats)
+{
+	int32_t n = binding->vertex_count;
+	memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
+	memset(binding->step.moved_by, 0, sizeof(double) * (size_t)binding->region_count);
+	memset(binding->step.region_touched, 0, (size_t)binding->region_count);
+	if (attempt > 0)
+		lvp__build_frame_map(binding, rest_positions); /* undoes the fades of fold-over's contacts */
+	lvp__measure_positions(binding, rest_positions, totals);
+	/* Each region aims at zero change, or where bones are stretched against each other at the
+	 * change their stretch alone gives it (stretch.c; zero without stretch). */
+	lvp__stretch_targets(binding, rest_positions, options->rigid_space);
+	memcpy(binding->step.target, binding->stretch.change, sizeof(double) * (size_t)binding->region_count);
+	lvp__movable_regions(binding);
+	if (attempt == 0) {
+		stats->volume_before = lvp__pass_volume(binding, binding->step.positions);
+		stats->worst_region = lvp__worst_region(binding, &stats->worst_region_change_before);
+	}
+
+	int32_t first_active = 0;
+	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
+	stats->iterations = lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
+	stats->active_regions = first_active;
+	stats->folded_vertices = 0;
+	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
+		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
+		 * contact surface (which turns the compression into a bulge); the bulge may push other
+		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
+		lvp__clear_contacts(binding);
+		int32_t moved = lvp__fold_over(binding, rest_positions);
+		stats->folded_vertices = moved;
+		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
+			int32_t ignored;
+			/* At the contacts found since the last round; only the fade changes what can move. */
+			if (lvp__fade_map_at_contact(binding))
+				lvp__movable_regions(binding);
+			lvp__measure_positions(binding, rest_positions, totals);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+			moved = lvp__fold_over(binding, rest_positions);
+			stats->folded_vertices += moved;
+		}
+		memset(binding->fold.held, 0, (size_t)n);
+		lvp__measure_positions(binding, rest_positions, totals);
+	}
+}
+
+/* The group furthest from its target, relative to its reference volume, when more than 0.1 % off;
+ * else -1. Asked when an attempt moved nothing at all: a group the correction cannot restore (a
+ * joint folded onto itself) has its steps undone as making things worse, and with them every
+ * other group's. */
+static int32_t lvp__group_furthest_off(const lvp_binding *binding)
+{
+	int32_t worst = -1;
+	double largest = 1e-3;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (!lvp__leads(binding, r))
+			continue;
+		lvp__group_state group = lvp__group_state_of(binding, r);
+		if (group.skipped || !group.movable || !(group.reference > 0.0))
+			continue;
+		double off = fabs(group.change - group.target) / group.reference;
+		if (off > largest) {
+			largest = off;
+			worst = r;
+		}
+	}
+	return worst;
+}
+
+/* The group (by leader) to give up after an attempt, or -1 when there is none. Where some offset is
+ * not finite or beyond `limit`: of the vertex moved farthest (or first to no finite place), the
+ * group whose multipliers moved it most, phi times the |mu| its steps applied (step.moved_by).
+ * Where the attempt moved nothing at all: the group furthest from its target
+ * (lvp__group_furthest_off). */
+static int32_t lvp__group_to_give_up(const lvp_binding *binding, const float *positions, double limit,
+                                     bool *r_diverged)
+{
+	int32_t farthest = -1;
+	bool moved = false;
+	double largest = limit > 0.0 ? limit * limit : INFINITY;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		const float *p = binding->step.positions + 3 * k, *in = positions + 3 * k;
+		double dx = (double)p[0] - in[0], dy = (double)p[1] - in[1], dz = (double)p[2] - in[2];
+		double d = dx * dx + dy * dy + dz * dz;
+		moved = moved || d != 0.0;
+		if (!isfinite(d)) {
+			farthest = k;
+			break;
+		}
+		if (d > largest) {
+			largest = d;
+			farthest = k;
+		}
+	}
+	if (binding->mode != LVP_MODE_LOCAL)
+		return -1;
+	*r_diverged = farthest >= 0;
+	if (farthest < 0)
+		return moved ? -1 : lvp__group_furthest_off(binding);
+	lvp__support support = lvp__vertex_support(binding, farthest);
+	int32_t culprit = -1;
+	double most = 0.0;
+	for (int32_t i = 0; i < support.count; ++i) {
+		int32_t r = support.regions[i];
+		double share = (double)support.phi[i] * binding->step.moved_by[r];
+		if (isnan(share))
+			share = INFINITY;
+		if (!binding->step.given_up[r] && share > most) {
+			most = share;
+			culprit = binding->system.group_leader[r];
+		}
+	}
+	return culprit;
+}
+
 lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *binding, const float *positions,
                        const float *bone_matrices, const float *rest_positions, const lvp_frame_options *options,
                        lvp_frame_stats *r_stats, lvp_diagnostic *r_diag)
@@ -761,7 +894,6 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 
 	int32_t n = binding->vertex_count;
 	const lvp__region_sums *totals = lvp__frame_rest(binding, rest_positions);
-	memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
 	lvp__use_rigid_shortcut(binding, true); /* the frame before may have had it off */
 	lvp__build_frame_map(binding, rest_positions);
 
@@ -776,9 +908,9 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		lvp__build_frame_map(binding, rest_positions);
 	}
 	stats.worst_region = -1;
+	stats.given_up_region = -1;
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;
 
-	int32_t first_active = 0;
 	/* The whole mesh's volume at this frame's rest, or each separate part's (binding.h). */
 	if (binding->parts.count == 1)
 		binding->parts.rest_volume[0] = stats.volume_rest;
@@ -793,38 +925,32 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		double volume = fabs(binding->parts.rest_volume[p]);
 		binding->parts.scale[p] = volume > 1e-6 * cube ? volume : cube;
 	}
-	memset(binding->step.region_touched, 0, (size_t)binding->region_count);
-	lvp__measure_positions(binding, rest_positions, totals);
-	/* Each region aims at zero change, or where bones are stretched against each other at the
-	 * change their stretch alone gives it (stretch.c; zero without stretch). */
-	lvp__stretch_targets(binding, rest_positions, options->rigid_space);
-	memcpy(binding->step.target, binding->stretch.change, sizeof(double) * (size_t)binding->region_count);
-	lvp__movable_regions(binding);
-	stats.volume_before = lvp__pass_volume(binding, binding->step.positions);
-	stats.worst_region = lvp__worst_region(binding, &stats.worst_region_change_before);
 
-	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
-	stats.iterations = lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
-	stats.active_regions = first_active;
-	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
-		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
-		 * contact surface (which turns the compression into a bulge); the bulge may push other
-		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
-		lvp__clear_contacts(binding);
-		int32_t moved = lvp__fold_over(binding, rest_positions);
-		stats.folded_vertices = moved;
-		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
-			int32_t ignored;
-			/* At the contacts found since the last round; only the fade changes what can move. */
-			if (lvp__fade_map_at_contact(binding))
-				lvp__movable_regions(binding);
-			lvp__measure_positions(binding, rest_positions, totals);
-			stats.iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
-			moved = lvp__fold_over(binding, rest_positions);
-			stats.folded_vertices += moved;
+	/* Where an attempt moves some vertex beyond the limit (a joint folded onto itself, a region
+	 * the correction cannot restore), the group that moved it most is given up for this frame and
+	 * the frame corrected again without it: that region keeps the skinning, the rest stays
+	 * corrected (lvp.h, DEGRADING). */
+	memset(binding->step.given_up, 0, (size_t)binding->region_count);
+	binding->step.any_given_up = false;
+	for (int32_t attempt = 0;; ++attempt) {
+		lvp__correct_attempt(binding, options, attempt, positions, rest_positions, totals, &stats);
+		/* Fold-over moves skin by contacts, not by the groups' multipliers: giving groups up would
+		 * not undo it. Its caller corrects again without it (the add-on does). */
+		if (attempt == LVP_MAX_GIVEN_UP || !(options->displacement_limit > 0.0f) || options->fold_over)
+			break;
+		bool diverged = false;
+		int32_t culprit = lvp__group_to_give_up(binding, positions, (double)options->displacement_limit, &diverged);
+		if (culprit < 0)
+			break;
+		int32_t first, last;
+		lvp__group_range(binding, culprit, &first, &last);
+		for (int32_t g = first; g < last; ++g)
+			binding->step.given_up[binding->system.group_regions[g]] = 1;
+		binding->step.any_given_up = true;
+		if (stats.given_up_regions++ == 0) {
+			stats.given_up_region = lvp__caller_bone(binding, culprit);
+			stats.given_up_diverged = diverged;
 		}
-		memset(binding->fold.held, 0, (size_t)n);
-		lvp__measure_positions(binding, rest_positions, totals);
 	}
 	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
 	 * through unchanged and says so. Only dynamic vertices can have moved (binding.h); the
@@ -903,6 +1029,8 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->active_index = lvp__calloc(s, sizeof(int32_t), &ok);
 	step->mu = lvp__calloc(s, sizeof(double), &ok);
 	step->applied_mu = lvp__calloc(s, sizeof(double), &ok);
+	step->moved_by = lvp__calloc(s, sizeof(double), &ok);
+	step->given_up = lvp__calloc(s, sizeof(uint8_t), &ok);
 	step->part_total = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
 	return ok;
@@ -913,7 +1041,7 @@ void lvp__step_free(lvp__step *step)
 	void *arrays[] = {step->positions, step->moved, step->backup, step->chunk_moved, step->change, step->target,
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
-	                  step->part_total, step->part_gain};
+	                  step->moved_by, step->given_up, step->part_total, step->part_gain};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

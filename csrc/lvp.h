@@ -155,12 +155,31 @@
  *   - Poses folded onto themselves (a joint bent near 180 degrees): a step moves a vertex by at
  *     most a quarter of the mesh's size, a step that makes the regions' volumes worse is undone and ends
  *     the iteration, and if anything still went non-finite the frame is passed through
- *     unchanged with stats.passed_through set.
+ *     unchanged with stats.passed_through set. With options.displacement_limit the frame
+ *     degrades locally first (DEGRADING).
  *   - Positions that are not the skinning of the rest by the bound weights and the given bones
  *     (bone frames other than those that moved the mesh, weights changed since the bind): a
  *     sample of the vertices one bone class carries is checked every frame, and where one is off
  *     by more than float rounding the frame is measured from the positions alone (slower: every
  *     triangle is measured) and stats.unskinned_distance says by how much.
+ *
+ * DEGRADING (lvp_frame_options.displacement_limit > 0, local mode)
+ *
+ *   Where the correction cannot do well at a pose, the regions it cannot correct keep the
+ *   skinning and the rest of the mesh is corrected, instead of the whole frame failing. After a
+ *   correction, if some vertex moved farther than the limit (or to no finite place), the group
+ *   whose multipliers moved it most (phi times the |mu| its steps applied) is given up; else, if
+ *   the correction moved nothing at all while some group is more than 0.1 % of its reference
+ *   volume off (a joint folded onto itself: its steps make things worse and are undone, and with
+ *   them every other group's), the group furthest off is given up. The frame is then corrected
+ *   again from the input without the groups given up: they are left out of the solve (skin they
+ *   share with other groups still moves with those), and the whole mesh's volume is not
+ *   restored, so that their loss is not pushed into the others. At most LVP_MAX_GIVEN_UP groups
+ *   a frame, each costing one more correction; stats.given_up_regions counts them and
+ *   stats.given_up_region names the first, stats.given_up_diverged says why. Frames that need
+ *   none cost what they did. With fold-over on nothing is given up (its contacts, not the
+ *   groups, move the skin there): a frame beyond the limit is the caller's to correct again
+ *   without fold-over, as the add-on does.
  *
  * THREADS AND MEMORY
  *
@@ -206,6 +225,7 @@ extern "C" {
 #define LVP_MAX_THREADS 64
 #define LVP_MAX_SMOOTHING_ITERATIONS 1000
 #define LVP_MAX_BULGE_WIDTH 8.0f
+#define LVP_MAX_GIVEN_UP 4
 
 typedef enum lvp_result {
 	lvp_success = 0,
@@ -446,6 +466,11 @@ typedef struct lvp_frame_options {
 	                           armature's, turned), which is right unless the mesh has been scaled
 	                           unevenly against the armature since the bind. Its 3x3 part must be
 	                           invertible. */
+	float displacement_limit; /* 0 (default) or infinity: none. > 0: a correction that would move
+	                           some vertex farther than this (or to no finite place) gives up, for
+	                           this frame, the group whose multipliers moved it most, and corrects
+	                           again without it, up to LVP_MAX_GIVEN_UP groups (DEGRADING below);
+	                           in the mesh's units */
 } lvp_frame_options;
 
 lvp_frame_options lvp_frame_default_options(void);
@@ -469,6 +494,10 @@ typedef struct lvp_frame_stats {
 	double max_displacement;  /* largest |offset| written */
 	int32_t passed_through;   /* 1 when no finite correction was found (a pose folded onto itself):
 	                             the input was written back unchanged */
+	int32_t given_up_regions; /* groups given up this frame (options.displacement_limit), 0 if none */
+	int32_t given_up_region;  /* the first of them, by its first bone, or -1 */
+	int32_t given_up_diverged; /* 1: the first was given up for moving skin beyond the limit; 0: for
+	                              stalling the correction (DEGRADING) */
 	double unskinned_distance; /* 0, or how far the positions put a vertex that one bone carries from
 	                              where that bone puts it, when that is more than float rounding:
 	                              the positions are not the skinning of the rest by these bones and

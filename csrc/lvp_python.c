@@ -1088,18 +1088,21 @@ static const lvp_py__rename lvp_py__frame_renames[] = {{"vertex_count", "positio
                                                        {"r_offsets", "out_offsets"},
                                                        {"options.max_iterations", "iterations"},
                                                        {"options.rigid_space", "rigid_space"},
+                                                       {"options.displacement_limit", "displacement_limit"},
                                                        {"r_changes", "positions"},
                                                        {NULL, NULL}};
 
 static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObject *kwargs)
 {
 	static char *keywords[] = {"positions",  "bone_matrices", "out_positions", "out_offsets", "rest_positions",
-	                           "iterations", "tolerance",     "fold_over",     "rigid_space", NULL};
+	                           "iterations", "tolerance",     "fold_over",     "rigid_space", "displacement_limit",
+	                           NULL};
 	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
 	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL, *space_object = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOO:correct", keywords, &positions_object,
+	PyObject *limit = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOO:correct", keywords, &positions_object,
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
-	                                 &iterations, &tolerance, &fold_over, &space_object))
+	                                 &iterations, &tolerance, &fold_over, &space_object, &limit))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
 	lvp_py__call call;
@@ -1107,7 +1110,9 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	if (lvp_py__begin_method(&call, Py_TYPE(object), lvp_py__frame_renames) != 0 ||
 	    lvp_py__parse_int(&call, iterations, "iterations", &options.max_iterations) != 0 ||
 	    lvp_py__parse_float(&call, tolerance, "tolerance", &options.tolerance) != 0 ||
-	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 || lvp_py__enter(self) != 0)
+	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 ||
+	    lvp_py__parse_float(&call, limit, "displacement_limit", &options.displacement_limit) != 0 ||
+	    lvp_py__enter(self) != 0)
 		return NULL;
 
 	lvp_py__array positions, matrices, rest, out_positions, out_offsets, space;
@@ -1146,14 +1151,16 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	Py_END_ALLOW_THREADS;
 	if (lvp_py__end_claimed(&call, self, result) != 0)
 		return NULL;
-	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d}", "volume_rest", stats.volume_rest,
+	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i}", "volume_rest", stats.volume_rest,
 	                     "volume_before", stats.volume_before, "volume_after", stats.volume_after, "worst_region",
 	                     (int)stats.worst_region, "worst_region_change_before", stats.worst_region_change_before,
 	                     "worst_region_change_after", stats.worst_region_change_after, "iterations",
 	                     (int)stats.iterations, "active_regions", (int)stats.active_regions, "skipped_regions",
 	                     (int)stats.skipped_regions, "folded_vertices", (int)stats.folded_vertices,
 	                     "max_displacement", stats.max_displacement, "passed_through", (int)stats.passed_through,
-	                     "unskinned_distance", stats.unskinned_distance);
+	                     "unskinned_distance", stats.unskinned_distance, "given_up_regions", (int)stats.given_up_regions,
+	                     "given_up_region", (int)stats.given_up_region, "given_up_diverged",
+	                     (int)stats.given_up_diverged);
 }
 
 static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObject *args, PyObject *kwargs)
@@ -1290,7 +1297,7 @@ static PyMethodDef lvp_py__binding_methods[] = {
      "Replaces the correction map without rebinding."},
     {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
      "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
-     "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None) -> dict\n"
+     "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None, displacement_limit=0.0) -> dict\n"
      "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
     {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
      "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"

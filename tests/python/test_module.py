@@ -154,7 +154,8 @@ def volume(positions, triangles):
 STATS_KEYS = {
     'volume_rest', 'volume_before', 'volume_after', 'worst_region', 'worst_region_change_before',
     'worst_region_change_after', 'iterations', 'active_regions', 'skipped_regions', 'folded_vertices',
-    'max_displacement', 'passed_through', 'unskinned_distance',
+    'max_displacement', 'passed_through', 'unskinned_distance', 'given_up_regions', 'given_up_region',
+    'given_up_diverged',
 }
 
 
@@ -356,6 +357,14 @@ class TestBinding(unittest.TestCase):
         self.assertEqual(stats['iterations'], 1)  # the paper's single pass
         stats = binding.correct(positions, matrices, out_offsets=offsets, fold_over=True)
         self.assertGreaterEqual(stats['folded_vertices'], 0)
+        # A limit below what the bend needs gives up the regions (lvp.h, DEGRADING): none corrected.
+        stats = binding.correct(positions, matrices, out_offsets=offsets, displacement_limit=1e-6)
+        self.assertEqual((stats['given_up_regions'], stats['given_up_diverged']), (2, 1))
+        self.assertIn(stats['given_up_region'], (0, 1))
+        self.assertEqual(stats['max_displacement'], 0.0)
+        stats = binding.correct(positions, matrices, out_offsets=offsets, displacement_limit=10.0)
+        self.assertEqual((stats['given_up_regions'], stats['given_up_region']), (0, -1))
+        self.assertGreater(stats['max_displacement'], 0.0)
         rest_volume = stats['volume_rest']
         self.assertLess(abs(stats['volume_after'] - rest_volume), abs(stats['volume_before'] - rest_volume))
 
@@ -851,7 +860,8 @@ class TestErrors(unittest.TestCase):
         singular_space = array.array('f', [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1])
         for name, value in (('iterations', 0), ('iterations', 'many'), ('tolerance', 0.0), ('tolerance', -1.0),
                             ('tolerance', None), ('rigid_space', singular_space), ('rigid_space', singular_space[:9]),
-                            ('rigid_space', array.array('d', singular_space))):
+                            ('rigid_space', array.array('d', singular_space)), ('displacement_limit', -1.0),
+                            ('displacement_limit', math.nan), ('displacement_limit', 'far')):
             with self.subTest(argument=name, value=value):
                 self.assertValueErrorNames(name, binding.correct, positions, matrices,
                                            out_positions=arguments['out_positions'], **{name: value})

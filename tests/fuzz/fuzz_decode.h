@@ -649,6 +649,10 @@ static lvp_frame_options fuzz_decode_frame(fuzz_reader *r)
 	f.fold_over = flags % 2;
 	if ((flags >> 1) % 4 != 0)
 		f.rigid_space = fuzz_rigid_spaces[(flags >> 1) % 4 - 1];
+	/* A displacement limit (lvp.h, DEGRADING) from bits of the same byte: tiny (every group given
+	 * up), about a mesh's size, or invalid. */
+	uint8_t limit = (uint8_t)((flags >> 3) & 7);
+	f.displacement_limit = limit == 1 ? 1e-4f : limit == 2 ? 0.5f : limit == 3 && (flags & 0x80) ? -1.0f : 0.0f;
 	return f;
 }
 
@@ -849,6 +853,8 @@ static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *w
 	options.thread_count = threads < 200   ? 1
 	                       : threads < 240 ? 2 + threads % 2
 	                                       : (threads % 2 ? 0 : LVP_MAX_THREADS + 1);
+	/* A bulge width (lvp.h, BULGE WIDTH) from the same byte, so that the corpus decodes as before. */
+	options.bulge_width = threads % 16 == 5 ? 1.0f : threads % 16 == 6 ? 2.5f : threads % 64 == 7 ? NAN : 0.0f;
 	fuzz_decode_map(&options.map, c, r, bone_count);
 	lvp_binding *binding = NULL;
 	lvp_diagnostic diag = fuzz_diag();

@@ -751,8 +751,8 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 }
 
 /* One attempt at the frame's correction, from the input positions: the volume steps, then
- * fold-over when asked. Fills the statistics of the steps (iterations, active regions, folded
- * vertices), and on the first attempt the volume and the worst group before correction. Groups given up
+ * fold-over when asked. Adds its steps to stats->iterations, sets the active regions and folded
+ * vertices, and on the first attempt the volume and the worst group before correction. Groups given up
  * (step.given_up) are left out. */
 static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *options, int32_t attempt,
                                  const float *positions, const float *rest_positions,
@@ -777,7 +777,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 
 	int32_t first_active = 0;
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
-	stats->iterations = lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
+	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
 	stats->active_regions = first_active;
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {

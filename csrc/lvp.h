@@ -486,7 +486,8 @@ typedef struct lvp_frame_stats {
 	                                      against each other, less the change their scales give it
 	                                      (ALGORITHM, 3) */
 	double worst_region_change_after;
-	int32_t iterations;       /* correction steps done, fold-over rounds included */
+	int32_t iterations;       /* correction steps done, fold-over rounds and the corrections again
+	                             after giving groups up (DEGRADING) included */
 	int32_t active_regions;   /* regions whose volume had changed (corrected), first pass; a bone's
 	                             region in each separate part counts once, a group once */
 	int32_t skipped_regions;  /* regions left as they were: their posed bone is singular (scaled to zero) */

@@ -28,17 +28,8 @@ static bent_tube make_bent_tube(double degrees)
 {
 	bent_tube c;
 	c.rig = test_make_cylinder(32, 64, RADIUS, LENGTH, BAND);
-	int32_t n = c.rig.vertex_count, b = c.rig.bone_count;
 	float rotations[8] = {0, 0, 0, 0, 1, 0, 0, (float)(degrees * PI / 180.0)};
-	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	c.posed = malloc(sizeof(float) * 16 * (size_t)b);
-	c.skinned = malloc(sizeof(float) * 3 * (size_t)n);
-	test_pose(c.posed, &c.rig, rotations);
-	test_skin_matrices(skin, &c.rig, c.posed);
-	lvp_weights weights = test_rig_weights(&c.rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(c.skinned, c.rig.positions, n, &weights, skin, b, &diag), diag);
-	free(skin);
+	CHECK(test_pose_and_skin(&c.rig, rotations, &c.posed, &c.skinned) == 0);
 	return c;
 }
 

@@ -27,21 +27,12 @@ static posed_chain make_chain(double folded, double other)
 {
 	posed_chain c;
 	c.rig = test_make_chain(4, 1.0f, 0.3f, 24, 12, 0.3f);
-	int32_t n = c.rig.vertex_count, b = c.rig.bone_count;
 	float rotations[16] = {0};
 	rotations[4] = 1.0f;
 	rotations[7] = (float)(folded * PI / 180.0);
 	rotations[12] = 1.0f;
 	rotations[15] = (float)(other * PI / 180.0);
-	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
-	c.posed = malloc(sizeof(float) * 16 * (size_t)b);
-	c.skinned = malloc(sizeof(float) * 3 * (size_t)n);
-	test_pose(c.posed, &c.rig, rotations);
-	test_skin_matrices(skin, &c.rig, c.posed);
-	lvp_weights weights = test_rig_weights(&c.rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(c.skinned, c.rig.positions, n, &weights, skin, b, &diag), diag);
-	free(skin);
+	CHECK(test_pose_and_skin(&c.rig, rotations, &c.posed, &c.skinned) == 0);
 	return c;
 }
 

@@ -492,6 +492,20 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed)
 	}
 }
 
+int test_pose_and_skin(const test_rig *rig, const float *local_rotations, float **r_posed, float **r_skinned)
+{
+	int32_t b = rig->bone_count;
+	float *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	*r_posed = malloc(sizeof(float) * 16 * (size_t)b);
+	*r_skinned = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	test_pose(*r_posed, rig, local_rotations);
+	test_skin_matrices(skin, rig, *r_posed);
+	lvp_weights weights = test_rig_weights(rig);
+	lvp_result result = lvp_skin_linear(*r_skinned, rig->positions, rig->vertex_count, &weights, skin, b, NULL);
+	free(skin);
+	return result == lvp_success ? 0 : -1;
+}
+
 test_rig test_split_at_seams(const test_rig *rig, int32_t **r_original)
 {
 	int32_t n = rig->vertex_count, f = rig->triangle_count, b = rig->bone_count;

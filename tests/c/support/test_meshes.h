@@ -73,6 +73,11 @@ void test_pose(float *r_posed, const test_rig *rig, const float *local_rotations
 /* r_skin[i] = posed_i * rest_i^-1 (bone_count*16), what lvp_skin_linear() takes. */
 void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
 
+/* Poses the rig by local_rotations (test_pose) and skins it by linear blend: *r_posed receives the
+ * bone matrices (bone_count*16), *r_skinned the positions (vertex_count*3), both malloc'ed. Returns
+ * 0, or -1 when the core refuses the skinning. */
+int test_pose_and_skin(const test_rig *rig, const float *local_rotations, float **r_posed, float **r_skinned);
+
 /* r = a * b, 4x4 row-major (r may be a or b). */
 void test_multiply_matrices(float r[16], const float a[16], const float b[16]);
 /* The same in double precision. */

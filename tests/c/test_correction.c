@@ -837,9 +837,12 @@ static void test_separate_parts_keep_their_own_volume(void)
 
 /* A mesh split at its seams (lvp.h, SEAMS) is corrected as the welded mesh is: every vertex gets
  * its original's offset (to float rounding) and copies of one point the same offset, so no
- * crack opens; without the welding, each island is a separate open part with its own volume. */
-static void test_seams_are_one_point(void)
+ * crack opens; without the welding, each island is a separate open part with its own volume.
+ * Also with a bulge width (lvp.h, BULGE WIDTH): its diffusion runs over the points. */
+static void seams_are_one_point(float bulge_width)
 {
+	lvp_bind_options options = lvp_bind_default_options();
+	options.bulge_width = bulge_width;
 	posed_cylinder c = make_bent_cylinder(90);
 	int32_t *original;
 	test_rig split = test_split_at_seams(&c.rig, &original);
@@ -848,8 +851,8 @@ static void test_seams_are_one_point(void)
 	for (int32_t k = 0; k < split_n; ++k)
 		memcpy(skinned + 3 * k, c.skinned + 3 * original[k], sizeof(float) * 3);
 	lvp_diagnostic diag;
-	lvp_binding *welded = bind_rig(&c.rig, lvp_bind_default_options());
-	lvp_binding *binding = bind_rig(&split, lvp_bind_default_options());
+	lvp_binding *welded = bind_rig(&c.rig, options);
+	lvp_binding *binding = bind_rig(&split, options);
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)n), *split_offsets = malloc(sizeof(float) * 3 * (size_t)split_n);
 	float *out = malloc(sizeof(float) * 3 * (size_t)split_n);
 	lvp_frame_stats stats, split_stats;
@@ -865,9 +868,9 @@ static void test_seams_are_one_point(void)
 			CHECK(out[3 * k + i] == skinned[3 * k + i] + offset || k == original[k]);
 		}
 	double rest = volume(c.rig.positions, &c.rig);
-	printf("  %d vertices split into %d at 4 islands' seams: volume %+.4f%% (welded %+.4f%%), offsets differ by "
-	       "at most %.1e of the largest %.3f, copies by %.1e\n",
-	       (int)n, (int)split_n,
+	printf("  bulge width %g: %d vertices split into %d at 4 islands' seams: volume %+.4f%% (welded %+.4f%%), "
+	       "offsets differ by at most %.1e of the largest %.3f, copies by %.1e\n",
+	       (double)bulge_width, (int)n, (int)split_n,
 	       100 * (split_stats.volume_after - rest) / rest, 100 * (stats.volume_after - rest) / rest, difference,
 	       largest, crack);
 	CHECK(split_n > n + 40);
@@ -898,6 +901,12 @@ static void test_seams_are_one_point(void)
 	lvp_free(welded);
 	test_rig_free(&split);
 	free_cylinder(&c);
+}
+
+static void test_seams_are_one_point(void)
+{
+	seams_are_one_point(0.0f);
+	seams_are_one_point(1.0f);
 }
 
 /* The joints of a B-Bone as the add-on passes them: bone 0 (the upper arm) and eight joints of

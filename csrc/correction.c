@@ -33,7 +33,7 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 		                 (double)options->tolerance);
 	if (!(options->displacement_limit >= 0.0f))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.displacement_limit", -1,
-		                 "options.displacement_limit is %g; use 0 (no limit) or a distance above 0 (infinity: none either).",
+		                 "options.displacement_limit is %g; use 0 or infinity (no limit), or a distance above 0.",
 		                 (double)options->displacement_limit);
 	if (options->rigid_space) {
 		lvp_result result = lvp__check_float_array(options->rigid_space, 16, "options.rigid_space", r_diag);
@@ -752,8 +752,8 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 
 /* One attempt at the frame's correction, from the input positions: the volume steps, then
  * fold-over when asked. Adds its steps to stats->iterations, sets the active regions and folded
- * vertices, and on the first attempt the volume and the worst group before correction. Groups given up
- * (step.given_up) are left out. */
+ * vertices, and on the first attempt the volume and the worst group before correction. Groups
+ * given up (step.given_up) are left out. */
 static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *options, int32_t attempt,
                                  const float *positions, const float *rest_positions,
                                  const lvp__region_sums *totals, lvp_frame_stats *stats)

@@ -1151,7 +1151,8 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	Py_END_ALLOW_THREADS;
 	if (lvp_py__end_claimed(&call, self, result) != 0)
 		return NULL;
-	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i}", "volume_rest", stats.volume_rest,
+	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i}", "volume_rest",
+	                     stats.volume_rest,
 	                     "volume_before", stats.volume_before, "volume_after", stats.volume_after, "worst_region",
 	                     (int)stats.worst_region, "worst_region_change_before", stats.worst_region_change_before,
 	                     "worst_region_change_after", stats.worst_region_change_after, "iterations",

@@ -356,10 +356,11 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
  * from the thigh and the belly from the thighs, which loses volume at every bend. A high alpha keeps each
  * bone on its own flesh (close to the nearest visible bone), and the smoothing makes the borders between bones
  * continuous: each step replaces every row by the mean of its own and its edge neighbours' rows, kept to the
- * strongest LVP__DIFFUSION_ROW bones and renormalized (diffusion.c). Visibility decides the rows before the smoothing, not during
- * it: the normal test flips across the crotch and the armpit, and a bone barred from the vertices it is hidden from
- * there would leave a hard seam (both thighs at weight 1 across one edge) exactly where the skin must blend.
- * Each step widens a border by about one edge, so the width of the blend is counted in edges, not in metres. */
+ * strongest LVP__DIFFUSION_ROW bones and renormalized (diffusion.c). Visibility decides the rows before the
+ * smoothing, not during it: the normal test flips across the crotch and the armpit, and a bone barred from the
+ * vertices it is hidden from there would leave a hard seam (both thighs at weight 1 across one edge) exactly
+ * where the skin must blend. Each step widens a border by about one edge, so the width of the blend is counted
+ * in edges, not in metres. */
 
 /* The smoothed row of vertex k pruned as the options say (the strongest max_influences of weight at least
  * min_weight of the row's sum, the strongest alone when none is), renormalized; returns its length. */

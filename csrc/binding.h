@@ -167,7 +167,6 @@ typedef struct lvp__reach {
 	float *phi;
 	float *largest;           /* per vertex: its largest phi (w_k of the maps) */
 	bool own;                 /* the arrays are the reach's own (else the rig's and mesh's) */
-	int32_t steps;            /* diffusion steps taken at bind (0 without a bulge width) */
 } lvp__reach;
 
 /* This frame's map and the vertices' classes (frame_map.c). */

@@ -67,7 +67,7 @@ static void lvp__load_row(lvp__diffusion *diffusion, const lvp_binding *binding,
 
 /* Per vertex, how fast its row diffuses (1 for the vertex that needs the most steps), filled into
  * r_rates; returns the steps. A vertex needs (width * thickness / edge)^2 / 2 steps, its edge the
- * mean length of its own edges (lvp__diffusion_steps). */
+ * mean length of its own edges (as lvp__diffusion_steps counts them). */
 static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, const lvp__diffusion *diffusion,
                                 double width)
 {
@@ -156,8 +156,8 @@ lvp_result lvp__build_reach(lvp_binding *binding, float bulge_width, lvp_diagnos
 	if (ok) {
 		for (int32_t k = 0; k < n; ++k)
 			lvp__load_row(&diffusion, binding, k);
-		reach.steps = lvp__reach_rates(rates, binding, &diffusion, (double)bulge_width);
-		for (int32_t step = 0; step < reach.steps; ++step)
+		int32_t steps = lvp__reach_rates(rates, binding, &diffusion, (double)bulge_width);
+		for (int32_t step = 0; step < steps; ++step)
 			lvp__diffusion_step(&diffusion, n, rates, binding->pool);
 		ok = lvp__store_rows(&reach, &diffusion, n);
 	}

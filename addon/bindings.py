@@ -327,8 +327,8 @@ def ensure(obj, depsgraph=None):
 
 def refresh_map(obj, bound, depsgraph=None, inputs=None):
     """Applies changed map settings to the binding. Returns the BoundObject to use (a new one when the
-    effect switched between local and global or the bulge width changed), or None with the status set when it cannot be done.
-    inputs: a BindInputs of obj just read (its painted map is used), or None."""
+    effect switched between local and global or the bulge width changed), or None with the status set
+    when it cannot be done. inputs: a BindInputs of obj just read (its painted map is used), or None."""
     settings = obj.lvp
     key = map_key(settings)
     if shape_of(settings) != bound.shape:

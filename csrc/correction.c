@@ -825,37 +825,49 @@ static int32_t lvp__group_furthest_off(const lvp_binding *binding)
 	return worst;
 }
 
-/* The group (by leader) to give up after an attempt, or -1 when there is none. Where some offset is
- * not finite or beyond `limit`: of the vertex moved farthest (or first to no finite place), the
- * group whose multipliers moved it most, phi times the |mu| its steps applied (step.moved_by).
- * Where the attempt moved nothing at all: the group furthest from its target
- * (lvp__group_furthest_off). */
-static int32_t lvp__group_to_give_up(const lvp_binding *binding, const float *positions, double limit,
-                                     bool *r_diverged)
+/* What an attempt did to the dynamic vertices (only they can have moved, binding.h): whether it
+ * moved any, whether every one is finite, and the one moved farthest beyond `limit` (0: none), or
+ * the first that is not finite; -1 when there is none. */
+typedef struct lvp__attempt_scan {
+	int32_t farthest;
+	bool moved, finite;
+} lvp__attempt_scan;
+
+static lvp__attempt_scan lvp__scan_attempt(const lvp_binding *binding, const float *positions, double limit)
 {
-	int32_t farthest = -1;
-	bool moved = false;
+	lvp__attempt_scan scan = {-1, false, true};
 	double largest = limit > 0.0 ? limit * limit : INFINITY;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
 		const float *p = binding->step.positions + 3 * k, *in = positions + 3 * k;
 		double dx = (double)p[0] - in[0], dy = (double)p[1] - in[1], dz = (double)p[2] - in[2];
 		double d = dx * dx + dy * dy + dz * dz;
-		moved = moved || d != 0.0;
-		if (!isfinite(d)) {
-			farthest = k;
+		scan.moved = scan.moved || d != 0.0;
+		if (!isfinite(d)) { /* the inputs are finite (checked): this position is not */
+			scan.farthest = k;
+			scan.finite = false;
 			break;
 		}
 		if (d > largest) {
 			largest = d;
-			farthest = k;
+			scan.farthest = k;
 		}
 	}
+	return scan;
+}
+
+/* The group (by leader) to give up after an attempt, or -1 when there is none. Where some offset is
+ * not finite or beyond the limit (scan.farthest): the group whose multipliers moved that vertex
+ * most, phi times the |mu| its steps applied (step.moved_by). Where the attempt moved nothing at
+ * all: the group furthest from its target (lvp__group_furthest_off). */
+static int32_t lvp__group_to_give_up(const lvp_binding *binding, lvp__attempt_scan scan, bool *r_diverged)
+{
+	int32_t farthest = scan.farthest;
 	if (binding->mode != LVP_MODE_LOCAL)
 		return -1;
 	*r_diverged = farthest >= 0;
 	if (farthest < 0)
-		return moved ? -1 : lvp__group_furthest_off(binding);
+		return scan.moved ? -1 : lvp__group_furthest_off(binding);
 	lvp__support support = lvp__vertex_support(binding, farthest);
 	int32_t culprit = -1;
 	double most = 0.0;
@@ -932,14 +944,16 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	 * corrected (lvp.h, DEGRADING). */
 	memset(binding->step.given_up, 0, (size_t)binding->region_count);
 	binding->step.any_given_up = false;
+	lvp__attempt_scan scan;
 	for (int32_t attempt = 0;; ++attempt) {
 		lvp__correct_attempt(binding, options, attempt, positions, rest_positions, totals, &stats);
+		scan = lvp__scan_attempt(binding, positions, (double)options->displacement_limit);
 		/* Fold-over moves skin by contacts, not by the groups' multipliers: giving groups up would
 		 * not undo it. Its caller corrects again without it (the add-on does). */
 		if (attempt == LVP_MAX_GIVEN_UP || !(options->displacement_limit > 0.0f) || options->fold_over)
 			break;
 		bool diverged = false;
-		int32_t culprit = lvp__group_to_give_up(binding, positions, (double)options->displacement_limit, &diverged);
+		int32_t culprit = lvp__group_to_give_up(binding, scan, &diverged);
 		if (culprit < 0)
 			break;
 		int32_t first, last;
@@ -955,13 +969,10 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	/* Whatever the pose, never hand back a NaN: if anything went non-finite, the frame passes
 	 * through unchanged and says so. Only dynamic vertices can have moved (binding.h); the
 	 * others are the input, which was checked. */
-	for (int32_t v = 0; v < binding->dynamic.vertex_count && !stats.passed_through; ++v) {
-		const float *p = binding->step.positions + 3 * binding->dynamic.vertices[v];
-		if (!lvp__finite(p[0]) || !lvp__finite(p[1]) || !lvp__finite(p[2])) {
-			memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
-			lvp__measure_positions(binding, rest_positions, totals);
-			stats.passed_through = 1;
-		}
+	if (!scan.finite) {
+		memcpy(binding->step.positions, positions, sizeof(float) * 3 * (size_t)n);
+		lvp__measure_positions(binding, rest_positions, totals);
+		stats.passed_through = 1;
 	}
 	stats.volume_after = lvp__pass_volume(binding, binding->step.positions);
 	if (stats.worst_region >= 0) {

@@ -219,6 +219,6 @@ int32_t lvp__diffusion_steps(double length, double edge, int32_t most)
 {
 	if (!(edge > 0.0) || !(length > 0.0))
 		return 0; /* no edge of any length: nothing to diffuse over */
-	double ratio = length / edge, steps = ceil(0.5 * ratio * ratio);
+	double steps = ceil(lvp__blend_steps(length, edge));
 	return steps < (double)most ? (int32_t)steps : most;
 }

@@ -52,7 +52,14 @@ double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *posit
 
 /* Steps that blend a border over about `length`: explicit diffusion spreads one over about
  * sqrt(2 steps) edges (each step moves weight by about an edge, either way), so
- * ceil((length / edge)^2 / 2), at most `most`. */
+ * (length / edge)^2 / 2, not rounded. */
+static inline double lvp__blend_steps(double length, double edge)
+{
+	double ratio = length / edge;
+	return 0.5 * ratio * ratio;
+}
+
+/* lvp__blend_steps rounded up, at most `most`; 0 without an edge of any length. */
 int32_t lvp__diffusion_steps(double length, double edge, int32_t most);
 
 #endif

@@ -66,8 +66,8 @@ static void lvp__load_row(lvp__diffusion *diffusion, const lvp_binding *binding,
 }
 
 /* Per vertex, how fast its row diffuses (1 for the vertex that needs the most steps), filled into
- * r_rates; returns the steps. A vertex needs (width * thickness / edge)^2 / 2 steps, its edge the
- * mean length of its own edges (as lvp__diffusion_steps counts them). */
+ * r_rates; returns the steps. A vertex needs lvp__blend_steps(width * thickness, edge), its edge
+ * the mean length of its own edges. */
 static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, const lvp__diffusion *diffusion,
                                 double width)
 {
@@ -88,7 +88,7 @@ static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, cons
 			edges += lvp__length(lvp__sub(lvp__load(binding->rest_positions + 3 * diffusion->neighbours[e]), p));
 		if (end == begin || !(edges > 0.0) || !isfinite(thickness))
 			continue;
-		double ratio = width * thickness / (edges / (double)(end - begin)), steps = 0.5 * ratio * ratio;
+		double steps = lvp__blend_steps(width * thickness, edges / (double)(end - begin));
 		r_rates[k] = (float)steps;
 		most = fmax(most, steps);
 	}

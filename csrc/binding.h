@@ -150,6 +150,7 @@ typedef struct lvp__map {
 	float *gamma;             /* per vertex, normalized to max 1 */
 	float *distance;          /* per vertex: rest distance to the nearest (allowed) bone */
 	double *log_gamma;        /* per vertex: the map before normalization, as a logarithm */
+	float *area_weight;       /* per vertex: the mean rest vertex area over its own (0 without area) */
 	int32_t *region_bone_offsets; /* copy of the Fig. 11 restriction, or NULL */
 	int32_t *region_bones;
 	/* What reaches a vertex: rho_k = gamma_k g_k sum_t phi_kt mu_t over its support
@@ -171,7 +172,7 @@ typedef struct lvp__reach {
 
 /* This frame's map and the vertices' classes (frame_map.c). */
 typedef struct lvp__frame_map {
-	float *gamma;             /* per vertex: the bind map times the deformation weighting */
+	float *gamma;             /* per vertex: the bind map times map.area_weight and the deformation weighting */
 	int32_t *skin_class;      /* per bone: bones with equal skin matrices this frame share a class */
 	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
 	int32_t *vertex_class;    /* per vertex: the skin class all its bones share this frame, or -1 */

@@ -3,11 +3,13 @@
  * the normals, per region, repeated on re-measured volumes until every region is within the
  * tolerance (the paper's single pass leaves its linearization error; we do not stop there).
  *
- * With displacements rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t (minimum of
- * sum rho_k^2 / gamma_k along the directions the map allows), the linearized change of region
- * s is kappa_s sum_k g_sk rho_k, so the multipliers solve the small system
- *     sum_t M_st mu_t = -change_s,   M_st = kappa_s sum_k g_sk gamma_k g_k phi_kt,
- * over the regions whose volume changed. With one region this is eq. 5 exactly:
+ * With displacements rho_k n_k, rho_k = gamma_k (g_k / A_k) sum_t phi_kt mu_t (minimum of
+ * sum A_k rho_k^2 / gamma_k, the displacement measured over the surface, along the directions
+ * the map allows; A_k the rest vertex area, map.c), the linearized change of region s is
+ * kappa_s sum_k g_sk rho_k, so the multipliers solve the small system
+ *     sum_t M_st mu_t = -change_s,   M_st = kappa_s sum_k g_sk gamma_k (g_k / A_k) phi_kt,
+ * over the regions whose volume changed. frame_map.gamma carries gamma_k / A_k (times the mean
+ * area), so the code reads gamma g. With one region and equal areas this is eq. 5 exactly:
  * mu = -change / sum gamma g^2. Coupling matters where two regions' corrections overlap (the
  * weight band of a joint): solving the regions one by one would correct that band twice.
  */
@@ -138,7 +140,8 @@ static inline bool lvp__leads(const lvp_binding *binding, int32_t r)
 	return binding->system.group_leader[r] == r;
 }
 
-/* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t
+/* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t (gamma
+ * the frame's map, 1 / A_k included)
  * over their support (the step's multipliers in applied_mu), listing the moved ones from
  * moved[begin] on; chunk_moved of the chunk says how many. */
 static void lvp__apply_loop(void *context, int32_t begin, int32_t end)

@@ -150,7 +150,7 @@ static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int3
 /* This frame's map at vertex k of the given class (lvp__vertex_class). */
 static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
 {
-	float gamma = binding->map.gamma[k];
+	float gamma = binding->map.gamma[k] * binding->map.area_weight[k]; /* map.c, lvp__area_weights */
 	if (!binding->map.options.deformation_weighted)
 		return gamma;
 	if (!(gamma > 0.0f) || (vertex_class >= 0 && !binding->reach.own))
@@ -231,7 +231,8 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 {
 	int32_t n = binding->vertex_count;
 	if (binding->mode != LVP_MODE_LOCAL) {
-		memcpy(binding->frame_map.gamma, binding->map.gamma, sizeof(float) * (size_t)n);
+		for (int32_t k = 0; k < n; ++k)
+			binding->frame_map.gamma[k] = binding->map.gamma[k] * binding->map.area_weight[k];
 		memset(binding->frame_map.vertex_dynamic, 1, (size_t)n);
 		return;
 	}

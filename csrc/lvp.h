@@ -40,10 +40,13 @@
  *   1. Measure: every triangle belongs to one region, a bone's (SEGMENTATION); the volume change
  *      of each region is the volume between its rest and its posed triangles in its bone's frame
  *      (paper 5.2), exact, holes capped.
- *   2. Correct: vertex k moves along its normal n_k by rho_k = gamma_k g_k sum_s phi_ks mu_s
+ *   2. Correct: vertex k moves along its normal n_k by rho_k = gamma_k (g_k / A_k) sum_s phi_ks mu_s
  *      (paper eq. 5 for coupled regions): gamma the correction map (CORRECTION MAPS), g_k =
- *      <n_k, grad_k V>, phi_ks the share of region s's correction at k, and one multiplier mu_s
- *      per region, from a linear system over the regions whose volume changed.
+ *      <n_k, grad_k V>, A_k the vertex's rest area (a third of its triangles'), phi_ks the share
+ *      of region s's correction at k, and one multiplier mu_s per region (GROUPS), from a linear
+ *      system over the regions whose volume changed. Dividing by A_k makes this the smallest
+ *      displacement measured over the surface (the paper's sum of rho_k^2 counts vertices, so its
+ *      bulge follows the tessellation: each quad's diagonal ends pushed further than its others).
  *   3. Repeat 1-2 until every region is within `tolerance` of its target, or `max_iterations`
  *      steps are taken. A region's target is zero change plus its share of restoring the whole
  *      mesh's volume (each separate part's, see SEGMENTATION). In a frame where bones scale

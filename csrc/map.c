@@ -91,6 +91,32 @@ static double lvp__log_map(const lvp_map_options *map, double w, double d, int32
 	return 0.0;
 }
 
+/* area_weight: the mean rest vertex area over each vertex's own (a third of its triangles'). The
+ * correction is the smallest displacement, measured over the surface (sum_k A_k rho_k^2 / gamma_k),
+ * that restores the volume: rho_k = gamma_k (g_k / A_k) sum_t phi_kt mu_t. g_k grows with the
+ * vertex's area, so without 1 / A_k the displacement follows the tessellation (a large triangle's
+ * corners pushed further than a small one's: a ridge wherever the mesh is irregular); g_k / A_k
+ * is how much the vertex's area has changed, which is smooth. */
+static void lvp__area_weights(lvp_binding *binding)
+{
+	int32_t n = binding->vertex_count;
+	float *area = binding->map.area_weight;
+	memset(area, 0, sizeof(float) * (size_t)n);
+	double total = 0.0;
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		const int32_t *v = binding->mesh.triangles + 3 * t;
+		lvp__vec3 a = lvp__load(binding->rest_positions + 3 * v[0]), b = lvp__load(binding->rest_positions + 3 * v[1]),
+		          c = lvp__load(binding->rest_positions + 3 * v[2]);
+		double third = lvp__length(lvp__cross(lvp__sub(b, a), lvp__sub(c, a))) / 6.0;
+		for (int i = 0; i < 3; ++i)
+			area[v[i]] += (float)third;
+		total += 3.0 * third;
+	}
+	double mean = n > 0 ? total / n : 0.0;
+	for (int32_t k = 0; k < n; ++k)
+		area[k] = area[k] > 0.0f ? (float)(mean / area[k]) : 0.0f;
+}
+
 lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_diagnostic *r_diag)
 {
 	lvp_result result = lvp__check_map_options(binding, map, r_diag);
@@ -147,6 +173,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	}
 	for (int32_t k = 0; k < n; ++k)
 		binding->map.gamma[k] = isfinite(largest) ? (float)exp(binding->map.log_gamma[k] - largest) : 0.0f;
+	lvp__area_weights(binding);
 
 	/* Which regions' multipliers reach a vertex, and with which phi (correction.c,
 	 * lvp__vertex_support): its bones, by weight, or only its region under the boundary fade. */
@@ -158,6 +185,7 @@ bool lvp__map_alloc(lvp_binding *binding)
 {
 	size_t n = (size_t)binding->vertex_count;
 	bool ok = true;
+	binding->map.area_weight = lvp__calloc(n, sizeof(float), &ok);
 	binding->map.gamma = lvp__calloc(n, sizeof(float), &ok);
 	binding->map.distance = lvp__calloc(n, sizeof(float), &ok);
 	binding->map.log_gamma = lvp__calloc(n, sizeof(double), &ok);
@@ -169,6 +197,7 @@ void lvp__map_free(lvp__map *map)
 	free(map->gamma);
 	free(map->distance);
 	free(map->log_gamma);
+	free(map->area_weight);
 	free(map->region_bone_offsets);
 	free(map->region_bones);
 }

@@ -75,9 +75,10 @@ class TestGiraffe(helpers.AddonTestCase):
     def test_many_single_joint_poses(self):
         """Every major joint bent by 60 degrees both ways about two axes: the correction never makes the
         volume worse, never trips the add-on's divergence safety net, and stays a small displacement:
-        below 0.15, an eighth of the giraffe's 1.13 bounding-box diagonal (a shoulder bent 60 degrees
-        loses 6 % of the whole body's volume, which comes back as a bulge of about 0.1 at the shoulder;
-        the safety net is at a quarter of the diagonal)."""
+        below 0.225, a fifth of the giraffe's 1.13 bounding-box diagonal (a shoulder bent 60 degrees
+        loses 6 % of the whole body's volume, which comes back as a bulge of about 0.2 at the shoulder:
+        measured over the surface, the correction no longer spreads it over the torso's few large
+        triangles, docs/method.md; the safety net is at a quarter of the diagonal)."""
         failures = []
         names = ("gi_neckC7", "gi_neckC4", "gi_head", "gi_L_shoulder", "gi_L_elbow", "gi_R_elbow", "gi_L_hip",
                  "gi_L_knee", "gi_R_knee", "gi_tailA", "gi_tailB")
@@ -95,7 +96,7 @@ class TestGiraffe(helpers.AddonTestCase):
                     plain_error = helpers.relative_volume_error(plain, self.triangles, self.rest_volume)
                     status = self.status_of(self.obj)
                     moved = helpers.max_distance(corrected, plain)
-                    if status[0] != 'INFO' or corrected_error > max(0.5 * plain_error, 1e-3) or moved > 0.15:
+                    if status[0] != 'INFO' or corrected_error > max(0.5 * plain_error, 1e-3) or moved > 0.225:
                         failures.append("%s %s %+g: volume error %.4f%% plain, %.4f%% corrected, largest offset "
                                         "%.3f, status %r" % (bone_name, axis, degrees, 100 * plain_error,
                                                              100 * corrected_error, moved, status))

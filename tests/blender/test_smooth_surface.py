@@ -1,0 +1,105 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The correction keeps the surface smooth on the real cases of real_cases.py (the measures of QUALITY.md, from
+surface_quality.py), with the add-on's defaults: what issue 24 asks where it is met today, and no worse than
+today where it is not (README, Limitations, gives the numbers of both).
+
+- A Rigify human with a closed body and heat weights, elbows, knees and hips bent hard, and bent half as far: at
+  most one crease added per 300 edges.
+- A hand closing into a fist: half closed, at most one crease per 300 edges and roughness at most a quarter of the
+  largest offset; closed, roughness at most a quarter of the largest offset.
+
+With the paper's own norm (the displacement counted per vertex, not over the surface: docs/method.md) every one of
+these fails: 143 creases on the human (at most 46 allowed), 368 on the half-closed hand (74), roughness a third of
+the largest offset at the fist.
+"""
+
+import unittest
+
+import bpy
+
+import lvp_helpers as helpers
+import real_cases
+import surface_quality as quality
+
+EDGES_PER_CREASE = 300
+ROUGHNESS_OF_LARGEST = 0.25
+
+
+class SurfaceCase(unittest.TestCase):
+
+    def measure(self, obj, label):
+        """The measures of the current pose, after checking that the correction ran and restored the volume."""
+        status = self.addon.session.SESSION.status(obj)
+        self.assertIn("Correcting", status[1] if status else "", "%s: %r" % (label, status))
+        measured = quality.measure_pose(self.mesh, helpers.uncorrected_positions(obj),
+                                        {"vp": helpers.evaluated_positions(obj)})
+        vp = measured["vp"]
+        print("\n    %s: volume %+.4f %% (plain %+.3f %%), %d creases of %d edges, roughness %.2f of the largest "
+              "offset, %d crossing pairs (plain %d)"
+              % (label, 100 * vp["volume"], 100 * measured["plain"]["volume"], vp["creases"],
+                 len(self.mesh.interior_edges()), vp["roughness"] / vp["largest_offset"], vp["crossings"],
+                 measured["plain"]["crossings"]))
+        self.assertLess(abs(vp["volume"]), 0.005, label)
+        self.assertEqual(vp["crack"], 0.0, label)
+        return vp
+
+    def assertFewCreases(self, vp, label):
+        self.assertLessEqual(vp["creases"], len(self.mesh.interior_edges()) / EDGES_PER_CREASE, label)
+
+    def assertSmooth(self, vp, label):
+        self.assertLessEqual(vp["roughness"], ROUGHNESS_OF_LARGEST * vp["largest_offset"], label)
+
+
+class TestRigifyHuman(SurfaceCase):
+
+    @classmethod
+    def setUpClass(cls):
+        cls.addon = helpers.enable_addon()
+        helpers.reset_scene()
+        if not real_cases.enable_rigify():
+            raise unittest.SkipTest("this Blender has no Rigify add-on")
+        cls.body, cls.rig = real_cases.rigify_human()
+        helpers.add_volume_preservation(cls.body)
+        cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
+
+    def test_bent_hard(self):
+        real_cases.pose_rigify_human(self.rig, 1.0)
+        bpy.context.view_layer.update()
+        vp = self.measure(self.body, "Rigify human bent hard")
+        self.assertFewCreases(vp, "bent hard")
+
+    def test_bent_half_as_far(self):
+        real_cases.pose_rigify_human(self.rig, 0.5)
+        bpy.context.view_layer.update()
+        vp = self.measure(self.body, "Rigify human bent half as far")
+        self.assertFewCreases(vp, "bent half as far")
+
+
+class TestHand(SurfaceCase):
+
+    @classmethod
+    def setUpClass(cls):
+        cls.addon = helpers.enable_addon()
+        helpers.reset_scene()
+        cls.obj, cls.rig = real_cases.hand()
+        helpers.add_volume_preservation(cls.obj)
+        cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.obj.data), helpers.mesh_triangles(cls.obj.data))
+
+    def at_fraction(self, fraction):
+        first, last = real_cases.HAND_FRAMES
+        bpy.context.scene.frame_set(round(first + fraction * (last - first)))
+
+    def test_half_closed(self):
+        self.at_fraction(0.5)
+        vp = self.measure(self.obj, "hand half closed")
+        self.assertFewCreases(vp, "half closed")
+        self.assertSmooth(vp, "half closed")
+
+    def test_fist(self):
+        self.at_fraction(1.0)
+        vp = self.measure(self.obj, "hand closed into a fist")
+        self.assertSmooth(vp, "fist")
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -8,7 +8,7 @@ animation against the skin's motion (popping); with --render DIR, one close-up p
 VP | VP+fold) into DIR. Nothing is asserted: these are the numbers issues 24-26 are judged by.
 
     tests/blender/blender_chroot.sh 5.2 run -b --factory-startup --python tests/blender/measure_quality.py \
-        -- [--cases body,hand] [--no-gltf] [--render /tmp/quality_renders]
+        -- [--cases body,hand] [--no-gltf] [--render /tmp/quality_renders] [--bulge-width W] [--auto-weights]
     blender -b --factory-startup --python tests/blender/measure_quality.py -- ...
 
 The add-on comes from dist/ as in the tests (./build.sh package first).
@@ -41,6 +41,8 @@ def arguments():
     parser.add_argument("--no-gltf", action="store_true", help="leave out the glTF round-tripped versions")
     parser.add_argument("--render", metavar="DIR", help="render a close-up per case at its hardest pose into DIR")
     parser.add_argument("--bulge-width", type=float, help="the objects' Bulge Width (default: the add-on's)")
+    parser.add_argument("--auto-weights", action="store_true",
+                        help="weight the human with the add-on's Auto Weights (its defaults) instead of heat weights")
     return parser.parse_args(argv)
 
 
@@ -131,10 +133,17 @@ def hand_poses():
              lambda frame=frame: scene.frame_set(frame)) for frame in (6, 11, 16, 21)]
 
 
-def build_body(with_gltf):
+def build_body(with_gltf, auto_weights=False):
     started = time.perf_counter()
     body, rig = real_cases.rigify_human()
     built = time.perf_counter() - started
+    if auto_weights:
+        helpers.select_only(body)
+        bpy.context.view_layer.objects.active = body
+        started = time.perf_counter()
+        result = bpy.ops.object.lvp_auto_weights()
+        print("\nAuto Weights (the add-on's defaults) instead of heat weights: %s in %.2f s"
+              % (result, time.perf_counter() - started))
     objects = [("Rigify human", body)]
     if with_gltf:
         objects.append(("Rigify human, glTF round trip", real_cases.gltf_round_trip(body, rig)))
@@ -209,7 +218,7 @@ def main():
         os.makedirs(options.render, exist_ok=True)
     if "body" in cases:
         helpers.reset_scene()
-        objects, rig = build_body(not options.no_gltf)
+        objects, rig = build_body(not options.no_gltf, options.auto_weights)
         add_volume_preservation(options, objects)
         for title, obj in objects:
             measure_case(addon, title, obj, body_poses(rig))

@@ -56,8 +56,7 @@ static bool lvp__build_neighbours(lvp__diffusion *diffusion, const int32_t *tria
 	return true;
 }
 
-bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
-                         int32_t triangle_count, int32_t bone_count, int32_t stride)
+bool lvp__diffusion_alloc(lvp__diffusion *diffusion, int32_t vertex_count, int32_t bone_count, int32_t stride)
 {
 	memset(diffusion, 0, sizeof(*diffusion));
 	int64_t chunks = LVP__DIFFUSION_CHUNKS;
@@ -81,7 +80,14 @@ bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, in
 	diffusion->next_bones = diffusion->bones + cells;
 	diffusion->values = (float *)(diffusion->next_bones + cells);
 	diffusion->next_values = diffusion->values + cells;
-	return lvp__build_neighbours(diffusion, triangles, vertex_count, triangle_count);
+	return true;
+}
+
+bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
+                         int32_t triangle_count, int32_t bone_count, int32_t stride)
+{
+	return lvp__diffusion_alloc(diffusion, vertex_count, bone_count, stride) &&
+	       lvp__build_neighbours(diffusion, triangles, vertex_count, triangle_count);
 }
 
 void lvp__diffusion_free(lvp__diffusion *diffusion)
@@ -108,6 +114,24 @@ static int32_t lvp__insert_sorted(int32_t *bones, double *weights, int32_t lengt
 	}
 	bones[at] = bone;
 	weights[at] = w;
+	return length;
+}
+
+int32_t lvp__diffusion_finish_row(int32_t *r_bones, float *r_values, int32_t stride, double *accum,
+                                  const int32_t *touched, int32_t touched_count)
+{
+	double row_weights[LVP__DIFFUSION_MAX_ROW], sum = 0.0;
+	int32_t length = 0;
+	for (int32_t i = 0; i < touched_count; ++i) {
+		int32_t bone = touched[i];
+		if (accum[bone] > 0.0)
+			length = lvp__insert_sorted(r_bones, row_weights, length, stride, bone, accum[bone]);
+		accum[bone] = 0.0;
+	}
+	for (int32_t j = 0; j < length; ++j)
+		sum += row_weights[j];
+	for (int32_t j = 0; j < length; ++j)
+		r_values[j] = (float)(row_weights[j] / sum);
 	return length;
 }
 
@@ -156,19 +180,9 @@ static void lvp__diffuse_vertex(lvp__diffusion *diffusion, int32_t k, double rat
 			accum[bone] += share * (double)diffusion->values[row + j];
 		}
 	}
-	double row_weights[LVP__DIFFUSION_MAX_ROW], sum = 0.0;
-	int32_t length = 0;
-	for (int32_t i = 0; i < touched_count; ++i) {
-		int32_t bone = touched[i];
-		if (accum[bone] > 0.0)
-			length = lvp__insert_sorted(diffusion->next_bones + at, row_weights, length, stride, bone, accum[bone]);
-		accum[bone] = 0.0;
-	}
-	for (int32_t j = 0; j < length; ++j)
-		sum += row_weights[j];
-	for (int32_t j = 0; j < length; ++j)
-		diffusion->next_values[at + j] = (float)(row_weights[j] / sum);
-	diffusion->next_counts[k] = length;
+	diffusion->next_counts[k] =
+	    lvp__diffusion_finish_row(diffusion->next_bones + at, diffusion->next_values + at, stride, accum, touched,
+	                              touched_count);
 }
 
 typedef struct lvp__diffusion_loop {

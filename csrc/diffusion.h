@@ -40,12 +40,33 @@ typedef struct lvp__diffusion {
 bool lvp__diffusion_init(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
                          int32_t triangle_count, int32_t bone_count, int32_t stride);
 void lvp__diffusion_free(lvp__diffusion *diffusion);
+/* The rows and scratch alone, for a graph whose neighbour lists the caller sets: neighbour_offsets
+ * (vertex_count + 1, in the block) and neighbours (malloc'ed; lvp__diffusion_free frees it). */
+bool lvp__diffusion_alloc(lvp__diffusion *diffusion, int32_t vertex_count, int32_t bone_count, int32_t stride);
+
+/* A row from the sums of its bones in accum (the bones met listed in touched, accum zero elsewhere): the
+ * `stride` strongest, by decreasing weight, renormalized, into r_bones and r_values; clears what it read
+ * of accum. Returns the row's length. */
+int32_t lvp__diffusion_finish_row(int32_t *r_bones, float *r_values, int32_t stride, double *accum,
+                                  const int32_t *touched, int32_t touched_count);
 
 /* One step: every row becomes (1 - rate_k) of itself plus rate_k of the mean of its own and its
  * edge neighbours' rows, kept to the `stride` strongest bones and renormalized. rates NULL: 1
  * for every vertex. A row of one bone among neighbours of that bone alone is copied. Rows are
  * independent within a step: split over the pool's threads (NULL: this thread), the same result. */
 void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates, lvp__pool *pool);
+
+/* Diffuses the rows as `steps` steps at rate 1 would. From LVP__DIFFUSION_COARSE_FROM steps on, in a
+ * time that does not grow with them (diffusion_levels.c): the rows are averaged over clusters of the
+ * vertices within LVP__DIFFUSION_CLUSTER_RINGS edges of each other, diffused over the graph of the
+ * clusters (adjacent when an edge joins them) as far as the steps would spread them, given back to
+ * the vertices, and smoothed over about one cluster's width by ordinary steps. Like the steps, weight
+ * flows only along edges. positions: the vertices', to measure the clusters' spacing. Returns false
+ * when memory runs out (the rows are then as they were or diffused in part). */
+#define LVP__DIFFUSION_COARSE_FROM 64
+#define LVP__DIFFUSION_CLUSTER_RINGS 2
+bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count, int64_t steps,
+                          lvp__pool *pool);
 
 /* The mean length of the edges (each counted from both ends); 0 when there is none. */
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);

@@ -197,7 +197,8 @@
  *
  *   Bind: O(N B) for the maps, O(E log E) for the parts (E weight entries), plus O(N) per step
  *   of the bulge width's diffusion (at most 32); lvp_auto_weights(): O(N B) with the normal
- *   test, O(N B log F) with the exact test, plus O(N) per smoothing step.
+ *   test, O(N B log F) with the exact test, plus O(N) per smoothing step (about O(N) in all past 64
+ *   steps, SMOOTHING).
  *   Per frame, only the skin around the joints that bend is visited (with a bulge width, the skin
  *   its diffused rows reach): a triangle that its
  *   region's bone carries rigidly enters the measurement in closed form (which relies on
@@ -365,7 +366,13 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * edge (split seams) are smoothed separately. A border between bones spreads over about
  * sqrt(2 steps) edges, so a fixed number of steps blends over a distance that shrinks as the mesh
  * gets denser; options.smoothing_length > 0 takes ceil((smoothing_length / mean edge length)^2 / 2)
- * steps instead (at most LVP_MAX_SMOOTHING_ITERATIONS), about the same blend at any resolution.
+ * steps' worth instead, about the same blend at any resolution. From 64 steps on, the rows are
+ * blended through clusters of nearby vertices instead of step by step (each cluster the vertices
+ * within 2 edges of its seed; the clusters' rows diffused over the graph of adjacent clusters, as far
+ * as the steps would spread them, through clusters of clusters when that is many steps again; then
+ * given back to the vertices and smoothed over a cluster's width): about the same blend (on a body
+ * of 101,336 vertices, a vertex's weights differ from the steps' by 0.03 in all in the median, 0.16
+ * at the 99th percentile), at the cost of a few steps however many are asked.
  * With a high alpha (nearest bone first, e.g. 16) this gives weights close to Blender's heat
  * weights on a closed body (README). */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,

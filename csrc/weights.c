@@ -393,18 +393,19 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 	int32_t stride = ctx->bone_count < LVP__DIFFUSION_ROW ? ctx->bone_count : LVP__DIFFUSION_ROW;
 	if (!lvp__diffusion_init(smooth, triangles, vertex_count, triangle_count, ctx->bone_count, stride))
 		return false;
-	if (length > 0.0)
-		iterations = lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions, vertex_count),
-		                                  LVP_MAX_SMOOTHING_ITERATIONS);
+	/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what a
+	 * few do (lvp__diffusion_blend). */
+	int64_t steps = length > 0.0 ? lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions,
+	                                                                                      vertex_count),
+	                                                    INT32_MAX)
+	                             : iterations;
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
 	for (int32_t k = 0; k < vertex_count; ++k)
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
-	for (int32_t step = 0; step < iterations; ++step)
-		lvp__diffusion_step(smooth, vertex_count, NULL, NULL);
-	return true;
+	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL);
 }
 
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,

@@ -703,8 +703,56 @@ static void test_smoothing_length_follows_the_resolution(void)
 	free(fine);
 }
 
+/* A blend of many steps' worth (about 100 on the arm with rings 0.035 apart, through the clusters of
+ * lvp__diffusion_blend) is as wide as the same length blended by a few ordinary steps on the arm with rings
+ * 0.1 apart (13), continuous, and each bone still holds the middle of its segment. */
+static void test_smoothing_of_many_steps(void)
+{
+	builder *coarse = malloc(sizeof(builder)), *fine = malloc(sizeof(builder));
+	make_arm(coarse, 0.1);
+	make_arm(fine, 0.035);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	result sharp = compute(fine, &o);
+	o.smoothing_length = 0.5f;
+	result few = compute(coarse, &o), many = compute(fine, &o);
+	check_rows(fine, &many, &o);
+	double few_blend = blend_width(&few, 0.1), many_blend = blend_width(&many, 0.035);
+	printf("  blend over 0.5: %.3f wide with 13 steps on rings 0.1 apart, %.3f with many steps' worth on rings "
+	       "0.035 apart; largest jump across an edge %.3f (unsmoothed %.3f)\n",
+	       few_blend, many_blend, largest_edge_jump(fine, &many), largest_edge_jump(fine, &sharp));
+	CHECK(many_blend > 0.8 * few_blend && many_blend < 1.25 * few_blend);
+	CHECK(largest_edge_jump(fine, &many) < 0.5 * largest_edge_jump(fine, &sharp));
+	/* Along the arm, the weights of the many steps follow those of the few: at each ring of the arm 0.1
+	 * apart, within 0.05 of them (interpolated between the two rings 0.035 apart around it); in the middle
+	 * of each segment its bone holds among them. */
+	int32_t fine_around = (int32_t)lround(1.6 / 0.035), coarse_around = 16;
+	double worst = 0.0, middle = 1.0;
+	for (int32_t ring = 0; ring <= 30; ++ring) {
+		double z = 0.1 * ring, at = z / 0.035;
+		int32_t below = (int32_t)floor(at), above = below + 1 < (int32_t)lround(3.0 / 0.035) ? below + 1 : below;
+		double t = at - below;
+		for (int32_t bone = 0; bone < 3; ++bone) {
+			double a = weight_of(&few, ring * coarse_around, bone);
+			double b = (1.0 - t) * weight_of(&many, below * fine_around, bone) + t * weight_of(&many, above * fine_around, bone);
+			worst = fmax(worst, fabs(a - b));
+			if (fabs(z - (bone + 0.5)) < 0.01)
+				middle = fmin(middle, b);
+		}
+	}
+	printf("  along the arm: at most %.3f apart; the middle of each segment %.3f its bone's\n", worst, middle);
+	CHECK(worst < 0.05);
+	CHECK(middle > 0.9);
+	result_free(&sharp);
+	result_free(&few);
+	result_free(&many);
+	free(coarse);
+	free(fine);
+}
+
 /* Weight flows along edges only: the two fingers (separate pieces, 0.1 apart) are weighted as each alone,
- * bit for bit, though the smoothing changes both. */
+ * bit for bit, though the smoothing changes both; with a few steps and with many (through clusters,
+ * lvp__diffusion_blend). */
 static void test_smoothing_keeps_separate_pieces_apart(void)
 {
 	builder *both = malloc(sizeof(builder)), *alone = malloc(sizeof(builder));
@@ -718,20 +766,23 @@ static void test_smoothing_keeps_separate_pieces_apart(void)
 			add_triangle(alone, both->triangles[3 * t], both->triangles[3 * t + 1], both->triangles[3 * t + 2]);
 	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NONE); /* each finger takes both bones */
 	result raw = compute(both, &o);
-	o.smoothing_iterations = 20;
-	result together = compute(both, &o), separate = compute(alone, &o);
-	check_rows(both, &together, &o);
-	CHECK(memcmp(together.offsets, separate.offsets, sizeof(int32_t) * ((size_t)split + 1)) == 0);
-	int32_t total = separate.offsets[split];
-	CHECK(memcmp(together.bones, separate.bones, sizeof(int32_t) * (size_t)total) == 0);
-	CHECK(memcmp(together.values, separate.values, sizeof(float) * (size_t)total) == 0);
-	int32_t changed = 0;
-	for (int32_t v = 0; v < split; ++v)
-		changed += fabsf(weight_of(&raw, v, 1) - weight_of(&together, v, 1)) > 1e-3f;
-	CHECK(changed > split / 4);
+	const int32_t steps[2] = {20, 100};
+	for (int i = 0; i < 2; ++i) {
+		o.smoothing_iterations = steps[i];
+		result together = compute(both, &o), separate = compute(alone, &o);
+		check_rows(both, &together, &o);
+		CHECK(memcmp(together.offsets, separate.offsets, sizeof(int32_t) * ((size_t)split + 1)) == 0);
+		int32_t total = separate.offsets[split];
+		CHECK(memcmp(together.bones, separate.bones, sizeof(int32_t) * (size_t)total) == 0);
+		CHECK(memcmp(together.values, separate.values, sizeof(float) * (size_t)total) == 0);
+		int32_t changed = 0;
+		for (int32_t v = 0; v < split; ++v)
+			changed += fabsf(weight_of(&raw, v, 1) - weight_of(&together, v, 1)) > 1e-3f;
+		CHECK(changed > split / 4);
+		result_free(&together);
+		result_free(&separate);
+	}
 	result_free(&raw);
-	result_free(&together);
-	result_free(&separate);
 	free(both);
 	free(alone);
 }
@@ -908,6 +959,7 @@ int main(void)
 	RUN(test_smoothing_makes_weights_continuous);
 	RUN(test_smoothing_keeps_separate_pieces_apart);
 	RUN(test_smoothing_length_follows_the_resolution);
+	RUN(test_smoothing_of_many_steps);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

@@ -642,8 +642,14 @@ static void test_smoothing_makes_weights_continuous(void)
 		CHECK(smooth.offsets[isolated + 1] - smooth.offsets[isolated] == sharp.offsets[isolated + 1] -
 		                                                                     sharp.offsets[isolated]);
 		CHECK(weight_of(&smooth, isolated, 1) == weight_of(&sharp, isolated, 1));
+		/* Through the clusters (lvp__diffusion_blend) the isolated vertex is a cluster of its own. */
+		o.smoothing_iterations = 500;
+		result blended = compute(b, &o);
+		check_rows(b, &blended, &o);
+		CHECK(weight_of(&blended, isolated, 1) == weight_of(&sharp, isolated, 1));
 		result_free(&sharp);
 		result_free(&smooth);
+		result_free(&blended);
 	}
 	free(b);
 }

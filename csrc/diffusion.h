@@ -58,8 +58,9 @@ void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const 
 
 /* Diffuses the rows as `steps` steps at rate 1 would. From LVP__DIFFUSION_COARSE_FROM steps on, in a
  * time that does not grow with them (diffusion_levels.c): the rows are averaged over clusters of the
- * vertices within LVP__DIFFUSION_CLUSTER_RINGS edges of each other, diffused over the graph of the
- * clusters (adjacent when an edge joins them) as far as the steps would spread them, given back to
+ * vertices within LVP__DIFFUSION_CLUSTER_RINGS edges of a seed, diffused over the graph of the
+ * clusters (adjacent when an edge joins them) as far as the steps would spread them (through clusters
+ * of clusters when that is many steps again), given back to
  * the vertices, and smoothed over about one cluster's width by ordinary steps. Like the steps, weight
  * flows only along edges. positions: the vertices', to measure the clusters' spacing. Returns false
  * when memory runs out (the rows are then as they were or diffused in part). */

@@ -17,6 +17,20 @@ static int lvp__compare_int32(const void *a, const void *b)
 	return (x > y) - (x < y);
 }
 
+void lvp__compact_neighbour_lists(int32_t *offsets, int32_t *list, int32_t count)
+{
+	int32_t written = 0;
+	for (int32_t k = 0; k < count; ++k) {
+		int32_t begin = offsets[k], end = offsets[k + 1]; /* offsets[k + 1] is not rewritten yet */
+		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
+		offsets[k] = written;
+		for (int32_t j = begin; j < end; ++j)
+			if (list[j] != k && (written == offsets[k] || list[written - 1] != list[j]))
+				list[written++] = list[j];
+	}
+	offsets[count] = written;
+}
+
 /* The edge neighbours of every vertex, each listed once (degenerate triangles' repeated corners left out). */
 static bool lvp__build_neighbours(lvp__diffusion *diffusion, const int32_t *triangles, int32_t vertex_count,
                                   int32_t triangle_count)
@@ -41,17 +55,7 @@ static bool lvp__build_neighbours(lvp__diffusion *diffusion, const int32_t *tria
 			list[cursor[a]++] = o;
 		}
 	}
-	/* Sort and compact each list in place; the offsets shrink to the distinct neighbours. */
-	int32_t written = 0;
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		int32_t begin = offsets[k], end = offsets[k + 1];
-		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
-		offsets[k] = written;
-		for (int32_t j = begin; j < end; ++j)
-			if (list[j] != k && (written == offsets[k] || list[written - 1] != list[j]))
-				list[written++] = list[j];
-	}
-	offsets[vertex_count] = written;
+	lvp__compact_neighbour_lists(offsets, list, vertex_count);
 	diffusion->neighbours = list;
 	return true;
 }

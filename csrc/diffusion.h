@@ -44,6 +44,10 @@ void lvp__diffusion_free(lvp__diffusion *diffusion);
  * (vertex_count + 1, in the block) and neighbours (malloc'ed; lvp__diffusion_free frees it). */
 bool lvp__diffusion_alloc(lvp__diffusion *diffusion, int32_t vertex_count, int32_t bone_count, int32_t stride);
 
+/* Sorts each list [offsets[k], offsets[k + 1]) of `list` (k < count), drops repeats and k itself, and
+ * packs the lists to the front, offsets shrinking to match. */
+void lvp__compact_neighbour_lists(int32_t *offsets, int32_t *list, int32_t count);
+
 /* A row from the sums of its bones in accum (the bones met listed in touched, accum zero elsewhere): the
  * `stride` strongest, by decreasing weight, renormalized, into r_bones and r_values; clears what it read
  * of accum. Returns the row's length. */

@@ -18,12 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int lvp__compare_int32(const void *a, const void *b)
-{
-	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-	return (x > y) - (x < y);
-}
-
 /* The clusters: of_vertex[k] the cluster of vertex k; members of cluster c at member_offsets[c]... */
 typedef struct lvp__clusters {
 	int32_t count;
@@ -88,36 +82,32 @@ static bool lvp__find_clusters(lvp__clusters *clusters, const lvp__diffusion *fi
 static bool lvp__cluster_graph(lvp__diffusion *coarse, const lvp__clusters *clusters, const lvp__diffusion *fine)
 {
 	int32_t m = clusters->count, *offsets = coarse->neighbour_offsets;
+	/* Every fine edge that leaves its cluster, repeats included; compacted afterwards. */
 	offsets[0] = 0;
 	for (int32_t c = 0; c < m; ++c) {
-		int32_t room = 0;
+		int32_t leaving = 0;
 		for (int32_t i = clusters->member_offsets[c]; i < clusters->member_offsets[c + 1]; ++i) {
 			int32_t v = clusters->members[i];
-			room += fine->neighbour_offsets[v + 1] - fine->neighbour_offsets[v];
+			for (int32_t e = fine->neighbour_offsets[v]; e < fine->neighbour_offsets[v + 1]; ++e)
+				leaving += clusters->of_vertex[fine->neighbours[e]] != c;
 		}
-		offsets[c + 1] = offsets[c] + room;
+		offsets[c + 1] = offsets[c] + leaving;
 	}
 	int32_t *list = malloc(sizeof(int32_t) * ((size_t)offsets[m] + 1));
 	if (!list)
 		return false;
-	int32_t written = 0;
 	for (int32_t c = 0; c < m; ++c) {
-		int32_t begin = offsets[c], end = begin;
+		int32_t at = offsets[c];
 		for (int32_t i = clusters->member_offsets[c]; i < clusters->member_offsets[c + 1]; ++i) {
 			int32_t v = clusters->members[i];
 			for (int32_t e = fine->neighbour_offsets[v]; e < fine->neighbour_offsets[v + 1]; ++e) {
 				int32_t other = clusters->of_vertex[fine->neighbours[e]];
 				if (other != c)
-					list[end++] = other;
+					list[at++] = other;
 			}
 		}
-		qsort(list + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_int32);
-		offsets[c] = written;
-		for (int32_t j = begin; j < end; ++j)
-			if (written == offsets[c] || list[written - 1] != list[j])
-				list[written++] = list[j];
 	}
-	offsets[m] = written;
+	lvp__compact_neighbour_lists(offsets, list, m);
 	coarse->neighbours = list;
 	return true;
 }

@@ -81,10 +81,10 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	return median(times, repeats);
 }
 
-/* The mesh's bounding-box diagonal. */
 /* The add-on's Auto Weights blends over this share of the mesh's diagonal (its Blend Width default). */
 #define ADDON_BLEND_WIDTH 0.025
 
+/* The mesh's bounding-box diagonal. */
 static double diagonal_of(const test_rig *rig)
 {
 	double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, sum = 0.0;
@@ -157,13 +157,11 @@ static void run_case(bench_case *c, int32_t cores)
 	double exact = n <= 200000 ? auto_weights_time(rig, LVP_VISIBILITY_EXACT, 0) : NAN;
 	double before = 100.0 * (stats.volume_before - stats.volume_rest) / stats.volume_rest;
 	double after = 100.0 * (stats.volume_after - stats.volume_rest) / stats.volume_rest;
-	char exact_text[32] = "-", smoothed_text[32] = "-";
+	char exact_text[32] = "-";
 	if (!isnan(exact))
 		snprintf(exact_text, sizeof(exact_text), "%.0f", 1e3 * exact);
-	if (!isnan(smoothed))
-		snprintf(smoothed_text, sizeof(smoothed_text), "%.0f", 1e3 * smoothed);
-	printf("| %s | %d | %d | %s | %.0f | %s | %s | %.0f | %.2f | %.2f | %.2f | %.2f%% -> %.4f%% (%d steps) |\n",
-	       c->name, (int)n, (int)b, c->pose, 1e3 * normal, smoothed_text, exact_text, 1e3 * bind1, 1e3 * one, 1e3 * all,
+	printf("| %s | %d | %d | %s | %.0f | %.0f | %s | %.0f | %.2f | %.2f | %.2f | %.2f%% -> %.4f%% (%d steps) |\n",
+	       c->name, (int)n, (int)b, c->pose, 1e3 * normal, 1e3 * smoothed, exact_text, 1e3 * bind1, 1e3 * one, 1e3 * all,
 	       one / all, before, after, (int)stats.iterations);
 	fflush(stdout);
 	for (int pose = 0; pose < POSES; ++pose) {

@@ -304,9 +304,22 @@ typedef struct lvp__stretch {
 	bool any;                  /* some pair is stretched */
 } lvp__stretch;
 
+/* A joint between a region and a neighbour, this frame (lvp__begin_fold_over). */
+typedef struct lvp__joint {
+	bool bends;                /* the two bend about a joint: the rest is set */
+	lvp__vec3 point, normal;   /* posed contact plane; normal from the region's side to the neighbour's */
+	lvp__vec3 rest_point, rest_normal;
+	lvp__vec3 axis;            /* posed bend axis, unit */
+	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
+	double reach;              /* along the axis: the child bone's flesh radius */
+} lvp__joint;
+
 /* Fold-over prevention (foldover.c). */
 typedef struct lvp__fold {
 	uint8_t *contact;          /* per neighbour entry (lvp__mesh), this frame: LVP__CONTACT_* */
+	lvp__joint *joints;        /* per neighbour entry, this frame */
+	double *radius;            /* per region: its vertices' mean rest distance to its bone */
+	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there, kept
 	                              zero between frames */
 } lvp__fold;
@@ -690,7 +703,8 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);
-/* Forgets this frame's contacts (before the first lvp__fold_over of a frame). */
-void lvp__clear_contacts(lvp_binding *binding);
+/* Finds this frame's joints and forgets its contacts (before the first lvp__fold_over of a
+ * frame). */
+void lvp__begin_fold_over(lvp_binding *binding);
 
 #endif /* LVP_BINDING_H */

@@ -753,6 +753,17 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 	return sqrt(largest);
 }
 
+/* The largest distance between a and b over the vertices. */
+static double lvp__largest_displacement(const lvp_binding *binding, const float *a, const float *b)
+{
+	double largest = 0.0;
+	for (int32_t k = 0; k < 3 * binding->vertex_count; k += 3) {
+		double dx = (double)a[k] - b[k], dy = (double)a[k + 1] - b[k + 1], dz = (double)a[k + 2] - b[k + 2];
+		largest = fmax(largest, dx * dx + dy * dy + dz * dz);
+	}
+	return sqrt(largest);
+}
+
 /* One attempt at the frame's correction, from the input positions: the volume steps, then
  * fold-over when asked. Adds its steps to stats->iterations, sets the active regions and folded
  * vertices, and on the first attempt the volume and the worst group before correction. Groups
@@ -787,16 +798,25 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
 		 * contact surface (which turns the compression into a bulge); the bulge may push other
 		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
-		lvp__clear_contacts(binding);
+		lvp__begin_fold_over(binding);
 		int32_t moved = lvp__fold_over(binding, rest_positions);
 		stats->folded_vertices = moved;
+		/* A round may move no vertex more than twice as far as the volume correction moved any:
+		 * further, it is diverging (the map faded at the contacts leaves the volume too few
+		 * places to go), and the frame keeps the round before. */
+		double bound = 2.0 * lvp__largest_displacement(binding, positions, binding->step.positions);
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;
+			memcpy(binding->fold.saved, binding->step.positions, sizeof(float) * 3 * (size_t)n);
 			/* At the contacts found since the last round; only the fade changes what can move. */
 			if (lvp__fade_map_at_contact(binding))
 				lvp__movable_regions(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
 			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+			if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
+				memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
+				break;
+			}
 			moved = lvp__fold_over(binding, rest_positions);
 			stats->folded_vertices += moved;
 		}

@@ -1,11 +1,13 @@
 /*
- * foldover.c - paper 5.4: fold-over prevention. A vertex that the posed skeleton places
- * closer (in the 5.1 sense, distance over bone length) to a neighbouring bone than to its own
- * region's bone has crossed into the neighbour's flesh: it is moved back towards its own bone,
- * onto the contact surface d_s / l_s = d_j / l_j between the two regions. The paper walks
- * there in constant steps (which must be shorter than the flesh is thin, and stop short of or
- * past the surface); here the point on the path is found by bisection, so the vertex lands on
- * the contact surface to float precision whatever the flesh width.
+ * foldover.c - paper 5.4: fold-over prevention. Where two bones bend about a joint, the skin on
+ * the concave side of the bend is pressed together: a vertex of one side that the posed skeleton
+ * carries across the joint's contact plane (the plane through the joint halfway between the two
+ * bones) has crossed into the other side's flesh, and is moved back onto the plane. The paper
+ * finds the crossing with its 5.1 weight formula (distances to the bone segments) and walks back
+ * towards the vertex's bone in constant steps; both assume each bone runs through the middle of
+ * its flesh. A hand's palm is one bone down its middle and its fingers hang off it sideways: the
+ * segments' bisector there runs through the palm, far from any crease, and the walk towards the
+ * palm bone pulled sheets of skin out of it. The plane through the joint itself holds for both.
  */
 #include "binding.h"
 
@@ -18,60 +20,69 @@ enum {
 	LVP__CONTACT_FADED,    /* and the map was faded there (lvp__fade_map_at_contact) */
 };
 
-/* f > 0: closer (relative to bone length) to bone j than to bone s. */
-static inline double lvp__side(lvp__vec3 p, lvp__vec3 s_head, lvp__vec3 s_tail, double s_length, lvp__vec3 j_head,
-                               lvp__vec3 j_tail, double j_length)
+static inline double lvp__smoothstep(double x)
 {
-	return lvp__segment_distance(p, s_head, s_tail) / s_length - lvp__segment_distance(p, j_head, j_tail) / j_length;
+	x = x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
+	return x * x * (3.0 - 2.0 * x);
 }
 
-/* Moves p (on bone j's side, f > 0) back across the contact surface f = 0 along the steepest
- * way, -grad f: where the two bones are straight near their joint the surface is the bisector
- * plane and this is the orthogonal projection onto it, which keeps the skin that crossed
- * untangled (a walk towards the bone would slide vertices along the surface and fold it). The
- * crossing point is bracketed by doubling the step, then bisected; the vertex ends `gap` past
- * it on its own side, so the skin of the two sides cannot touch. False if no crossing is found
- * within `limit`. */
-static bool lvp__back_to_contact(lvp__vec3 *r_point, lvp__vec3 p, lvp__vec3 sh, lvp__vec3 st, double ls, lvp__vec3 jh,
-                                 lvp__vec3 jt, double lj, double gap, double limit)
+static inline lvp__vec3 lvp__unit(lvp__vec3 a)
 {
-	lvp__vec3 cs, cj;
-	lvp__closest_on_segment(&cs, p, sh, st);
-	lvp__closest_on_segment(&cj, p, jh, jt);
-	double ds = lvp__length(lvp__sub(p, cs)), dj = lvp__length(lvp__sub(p, cj));
-	if (!(ds > 0.0) || !(dj > 0.0))
+	double length = lvp__length(a);
+	return length > 0.0 ? lvp__scale(a, 1.0 / length) : lvp__v(0.0, 0.0, 0.0);
+}
+
+/* How far apart the two bones' skinning carries rest point p this frame. */
+static double lvp__motion_apart(const lvp_binding *binding, int32_t s, int32_t j, lvp__vec3 p)
+{
+	return lvp__length(lvp__sub(lvp__transform_point(&binding->rig.skin[s], p),
+	                            lvp__transform_point(&binding->rig.skin[j], p)));
+}
+
+/* The joint of bones s and j: the head of one of them (the child's, where a bone turns about its
+ * parent) that their relative motion leaves in place, while it moves the bones' other ends apart.
+ * Found from the motion, so the rig's hierarchy is not needed, and a pair that meets without a
+ * joint (a thumb folded onto the index) is told apart at any angle: its motion fixes no head. */
+static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, int32_t *r_child)
+{
+	const lvp__rig *rig = &binding->rig;
+	double moved = fmax(fmax(lvp__motion_apart(binding, s, j, rig->tails[s]),
+	                         lvp__motion_apart(binding, s, j, rig->tails[j])),
+	                    fmax(lvp__motion_apart(binding, s, j, rig->heads[s]),
+	                         lvp__motion_apart(binding, s, j, rig->heads[j])));
+	if (!(moved > 0.0))
 		return false;
-	lvp__vec3 gradient =
-	    lvp__sub(lvp__scale(lvp__sub(p, cs), 1.0 / (ds * ls)), lvp__scale(lvp__sub(p, cj), 1.0 / (dj * lj)));
-	/* Each term of the gradient has length 1 / l. When they (nearly) cancel, the two bones lie on
-	 * top of each other here (a joint folded to 180 degrees): there is no contact surface to
-	 * project onto, and the direction would be rounding noise. */
-	double length = lvp__length(gradient);
-	if (!(length > 1e-6 * (1.0 / ls + 1.0 / lj)))
+	double at_j = lvp__motion_apart(binding, s, j, rig->heads[j]);
+	double at_s = lvp__motion_apart(binding, s, j, rig->heads[s]);
+	int32_t child = at_j <= at_s ? j : s;
+	if (!(fmin(at_j, at_s) <= 0.1 * moved))
 		return false;
-	lvp__vec3 direction = lvp__scale(gradient, -1.0 / length);
-	double f = lvp__side(p, sh, st, ls, jh, jt, lj);
-	/* The contact surface is nearer than the farther bone, and no sane contact is further than
-	 * a volume step may go (a quarter of the mesh's size): past that, the pose is not one skin
-	 * can follow (bones sent far from their skin), and the vertex is left where it is. */
-	double reach = fmin(2.0 * (ds + dj), limit);
-	double outside = 0.0, inside = fmin(f / length, reach);
-	int doublings = 0;
-	while (lvp__side(lvp__add(p, lvp__scale(direction, inside)), sh, st, ls, jh, jt, lj) > 0.0) {
-		outside = inside;
-		inside *= 2.0;
-		if (++doublings > 40 || inside > reach)
-			return false;
-	}
-	for (int step = 0; step < 60 && inside - outside > 1e-9 * (inside + 1e-30); ++step) {
-		double middle = 0.5 * (inside + outside);
-		if (lvp__side(lvp__add(p, lvp__scale(direction, middle)), sh, st, ls, jh, jt, lj) > 0.0)
-			outside = middle;
-		else
-			inside = middle;
-	}
-	*r_point = lvp__add(p, lvp__scale(direction, inside + gap));
+	*r_child = child;
 	return true;
+}
+
+/* The contact plane of the joint at the child's head, from the bones' ends (rest or posed): the
+ * plane through the joint whose normal bisects the parent's direction away from the joint and the
+ * child's, pointing to the child's side. Also the bend's axis and its concave side. False when
+ * the bones lie straight or on top of each other there. */
+static bool lvp__contact_plane(lvp__vec3 *r_normal, lvp__vec3 *r_axis, lvp__vec3 *r_concave, lvp__vec3 joint,
+                               lvp__vec3 parent_head, lvp__vec3 parent_tail, lvp__vec3 child_tail)
+{
+	/* A child hangs off its parent in the parent's direction (the fingers off the palm, the thumb
+	 * off its side): from the joint the parent runs back, tail to head, wherever along it the
+	 * child sits; unless the two share the head (siblings turning about one point). */
+	lvp__vec3 parent = lvp__sub(parent_tail, parent_head);
+	bool at_head = lvp__length(lvp__sub(joint, parent_head)) <= 0.1 * lvp__length(parent);
+	lvp__vec3 away = lvp__unit(at_head ? parent : lvp__scale(parent, -1.0));
+	lvp__vec3 along = lvp__unit(lvp__sub(child_tail, joint));
+	lvp__vec3 normal = lvp__sub(along, away);
+	if (!(lvp__length(normal) > 1e-6))
+		return false; /* folded onto each other: no plane between them */
+	*r_normal = lvp__unit(normal);
+	lvp__vec3 axis = lvp__cross(away, along);
+	*r_axis = lvp__unit(axis);
+	*r_concave = lvp__unit(lvp__add(away, along));
+	return lvp__length(axis) > 1e-3 && lvp__length(lvp__add(away, along)) > 1e-3;
 }
 
 /* Whether two bones move differently this frame (only then can skin fold between them). */
@@ -87,9 +98,47 @@ static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 	return false;
 }
 
-void lvp__clear_contacts(lvp_binding *binding)
+void lvp__begin_fold_over(lvp_binding *binding)
 {
+	const lvp__rig *rig = &binding->rig;
 	memset(binding->fold.contact, 0, (size_t)binding->mesh.neighbour_offsets[binding->region_count]);
+	for (int32_t s = 0; s < binding->region_count; ++s)
+		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
+			lvp__joint *joint = &binding->fold.joints[n];
+			int32_t j = binding->mesh.neighbour_bones[n], child;
+			joint->bends = false;
+			if (rig->region_skipped[s] || rig->region_skipped[j] || !(rig->bone_length[s] > 0.0) ||
+			    !(rig->bone_length[j] > 0.0) || !lvp__bends(binding, s, j) || !lvp__joint_child(binding, s, j, &child))
+				continue;
+			int32_t parent = child == s ? j : s;
+			lvp__vec3 rest_axis, rest_concave;
+			joint->rest_point = rig->heads[child];
+			joint->point = rig->posed_heads[child];
+			joint->rest_normal = lvp__v(0.0, 0.0, 0.0);
+			/* At rest the bones usually lie straight (no axis), but the plane is there. */
+			lvp__contact_plane(&joint->rest_normal, &rest_axis, &rest_concave, joint->rest_point, rig->heads[parent],
+			                   rig->tails[parent], rig->tails[child]);
+			if (!(lvp__length(joint->rest_normal) > 0.0))
+				continue;
+			if (!lvp__contact_plane(&joint->normal, &joint->axis, &joint->concave, joint->point,
+			                        rig->posed_heads[parent], rig->posed_tails[parent], rig->posed_tails[child]))
+				continue; /* straight: nothing folds */
+			if (child == s) { /* the normals point from s's side to j's */
+				joint->normal = lvp__scale(joint->normal, -1.0);
+				joint->rest_normal = lvp__scale(joint->rest_normal, -1.0);
+			}
+			joint->reach = binding->fold.radius[child];
+			joint->bends = joint->reach > 0.0;
+		}
+}
+
+/* How much of a vertex at p the joint's plane holds, by its distance from the joint along the
+ * bend's axis: all of it within the child's flesh radius, none past twice that (the palm under the
+ * next finger's knuckle is not pressed by this one). */
+static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
+{
+	double side = fabs(lvp__dot(lvp__sub(p, joint->point), joint->axis));
+	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
 }
 
 /* Marks the contact of entry n of region s's neighbours, bone j, for both sides: the flesh of s
@@ -108,32 +157,28 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	float *work = binding->step.positions;
 	int32_t moved = 0;
-	for (int32_t s = 0; s < binding->region_count; ++s) {
-		double ls = binding->rig.bone_length[s] > 0.0 ? 1.0 : 0.0;
-		if (binding->rig.region_skipped[s] || !(ls > 0.0))
-			continue;
+	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
-			int32_t j = binding->mesh.neighbour_bones[n];
-			double lj = binding->rig.bone_length[j] > 0.0 ? 1.0 : 0.0;
-			if (!(lj > 0.0) || !lvp__bends(binding, s, j))
+			const lvp__joint *joint = &binding->fold.joints[n];
+			if (!joint->bends)
 				continue;
-			lvp__vec3 sh = binding->rig.posed_heads[s], st = binding->rig.posed_tails[s];
-			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
+			int32_t j = binding->mesh.neighbour_bones[n];
+			/* The skin of the two sides does not quite touch. */
 			double gap = 1e-4 * (binding->rig.bone_length[s] + binding->rig.bone_length[j]);
 			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
 			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
 				/* Only vertices that were on their own side at rest can cross. */
-				lvp__vec3 r = lvp__load(rest + 3 * k);
-				if (lvp__side(r, binding->rig.heads[s], binding->rig.tails[s], ls, binding->rig.heads[j],
-				              binding->rig.tails[j], lj) >= 0.0)
+				if (lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal) >= 0.0)
 					continue;
 				lvp__vec3 p = lvp__load(work + 3 * k);
-				if (lvp__side(p, sh, st, ls, jh, jt, lj) <= 0.0)
+				double across = lvp__dot(lvp__sub(p, joint->point), joint->normal);
+				if (!(across > 0.0))
 					continue;
-				lvp__vec3 q;
-				if (!lvp__back_to_contact(&q, p, sh, st, ls, jh, jt, lj, gap, 0.25 * binding->size))
+				double held = lvp__across_joint(joint, p);
+				if (!(held > 0.0))
 					continue;
+				lvp__vec3 q = lvp__sub(p, lvp__scale(joint->normal, held * (across + gap)));
 				work[3 * k] = (float)q.x;
 				work[3 * k + 1] = (float)q.y;
 				work[3 * k + 2] = (float)q.z;
@@ -143,73 +188,30 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
 			}
 		}
-	}
 	return moved;
 }
 
-static inline double lvp__smoothstep(double x)
-{
-	x = x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x);
-	return x * x * (3.0 - 2.0 * x);
-}
-
-/* The concave side of the bend between two posed bones: from the joint (the middle of their
- * nearest ends), the unit direction between the two bones. False when they are (nearly)
- * straight. */
-static bool lvp__concave_side(lvp__vec3 *r_joint, lvp__vec3 *r_direction, lvp__vec3 sh, lvp__vec3 st, lvp__vec3 jh,
-                              lvp__vec3 jt)
-{
-	lvp__vec3 s_ends[2] = {sh, st}, j_ends[2] = {jh, jt};
-	int best_s = 0, best_j = 0;
-	double best = INFINITY;
-	for (int a = 0; a < 2; ++a)
-		for (int b = 0; b < 2; ++b) {
-			double d = lvp__length(lvp__sub(s_ends[a], j_ends[b]));
-			if (d < best) {
-				best = d;
-				best_s = a;
-				best_j = b;
-			}
-		}
-	lvp__vec3 joint = lvp__scale(lvp__add(s_ends[best_s], j_ends[best_j]), 0.5);
-	lvp__vec3 us = lvp__sub(s_ends[1 - best_s], joint), uj = lvp__sub(j_ends[1 - best_j], joint);
-	double ls = lvp__length(us), lj = lvp__length(uj);
-	if (!(ls > 0.0) || !(lj > 0.0))
-		return false;
-	lvp__vec3 c = lvp__add(lvp__scale(us, 1.0 / ls), lvp__scale(uj, 1.0 / lj));
-	double length = lvp__length(c);
-	if (!(length > 1e-3))
-		return false;
-	*r_joint = joint;
-	*r_direction = lvp__scale(c, 1.0 / length);
-	return true;
-}
-
-/* Where skin crossed between two bones: the flesh pressed against their contact surface does not
- * bulge into it. The map is faded to zero there, over half the vertex's rest distance to its
- * bone, so the extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of
- * pushing skin back across. Only on the concave side of the bend, faded in over the same width
- * from the joint: the contact surface also runs through the convex side and the flanks of the
- * joint, where nothing presses the skin, and holding it there left a ridge between held and
- * bulging skin. Only for pairs where skin crossed (a joint bent without contact keeps its
- * bulge), each once a frame. */
+/* Where skin crossed at a joint, the flesh pressed against its contact plane does not bulge into
+ * it. The map is faded to zero there, over half the vertex's rest distance to its bone, so the
+ * extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of pushing skin
+ * back across. Only on the concave side of the bend, faded in over the same width from the joint,
+ * and only within the joint's reach along its axis: the plane also runs through the convex side,
+ * the flanks of the joint and the flesh beside it, where nothing presses the skin, and holding it
+ * there left a ridge between held and bulging skin. Only for pairs where skin crossed (a joint
+ * bent without contact keeps its bulge), each once a frame. */
 bool lvp__fade_map_at_contact(lvp_binding *binding)
 {
 	const float *work = binding->step.positions;
 	bool faded = false;
-	for (int32_t s = 0; s < binding->region_count; ++s) {
-		if (binding->rig.region_skipped[s] || !(binding->rig.bone_length[s] > 0.0))
-			continue;
+	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
 			if (binding->fold.contact[n] != LVP__CONTACT_FOUND)
 				continue;
 			binding->fold.contact[n] = LVP__CONTACT_FADED;
+			const lvp__joint *joint = &binding->fold.joints[n];
+			if (!joint->bends)
+				continue; /* marked from j's side: its joint is the same */
 			faded = true;
-			int32_t j = binding->mesh.neighbour_bones[n];
-			lvp__vec3 sh = binding->rig.posed_heads[s], st = binding->rig.posed_tails[s];
-			lvp__vec3 jh = binding->rig.posed_heads[j], jt = binding->rig.posed_tails[j];
-			lvp__vec3 joint, concave;
-			bool has_side = lvp__concave_side(&joint, &concave, sh, st, jh, jt);
 			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
 			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
@@ -219,25 +221,49 @@ bool lvp__fade_map_at_contact(lvp_binding *binding)
 				if (!(width > 0.0))
 					continue; /* on the bone itself (where the map is zero anyway) */
 				lvp__vec3 p = lvp__load(work + 3 * k);
-				double fade = lvp__smoothstep(-lvp__side(p, sh, st, 1.0, jh, jt, 1.0) / width);
-				double pressed = has_side ? lvp__smoothstep(lvp__dot(lvp__sub(p, joint), concave) / width) : 1.0;
+				double across = lvp__dot(lvp__sub(p, joint->point), joint->normal);
+				double fade = lvp__smoothstep(-across / width);
+				double pressed = lvp__smoothstep(lvp__dot(lvp__sub(p, joint->point), joint->concave) / width);
+				pressed = fmax(pressed, lvp__smoothstep(across / width));
+				pressed *= lvp__across_joint(joint, p);
 				binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
 			}
 		}
-	}
 	return faded;
+}
+
+/* The flesh radius of each region: its vertices' mean rest distance to its bone. */
+static void lvp__flesh_radii(lvp_binding *binding)
+{
+	for (int32_t s = 0; s < binding->region_count; ++s) {
+		int32_t first = binding->mesh.region_vertex_offsets[s], end = binding->mesh.region_vertex_offsets[s + 1];
+		double sum = 0.0;
+		for (int32_t i = first; i < end; ++i)
+			sum += lvp__segment_distance(lvp__load(binding->rest_positions + 3 * binding->mesh.region_vertices[i]),
+			                             binding->rig.heads[s], binding->rig.tails[s]);
+		binding->fold.radius[s] = end > first ? sum / (end - first) : 0.0;
+	}
 }
 
 bool lvp__fold_alloc(lvp_binding *binding)
 {
 	bool ok = true;
-	binding->fold.contact = lvp__calloc((size_t)binding->mesh.neighbour_offsets[binding->region_count], 1, &ok);
+	size_t entries = (size_t)binding->mesh.neighbour_offsets[binding->region_count];
+	binding->fold.contact = lvp__calloc(entries, 1, &ok);
+	binding->fold.joints = lvp__calloc(entries, sizeof(lvp__joint), &ok);
+	binding->fold.radius = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
 	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	binding->fold.saved = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
+	if (ok && binding->mode == LVP_MODE_LOCAL)
+		lvp__flesh_radii(binding);
 	return ok;
 }
 
 void lvp__fold_free(lvp__fold *fold)
 {
 	free(fold->contact);
+	free(fold->joints);
+	free(fold->radius);
 	free(fold->held);
+	free(fold->saved);
 }

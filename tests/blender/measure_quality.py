@@ -90,24 +90,40 @@ def measure_pose(addon, obj, mesh, label):
     return measured
 
 
-def measure_animation(obj, frames):
-    """Prints, for each frame of `frames` after the first, the largest change of a Volume Preservation offset
+def measure_animation(obj, mesh, frames):
+    """Prints, for VP and VP+fold at each frame of `frames` after the first, the largest change of an offset
     since the frame before over the largest motion of plain skinning's skin (surface_quality.offset_change_ratio):
-    a fraction where the correction follows the motion, 1 or more where it pops."""
+    a fraction where the correction follows the motion, 1 or more where it pops; and each frame's crossing pairs
+    of plain skinning, VP and VP+fold."""
     scene = bpy.context.scene
-    before = None
-    ratios = []
+    before = {}
+    ratios = {variant: [] for variant in VARIANTS[1:]}
+    crossings = {variant: [] for variant in VARIANTS}
     for frame in frames:
         scene.frame_set(frame)
         plain = helpers.uncorrected_positions(obj)
-        offsets = quality.offsets_between(plain, helpers.evaluated_positions(obj))
-        if before is not None:
-            ratios.append((frame, quality.offset_change_ratio(before[0], offsets, before[1], plain)))
-        before = (offsets, plain)
-    worst = max(ratios, key=lambda item: item[1])
-    print("  animation, frames %d-%d: offset change against skin motion, largest %.2f at frame %d; by frame: %s"
-          % (frames[0], frames[-1], worst[1], worst[0], " ".join("%.2f" % ratio for _frame, ratio in ratios)))
-    return ratios
+        crossings["plain"].append(quality.count_crossing_pairs(plain, mesh))
+        for variant in VARIANTS[1:]:
+            obj.lvp.fold_over = variant == "VP+fold"
+            bpy.context.view_layer.update()
+            positions = helpers.evaluated_positions(obj)
+            crossings[variant].append(quality.count_crossing_pairs(positions, mesh))
+            offsets = quality.offsets_between(plain, positions)
+            if variant in before:
+                ratios[variant].append((frame, quality.offset_change_ratio(before[variant], offsets,
+                                                                           before["plain"], plain)))
+            before[variant] = offsets
+        before["plain"] = plain
+    obj.lvp.fold_over = False
+    bpy.context.view_layer.update()
+    for variant in VARIANTS[1:]:
+        worst = max(ratios[variant], key=lambda item: item[1])
+        print("  animation %-8s frames %d-%d: offset change against skin motion, largest %.2f at frame %d; by frame: %s"
+              % (variant, frames[0], frames[-1], worst[1], worst[0],
+                 " ".join("%.2f" % ratio for _frame, ratio in ratios[variant])))
+    for variant in VARIANTS:
+        print("  crossing pairs %-8s by frame: %s" % (variant, " ".join(str(c) for c in crossings[variant])))
+    return ratios, crossings
 
 
 def measure_case(addon, title, obj, poses):
@@ -238,7 +254,8 @@ def main():
         add_volume_preservation(options, objects)
         for title, obj in objects:
             measure_case(addon, title, obj, hand_poses())
-            measure_animation(obj, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))
+            mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
+            measure_animation(obj, mesh, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))
         if options.render:
             for title, obj in objects:
                 bpy.context.scene.frame_set(real_cases.HAND_FRAMES[1])

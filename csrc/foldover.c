@@ -61,28 +61,25 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	return true;
 }
 
-/* The contact plane of the joint at the child's head, from the bones' ends (rest or posed): the
- * plane through the joint whose normal bisects the parent's direction away from the joint and the
- * child's, pointing to the child's side. Also the bend's axis and its concave side. False when
- * the bones lie straight or on top of each other there. */
-static bool lvp__contact_plane(lvp__vec3 *r_normal, lvp__vec3 *r_axis, lvp__vec3 *r_concave, lvp__vec3 joint,
-                               lvp__vec3 parent_head, lvp__vec3 parent_tail, lvp__vec3 child_tail)
+/* The contact plane of a joint this frame: through the joint, its normal halfway between where
+ * the child would point had it moved with the parent (straight on, `unbent`) and where it points
+ * (`bent`), towards the child's side: at rest, the plane across the child at its head; bent, the
+ * bisector plane of the bend. Only the child's direction and the two bones' motion enter, never
+ * the parent's direction: a palm bone down the middle of the hand, a pelvis bone pointing at the
+ * hip bone's crest, say nothing of where the flesh of their children turns. Also the bend's axis
+ * and its concave side (where the child bent to). False when the child does not turn (nothing
+ * folds) or turns back onto the parent (no plane between them). */
+static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 bent)
 {
-	/* A child hangs off its parent in the parent's direction (the fingers off the palm, the thumb
-	 * off its side): from the joint the parent runs back, tail to head, wherever along it the
-	 * child sits; unless the two share the head (siblings turning about one point). */
-	lvp__vec3 parent = lvp__sub(parent_tail, parent_head);
-	bool at_head = lvp__length(lvp__sub(joint, parent_head)) <= 0.1 * lvp__length(parent);
-	lvp__vec3 away = lvp__unit(at_head ? parent : lvp__scale(parent, -1.0));
-	lvp__vec3 along = lvp__unit(lvp__sub(child_tail, joint));
-	lvp__vec3 normal = lvp__sub(along, away);
-	if (!(lvp__length(normal) > 1e-6))
-		return false; /* folded onto each other: no plane between them */
-	*r_normal = lvp__unit(normal);
-	lvp__vec3 axis = lvp__cross(away, along);
-	*r_axis = lvp__unit(axis);
-	*r_concave = lvp__unit(lvp__add(away, along));
-	return lvp__length(axis) > 1e-3 && lvp__length(lvp__add(away, along)) > 1e-3;
+	unbent = lvp__unit(unbent);
+	bent = lvp__unit(bent);
+	lvp__vec3 normal = lvp__add(unbent, bent), axis = lvp__cross(unbent, bent), concave = lvp__sub(bent, unbent);
+	if (!(lvp__length(normal) > 1e-3) || !(lvp__length(axis) > 1e-3))
+		return false;
+	r_joint->normal = lvp__unit(normal);
+	r_joint->axis = lvp__unit(axis);
+	r_joint->concave = lvp__unit(concave);
+	return true;
 }
 
 /* Whether two bones move differently this frame (only then can skin fold between them). */
@@ -111,18 +108,17 @@ void lvp__begin_fold_over(lvp_binding *binding)
 			    !(rig->bone_length[j] > 0.0) || !lvp__bends(binding, s, j) || !lvp__joint_child(binding, s, j, &child))
 				continue;
 			int32_t parent = child == s ? j : s;
-			lvp__vec3 rest_axis, rest_concave;
+			/* The joints of one B-Bone share its segment and bend all along it, not at its head. */
+			if (lvp__length(lvp__sub(rig->heads[s], rig->heads[j])) <= 1e-6 * rig->bone_length[s] &&
+			    lvp__length(lvp__sub(rig->tails[s], rig->tails[j])) <= 1e-6 * rig->bone_length[s])
+				continue;
+			lvp__vec3 direction = lvp__sub(rig->tails[child], rig->heads[child]); /* at rest */
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
-			joint->rest_normal = lvp__v(0.0, 0.0, 0.0);
-			/* At rest the bones usually lie straight (no axis), but the plane is there. */
-			lvp__contact_plane(&joint->rest_normal, &rest_axis, &rest_concave, joint->rest_point, rig->heads[parent],
-			                   rig->tails[parent], rig->tails[child]);
-			if (!(lvp__length(joint->rest_normal) > 0.0))
+			joint->rest_normal = lvp__unit(direction);
+			if (!lvp__contact_plane(joint, lvp__transform_vector(&rig->skin[parent], direction),
+			                        lvp__transform_vector(&rig->skin[child], direction)))
 				continue;
-			if (!lvp__contact_plane(&joint->normal, &joint->axis, &joint->concave, joint->point,
-			                        rig->posed_heads[parent], rig->posed_tails[parent], rig->posed_tails[child]))
-				continue; /* straight: nothing folds */
 			if (child == s) { /* the normals point from s's side to j's */
 				joint->normal = lvp__scale(joint->normal, -1.0);
 				joint->rest_normal = lvp__scale(joint->rest_normal, -1.0);

@@ -1,13 +1,13 @@
 /*
  * foldover.c - paper 5.4: fold-over prevention. Where two bones bend about a joint, the skin on
  * the concave side of the bend is pressed together: a vertex of one side that the posed skeleton
- * carries across the joint's contact plane (the plane through the joint halfway between the two
- * bones) has crossed into the other side's flesh, and is moved back onto the plane. The paper
- * finds the crossing with its 5.1 weight formula (distances to the bone segments) and walks back
- * towards the vertex's bone in constant steps; both assume each bone runs through the middle of
- * its flesh. A hand's palm is one bone down its middle and its fingers hang off it sideways: the
+ * carries across the joint's contact plane (through the joint, halfway through the bend) has
+ * crossed into the other side's flesh, and is moved back onto the plane. The paper finds the
+ * crossing with its 5.1 weight formula (distances to the bone segments) and walks back towards
+ * the vertex's bone in constant steps; both assume each bone runs through the middle of its
+ * flesh. A hand's palm is one bone down its middle and its fingers hang off it sideways: the
  * segments' bisector there runs through the palm, far from any crease, and the walk towards the
- * palm bone pulled sheets of skin out of it. The plane through the joint itself holds for both.
+ * palm bone pulled sheets of skin out of it. The plane through the joint holds for both.
  */
 #include "binding.h"
 

@@ -130,16 +130,20 @@
  *
  * FOLD-OVER (paper 5.4)
  *
- *   A vertex of region s that, at the posed skeleton, is closer to a neighbouring bone j's
- *   segment than to s's (while at rest it was on its own side) has crossed into j's flesh: it
- *   goes back to the contact surface between the two bones (near the joint, the bisector plane
- *   of the bend) and is held there while further volume steps run with the map faded near the
- *   contact, so the squeezed volume becomes a bulge beside it (paper Fig. 10d). Contact test and
- *   volume step alternate up to 4 more rounds. Limits: two parts of one bone's flesh, and bones
- *   that are not neighbours (a fingertip folded onto the palm), are not separated; a crease
- *   pressed flatter than the bisector plane may still fold; where two bones lie on top of each
- *   other (a joint folded to 180 degrees) there is no contact surface, and a vertex whose
- *   contact surface is further than a quarter of the rest mesh's size is left where it is.
+ *   Where a region's bone s and a neighbouring bone j bend about a joint (the head of one, the
+ *   child, that their relative motion leaves in place: found from the motion, no hierarchy
+ *   needed), the contact surface is the plane through the joint halfway between where the child
+ *   would point had it moved with the parent and where it points. A vertex of s on its own side
+ *   of that plane at rest and across it now goes back onto it (within the child's flesh radius
+ *   of the joint along the bend's axis, tapering off at twice that) and is held there while
+ *   further volume steps run with the map faded near the contact, so the squeezed volume becomes
+ *   a bulge beside it (paper Fig. 10d). Contact test and volume step alternate up to 4 more
+ *   rounds; a round that would move a vertex more than twice as far as the correction before it
+ *   is undone and ends them (the frame keeps its contacts, a little volume missing). Limits:
+ *   bones without a joint between them (a fingertip on the palm, a thumb on the index), two
+ *   parts of one bone's flesh and the joints of one B-Bone are not separated; at the edge of the
+ *   skin pressed onto the plane the skin beside it may cross it; where two bones lie on top of
+ *   each other (a joint folded to 180 degrees) there is no plane.
  *
  * FALLBACKS (defined outcomes for awkward input; everything else is an error)
  *

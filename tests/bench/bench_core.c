@@ -44,6 +44,7 @@ typedef struct bench_case {
 	float *rotations;   /* bone_count*4 */
 	float stretch;      /* every other bone scaled by it about its head (1: none): squash and stretch */
 	float bulge_width;  /* lvp_bind_options.bulge_width (0, the core's default: none; the add-on's is 1) */
+	int32_t fold_over;  /* lvp_frame_options.fold_over */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -68,12 +69,14 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	}
 	*r_bind = now() - start;
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
+	lvp_frame_options frame_options = lvp_frame_default_options();
+	frame_options.fold_over = c->fold_over;
 	int repeats = rig->vertex_count > 500000 ? 7 : 21;
 	double times[21];
 	for (int i = 0; i < repeats; ++i) {
 		start = now();
 		int pose = (repeats - 1 - i) % POSES;
-		lvp_correct(NULL, offsets, binding, skinned[pose], posed[pose], NULL, NULL, r_stats, NULL);
+		lvp_correct(NULL, offsets, binding, skinned[pose], posed[pose], NULL, &frame_options, r_stats, NULL);
 		times[i] = now() - start;
 	}
 	free(offsets);
@@ -220,7 +223,7 @@ int main(void)
 	} chains[3] = {{"chain 5k", 8, 32, 20}, {"chain 100k", 32, 64, 50}, {"chain 1M", 64, 128, 122}};
 	for (int i = 0; i < 3; ++i) {
 		for (int all = 1; all >= 0; --all) {
-			bench_case c;
+			bench_case c = {0};
 			c.name = chains[i].name;
 			c.rig = test_make_chain(chains[i].bones, 1.0f, 0.3f, chains[i].around, chains[i].rings, 0.5f);
 			c.pose = all ? "every joint" : "one joint";
@@ -228,6 +231,16 @@ int main(void)
 			c.stretch = 1.0f;
 			c.bulge_width = 0.0f;
 			run_case(&c, cores);
+			if (i == 1 && !all) { /* fold-over's contacts at a joint bent until the skin crosses */
+				free(c.rotations);
+				c.rotations = chain_pose(c.rig.bone_count, 0, 100.0);
+				c.pose = "one joint 100 degrees";
+				run_case(&c, cores);
+				c.pose = "one joint 100 degrees, fold-over";
+				c.fold_over = 1;
+				run_case(&c, cores);
+				c.fold_over = 0;
+			}
 			if (i == 1 && all) { /* the cost of bones scaled against each other (lvp.h, ALGORITHM 5) */
 				c.pose = "every joint, every other bone x1.2";
 				c.stretch = 1.2f;
@@ -249,7 +262,7 @@ int main(void)
 		int bones;
 	} tails[2] = {{"tail 4k", 64}, {"tail 32k", 500}};
 	for (int i = 0; i < 2; ++i) {
-		bench_case tail;
+		bench_case tail = {0};
 		tail.name = tails[i].name;
 		tail.rig = test_make_chain(tails[i].bones, 1.0f, 0.3f, 16, 4, 0.5f);
 		tail.pose = "every joint, 5 degrees";
@@ -268,7 +281,7 @@ int main(void)
 	const int levels[3] = {0, 3, 5};
 	const char *names[3] = {"giraffe", "giraffe x64", "giraffe x1024"};
 	for (int i = 0; i < 3; ++i) {
-		bench_case c;
+		bench_case c = {0};
 		c.name = names[i];
 		c.rig = levels[i] ? test_subdivide(&giraffe, levels[i]) : giraffe;
 		c.pose = "neck, 2 legs";
@@ -286,7 +299,7 @@ int main(void)
 			test_rig_free(&c.rig);
 	}
 	/* The same giraffe as imported from glTF: split at seams, welded by lvp_bind (lvp.h, SEAMS). */
-	bench_case split;
+	bench_case split = {0};
 	test_rig subdivided = test_subdivide(&giraffe, 3);
 	int32_t *original;
 	split.name = "giraffe x64, split at seams";

@@ -46,18 +46,13 @@ static double lvp__motion_apart(const lvp_binding *binding, int32_t s, int32_t j
 static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, int32_t *r_child)
 {
 	const lvp__rig *rig = &binding->rig;
-	double moved = fmax(fmax(lvp__motion_apart(binding, s, j, rig->tails[s]),
-	                         lvp__motion_apart(binding, s, j, rig->tails[j])),
-	                    fmax(lvp__motion_apart(binding, s, j, rig->heads[s]),
-	                         lvp__motion_apart(binding, s, j, rig->heads[j])));
-	if (!(moved > 0.0))
-		return false;
 	double at_j = lvp__motion_apart(binding, s, j, rig->heads[j]);
 	double at_s = lvp__motion_apart(binding, s, j, rig->heads[s]);
-	int32_t child = at_j <= at_s ? j : s;
-	if (!(fmin(at_j, at_s) <= 0.1 * moved))
+	double moved = fmax(fmax(at_j, at_s), fmax(lvp__motion_apart(binding, s, j, rig->tails[s]),
+	                                           lvp__motion_apart(binding, s, j, rig->tails[j])));
+	if (!(moved > 0.0) || !(fmin(at_j, at_s) <= 0.1 * moved))
 		return false;
-	*r_child = child;
+	*r_child = at_j <= at_s ? j : s;
 	return true;
 }
 

@@ -801,9 +801,9 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		lvp__begin_fold_over(binding);
 		int32_t moved = lvp__fold_over(binding, rest_positions);
 		stats->folded_vertices = moved;
-		/* A round may move no vertex more than twice as far as the volume correction moved any:
-		 * further, it is diverging (the map faded at the contacts leaves the volume too few
-		 * places to go), and the frame keeps the round before. */
+		/* A round may move no vertex more than twice as far as the correction before it (volume
+		 * steps and the first contacts) moved any: further, it is diverging (the map faded at the
+		 * contacts leaves the volume too few places to go), and the frame keeps the round before. */
 		double bound = 2.0 * lvp__largest_displacement(binding, positions, binding->step.positions);
 		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 			int32_t ignored;

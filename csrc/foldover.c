@@ -215,6 +215,8 @@ bool lvp__fade_map_at_contact(lvp_binding *binding)
 				double across = lvp__dot(lvp__sub(p, joint->point), joint->normal);
 				double fade = lvp__smoothstep(-across / width);
 				double pressed = lvp__smoothstep(lvp__dot(lvp__sub(p, joint->point), joint->concave) / width);
+				/* Skin of s already across the plane is pressed too: heat weights give a finger's
+				 * region some palm skin behind its knuckle, which otherwise bulged into the crease. */
 				pressed = fmax(pressed, lvp__smoothstep(across / width));
 				pressed *= lvp__across_joint(joint, p);
 				binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);

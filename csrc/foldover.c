@@ -100,13 +100,15 @@ void lvp__begin_fold_over(lvp_binding *binding)
 			int32_t j = binding->mesh.neighbour_bones[n], child;
 			joint->bends = false;
 			if (rig->region_skipped[s] || rig->region_skipped[j] || !(rig->bone_length[s] > 0.0) ||
-			    !(rig->bone_length[j] > 0.0) || !lvp__bends(binding, s, j) || !lvp__joint_child(binding, s, j, &child))
+			    !(rig->bone_length[j] > 0.0) || !lvp__bends(binding, s, j))
 				continue;
-			int32_t parent = child == s ? j : s;
 			/* The joints of one B-Bone share its segment and bend all along it, not at its head. */
 			if (lvp__length(lvp__sub(rig->heads[s], rig->heads[j])) <= 1e-6 * rig->bone_length[s] &&
 			    lvp__length(lvp__sub(rig->tails[s], rig->tails[j])) <= 1e-6 * rig->bone_length[s])
 				continue;
+			if (!lvp__joint_child(binding, s, j, &child))
+				continue;
+			int32_t parent = child == s ? j : s;
 			lvp__vec3 direction = lvp__sub(rig->tails[child], rig->heads[child]); /* at rest */
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
@@ -211,10 +213,10 @@ bool lvp__fade_map_at_contact(lvp_binding *binding)
 				double width = 0.5 * binding->map.distance[k];
 				if (!(width > 0.0))
 					continue; /* on the bone itself (where the map is zero anyway) */
-				lvp__vec3 p = lvp__load(work + 3 * k);
-				double across = lvp__dot(lvp__sub(p, joint->point), joint->normal);
+				lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+				double across = lvp__dot(from_joint, joint->normal);
 				double fade = lvp__smoothstep(-across / width);
-				double pressed = lvp__smoothstep(lvp__dot(lvp__sub(p, joint->point), joint->concave) / width);
+				double pressed = lvp__smoothstep(lvp__dot(from_joint, joint->concave) / width);
 				/* Skin of s already across the plane is pressed too: heat weights give a finger's
 				 * region some palm skin behind its knuckle, which otherwise bulged into the crease. */
 				pressed = fmax(pressed, lvp__smoothstep(across / width));

@@ -90,32 +90,27 @@ def measure_pose(addon, obj, mesh, label):
     return measured
 
 
-def measure_animation(obj, mesh, frames):
+def measure_animation(addon, obj, mesh, frames):
     """Prints, for VP and VP+fold at each frame of `frames` after the first, the largest change of an offset
     since the frame before over the largest motion of plain skinning's skin (surface_quality.offset_change_ratio):
     a fraction where the correction follows the motion, 1 or more where it pops; and each frame's crossing pairs
     of plain skinning, VP and VP+fold."""
     scene = bpy.context.scene
-    before = {}
+    before = None
     ratios = {variant: [] for variant in VARIANTS[1:]}
     crossings = {variant: [] for variant in VARIANTS}
     for frame in frames:
         scene.frame_set(frame)
-        plain = helpers.uncorrected_positions(obj)
-        crossings["plain"].append(quality.count_crossing_pairs(plain, mesh))
-        for variant in VARIANTS[1:]:
-            obj.lvp.fold_over = variant == "VP+fold"
-            bpy.context.view_layer.update()
-            positions = helpers.evaluated_positions(obj)
-            crossings[variant].append(quality.count_crossing_pairs(positions, mesh))
-            offsets = quality.offsets_between(plain, positions)
-            if variant in before:
-                ratios[variant].append((frame, quality.offset_change_ratio(before[variant], offsets,
-                                                                           before["plain"], plain)))
-            before[variant] = offsets
-        before["plain"] = plain
-    obj.lvp.fold_over = False
-    bpy.context.view_layer.update()
+        positions = positions_of_variants(addon, obj)
+        offsets = {variant: quality.offsets_between(positions["plain"], positions[variant])
+                   for variant in VARIANTS[1:]}
+        for variant in VARIANTS:
+            crossings[variant].append(quality.count_crossing_pairs(positions[variant], mesh))
+        if before is not None:
+            for variant in VARIANTS[1:]:
+                ratios[variant].append((frame, quality.offset_change_ratio(before[variant], offsets[variant],
+                                                                           before["plain"], positions["plain"])))
+        before = dict(offsets, plain=positions["plain"])
     for variant in VARIANTS[1:]:
         worst = max(ratios[variant], key=lambda item: item[1])
         print("  animation %-8s frames %d-%d: offset change against skin motion, largest %.2f at frame %d; by frame: %s"
@@ -255,7 +250,7 @@ def main():
         for title, obj in objects:
             measure_case(addon, title, obj, hand_poses())
             mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
-            measure_animation(obj, mesh, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))
+            measure_animation(addon, obj, mesh, list(range(real_cases.HAND_FRAMES[0], real_cases.HAND_FRAMES[1] + 1)))
         if options.render:
             for title, obj in objects:
                 bpy.context.scene.frame_set(real_cases.HAND_FRAMES[1])

@@ -319,6 +319,8 @@ typedef struct lvp__fold {
 	uint8_t *contact;          /* per neighbour entry (lvp__mesh), this frame: LVP__CONTACT_* */
 	lvp__joint *joints;        /* per neighbour entry, this frame */
 	double *radius;            /* per region: its vertices' mean rest distance to its bone */
+	int32_t *border_offsets;   /* per neighbour entry (s, j) + 1 into border_vertices */
+	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there, kept
 	                              zero between frames */
@@ -705,6 +707,6 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
 bool lvp__fade_map_at_contact(lvp_binding *binding);
 /* Finds this frame's joints and forgets its contacts (before the first lvp__fold_over of a
  * frame). */
-void lvp__begin_fold_over(lvp_binding *binding);
+void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
 #endif /* LVP_BINDING_H */

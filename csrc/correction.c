@@ -798,7 +798,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
 		 * contact surface (which turns the compression into a bulge); the bulge may push other
 		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
-		lvp__begin_fold_over(binding);
+		lvp__begin_fold_over(binding, rest_positions);
 		int32_t moved = lvp__fold_over(binding, rest_positions);
 		stats->folded_vertices = moved;
 		/* A round may move no vertex more than twice as far as the correction before it (volume

@@ -90,8 +90,64 @@ static bool lvp__bends(const lvp_binding *binding, int32_t s, int32_t j)
 	return false;
 }
 
-void lvp__begin_fold_over(lvp_binding *binding)
+/* How much of a vertex at p the joint's plane holds, by its distance from the joint along the
+ * bend's axis: all of it within the child's flesh radius, none past twice that (the palm under the
+ * next finger's knuckle is not pressed by this one). */
+static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
 {
+	double side = fabs(lvp__dot(lvp__sub(p, joint->point), joint->axis));
+	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
+}
+
+/* The entry of region s's neighbours for bone j, or -1. */
+static int32_t lvp__neighbour_entry(const lvp_binding *binding, int32_t s, int32_t j)
+{
+	for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n)
+		if (binding->mesh.neighbour_bones[n] == j)
+			return n;
+	return -1;
+}
+
+/* Moves the joint's plane, along its normal, to where the skins of s and j meet on the concave
+ * side of the bend, at rest and posed: the weighted mean of their border vertices there, within
+ * the joint's reach along its axis and within the child's flesh radius of the joint at rest (a
+ * border further away is where the weights blend along a bone, not a crease), the move at most
+ * half that radius. Heat weights rarely put the border between a finger and the palm at the
+ * finger bone's head; with the plane through the head, the part of the region beyond it at rest
+ * (never pressed) and the part just short of it (pressed onto the plane as soon as the joint
+ * bends) made a step in the skin, at poses where nothing touches yet. */
+static void lvp__place_at_border(const lvp_binding *binding, const float *rest, int32_t s, int32_t n,
+                                 lvp__joint *joint)
+{
+	const float *work = binding->step.positions;
+	int32_t sides[2] = {n, lvp__neighbour_entry(binding, binding->mesh.neighbour_bones[n], s)};
+	double weight = 0.0, across = 0.0, at_rest = 0.0;
+	for (int side = 0; side < 2; ++side) {
+		if (sides[side] < 0)
+			continue;
+		for (int32_t i = binding->fold.border_offsets[sides[side]]; i < binding->fold.border_offsets[sides[side] + 1];
+		     ++i) {
+			int32_t k = binding->fold.border_vertices[i];
+			lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+			double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
+			double w = lvp__across_joint(joint, p) * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach) *
+			           (1.0 - lvp__smoothstep(fabs(rest_side) / joint->reach));
+			weight += w;
+			across += w * lvp__dot(from_joint, joint->normal);
+			at_rest += w * rest_side;
+		}
+	}
+	if (!(weight > 0.0))
+		return;
+	double most = 0.5 * joint->reach;
+	joint->point = lvp__add(joint->point, lvp__scale(joint->normal, fmax(-most, fmin(most, across / weight))));
+	joint->rest_point =
+	    lvp__add(joint->rest_point, lvp__scale(joint->rest_normal, fmax(-most, fmin(most, at_rest / weight))));
+}
+
+void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
+{
+	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	const lvp__rig *rig = &binding->rig;
 	memset(binding->fold.contact, 0, (size_t)binding->mesh.neighbour_offsets[binding->region_count]);
 	for (int32_t s = 0; s < binding->region_count; ++s)
@@ -122,16 +178,11 @@ void lvp__begin_fold_over(lvp_binding *binding)
 			}
 			joint->reach = binding->fold.radius[child];
 			joint->bends = joint->reach > 0.0;
+			/* Of a group (a B-Bone's joints), only the first meets the parent at a crease: the
+			 * others' borders with it run along the bone. */
+			if (joint->bends && binding->system.group_leader[child] == child)
+				lvp__place_at_border(binding, rest, s, n, joint);
 		}
-}
-
-/* How much of a vertex at p the joint's plane holds, by its distance from the joint along the
- * bend's axis: all of it within the child's flesh radius, none past twice that (the palm under the
- * next finger's knuckle is not pressed by this one). */
-static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
-{
-	double side = fabs(lvp__dot(lvp__sub(p, joint->point), joint->axis));
-	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
 }
 
 /* Marks the contact of entry n of region s's neighbours, bone j, for both sides: the flesh of s
@@ -240,6 +291,59 @@ static void lvp__flesh_radii(lvp_binding *binding)
 	}
 }
 
+/* Counts (fill false) or lists the border vertices of each neighbour entry. */
+static void lvp__list_borders(lvp_binding *binding, int32_t *last_vertex, bool fill)
+{
+	const lvp__mesh *mesh = &binding->mesh;
+	int32_t *count = binding->fold.border_offsets;
+	for (int32_t s = 0; s < binding->region_count; ++s)
+		for (int32_t i = mesh->region_vertex_offsets[s]; i < mesh->region_vertex_offsets[s + 1]; ++i) {
+			int32_t k = mesh->region_vertices[i];
+			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+				for (int corner = 0; corner < 3; ++corner) {
+					int32_t region = mesh->vertex_region[mesh->triangles[3 * mesh->vertex_triangles[c] + corner]];
+					int32_t n = region >= 0 && region != s ? lvp__neighbour_entry(binding, s, region) : -1;
+					if (n < 0 || last_vertex[n] == k)
+						continue;
+					last_vertex[n] = k;
+					if (fill)
+						binding->fold.border_vertices[count[n]++] = k;
+					else
+						++count[n + 1];
+				}
+		}
+}
+
+/* The border vertices of each neighbour entry (fold.border_offsets, fold.border_vertices). */
+static bool lvp__find_borders(lvp_binding *binding)
+{
+	bool ok = true;
+	size_t entries = (size_t)binding->mesh.neighbour_offsets[binding->region_count];
+	int32_t *last_vertex = lvp__calloc(entries + 1, sizeof(int32_t), &ok);
+	binding->fold.border_offsets = lvp__calloc(entries + 1, sizeof(int32_t), &ok);
+	if (!ok) {
+		free(last_vertex);
+		return false;
+	}
+	for (size_t n = 0; n < entries; ++n)
+		last_vertex[n] = -1;
+	lvp__list_borders(binding, last_vertex, false);
+	for (size_t n = 0; n < entries; ++n)
+		binding->fold.border_offsets[n + 1] += binding->fold.border_offsets[n];
+	binding->fold.border_vertices = lvp__calloc((size_t)binding->fold.border_offsets[entries] + 1, sizeof(int32_t), &ok);
+	if (ok) {
+		for (size_t n = 0; n < entries; ++n)
+			last_vertex[n] = -1;
+		lvp__list_borders(binding, last_vertex, true);
+		/* Filling advanced each entry's offset to the next one's: shift them back. */
+		for (size_t n = entries; n > 0; --n)
+			binding->fold.border_offsets[n] = binding->fold.border_offsets[n - 1];
+		binding->fold.border_offsets[0] = 0;
+	}
+	free(last_vertex);
+	return ok;
+}
+
 bool lvp__fold_alloc(lvp_binding *binding)
 {
 	bool ok = true;
@@ -249,8 +353,10 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	binding->fold.radius = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
 	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	binding->fold.saved = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
-	if (ok && binding->mode == LVP_MODE_LOCAL)
+	if (ok && binding->mode == LVP_MODE_LOCAL) {
 		lvp__flesh_radii(binding);
+		ok = lvp__find_borders(binding);
+	}
 	return ok;
 }
 
@@ -261,4 +367,6 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->radius);
 	free(fold->held);
 	free(fold->saved);
+	free(fold->border_offsets);
+	free(fold->border_vertices);
 }

@@ -132,8 +132,11 @@
  *
  *   Where a region's bone s and a neighbouring bone j bend about a joint (the head of one, the
  *   child, that their relative motion leaves in place: found from the motion, no hierarchy
- *   needed), the contact surface is the plane through the joint halfway between where the child
- *   would point had it moved with the parent and where it points. A vertex of s on its own side
+ *   needed), the contact surface is the plane halfway between where the child would point had
+ *   it moved with the parent and where it points, through the crease: where the two regions'
+ *   skins meet on the concave side of the bend, when that is within the child's flesh radius of
+ *   the joint (moved from the joint by at most half that radius; of a group, only its first
+ *   bone's joint moves: GROUPS). A vertex of s on its own side
  *   of that plane at rest and across it now goes back onto it (within the child's flesh radius
  *   of the joint along the bend's axis, tapering off at twice that) and is held there while
  *   further volume steps run with the map faded near the contact, so the squeezed volume becomes

@@ -4,18 +4,21 @@ lengths and thicknesses off one palm bone, heat weights, animated from open to t
 defaults, at every frame of the animation:
 
 - the flesh of a bone and of its parent (the joints fold-over handles) hardly ever crosses: at any frame at
-  most a twentieth of the pairs plain skinning has at the fist (191; 2 at most are measured), none at the fist;
-- once plain skinning crosses itself by 50 pairs or more, fewer crossing pairs than plain skinning, and at the
-  fist at most half of its; before that, at most a twentieth of plain skinning's at the fist more than Volume
-  Preservation alone has (4 more at most are measured, on Blender 4.3 and 5.2);
+  most a hundredth of the pairs plain skinning has at the fist (191; 1 at most is measured), none at the fist;
+- once plain skinning crosses itself at all, fewer crossing pairs than plain skinning, and at the fist at most
+  half of its; before that, at most a fiftieth of plain skinning's at the fist more than Volume Preservation
+  alone has (3 more at most are measured);
 - the volume within 1 % of the rest, the whole mesh never falling back to plain skinning;
 - offsets that change with the motion no more than Volume Preservation's alone do (no popping of its own).
 
-Issue 25 asks for no joint crossing at all and fewer than plain skinning at every frame: at frames 10-13 (half
-closed) fold-over has 1 to 36 pairs where plain skinning has 0 to 23 (Volume Preservation alone 0 to 66); the test
-holds today's numbers there, with room for what differs between Blender versions (their heat weights). Before the contact plane through the joint (the bisector of the bone segments, as the
-paper has it) a palm bone down the middle of the hand put the contact in the middle of the palm: 564 crossing
-pairs at the fist, sheets of skin pulled out under the hand.
+Issue 25 asks for no joint crossing at all and fewer than plain skinning at every frame: at frames 11 and 12
+(half closed) fold-over has 8 and 6 pairs where plain skinning has none (Volume Preservation alone 5 and 22, most
+of them the palm's own skin), and one pair between the palm and the index at frame 16. With the contact plane
+through the bone's head instead of the crease (heat weights put a finger's border with the palm up to 26 mm into
+the palm) it had 1 to 36 pairs at frames 10-13 (the test fails on it), and roughness 0.64 of the largest offset
+half closed. Before the contact plane through the joint (the bisector of the bone segments, as the paper has it)
+a palm bone down the middle of the hand put the contact in the middle of the palm: 564 crossing pairs at the
+fist, sheets of skin pulled out under the hand.
 """
 
 import unittest
@@ -84,23 +87,23 @@ class TestFoldOverHand(unittest.TestCase):
                  100 * row["fold"]["volume"]), end="")
         return row
 
-    def few(self, key):
-        """A twentieth of plain skinning's crossing pairs (`key`) at the fist."""
-        return self.measured[-1][key] / 20
+    def few(self, key, share):
+        """A share of plain skinning's crossing pairs (`key`) at the fist."""
+        return self.measured[-1][key] * share
 
     def test_joints_hardly_cross(self):
         self.assertGreater(self.measured[-1]["plain joint crossings"], 100, "plain skinning folds the finger joints")
         for row in self.measured:
-            self.assertLessEqual(row["fold"]["joint crossings"], self.few("plain joint crossings"),
+            self.assertLessEqual(row["fold"]["joint crossings"], self.few("plain joint crossings", 1 / 100),
                                  "frame %d" % row["frame"])
         self.assertEqual(self.measured[-1]["fold"]["joint crossings"], 0, "at the fist")
 
     def test_fewer_crossings_than_without(self):
         for row in self.measured:
-            if row["plain crossings"] >= 50:
+            if row["plain crossings"] > 0:
                 self.assertLess(row["fold"]["crossings"], row["plain crossings"], "frame %d" % row["frame"])
             else:
-                self.assertLessEqual(row["fold"]["crossings"], row["vp"]["crossings"] + self.few("plain crossings"),
+                self.assertLessEqual(row["fold"]["crossings"], row["vp"]["crossings"] + self.few("plain crossings", 1 / 50),
                                      "frame %d" % row["frame"])
         fist = self.measured[-1]
         self.assertLessEqual(fist["fold"]["crossings"], fist["plain crossings"] / 2, "at the fist")

@@ -201,11 +201,112 @@ static void test_fold_over_idle_without_bend(void)
 	free(f.skinned);
 }
 
+/* Rebuilds the finger's weights with the blend bands centred `shift` short of each knuckle,
+ * towards the wrist, as heat weights put them where a finger meets the palm. */
+static void shift_weight_bands(test_rig *rig, double shift)
+{
+	const double knuckles[2] = {1.0 - shift, 1.7 - shift}, band = 0.2;
+	int32_t count = 0;
+	for (int32_t k = 0; k < rig->vertex_count; ++k) {
+		double y = rig->positions[3 * k + 1], w = 1.0;
+		int32_t bone = 0;
+		for (int j = 0; j < 2; ++j) {
+			if (y < knuckles[j] - 0.5 * band)
+				break;
+			bone = j + 1;
+			w = fmin((y - knuckles[j] + 0.5 * band) / band, 1.0);
+		}
+		rig->weight_offsets[k] = count;
+		if (w < 1.0) {
+			rig->weight_bones[count] = bone - 1;
+			rig->weight_values[count++] = (float)(1.0 - w);
+		}
+		if (w > 0.0) {
+			rig->weight_bones[count] = bone;
+			rig->weight_values[count++] = (float)w;
+		}
+	}
+	rig->weight_offsets[rig->vertex_count] = count;
+}
+
+/* The largest roughness of the offsets result - skinned (per vertex: its offset minus the mean
+ * of its edge neighbours' offsets), over the largest offset: a smooth bulge stays far below 1, a
+ * step in the skin comes close to it (QUALITY.md). */
+static double offset_roughness(const test_rig *rig, const float *skinned, const float *result)
+{
+	int32_t n = rig->vertex_count;
+	double *sum = calloc((size_t)n * 3, sizeof(double));
+	int32_t *count = calloc((size_t)n, sizeof(int32_t));
+	for (int32_t t = 0; t < rig->triangle_count; ++t)
+		for (int e = 0; e < 3; ++e) { /* each edge twice over the closed surface: once each way */
+			int32_t a = rig->triangles[3 * t + e], b = rig->triangles[3 * t + (e + 1) % 3];
+			for (int c = 0; c < 3; ++c)
+				sum[3 * a + c] += result[3 * b + c] - skinned[3 * b + c];
+			++count[a];
+		}
+	double rough = 0.0, largest = 0.0;
+	for (int32_t k = 0; k < n; ++k) {
+		double d2 = 0.0, o2 = 0.0;
+		for (int c = 0; c < 3; ++c) {
+			double offset = (double)result[3 * k + c] - skinned[3 * k + c];
+			double off_mean = offset - (count[k] ? sum[3 * k + c] / count[k] : 0.0);
+			d2 += off_mean * off_mean;
+			o2 += offset * offset;
+		}
+		rough = fmax(rough, sqrt(d2));
+		largest = fmax(largest, sqrt(o2));
+	}
+	free(sum);
+	free(count);
+	return largest > 0.0 ? rough / largest : 0.0;
+}
+
+/* Fold-over's contact plane goes through the crease, where the skins of the two bones meet, not
+ * through the bone's head: with the weights blending short of the knuckles (as heat weights put
+ * them where a finger meets the palm), bent 45 degrees (plain skinning does not cross itself yet),
+ * the result with fold-over prevention is as smooth as without. With the plane through the head
+ * the part of a phalanx's skin beyond it at rest was never pressed and the part just short of it
+ * was: a step in the skin, roughness 0.60 of the largest offset against 0.39 at 0.1 short. The
+ * plane moves at most half the flesh radius (0.11 here, lvp.h): at 0.15 short it stops before the
+ * crease, printed, not asserted. */
+static void test_fold_over_follows_the_crease(void)
+{
+	const double shifts[] = {0.0, 0.1, 0.15};
+	for (size_t i = 0; i < sizeof(shifts) / sizeof(shifts[0]); ++i) {
+		bent_finger f;
+		f.rig = test_make_finger();
+		shift_weight_bands(&f.rig, shifts[i]);
+		float rotations[12] = {0, 0, 0, 0, 1, 0, 0, (float)(45 * PI / 180), 1, 0, 0, (float)(45 * PI / 180)};
+		float skin[48];
+		test_pose(f.posed, &f.rig, rotations);
+		test_skin_matrices(skin, &f.rig, f.posed);
+		f.skinned = malloc(sizeof(float) * 3 * (size_t)f.rig.vertex_count);
+		lvp_weights weights = test_rig_weights(&f.rig);
+		lvp_diagnostic diag;
+		CHECK_OK(lvp_skin_linear(f.skinned, f.rig.positions, f.rig.vertex_count, &weights, skin, 3, &diag), diag);
+		float *volume_only, *folded;
+		int32_t moved = correct_both_ways(&f, &volume_only, &folded);
+		double plain_pairs = (double)test_count_intersecting_pairs(f.skinned, f.rig.triangles, f.rig.triangle_count);
+		double rough_volume = offset_roughness(&f.rig, f.skinned, volume_only);
+		double rough_folded = offset_roughness(&f.rig, f.skinned, folded);
+		printf("  bands %.2f short of the knuckles, 45 degrees: plain skinning %0.f crossing pairs; roughness over "
+		       "the largest offset %.3f without fold-over, %.3f with (%d vertices moved)\n",
+		       shifts[i], plain_pairs, rough_volume, rough_folded, (int)moved);
+		CHECK(plain_pairs == 0.0);
+		if (shifts[i] <= 0.5 * FINGER_RADIUS)
+			CHECK(rough_folded <= 1.05 * rough_volume);
+		free(volume_only);
+		free(folded);
+		free_finger(&f);
+	}
+}
+
 int main(void)
 {
 	RUN(test_fold_over_removes_self_intersections);
 	RUN(test_fold_over_keeps_the_flanks);
 	RUN(test_fold_over_leaves_joints_without_contact);
 	RUN(test_fold_over_idle_without_bend);
+	RUN(test_fold_over_follows_the_crease);
 	return check_failures() != 0;
 }

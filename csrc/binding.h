@@ -705,8 +705,9 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);
-/* Finds this frame's joints and forgets its contacts (before the first lvp__fold_over of a
- * frame). */
+/* Finds this frame's joints and their planes, through the creases of step.positions and of the
+ * rest (rest_positions: the frame's, NULL for the bind's), and forgets its contacts (before the
+ * first lvp__fold_over of a frame). */
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
 #endif /* LVP_BINDING_H */

@@ -22,11 +22,11 @@ typedef struct bent_finger {
 	float *skinned;
 } bent_finger;
 
-/* The finger bent by `first` degrees at the first knuckle and `second` at the second. */
-static bent_finger make_finger_pose(double first, double second)
+/* The finger rig bent by `first` degrees at the first knuckle and `second` at the second. */
+static bent_finger pose_finger(test_rig rig, double first, double second)
 {
 	bent_finger f;
-	f.rig = test_make_finger();
+	f.rig = rig;
 	float rotations[12] = {0, 0, 0, 0, 1, 0, 0, (float)(first * PI / 180), 1, 0, 0, (float)(second * PI / 180)};
 	float skin[48];
 	test_pose(f.posed, &f.rig, rotations);
@@ -36,6 +36,12 @@ static bent_finger make_finger_pose(double first, double second)
 	lvp_diagnostic diag;
 	CHECK_OK(lvp_skin_linear(f.skinned, f.rig.positions, f.rig.vertex_count, &weights, skin, 3, &diag), diag);
 	return f;
+}
+
+/* test_make_finger() bent by `first` degrees at the first knuckle and `second` at the second. */
+static bent_finger make_finger_pose(double first, double second)
+{
+	return pose_finger(test_make_finger(), first, second);
 }
 
 static bent_finger make_bent_finger(double degrees)
@@ -201,34 +207,6 @@ static void test_fold_over_idle_without_bend(void)
 	free(f.skinned);
 }
 
-/* Rebuilds the finger's weights with the blend bands centred `shift` short of each knuckle,
- * towards the wrist, as heat weights put them where a finger meets the palm. */
-static void shift_weight_bands(test_rig *rig, double shift)
-{
-	const double knuckles[2] = {1.0 - shift, 1.7 - shift}, band = 0.2;
-	int32_t count = 0;
-	for (int32_t k = 0; k < rig->vertex_count; ++k) {
-		double y = rig->positions[3 * k + 1], w = 1.0;
-		int32_t bone = 0;
-		for (int j = 0; j < 2; ++j) {
-			if (y < knuckles[j] - 0.5 * band)
-				break;
-			bone = j + 1;
-			w = fmin((y - knuckles[j] + 0.5 * band) / band, 1.0);
-		}
-		rig->weight_offsets[k] = count;
-		if (w < 1.0) {
-			rig->weight_bones[count] = bone - 1;
-			rig->weight_values[count++] = (float)(1.0 - w);
-		}
-		if (w > 0.0) {
-			rig->weight_bones[count] = bone;
-			rig->weight_values[count++] = (float)w;
-		}
-	}
-	rig->weight_offsets[rig->vertex_count] = count;
-}
-
 /* The largest roughness of the offsets result - skinned (per vertex: its offset minus the mean
  * of its edge neighbours' offsets), over the largest offset: a smooth bulge stays far below 1, a
  * step in the skin comes close to it (QUALITY.md). */
@@ -273,17 +251,9 @@ static void test_fold_over_follows_the_crease(void)
 {
 	const double shifts[] = {0.0, 0.1, 0.15};
 	for (size_t i = 0; i < sizeof(shifts) / sizeof(shifts[0]); ++i) {
-		bent_finger f;
-		f.rig = test_make_finger();
-		shift_weight_bands(&f.rig, shifts[i]);
-		float rotations[12] = {0, 0, 0, 0, 1, 0, 0, (float)(45 * PI / 180), 1, 0, 0, (float)(45 * PI / 180)};
-		float skin[48];
-		test_pose(f.posed, &f.rig, rotations);
-		test_skin_matrices(skin, &f.rig, f.posed);
-		f.skinned = malloc(sizeof(float) * 3 * (size_t)f.rig.vertex_count);
-		lvp_weights weights = test_rig_weights(&f.rig);
-		lvp_diagnostic diag;
-		CHECK_OK(lvp_skin_linear(f.skinned, f.rig.positions, f.rig.vertex_count, &weights, skin, 3, &diag), diag);
+		test_rig rig = test_make_finger();
+		test_shift_finger_bands(&rig, shifts[i]);
+		bent_finger f = pose_finger(rig, 45, 45);
 		float *volume_only, *folded;
 		int32_t moved = correct_both_ways(&f, &volume_only, &folded);
 		double plain_pairs = (double)test_count_intersecting_pairs(f.skinned, f.rig.triangles, f.rig.triangle_count);

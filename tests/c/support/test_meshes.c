@@ -329,6 +329,20 @@ test_rig test_make_finger(void)
 	return rig;
 }
 
+void test_shift_finger_bands(test_rig *rig, double shift)
+{
+	/* The knuckles are the heads of the second and third phalanges; the finger runs along +Y. */
+	double joints[4] = {rig->heads[1], rig->heads[4] - shift, rig->heads[7] - shift, rig->tails[7]};
+	double *axial = test__alloc((size_t)rig->vertex_count, sizeof(double));
+	for (int32_t k = 0; k < rig->vertex_count; ++k)
+		axial[k] = rig->positions[3 * k + 1];
+	free(rig->weight_offsets);
+	free(rig->weight_bones);
+	free(rig->weight_values);
+	test__chain_weights(rig, axial, joints, FINGER_BAND);
+	free(axial);
+}
+
 /* ---- forward kinematics ------------------------------------------------------------------ */
 
 static void test__mat_load(double *r_m, const float *m)

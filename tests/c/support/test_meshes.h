@@ -58,6 +58,10 @@ test_rig test_make_chain(int bone_count, float bone_length, float radius, int ar
  * contact between non-neighbouring bones that fold-over prevention is not meant to fix. */
 test_rig test_make_finger(void);
 
+/* Rebuilds the weights of a test_make_finger() rig with its blend bands centred `shift` short of
+ * each knuckle, towards the base (as heat weights put them where a finger meets the palm). */
+void test_shift_finger_bands(test_rig *rig, double shift);
+
 /* The giraffe of tests/data/giraffe (the paper's model): 1673 vertices, triangulated by fans,
  * winding flipped to face outward. Bone j runs from joint j to its child (see support/giraffe_loader.c for
  * the rule with several children or none). Returns 0 on success.

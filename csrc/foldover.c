@@ -189,11 +189,11 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
  * and of j is pressed together, whichever crossed. */
 static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_t j)
 {
+	int32_t m = lvp__neighbour_entry(binding, j, s); /* a region's neighbours are listed once each */
 	if (binding->fold.contact[n] == LVP__CONTACT_NONE)
 		binding->fold.contact[n] = LVP__CONTACT_FOUND;
-	for (int32_t m = binding->mesh.neighbour_offsets[j]; m < binding->mesh.neighbour_offsets[j + 1]; ++m)
-		if (binding->mesh.neighbour_bones[m] == s && binding->fold.contact[m] == LVP__CONTACT_NONE)
-			binding->fold.contact[m] = LVP__CONTACT_FOUND;
+	if (m >= 0 && binding->fold.contact[m] == LVP__CONTACT_NONE)
+		binding->fold.contact[m] = LVP__CONTACT_FOUND;
 }
 
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)

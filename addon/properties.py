@@ -57,6 +57,15 @@ EFFECT_ITEMS = (
      "One region, the whole closed mesh: its total volume is kept (paper 3.2-3.3, organic map)"),
 )
 
+RESTORE_ITEMS = (
+    ('WHOLE_MESH', "Whole Mesh",
+     "The lost volume goes back where joints bend, with one strength for the whole mesh (each separate "
+     "piece): smooth where joints bend hard; a region (a bone's skin) is not restored on its own"),
+    ('EACH_REGION', "Each Region",
+     "Every region (a bone's skin) back to its own rest volume (paper 5.3); where joints bend hard, "
+     "neighbouring regions can pull against each other (bulges beside dents)"),
+)
+
 DISPLAY_ITEMS = (
     ('NONE', "None", "No colour display"),
     ('SEGMENTATION', "Segmentation",
@@ -105,6 +114,13 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         description="Dependence on the distance to the bones: higher moves flesh far from the bone more "
                     "than flesh over it",
         default=1.0, min=0.0, soft_max=4.0,
+    )
+    restore: _setting(
+        EnumProperty,
+        name="Restore",
+        description="What each frame brings back to its rest volume",
+        items=RESTORE_ITEMS,
+        default='WHOLE_MESH',
     )
     bulge_width: _setting(
         FloatProperty,

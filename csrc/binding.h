@@ -367,7 +367,8 @@ typedef struct lvp__step {
 	uint8_t *given_up;         /* per region: its group is left out of this frame (lvp_correct) */
 	bool any_given_up;
 	bool spread_total;         /* steps also restore each part's volume (lvp__correct_volumes) */
-	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers */
+	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers and whole-mesh steps */
+	double *part_response;     /* per part: measured / predicted change of the last whole-mesh steps */
 } lvp__step;
 
 struct lvp_binding {

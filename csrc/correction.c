@@ -33,6 +33,10 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.tolerance", -1,
 		                 "options.tolerance is %g; it must be above 0 and below 1 (a relative volume).",
 		                 (double)options->tolerance);
+	if (options->restore != LVP_RESTORE_EACH_REGION && options->restore != LVP_RESTORE_WHOLE_MESH)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.restore", -1,
+		                 "options.restore is %d; use LVP_RESTORE_EACH_REGION (0) or LVP_RESTORE_WHOLE_MESH (1).",
+		                 (int)options->restore);
 	if (!(options->displacement_limit >= 0.0f))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.displacement_limit", -1,
 		                 "options.displacement_limit is %g; use 0 or infinity (no limit), or a distance above 0.",
@@ -582,10 +586,10 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 	return steps;
 }
 
-/* The second phase of the fallback of lvp__correct_volumes(): once every region is within
- * tolerance of its rest volume, one multiplier per part (one for the whole mesh when nothing is
- * split) spread over the regions corrected this frame (eq. 5 with the sum of their maps) removes
- * what is left of its change, holes capped. */
+/* One multiplier per part (one for the whole mesh when nothing is split) spread over the regions
+ * touched this frame (eq. 5 with the sum of their maps, each step after the first scaled by how the
+ * skin answered the one before) removes what is left of the part's change, holes capped: the whole of LVP_RESTORE_WHOLE_MESH, and the second phase of the fallback of
+ * lvp__correct_volumes() once every region is within tolerance of its rest volume. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
                                  const float *rest_positions, const lvp__region_sums *totals)
 {
@@ -593,11 +597,15 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	for (int32_t r = 0; r < binding->region_count; ++r)
 		if (binding->step.region_touched[r])
 			binding->step.active[touched++] = r;
-	double *system = binding->step.part_gain;
+	double *system = binding->step.part_gain, *change_before = binding->step.part_total;
+	double *response = binding->step.part_response;
+	for (int32_t p = 0; p < binding->parts.count; ++p)
+		response[p] = 1.0;
 	while (steps < budget && touched > 0) {
 		lvp__part_changes(binding);
 		if (!lvp__parts_off(binding, options->tolerance))
 			break;
+		memcpy(change_before, binding->parts.change, sizeof(double) * (size_t)binding->parts.count);
 		double before = lvp__parts_error(binding);
 		lvp__vertex_gradients(binding);
 		memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
@@ -617,7 +625,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		bool any = false;
 		for (int32_t j = 0; j < touched; ++j) {
 			int32_t t = binding->step.active[j], p = lvp__region_part(binding, t);
-			binding->step.mu[t] = system[p] > 0.0 ? -binding->parts.change[p] / system[p] : 0.0;
+			binding->step.mu[t] = system[p] > 0.0 ? -binding->parts.change[p] / (system[p] * response[p]) : 0.0;
 			any = any || system[p] > 0.0;
 		}
 		if (!any)
@@ -630,6 +638,13 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			lvp__undo_step(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
 			break;
+		}
+		/* The skin's true response is not the linear one (the normals turn as it moves): the next
+		 * step is scaled by what this one achieved of what it predicted, a secant step, so that the
+		 * volume ends well inside the tolerance rather than at its edge. */
+		for (int32_t p = 0; p < binding->parts.count; ++p) {
+			double achieved = change_before[p] != 0.0 ? 1.0 - binding->parts.change[p] / change_before[p] : 1.0;
+			response[p] *= fmin(fmax(achieved, 0.25), 4.0);
 		}
 	}
 	return steps;
@@ -650,6 +665,32 @@ static bool lvp__bones_scale(const lvp_binding *binding)
 	return false;
 }
 
+/* Whether this frame restores the whole mesh alone (lvp.h, RESTORE): asked for, in local mode,
+ * and no bone scales (then each region's scaled volume is the target). */
+static bool lvp__restores_whole_mesh(const lvp_binding *binding, const lvp_frame_options *options)
+{
+	return options->restore == LVP_RESTORE_WHOLE_MESH && binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding);
+}
+
+/* Marks every group the map can move (and not given up) as touched, the set the whole mesh's
+ * multiplier is spread over (lvp__global_steps); returns how many. All of them, not only those
+ * whose estimate is off: which groups take part then never switches from frame to frame, and
+ * where nothing bends the map is zero anyway. */
+static int32_t lvp__touch_movable_groups(lvp_binding *binding)
+{
+	int32_t count = 0;
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		if (!lvp__leads(binding, r))
+			continue;
+		lvp__group_state group = lvp__group_state_of(binding, r);
+		if (group.skipped || !(group.reference > 0.0) || !group.movable)
+			continue;
+		binding->step.region_touched[r] = 1;
+		++count;
+	}
+	return count;
+}
+
 /* The volume correction, from a measured state. The local volumes are estimates (5.2): summed
  * over a closed surface they differ from the true change by what each region border sees from
  * two bone frames (second order in the bend, 0.4 % of the cylinder at 90 degrees), and regions
@@ -667,6 +708,10 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
                                     const float *rest_positions, const lvp__region_sums *totals,
                                     int32_t *r_first_active)
 {
+	if (lvp__restores_whole_mesh(binding, options)) {
+		*r_first_active = lvp__touch_movable_groups(binding);
+		return lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals);
+	}
 	/* With a group given up, the whole mesh is not restored: its loss would be pushed into the
 	 * groups still corrected. */
 	bool failed, whole_mesh = binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding) &&
@@ -883,14 +928,15 @@ static lvp__attempt_scan lvp__scan_attempt(const lvp_binding *binding, const flo
  * not finite or beyond the limit (scan.farthest): the group whose multipliers moved that vertex
  * most, phi times the |mu| its steps applied (step.moved_by). Where the attempt moved nothing at
  * all: the group furthest from its target (lvp__group_furthest_off). */
-static int32_t lvp__group_to_give_up(const lvp_binding *binding, lvp__attempt_scan scan, bool *r_diverged)
+static int32_t lvp__group_to_give_up(const lvp_binding *binding, lvp__attempt_scan scan, bool whole_mesh,
+                                     bool *r_diverged)
 {
 	int32_t farthest = scan.farthest;
 	if (binding->mode != LVP_MODE_LOCAL)
 		return -1;
 	*r_diverged = farthest >= 0;
-	if (farthest < 0)
-		return scan.moved ? -1 : lvp__group_furthest_off(binding);
+	if (farthest < 0) /* restoring the whole mesh, no group's steps hold back another's */
+		return scan.moved || whole_mesh ? -1 : lvp__group_furthest_off(binding);
 	lvp__support support = lvp__vertex_support(binding, farthest);
 	int32_t culprit = -1;
 	double most = 0.0;
@@ -953,12 +999,21 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		lvp__volumes_of_parts(binding, rest_positions, binding->parts.rest_volume);
 	else
 		memcpy(binding->parts.rest_volume, binding->parts.bind_volume, sizeof(double) * (size_t)binding->parts.count);
-	/* What a part's change is measured against: its volume, or for an open, flat part (no
-	 * volume to speak of) the cube of the mesh's size, as the global mode's reference. */
-	double cube = binding->size * binding->size * binding->size;
+	/* What a part's change is measured against: its volume, or for an open, flat part (no volume
+	 * to speak of beside its regions' reference volumes, the cones from its skin to its bones) the
+	 * sum of those. Not the mesh's size: a stray vertex far away would make a closed part look
+	 * flat and its whole loss within tolerance. A part without references: the cube of the size. */
+	double cube = binding->size * binding->size * binding->size, *scale = binding->parts.scale;
+	memset(scale, 0, sizeof(double) * (size_t)binding->parts.count);
+	for (int32_t r = 0; r < binding->region_count; ++r)
+		if (!binding->rig.region_skipped[r])
+			scale[lvp__region_part(binding, r)] += binding->measure.reference_volume[r];
 	for (int32_t p = 0; p < binding->parts.count; ++p) {
-		double volume = fabs(binding->parts.rest_volume[p]);
-		binding->parts.scale[p] = volume > 1e-6 * cube ? volume : cube;
+		double volume = fabs(binding->parts.rest_volume[p]), references = scale[p];
+		if (references > 0.0)
+			scale[p] = volume > 1e-3 * references ? volume : references;
+		else
+			scale[p] = volume > 1e-6 * cube ? volume : cube;
 	}
 
 	/* Where an attempt moves some vertex beyond the limit (a joint folded onto itself, a region
@@ -976,7 +1031,7 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		if (attempt == LVP_MAX_GIVEN_UP || !(options->displacement_limit > 0.0f) || options->fold_over)
 			break;
 		bool diverged = false;
-		int32_t culprit = lvp__group_to_give_up(binding, scan, &diverged);
+		int32_t culprit = lvp__group_to_give_up(binding, scan, lvp__restores_whole_mesh(binding, options), &diverged);
 		if (culprit < 0)
 			break;
 		int32_t first, last;
@@ -1067,6 +1122,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->given_up = lvp__calloc(s, sizeof(uint8_t), &ok);
 	step->part_total = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
+	step->part_response = lvp__calloc(parts, sizeof(double), &ok);
 	return ok;
 }
 
@@ -1075,7 +1131,7 @@ void lvp__step_free(lvp__step *step)
 	void *arrays[] = {step->positions, step->moved, step->backup, step->chunk_moved, step->change, step->target,
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
-	                  step->moved_by, step->given_up, step->part_total, step->part_gain};
+	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

@@ -54,6 +54,23 @@
  *      bones' scales alone give the region, and the whole mesh keeps the scaled volume.
  *   4. Fold-over prevention (paper 5.4), when enabled: see FOLD-OVER.
  *
+ * RESTORE (lvp_frame_options.restore, local mode)
+ *
+ *   LVP_RESTORE_EACH_REGION (default) is 1-3 above: each region's multiplier from the coupled
+ *   system, each region back to its own volume. LVP_RESTORE_WHOLE_MESH gives every region one
+ *   and the same multiplier (per separate part), found as in the paper's global correction
+ *   (3.2-3.3) with the local maps: the lost volume goes back where joints bend, in proportion to
+ *   the map there (deformation weighting makes it zero where nothing bends), and the whole mesh
+ *   (each part) ends at its rest volume; each region does not. The region estimates of step 1
+ *   are only used to report. Why it exists: where joints bend hard (past about 90 degrees) the
+ *   estimates are off by a large share of the loss (what each region border sees from two bone
+ *   frames: on a Rigify human with hips and knees bent hard, the regions' changes sum to 1.4 to
+ *   1.6 times the whole body's), and restoring each region to them gives neighbouring regions
+ *   multipliers of opposite signs: bulges beside dents, creases, skin pushed into skin, and
+ *   jumps when a region's step fails. One multiplier cannot do that; docs/method.md measures both.
+ *   In frames where bones scale (squash and stretch) there is no rest volume for the whole mesh
+ *   and each region is restored, as with LVP_RESTORE_EACH_REGION.
+ *
  * SEAMS (one point of the skin, many vertices)
  *
  *   Meshes from glTF, FBX or caches arrive split along their UV seams and hard edges: several
@@ -469,6 +486,12 @@ void lvp_get_segmentation(const lvp_binding *binding, int32_t *r_vertex_regions,
  * (all zeros when the map is zero everywhere): what the viewport shows as a colour. */
 void lvp_get_correction_map(const lvp_binding *binding, float *r_map);
 
+/* What a frame's correction brings back (RESTORE). */
+typedef enum lvp_restore {
+	LVP_RESTORE_EACH_REGION = 0, /* every region to its own rest volume (paper 5.3), and the whole mesh */
+	LVP_RESTORE_WHOLE_MESH = 1,  /* the whole mesh (each separate part), through every region's map */
+} lvp_restore;
+
 typedef struct lvp_frame_options {
 	int32_t max_iterations; /* correction steps per volume correction, 1..1000, default 8; 1 is
 	                           the paper's single pass. Fold-over runs up to 4 more volume
@@ -488,6 +511,8 @@ typedef struct lvp_frame_options {
 	                           this frame, the group whose multipliers moved it most, and corrects
 	                           again without it, up to LVP_MAX_GIVEN_UP groups (DEGRADING below);
 	                           in the mesh's units */
+	int32_t restore;        /* lvp_restore: what each frame brings back (RESTORE below); default
+	                           LVP_RESTORE_EACH_REGION */
 } lvp_frame_options;
 
 lvp_frame_options lvp_frame_default_options(void);

@@ -392,6 +392,7 @@ static int lvp_py__parse_choice(const lvp_py__call *call, PyObject *object, cons
 static const char *const lvp_py__mode_names[] = {"LOCAL", "GLOBAL"};
 static const char *const lvp_py__map_names[] = {"ORGANIC", "RUBBER", "BOUNDARY_FADE", "PAINTED", "UNIFORM"};
 static const char *const lvp_py__visibility_names[] = {"NORMAL", "EXACT", "NONE"};
+static const char *const lvp_py__restore_names[] = {"EACH_REGION", "WHOLE_MESH"};
 
 /* ---- core diagnostics -> Python exceptions ----------------------------------------------------------- */
 
@@ -1089,6 +1090,7 @@ static const lvp_py__rename lvp_py__frame_renames[] = {{"vertex_count", "positio
                                                        {"options.max_iterations", "iterations"},
                                                        {"options.rigid_space", "rigid_space"},
                                                        {"options.displacement_limit", "displacement_limit"},
+                                                       {"options.restore", "restore"},
                                                        {"r_changes", "positions"},
                                                        {NULL, NULL}};
 
@@ -1096,24 +1098,27 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 {
 	static char *keywords[] = {"positions",  "bone_matrices", "out_positions", "out_offsets", "rest_positions",
 	                           "iterations", "tolerance",     "fold_over",     "rigid_space", "displacement_limit",
-	                           NULL};
+	                           "restore",    NULL};
 	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
 	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL, *space_object = NULL;
-	PyObject *limit = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOO:correct", keywords, &positions_object,
+	PyObject *limit = NULL, *restore = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOOO:correct", keywords, &positions_object,
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
-	                                 &iterations, &tolerance, &fold_over, &space_object, &limit))
+	                                 &iterations, &tolerance, &fold_over, &space_object, &limit, &restore))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
 	lvp_py__call call;
 	lvp_frame_options options = lvp_frame_default_options();
+	int restore_index = options.restore;
 	if (lvp_py__begin_method(&call, Py_TYPE(object), lvp_py__frame_renames) != 0 ||
 	    lvp_py__parse_int(&call, iterations, "iterations", &options.max_iterations) != 0 ||
 	    lvp_py__parse_float(&call, tolerance, "tolerance", &options.tolerance) != 0 ||
 	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 ||
 	    lvp_py__parse_float(&call, limit, "displacement_limit", &options.displacement_limit) != 0 ||
+	    lvp_py__parse_choice(&call, restore, "restore", lvp_py__restore_names, 2, &restore_index) != 0 ||
 	    lvp_py__enter(self) != 0)
 		return NULL;
+	options.restore = restore_index;
 
 	lvp_py__array positions, matrices, rest, out_positions, out_offsets, space;
 	Py_ssize_t vertex_values = (Py_ssize_t)lvp_vertex_count(self->binding) * 3;
@@ -1298,7 +1303,8 @@ static PyMethodDef lvp_py__binding_methods[] = {
      "Replaces the correction map without rebinding."},
     {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
      "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
-     "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None, displacement_limit=0.0) -> dict\n"
+     "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None, displacement_limit=0.0, "
+     "restore='EACH_REGION') -> dict\n"
      "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
     {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
      "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"

@@ -144,6 +144,16 @@ static inline bool lvp__leads(const lvp_binding *binding, int32_t r)
 	return binding->system.group_leader[r] == r;
 }
 
+/* Whether region r leads a group the frame measures (not skipped or given up, with a reference
+ * volume), with its state in *r_group. */
+static bool lvp__measured_group(const lvp_binding *binding, int32_t r, lvp__group_state *r_group)
+{
+	if (!lvp__leads(binding, r))
+		return false;
+	*r_group = lvp__group_state_of(binding, r);
+	return !r_group->skipped && r_group->reference > 0.0;
+}
+
 /* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t (gamma
  * the frame's map, 1 / A_k included)
  * over their support (the step's multipliers in applied_mu), listing the moved ones from
@@ -458,10 +468,8 @@ static int32_t lvp__collect_active(lvp_binding *binding, double tolerance)
 		binding->step.active_index[r] = -1;
 	for (int32_t i = 0; i < binding->region_count; ++i) {
 		int32_t r = binding->system.solve_order[i]; /* the system's order (region_system.c) */
-		if (!lvp__leads(binding, r))
-			continue;
-		lvp__group_state group = lvp__group_state_of(binding, r);
-		if (group.skipped || !(group.reference > 0.0) || !group.movable)
+		lvp__group_state group;
+		if (!lvp__measured_group(binding, r, &group) || !group.movable)
 			continue;
 		bool off = fabs(group.change - group.target) > tolerance * group.reference;
 		any_off = any_off || off;
@@ -525,10 +533,8 @@ static double lvp__error_norm(lvp_binding *binding)
 {
 	double sum = 0.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (!lvp__leads(binding, r))
-			continue;
-		lvp__group_state group = lvp__group_state_of(binding, r);
-		if (group.skipped || !(group.reference > 0.0))
+		lvp__group_state group;
+		if (!lvp__measured_group(binding, r, &group))
 			continue;
 		double off = (group.change - group.target) / group.reference;
 		sum += off * off;
@@ -680,10 +686,8 @@ static int32_t lvp__touch_movable_groups(lvp_binding *binding)
 {
 	int32_t count = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (!lvp__leads(binding, r))
-			continue;
-		lvp__group_state group = lvp__group_state_of(binding, r);
-		if (group.skipped || !(group.reference > 0.0) || !group.movable)
+		lvp__group_state group;
+		if (!lvp__measured_group(binding, r, &group) || !group.movable)
 			continue;
 		binding->step.region_touched[r] = 1;
 		++count;
@@ -740,10 +744,8 @@ static int32_t lvp__worst_region(const lvp_binding *binding, double *r_relative)
 	int32_t worst = -1;
 	double largest = -1.0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (!lvp__leads(binding, r))
-			continue;
-		lvp__group_state group = lvp__group_state_of(binding, r);
-		if (group.skipped || !(group.reference > 0.0))
+		lvp__group_state group;
+		if (!lvp__measured_group(binding, r, &group))
 			continue;
 		double relative = lvp__relative_change(&group);
 		if (fabs(relative) > largest) {
@@ -879,10 +881,8 @@ static int32_t lvp__group_furthest_off(const lvp_binding *binding)
 	int32_t worst = -1;
 	double largest = 1e-3;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
-		if (!lvp__leads(binding, r))
-			continue;
-		lvp__group_state group = lvp__group_state_of(binding, r);
-		if (group.skipped || !group.movable || !(group.reference > 0.0))
+		lvp__group_state group;
+		if (!lvp__measured_group(binding, r, &group) || !group.movable)
 			continue;
 		double off = fabs(group.change - group.target) / group.reference;
 		if (off > largest) {

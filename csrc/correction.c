@@ -671,11 +671,13 @@ static bool lvp__bones_scale(const lvp_binding *binding)
 	return false;
 }
 
-/* Whether this frame restores the whole mesh alone (lvp.h, RESTORE): asked for, in local mode,
- * and no bone scales (then each region's scaled volume is the target). */
+/* Whether this frame restores the whole mesh alone (lvp.h, RESTORE): asked for, in local mode, no
+ * bone scales (then each region's scaled volume is the target) and no group given up (whose loss
+ * the whole mesh's multiplier would push into the others: DEGRADING). */
 static bool lvp__restores_whole_mesh(const lvp_binding *binding, const lvp_frame_options *options)
 {
-	return options->restore == LVP_RESTORE_WHOLE_MESH && binding->mode == LVP_MODE_LOCAL && !lvp__bones_scale(binding);
+	return options->restore == LVP_RESTORE_WHOLE_MESH && binding->mode == LVP_MODE_LOCAL &&
+	       !lvp__bones_scale(binding) && !binding->step.any_given_up;
 }
 
 /* Marks every group the map can move (and not given up) as touched, the set the whole mesh's

@@ -69,7 +69,9 @@
  *   multipliers of opposite signs: bulges beside dents, creases, skin pushed into skin, and
  *   jumps when a region's step fails. One multiplier cannot do that; docs/method.md measures both.
  *   In frames where bones scale (squash and stretch) there is no rest volume for the whole mesh
- *   and each region is restored, as with LVP_RESTORE_EACH_REGION.
+ *   and each region is restored, as with LVP_RESTORE_EACH_REGION; so is a frame that gives a group
+ *   up (DEGRADING: only for moving skin beyond the limit, one multiplier never holds another back),
+ *   without it and without the whole mesh's volume.
  *
  * SEAMS (one point of the skin, many vertices)
  *

@@ -45,6 +45,7 @@ typedef struct bench_case {
 	float stretch;      /* every other bone scaled by it about its head (1: none): squash and stretch */
 	float bulge_width;  /* lvp_bind_options.bulge_width (0, the core's default: none; the add-on's is 1) */
 	int32_t fold_over;  /* lvp_frame_options.fold_over */
+	int32_t restore;    /* lvp_frame_options.restore (the core's default: each region; the add-on's: the whole mesh) */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -71,6 +72,7 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)rig->vertex_count);
 	lvp_frame_options frame_options = lvp_frame_default_options();
 	frame_options.fold_over = c->fold_over;
+	frame_options.restore = c->restore;
 	int repeats = rig->vertex_count > 500000 ? 7 : 21;
 	double times[21];
 	for (int i = 0; i < repeats; ++i) {
@@ -231,6 +233,13 @@ int main(void)
 			c.stretch = 1.0f;
 			c.bulge_width = 0.0f;
 			run_case(&c, cores);
+			if (i == 1) { /* the add-on's default: one multiplier for the whole mesh (lvp.h, RESTORE) */
+				c.pose = all ? "every joint, whole mesh" : "one joint, whole mesh";
+				c.restore = LVP_RESTORE_WHOLE_MESH;
+				run_case(&c, cores);
+				c.restore = LVP_RESTORE_EACH_REGION;
+				c.pose = all ? "every joint" : "one joint";
+			}
 			if (i == 1 && !all) { /* fold-over's contacts at a joint bent until the skin crosses */
 				free(c.rotations);
 				c.rotations = chain_pose(c.rig.bone_count, 0, 100.0);
@@ -249,6 +258,10 @@ int main(void)
 				c.stretch = 1.0f;
 				c.bulge_width = 1.0f;
 				run_case(&c, cores);
+				c.pose = "every joint, bulge width 1, whole mesh"; /* the add-on's defaults */
+				c.restore = LVP_RESTORE_WHOLE_MESH;
+				run_case(&c, cores);
+				c.restore = LVP_RESTORE_EACH_REGION;
 			}
 			free(c.rotations);
 			test_rig_free(&c.rig);

@@ -594,8 +594,9 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 
 /* One multiplier per part (one for the whole mesh when nothing is split) spread over the regions
  * touched this frame (eq. 5 with the sum of their maps, each step after the first scaled by how the
- * skin answered the one before) removes what is left of the part's change, holes capped: the whole of LVP_RESTORE_WHOLE_MESH, and the second phase of the fallback of
- * lvp__correct_volumes() once every region is within tolerance of its rest volume. */
+ * skin answered the one before) removes what is left of the part's change, holes capped: the whole
+ * of LVP_RESTORE_WHOLE_MESH, and the second phase of the fallback of lvp__correct_volumes() once
+ * every region is within tolerance of its rest volume. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
                                  const float *rest_positions, const lvp__region_sums *totals)
 {
@@ -1033,7 +1034,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		if (attempt == LVP_MAX_GIVEN_UP || !(options->displacement_limit > 0.0f) || options->fold_over)
 			break;
 		bool diverged = false;
-		int32_t culprit = lvp__group_to_give_up(binding, scan, lvp__restores_whole_mesh(binding, options), &diverged);
+		bool whole_mesh = lvp__restores_whole_mesh(binding, options);
+		int32_t culprit = lvp__group_to_give_up(binding, scan, whole_mesh, &diverged);
 		if (culprit < 0)
 			break;
 		int32_t first, last;

@@ -61,8 +61,10 @@
  *   and the same multiplier (per separate part), found as in the paper's global correction
  *   (3.2-3.3) with the local maps: the lost volume goes back where joints bend, in proportion to
  *   the map there (deformation weighting makes it zero where nothing bends), and the whole mesh
- *   (each part) ends at its rest volume; each region does not. The region estimates of step 1
- *   are only used to report. Why it exists: where joints bend hard (past about 90 degrees) the
+ *   (each part) ends at its rest volume, within `tolerance` of the reference volumes of the
+ *   groups whose estimate changed by more than it (the flesh that bent: a wrist on a whole body
+ *   is held to the hand's volume, not the body's); each region does not. The region estimates
+ *   of step 1 serve only that and the report. Why it exists: where joints bend hard (past about 90 degrees) the
  *   estimates are off by a large share of the loss (what each region border sees from two bone
  *   frames: on a Rigify human with hips and knees bent hard, the regions' changes sum to 1.4 to
  *   1.6 times the whole body's), and restoring each region to them gives neighbouring regions

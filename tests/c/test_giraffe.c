@@ -80,6 +80,15 @@ static void giraffe_frame_pose(giraffe_frame *f, const test_rig *rig)
 	         diag);
 }
 
+/* Poses the rig with one joint turned `degrees` about its rest frame's `axis` (0, 1, 2) and skins it. */
+static void giraffe_frame_bend(giraffe_frame *f, const test_rig *rig, int32_t bone, int axis, double degrees)
+{
+	memset(f->rotations, 0, sizeof(float) * 4 * (size_t)rig->bone_count);
+	f->rotations[4 * bone + axis] = 1.0f;
+	f->rotations[4 * bone + 3] = (float)(degrees * PI / 180);
+	giraffe_frame_pose(f, rig);
+}
+
 static void giraffe_frame_free(giraffe_frame *f)
 {
 	free(f->rotations);
@@ -180,7 +189,6 @@ static void test_single_joints(void)
 	}
 	const char *joints[] = {"gi_neckC7", "gi_neckC4", "gi_head",  "gi_L_shoulder", "gi_R_shoulder", "gi_L_elbow",
 	                        "gi_L_hip",  "gi_L_knee", "gi_R_knee", "gi_tailA"};
-	int32_t b = rig.bone_count;
 	giraffe_frame frame = giraffe_frame_make(&rig);
 	lvp_diagnostic diag;
 	lvp_binding *binding = test_bind_rig(&rig, NULL);
@@ -191,10 +199,7 @@ static void test_single_joints(void)
 		CHECK(bone >= 0);
 		for (int axis = 0; axis < 3 && bone >= 0; ++axis)
 			for (int sign = -1; sign <= 1; sign += 2) {
-				memset(frame.rotations, 0, sizeof(float) * 4 * (size_t)b);
-				frame.rotations[4 * bone + axis] = 1.0f;
-				frame.rotations[4 * bone + 3] = (float)(sign * 60 * PI / 180);
-				giraffe_frame_pose(&frame, &rig);
+				giraffe_frame_bend(&frame, &rig, bone, axis, sign * 60.0);
 				lvp_frame_stats stats;
 				CHECK_OK(lvp_correct(NULL, frame.offsets, binding, frame.skinned, frame.posed, NULL, NULL, &stats,
 				                     &diag),
@@ -232,7 +237,7 @@ static void test_restoring_the_whole_mesh(void)
 		return;
 	}
 	const char *joints[] = {"gi_neckC7", "gi_neckC4", "gi_head", "gi_L_shoulder", "gi_L_elbow", "gi_L_knee", "gi_tailA"};
-	int32_t b = rig.bone_count, n = rig.vertex_count;
+	int32_t n = rig.vertex_count;
 	giraffe_frame frame = giraffe_frame_make(&rig);
 	float *corrected = malloc(sizeof(float) * 3 * (size_t)n);
 	lvp_diagnostic diag;
@@ -244,10 +249,7 @@ static void test_restoring_the_whole_mesh(void)
 		CHECK(bone >= 0);
 		for (int axis = 0; axis < 3 && bone >= 0; axis += 2)
 			for (int sign = -1; sign <= 1; sign += 2) {
-				memset(frame.rotations, 0, sizeof(float) * 4 * (size_t)b);
-				frame.rotations[4 * bone + axis] = 1.0f;
-				frame.rotations[4 * bone + 3] = (float)(sign * 60 * PI / 180);
-				giraffe_frame_pose(&frame, &rig);
+				giraffe_frame_bend(&frame, &rig, bone, axis, sign * 60.0);
 				plain_pairs += test_count_intersecting_pairs(frame.skinned, rig.triangles, rig.triangle_count);
 				for (int restore = 0; restore < 2; ++restore) {
 					lvp_frame_options options = lvp_frame_default_options();
@@ -306,7 +308,7 @@ static void test_frames_independent(void)
 	    {"gi_neckC7", 50, 0, 1, 0, 0},    {"gi_neckC7", 50, 0, 0, 0, 0},  {"gi_L_elbow", 60, 0, 0, 1, 0},
 	    {"gi_L_elbow", 60, 0, 0, 0, 0},   {"gi_neckC7", 35, 0, 0, 0, 0},  {"gi_neckC7", 35, 0, 0, 0, 1},
 	};
-	int32_t n = rig.vertex_count, b = rig.bone_count;
+	int32_t n = rig.vertex_count;
 	giraffe_frame frame = giraffe_frame_make(&rig);
 	float *alone = malloc(sizeof(float) * 3 * (size_t)n), *rest = malloc(sizeof(float) * 3 * (size_t)n);
 	for (int32_t i = 0; i < 3 * n; ++i) /* a shape key that swells the body by 2 % */
@@ -322,10 +324,7 @@ static void test_frames_independent(void)
 		}
 		int32_t bone = test_find_bone(&rig, frames[f].bone);
 		CHECK(bone >= 0);
-		memset(frame.rotations, 0, sizeof(float) * 4 * (size_t)b);
-		frame.rotations[4 * bone] = 1.0f;
-		frame.rotations[4 * bone + 3] = (float)(frames[f].degrees * PI / 180);
-		giraffe_frame_pose(&frame, &rig);
+		giraffe_frame_bend(&frame, &rig, bone, 0, frames[f].degrees);
 		if (frames[f].collapsed_bone) /* the bone's own matrix scaled to zero */
 			for (int c = 0; c < 12; ++c)
 				if (c % 4 != 3)

@@ -319,7 +319,7 @@ def _core_correction(obj, bound, rest_positions, fold_over):
                                       rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=fold_over, displacement_limit=bound.displacement_limit,
-                                      restore=settings.restore)
+                                      restore=settings.restore, keep_apart=settings.keep_apart)
     except (ValueError, MemoryError) as error:
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])

@@ -152,6 +152,13 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
                     "instead (paper 5.4)",
         default=False,
     )
+    keep_apart: _setting(
+        BoolProperty,
+        name="Keep Skin Apart",
+        description="Never push skin through skin: where the correction would make two parts of the surface "
+                    "cross that plain skinning keeps apart, it is shortened there and the volume goes elsewhere",
+        default=True,
+    )
     painted_vertex_group: _setting(
         StringProperty,
         name="Painted Map",

@@ -91,6 +91,9 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         fold_over = column.column(heading="Fold-Over")
         fold_over.active = settings.effect != 'GLOBAL'
         fold_over.prop(settings, "fold_over", text="Prevent")
+        keep_apart = column.column()
+        keep_apart.active = settings.effect != 'GLOBAL'
+        keep_apart.prop(settings, "keep_apart")
         column.prop(settings, "display")
 
         render = context.scene.render
@@ -149,6 +152,9 @@ class LVP_PT_statistics(_SubPanel, bpy.types.Panel):
         _figures(column, "Corrected", "%d regions, %d passes" % (stats["active_regions"], stats["iterations"]))
         if stats.get("folded_vertices"):
             _figures(column, "Unfolded", "%d vertices" % stats["folded_vertices"])
+        if stats.get("shortened_vertices"):
+            # Keep Skin Apart shortened these offsets where they would have pushed skin through skin.
+            _figures(column, "Kept Apart", "%d vertices" % stats["shortened_vertices"])
 
 
 def _figures(layout, name, *values):

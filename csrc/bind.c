@@ -52,6 +52,7 @@ void lvp_free(lvp_binding *binding)
 	lvp__region_system_free(&binding->system);
 	lvp__stretch_free(&binding->stretch);
 	lvp__fold_free(&binding->fold);
+	lvp__contact_free(&binding->contact);
 	lvp__part_volumes_free(&binding->parts);
 	lvp__step_free(&binding->step);
 	free(binding);

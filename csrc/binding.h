@@ -7,6 +7,7 @@
 #ifndef LVP_BINDING_H
 #define LVP_BINDING_H
 
+#include "bvh.h"
 #include "lvp_internal.h"
 #include "threads.h"
 
@@ -326,6 +327,16 @@ typedef struct lvp__fold {
 	                              zero between frames */
 } lvp__fold;
 
+/* Skin kept from passing through skin (contact.c), allocated at the first frame that asks. */
+typedef struct lvp__contact {
+	lvp__bvh bvh;              /* over the triangles (mesh.triangles), refitted to each round */
+	float *limit;              /* per triangle, this round: the share of the offsets that keeps it apart
+	                              from every triangle it crosses and did not cross skinned (1: none) */
+	uint8_t *moved;            /* per vertex: its triangles are tested this round */
+	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
+	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
+} lvp__contact;
+
 /* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
  * part's volume (correction.c). Part 0: all that is on the caller's bones (the first part that
  * bends, parts one bone carries, triangles without region); then each split part. */
@@ -397,6 +408,7 @@ struct lvp_binding {
 	lvp__region_system system;
 	lvp__stretch stretch;
 	lvp__fold fold;
+	lvp__contact contact;
 	lvp__part_volumes parts;
 	lvp__step step;
 };
@@ -710,5 +722,21 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
  * rest (rest_positions: the frame's, NULL for the bind's), and forgets its contacts (before the
  * first lvp__fold_over of a frame). */
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
+
+/* contact.c */
+/* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */
+lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* Shortens the offsets (step.positions against `positions`, the input points) of the corners of
+ * every pair of triangles that crosses after the correction but not in the input, by halves over a
+ * few rounds (the last takes them away), smoothed around them; vertices held by fold-over keep
+ * theirs. first: the frame's first call (forgets contact.shortened). Returns how many dynamic
+ * vertices it shortened. Uses fold.saved as scratch. */
+int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);
+/* Fades frame_map.gamma by what the last lvp__keep_skin_apart left of each offset (contact.scale):
+ * where skin met skin, the next volume step moves it as much less. */
+void lvp__fade_map_where_shortened(lvp_binding *binding);
+/* The dynamic vertices shortened by any lvp__keep_skin_apart of this frame. */
+int32_t lvp__shortened_count(const lvp_binding *binding);
+void lvp__contact_free(lvp__contact *contact);
 
 #endif /* LVP_BINDING_H */

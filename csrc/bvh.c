@@ -53,6 +53,19 @@ static float lvp__box_half_area(const lvp__box *box)
 	return dx * dy + dy * dz + dz * dx;
 }
 
+/* Stores a node's box padded by a millionth of its size and of its distance to the origin: the
+ * triangle test accepts points a hair outside a triangle (its edge epsilon, and rounding), and the box
+ * test runs in float; a box must never be tighter than what the test can hit. */
+static void lvp__store_box(lvp__bvh_node *node, const lvp__box *box)
+{
+	for (int axis = 0; axis < 3; ++axis) {
+		float far = lvp__maxf(fabsf(box->lo[axis]), fabsf(box->hi[axis]));
+		float pad = (box->hi[axis] - box->lo[axis]) * 1e-6f + far * 1e-6f + 1e-30f;
+		node->lo[axis] = box->lo[axis] - pad;
+		node->hi[axis] = box->hi[axis] + pad;
+	}
+}
+
 /* Scratch of the build: per triangle of the order, its box and its centroid. */
 typedef struct lvp__build {
 	lvp__box *boxes;  /* indexed by triangle slot */
@@ -230,6 +243,8 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 			}
 		}
 		out->source = t;
+		memcpy(out->lo, box->lo, sizeof(out->lo));
+		memcpy(out->hi, box->hi, sizeof(out->hi));
 		for (int axis = 0; axis < 3; ++axis)
 			build.centroids[3 * (int64_t)slots + axis] = 0.5f * box->lo[axis] + 0.5f * box->hi[axis];
 		build.order[slots] = slots;
@@ -261,16 +276,8 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 				centroid_box.hi[axis] = lvp__maxf(centroid_box.hi[axis], c);
 			}
 		}
-		/* The stored box is padded by a millionth of its size and of its distance to the origin: the
-		 * triangle test accepts points a hair outside a triangle (its edge epsilon, and rounding), and the
-		 * box test runs in float; a box must never be tighter than what the test can hit. */
 		lvp__bvh_node *out = &bvh.nodes[node];
-		for (int axis = 0; axis < 3; ++axis) {
-			float far = lvp__maxf(fabsf(box.lo[axis]), fabsf(box.hi[axis]));
-			float pad = (box.hi[axis] - box.lo[axis]) * 1e-6f + far * 1e-6f + 1e-30f;
-			out->lo[axis] = box.lo[axis] - pad;
-			out->hi[axis] = box.hi[axis] + pad;
-		}
+		lvp__store_box(out, &box);
 		int32_t count = end - begin, mid = -1;
 		if (count > LVP__BVH_SMALL_LEAF) {
 			bool split = false;
@@ -322,6 +329,48 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 	bvh.triangle_count = slots;
 	*r_bvh = bvh;
 	return lvp_success;
+}
+
+void lvp__bvh_refit(lvp__bvh *bvh, const float *positions)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	for (int32_t i = 0; i < bvh->triangle_count; ++i) {
+		lvp__bvh_triangle *tri = &bvh->triangles[i];
+		for (int c = 0; c < 3; ++c)
+			memcpy(tri->corners[c], positions + 3 * (int64_t)tri->vertices[c], sizeof(float) * 3);
+		for (int axis = 0; axis < 3; ++axis) {
+			tri->lo[axis] = lvp__minf(lvp__minf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
+			tri->hi[axis] = lvp__maxf(lvp__maxf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
+		}
+	}
+	/* Children come after their parent (lvp__bvh_build appends them), so one backward pass sees
+	 * both children of a node before the node. The padding is recomputed from the unpadded boxes
+	 * of the children's triangles only at the leaves; above them the children's padded boxes are
+	 * merged, which stays at least as wide as a box must be. */
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
+		lvp__bvh_node *node = &bvh->nodes[index];
+		lvp__box box;
+		lvp__box_empty(&box);
+		if (node->count > 0) {
+			for (int32_t i = node->index; i < node->index + node->count; ++i)
+				for (int axis = 0; axis < 3; ++axis) {
+					box.lo[axis] = lvp__minf(box.lo[axis], bvh->triangles[i].lo[axis]);
+					box.hi[axis] = lvp__maxf(box.hi[axis], bvh->triangles[i].hi[axis]);
+				}
+			lvp__store_box(node, &box);
+			continue;
+		}
+		for (int child = 0; child < 2; ++child) {
+			const lvp__bvh_node *c = &bvh->nodes[node->index + child];
+			for (int axis = 0; axis < 3; ++axis) {
+				box.lo[axis] = lvp__minf(box.lo[axis], c->lo[axis]);
+				box.hi[axis] = lvp__maxf(box.hi[axis], c->hi[axis]);
+			}
+		}
+		memcpy(node->lo, box.lo, sizeof(box.lo));
+		memcpy(node->hi, box.hi, sizeof(box.hi));
+	}
 }
 
 void lvp__bvh_free(lvp__bvh *bvh)
@@ -418,12 +467,9 @@ static int32_t lvp__traverse(const lvp__bvh *bvh, int32_t start, int32_t skip, l
 	return -1;
 }
 
-bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
-                           int32_t skip_vertex, int32_t *io_hint)
+/* The segment from + t (to - from), t in [t_min, t_max], prepared for the box and triangle tests. */
+static lvp__segment lvp__prepare_segment(lvp__vec3 from, lvp__vec3 direction, double t_min, double t_max)
 {
-	if (bvh->triangle_count == 0)
-		return false;
-	lvp__vec3 direction = lvp__sub(to, from);
 	double d[3] = {direction.x, direction.y, direction.z};
 	double o[3] = {from.x, from.y, from.z};
 	lvp__segment s = {{0}, {0}, {0}, (float)t_min, (float)t_max, 0.0f, t_min, t_max};
@@ -447,6 +493,16 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 		}
 	}
 	s.slack = (float)(2.0 * slack);
+	return s;
+}
+
+bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
+                           int32_t skip_vertex, int32_t *io_hint)
+{
+	if (bvh->triangle_count == 0)
+		return false;
+	lvp__vec3 direction = lvp__sub(to, from);
+	lvp__segment s = lvp__prepare_segment(from, direction, t_min, t_max);
 	/* Neighbouring queries are usually blocked by the same patch of wall: search the subtree that held
 	 * the last blocker first, then the rest of the tree. */
 	int32_t hint = io_hint && *io_hint > 0 && *io_hint < bvh->node_count ? *io_hint : -1;
@@ -461,4 +517,83 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 		*io_hint = leaf;
 	}
 	return true;
+}
+
+void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
+                          void *context)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	int32_t stack[LVP__BVH_STACK];
+	int top = 0;
+	stack[top++] = 0;
+	while (top > 0) {
+		const lvp__bvh_node *node = &bvh->nodes[stack[--top]];
+		if (node->lo[0] > hi[0] || node->hi[0] < lo[0] || node->lo[1] > hi[1] || node->hi[1] < lo[1] ||
+		    node->lo[2] > hi[2] || node->hi[2] < lo[2])
+			continue;
+		if (node->count == 0) {
+			stack[top++] = node->index + 1;
+			stack[top++] = node->index;
+			continue;
+		}
+		for (int32_t i = node->index; i < node->index + node->count; ++i)
+			if (visit(context, &bvh->triangles[i]))
+				return;
+	}
+}
+
+static float lvp__node_half_area(const lvp__bvh_node *node)
+{
+	float dx = node->hi[0] - node->lo[0], dy = node->hi[1] - node->lo[1], dz = node->hi[2] - node->lo[2];
+	return dx * dy + dy * dz + dz * dx;
+}
+
+static inline bool lvp__nodes_overlap(const lvp__bvh_node *a, const lvp__bvh_node *b)
+{
+	return !(a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
+	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
+}
+
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, lvp__bvh_visit_pair visit, void *context)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	/* Pairs of nodes to visit, (a, a) standing for the pairs within a. A pop pushes at most three
+	 * pairs, each one level deeper on one side; a pair's two depths sum to less than 2 * 72. */
+	int32_t stack[2 * 4 * 2 * LVP__BVH_STACK];
+	int top = 0;
+	stack[top++] = 0;
+	stack[top++] = 0;
+	while (top > 0) {
+		int32_t b = stack[--top], a = stack[--top];
+		const lvp__bvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
+		if (a == b) {
+			if (na->count > 0) {
+				for (int32_t i = na->index; i < na->index + na->count; ++i)
+					for (int32_t j = i + 1; j < na->index + na->count; ++j)
+						visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+				continue;
+			}
+			int32_t left = na->index, right = left + 1;
+			stack[top++] = left, stack[top++] = left;
+			stack[top++] = right, stack[top++] = right;
+			stack[top++] = left, stack[top++] = right;
+			continue;
+		}
+		if (!lvp__nodes_overlap(na, nb))
+			continue;
+		if (na->count > 0 && nb->count > 0) {
+			for (int32_t i = na->index; i < na->index + na->count; ++i)
+				for (int32_t j = nb->index; j < nb->index + nb->count; ++j)
+					visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+			continue;
+		}
+		/* Split the inner node (the larger one when both are). */
+		bool split_a = nb->count > 0 || (na->count == 0 && lvp__node_half_area(na) >= lvp__node_half_area(nb));
+		const lvp__bvh_node *split = split_a ? na : nb;
+		int32_t other = split_a ? b : a;
+		stack[top++] = split->index, stack[top++] = other;
+		stack[top++] = split->index + 1, stack[top++] = other;
+	}
 }

@@ -6,7 +6,7 @@
  * triangles; below depth 40, or when the centroids coincide, splits at the object median instead, which
  * bounds the depth (and the fixed traversal stack) whatever the input. Node boxes are padded slightly so
  * that the float box test never culls what the double triangle test would hit.
- * MEMORY: about 2F nodes of 36 bytes (with the parent links) and F triangles of 48 bytes (a copy of the
+ * MEMORY: about 2F nodes of 36 bytes (with the parent links) and F triangles of 72 bytes (a copy of the
  * corners in leaf order, for locality), plus 40F bytes during the build.
  * PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes.
  */
@@ -25,6 +25,7 @@ typedef struct lvp__bvh_node {
 
 typedef struct lvp__bvh_triangle {
 	float corners[3][3];
+	float lo[3], hi[3]; /* the corners' box */
 	int32_t vertices[3]; /* the mesh's vertex indices, to skip the triangles around a query's start */
 	int32_t source;      /* the triangle's index in the mesh */
 } lvp__bvh_triangle;
@@ -55,6 +56,23 @@ void lvp__bvh_free(lvp__bvh *bvh);
  * only the time does. */
 bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, double t_min, double t_max,
                            int32_t skip_vertex, int32_t *io_hint);
+
+/* Moves the triangles to `positions` (indexed like the mesh the hierarchy was built over) and
+ * recomputes every node's box from its children's, keeping the tree: after a deformation that keeps
+ * neighbours near each other (skinning), the boxes grow where the skin bends but stay valid, and
+ * queries stay exact; O(F). */
+void lvp__bvh_refit(lvp__bvh *bvh, const float *positions);
+
+/* Calls visit(context, triangle) for every triangle whose box may overlap [lo, hi] (a superset:
+ * padded boxes), until visit returns true. */
+typedef bool (*lvp__bvh_visit)(void *context, const lvp__bvh_triangle *triangle);
+void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
+                          void *context);
+
+/* Calls visit(context, a, b) once for every pair of different triangles whose boxes may overlap (a
+ * superset: padded boxes), by a traversal of the tree against itself. */
+typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b);
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, lvp__bvh_visit_pair visit, void *context);
 
 /* The segment-triangle test the queries use (Moller-Trumbore in double), exposed for the tests' brute
  * force. Returns true and the parameter in *r_t when it crosses inside [t_min, t_max]. */

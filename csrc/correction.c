@@ -23,6 +23,8 @@
 
 /* Rounds of (volume step, contact test) after the first contact test of fold-over prevention. */
 #define LVP__FOLD_ROUNDS 4
+/* Volume corrections again after shortening offsets to keep skin apart, at most. */
+#define LVP__CONTACT_CYCLES 4
 
 static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp_diagnostic *r_diag)
 {
@@ -881,9 +883,27 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			moved = lvp__fold_over(binding, rest_positions);
 			stats->folded_vertices += moved;
 		}
-		memset(binding->fold.held, 0, (size_t)n);
 		lvp__measure_positions(binding, rest_positions, totals);
 	}
+	stats->shortened_vertices = 0;
+	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {
+		/* Offsets that would push skin through skin are shortened (contact.c). What they could not
+		 * carry is restored again through the map faded as much as they were shortened (those that
+		 * fold-over put on a contact surface still held), and that correction is checked in turn,
+		 * until one shortens nothing (a bent tail: twice). */
+		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
+		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0; ++cycle) {
+			int32_t ignored;
+			lvp__fade_map_where_shortened(binding);
+			lvp__movable_regions(binding);
+			lvp__measure_positions(binding, rest_positions, totals);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+			shortened = lvp__keep_skin_apart(binding, positions, false);
+			lvp__measure_positions(binding, rest_positions, totals);
+		}
+		stats->shortened_vertices = lvp__shortened_count(binding);
+	}
+	memset(binding->fold.held, 0, (size_t)n);
 }
 
 /* The group furthest from its target, relative to its reference volume, when more than 0.1 % off;
@@ -1002,6 +1022,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 		lvp__use_rigid_shortcut(binding, false);
 		lvp__build_frame_map(binding, rest_positions);
 	}
+	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL && (result = lvp__contact_begin(binding, r_diag)))
+		return result;
 	stats.worst_region = -1;
 	stats.given_up_region = -1;
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;

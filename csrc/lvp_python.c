@@ -1098,13 +1098,14 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 {
 	static char *keywords[] = {"positions",  "bone_matrices", "out_positions", "out_offsets", "rest_positions",
 	                           "iterations", "tolerance",     "fold_over",     "rigid_space", "displacement_limit",
-	                           "restore",    NULL};
+	                           "restore",    "keep_apart",    NULL};
 	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
 	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL, *space_object = NULL;
-	PyObject *limit = NULL, *restore = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOOO:correct", keywords, &positions_object,
+	PyObject *limit = NULL, *restore = NULL, *keep_apart = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOOOO:correct", keywords, &positions_object,
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
-	                                 &iterations, &tolerance, &fold_over, &space_object, &limit, &restore))
+	                                 &iterations, &tolerance, &fold_over, &space_object, &limit, &restore,
+	                                 &keep_apart))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
 	lvp_py__call call;
@@ -1114,6 +1115,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	    lvp_py__parse_int(&call, iterations, "iterations", &options.max_iterations) != 0 ||
 	    lvp_py__parse_float(&call, tolerance, "tolerance", &options.tolerance) != 0 ||
 	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 ||
+	    lvp_py__parse_bool(&call, keep_apart, "keep_apart", &options.keep_apart) != 0 ||
 	    lvp_py__parse_float(&call, limit, "displacement_limit", &options.displacement_limit) != 0 ||
 	    lvp_py__parse_choice(&call, restore, "restore", lvp_py__restore_names, 2, &restore_index) != 0 ||
 	    lvp_py__enter(self) != 0)
@@ -1156,7 +1158,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	Py_END_ALLOW_THREADS;
 	if (lvp_py__end_claimed(&call, self, result) != 0)
 		return NULL;
-	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i}", "volume_rest",
+	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i,s:i}", "volume_rest",
 	                     stats.volume_rest,
 	                     "volume_before", stats.volume_before, "volume_after", stats.volume_after, "worst_region",
 	                     (int)stats.worst_region, "worst_region_change_before", stats.worst_region_change_before,
@@ -1166,7 +1168,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	                     "max_displacement", stats.max_displacement, "passed_through", (int)stats.passed_through,
 	                     "unskinned_distance", stats.unskinned_distance, "given_up_regions", (int)stats.given_up_regions,
 	                     "given_up_region", (int)stats.given_up_region, "given_up_diverged",
-	                     (int)stats.given_up_diverged);
+	                     (int)stats.given_up_diverged, "shortened_vertices", (int)stats.shortened_vertices);
 }
 
 static PyObject *lvp_py__binding_region_volume_changes(PyObject *object, PyObject *args, PyObject *kwargs)

@@ -46,6 +46,7 @@ typedef struct bench_case {
 	float bulge_width;  /* lvp_bind_options.bulge_width (0, the core's default: none; the add-on's is 1) */
 	int32_t fold_over;  /* lvp_frame_options.fold_over */
 	int32_t restore;    /* lvp_frame_options.restore (the core's default: each region; the add-on's: the whole mesh) */
+	int32_t keep_apart; /* lvp_frame_options.keep_apart (the core's default: off; the add-on's: on) */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -73,6 +74,7 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	lvp_frame_options frame_options = lvp_frame_default_options();
 	frame_options.fold_over = c->fold_over;
 	frame_options.restore = c->restore;
+	frame_options.keep_apart = c->keep_apart;
 	int repeats = rig->vertex_count > 500000 ? 7 : 21;
 	double times[21];
 	for (int i = 0; i < repeats; ++i) {
@@ -237,6 +239,10 @@ int main(void)
 				c.pose = all ? "every joint, whole mesh" : "one joint, whole mesh";
 				c.restore = LVP_RESTORE_WHOLE_MESH;
 				run_case(&c, cores);
+				c.pose = all ? "every joint, whole mesh, kept apart" : "one joint, whole mesh, kept apart";
+				c.keep_apart = 1; /* lvp.h, CONTACT */
+				run_case(&c, cores);
+				c.keep_apart = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;
 				c.pose = all ? "every joint" : "one joint";
 			}
@@ -258,9 +264,13 @@ int main(void)
 				c.stretch = 1.0f;
 				c.bulge_width = 1.0f;
 				run_case(&c, cores);
-				c.pose = "every joint, bulge width 1, whole mesh"; /* the add-on's defaults */
+				c.pose = "every joint, bulge width 1, whole mesh";
 				c.restore = LVP_RESTORE_WHOLE_MESH;
 				run_case(&c, cores);
+				c.pose = "every joint, bulge width 1, whole mesh, kept apart"; /* the add-on's defaults */
+				c.keep_apart = 1;
+				run_case(&c, cores);
+				c.keep_apart = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;
 			}
 			free(c.rotations);

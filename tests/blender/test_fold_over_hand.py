@@ -67,6 +67,11 @@ class TestFoldOverHand(unittest.TestCase):
         bpy.context.scene.frame_set(frame)
         plain = helpers.uncorrected_positions(cls.obj)
         row = {"frame": frame, "plain": plain}
+        cls.obj.lvp.keep_apart = False
+        cls.obj.lvp.fold_over = False
+        bpy.context.view_layer.update()
+        row["vp touching"] = {"offsets": quality.offsets_between(plain, helpers.evaluated_positions(cls.obj))}
+        cls.obj.lvp.keep_apart = True
         for variant, fold_over in (("vp", False), ("fold", True)):
             cls.obj.lvp.fold_over = fold_over
             bpy.context.view_layer.update()
@@ -76,6 +81,7 @@ class TestFoldOverHand(unittest.TestCase):
             row[variant] = {
                 "positions": positions, "status": status[1] if status else "",
                 "crossings": len(pairs), "joint crossings": cls.joint_crossings(pairs),
+                "new crossings": len(quality.new_crossing_pairs(plain, pairs, cls.mesh)),
                 "volume": quality.mesh_volume(positions, cls.mesh.triangles) / cls.rest_volume - 1.0,
                 "offsets": quality.offsets_between(plain, positions)}
         plain_pairs = quality.crossing_pairs(plain, cls.mesh)
@@ -108,6 +114,14 @@ class TestFoldOverHand(unittest.TestCase):
         fist = self.measured[-1]
         self.assertLessEqual(fist["fold"]["crossings"], fist["plain crossings"] / 2, "at the fist")
 
+    def test_volume_preservation_adds_no_crossing(self):
+        # Keep Skin Apart (the default): no pair crosses that does not cross in plain skinning (decided exactly; the
+        # counts can differ by a pair plain skinning leaves within rounding of touching, which crossing_pairs'
+        # float prefilter misses there: 24 against 23 at frame 13). Without it 10 pairs at frame 12, where plain
+        # skinning has none, and 254 against 220 at the fist.
+        for row in self.measured:
+            self.assertEqual(row["vp"]["new crossings"], 0, "frame %d" % row["frame"])
+
     def test_volume_and_no_fallback(self):
         for row in self.measured:
             self.assertIn("Correcting", row["fold"]["status"], "frame %d" % row["frame"])
@@ -115,17 +129,20 @@ class TestFoldOverHand(unittest.TestCase):
 
     def test_no_popping_of_its_own(self):
         largest = {}
-        for variant in ("vp", "fold"):
+        for variant in ("vp", "fold", "vp touching"):
             largest[variant] = max(
                 quality.offset_change_ratio(before[variant]["offsets"], row[variant]["offsets"], before["plain"],
                                             row["plain"])
                 for before, row in zip(self.measured, self.measured[1:]))
-        print("\n    largest offset change against the skin's motion: VP %.2f, VP+fold %.2f"
-              % (largest["vp"], largest["fold"]))
+        print("\n    largest offset change against the skin's motion: VP %.2f, VP+fold %.2f, VP without Keep Skin "
+              "Apart %.2f" % (largest["vp"], largest["fold"], largest["vp touching"]))
         # A pop moves an offset as far as the skin moved or more (surface_quality.offset_change_ratio).
-        # Restoring the whole mesh, Volume Preservation follows the motion (0.15); fold-over's contacts
-        # change most at the fist, where the last round is kept (0.76).
-        self.assertLess(largest["vp"], 0.25)
+        # Restoring the whole mesh, Volume Preservation follows the motion (0.14 without Keep Skin Apart). Keeping
+        # skin apart, the palm's bulge gives way to the fingertips closing on it at the fist (0.78, and a pair
+        # plain skinning leaves touching flips there: lvp.h, CONTACT); fold-over's contacts change most at the
+        # fist too (0.94).
+        self.assertLess(largest["vp touching"], 0.25)
+        self.assertLess(largest["vp"], 1.0)
         self.assertLess(largest["fold"], 1.0)
 
 

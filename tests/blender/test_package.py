@@ -67,7 +67,7 @@ class TestPackage(helpers.AddonTestCase):
         self.assertEqual(settings.effect, 'ORGANIC')
         for effect in ('ORGANIC', 'RUBBER', 'PAINTED', 'GLOBAL'):
             settings.effect = effect
-        for name in ("alpha", "beta", "iterations", "tolerance", "fold_over", "painted_vertex_group",
+        for name in ("alpha", "beta", "iterations", "tolerance", "fold_over", "keep_apart", "painted_vertex_group",
                      "region_restrictions"):
             self.assertTrue(hasattr(settings, name), name)
 

@@ -3,11 +3,14 @@
 surface_quality.py), with the add-on's defaults: what issue 24 asks where it is met today, and no worse than
 today where it is not (README, Limitations, gives the numbers of both).
 
+- Every pose: the volume within 0.5 % and no crossing pair that does not cross in plain skinning (Keep Skin
+  Apart, on by default; counted, 240 against 240 on the human bent hard, 194 against 220 at the fist; without it
+  241 against 240, 10 against 0 on the hand a little past half closed, 254 against 220 at the fist).
 - A Rigify human with a closed body and heat weights, elbows, knees and hips bent hard, and bent half as far: at
-  most one crease added per 300 edges and roughness at most a quarter of the largest offset; bent half as far,
-  no more crossing pairs than plain skinning (bent hard: 241 against 240).
-- A hand closing into a fist: half closed, at most one crease per 300 edges; half closed, three quarters closed and
-  closed, roughness at most a quarter of the largest offset.
+  most one crease added per 300 edges and roughness at most a quarter of the largest offset.
+- A hand closing into a fist: half closed and three quarters closed, at most one crease per 300 edges; half
+  closed, three quarters closed and closed, roughness at most a quarter of the largest offset (at the fist 123
+  creases, 74 allowed, is not met).
 
 Restoring each region on its own (Restore: Each Region, the add-on's default before Whole Mesh) fails several of
 these: on the human bent hard roughness 0.30 of the largest offset, on the hand three quarters closed 271 creases
@@ -48,6 +51,7 @@ class SurfaceCase(unittest.TestCase):
                  measured["plain"]["crossings"]))
         self.assertLess(abs(vp["volume"]), 0.005, label)
         self.assertEqual(vp["crack"], 0.0, label)
+        self.assertEqual(vp["new crossings"], 0, label)
         return vp
 
     def assertFewCreases(self, vp, label):
@@ -82,7 +86,6 @@ class TestRigifyHuman(SurfaceCase):
         vp = self.measure(self.body, "Rigify human bent half as far")
         self.assertFewCreases(vp, "bent half as far")
         self.assertSmooth(vp, "bent half as far")
-        self.assertLessEqual(vp["crossings"], self.plain_crossings, "bent half as far")
 
 
     def test_a_wrist_alone(self):
@@ -130,6 +133,7 @@ class TestHand(SurfaceCase):
     def test_three_quarters_closed(self):
         self.at_fraction(0.75)
         vp = self.measure(self.obj, "hand three quarters closed")
+        self.assertFewCreases(vp, "three quarters closed")
         self.assertSmooth(vp, "three quarters closed")
 
     def test_fist(self):

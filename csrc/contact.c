@@ -1,0 +1,390 @@
+/*
+ * contact.c - the correction never pushes skin through skin (lvp.h, CONTACT). Where plain skinning
+ * brings two sheets of skin close (the inside of a bent finger, the thumb's web, a fingertip on the
+ * palm), the offsets, along each side's own normal, point the sheets at each other, and a fraction of
+ * a millimetre can push one through the other: more crossing triangles than skinning alone. Here
+ * every pair of triangles that crosses after the correction but did not cross in the skinning is
+ * found (a hierarchy over the corrected triangles, refitted each round), and the offsets of its
+ * corners are halved; a few rounds, each testing only the triangles around the vertices it moved.
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+/* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
+#define LVP__CONTACT_ROUNDS 8
+/* Steps of the bisection for the share of the offsets that keeps a pair apart. */
+#define LVP__CONTACT_BISECTIONS 10
+/* Passes of lvp__smoothed_scale after each round. */
+#define LVP__CONTACT_SMOOTHING 4
+
+static inline float lvp__min3(float a, float b, float c)
+{
+	float m = a < b ? a : b;
+	return m < c ? m : c;
+}
+
+static inline float lvp__max3(float a, float b, float c)
+{
+	float m = a > b ? a : b;
+	return m > c ? m : c;
+}
+
+/* The crossing tests decide by signs of orientation determinants in double, each with Shewchuk's
+ * static error bound: a sign too close to call is UNSURE, and so is a crossing that hangs on one.
+ * The surface measures decide exactly; a pair touching within rounding must not pass for apart
+ * after the correction, nor for crossing (skinning's own, left alone) before it. */
+enum { LVP__APART = 0, LVP__CROSS = 1, LVP__UNSURE = 2 };
+#define LVP__SURE_SIGN 2 /* lvp__orientation's answer when the sign is too close to call */
+
+/* The sign of the orientation of d against the plane of a, b, c: -1, 1, or LVP__SURE_SIGN when the
+ * determinant is within its rounding bound (zero included). */
+static inline int lvp__orientation(lvp__vec3 a, lvp__vec3 b, lvp__vec3 c, lvp__vec3 d)
+{
+	double ax = a.x - d.x, ay = a.y - d.y, az = a.z - d.z, bx = b.x - d.x, by = b.y - d.y, bz = b.z - d.z;
+	double cx = c.x - d.x, cy = c.y - d.y, cz = c.z - d.z;
+	double bc = by * cz - bz * cy, ca = cy * az - cz * ay, ab = ay * bz - az * by;
+	double det = ax * bc + bx * ca + cx * ab;
+	double permanent = (fabs(by * cz) + fabs(bz * cy)) * fabs(ax) + (fabs(cy * az) + fabs(cz * ay)) * fabs(bx) +
+	                   (fabs(ay * bz) + fabs(az * by)) * fabs(cx);
+	if (fabs(det) <= 7.771561172376103e-16 * permanent)
+		return LVP__SURE_SIGN;
+	return det > 0.0 ? 1 : -1;
+}
+
+/* Whether segment pq passes through the open triangle abc, from one open side of its plane to the
+ * other (the test surface_quality.py counts crossings by). */
+static int lvp__pierces(lvp__vec3 p, lvp__vec3 q, lvp__vec3 a, lvp__vec3 b, lvp__vec3 c)
+{
+	int sp = lvp__orientation(a, b, c, p), sq = lvp__orientation(a, b, c, q);
+	if (sp != LVP__SURE_SIGN && sp == sq)
+		return LVP__APART;
+	int s[3] = {lvp__orientation(p, q, a, b), lvp__orientation(p, q, b, c), lvp__orientation(p, q, c, a)};
+	int known = 0;
+	bool unsure = sp == LVP__SURE_SIGN || sq == LVP__SURE_SIGN;
+	for (int i = 0; i < 3; ++i) {
+		if (s[i] == LVP__SURE_SIGN) {
+			unsure = true;
+		} else if (known == 0) {
+			known = s[i];
+		} else if (s[i] != known) {
+			return LVP__APART; /* the line passes beside the triangle, whatever the others */
+		}
+	}
+	return unsure ? LVP__UNSURE : LVP__CROSS;
+}
+
+/* Whether the three corners lie surely on one side of the plane of y (then x cannot cross y). */
+static bool lvp__one_side(const lvp__vec3 *x, const lvp__vec3 *y)
+{
+	int a = lvp__orientation(y[0], y[1], y[2], x[0]);
+	return a != LVP__SURE_SIGN && a == lvp__orientation(y[0], y[1], y[2], x[1]) &&
+	       a == lvp__orientation(y[0], y[1], y[2], x[2]);
+}
+
+/* Whether two triangles (corners) cross, an edge of one through the inside of the other:
+ * LVP__APART, LVP__CROSS or LVP__UNSURE. */
+static int lvp__triangles_cross(const lvp__vec3 *x, const lvp__vec3 *y)
+{
+	if (lvp__one_side(x, y) || lvp__one_side(y, x))
+		return LVP__APART;
+	int result = LVP__APART;
+	for (int e = 0; e < 3; ++e) {
+		int one = lvp__pierces(x[e], x[(e + 1) % 3], y[0], y[1], y[2]);
+		int other = lvp__pierces(y[e], y[(e + 1) % 3], x[0], x[1], x[2]);
+		if (one == LVP__CROSS || other == LVP__CROSS)
+			return LVP__CROSS;
+		if (one == LVP__UNSURE || other == LVP__UNSURE)
+			result = LVP__UNSURE;
+	}
+	return result;
+}
+
+typedef struct lvp__contact_pass {
+	lvp_binding *binding;
+	const float *positions; /* the frame's input points (the skinning) */
+} lvp__contact_pass;
+
+/* One triangle's search: its corners, corrected and skinned, its box, and the least share of the
+ * offsets at which it and a triangle it meets still keep apart (1: it crosses none it did not cross
+ * skinned). */
+typedef struct lvp__triangle_search {
+	const lvp__contact_pass *pass;
+	const int32_t *corners;
+	lvp__vec3 moved[3], skinned[3];
+	float lo[3], hi[3];
+	float limit;
+} lvp__triangle_search;
+
+/* The share lambda of the offsets (the corners at skinned + lambda (moved - skinned)) below which two
+ * triangles that cross moved, and not skinned, keep apart, to 1/1024 (bisection). It varies
+ * continuously with the pose where the crossing begins (1 there), so the shortening it asks for
+ * starts at nothing rather than all at once. */
+static float lvp__share_apart(const lvp__vec3 x_moved[3], const lvp__vec3 x_skinned[3], const lvp__vec3 y_moved[3],
+                              const lvp__vec3 y_skinned[3])
+{
+	double apart = 0.0, crossing = 1.0;
+	for (int step = 0; step < LVP__CONTACT_BISECTIONS; ++step) {
+		double share = 0.5 * (apart + crossing);
+		lvp__vec3 x[3], y[3];
+		for (int i = 0; i < 3; ++i) {
+			x[i] = lvp__add(x_skinned[i], lvp__scale(lvp__sub(x_moved[i], x_skinned[i]), share));
+			y[i] = lvp__add(y_skinned[i], lvp__scale(lvp__sub(y_moved[i], y_skinned[i]), share));
+		}
+		if (lvp__triangles_cross(x, y) != LVP__APART)
+			crossing = share;
+		else
+			apart = share;
+	}
+	return (float)apart;
+}
+
+static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
+{
+	lvp__triangle_search *search = context;
+	const int32_t *t = search->corners;
+	for (int i = 0; i < 3; ++i)
+		if (other->vertices[i] == t[0] || other->vertices[i] == t[1] || other->vertices[i] == t[2])
+			return false; /* neighbours meet at their shared corners, which is no crossing */
+	for (int axis = 0; axis < 3; ++axis) /* a leaf's box holds several triangles */
+		if (other->lo[axis] > search->hi[axis] || other->hi[axis] < search->lo[axis])
+			return false;
+	lvp__vec3 moved[3], skinned[3];
+	for (int i = 0; i < 3; ++i) {
+		moved[i] = lvp__load(other->corners[i]);
+		skinned[i] = lvp__load(search->pass->positions + 3 * (int64_t)other->vertices[i]);
+	}
+	/* Unsure counts as crossing after the correction and as apart before it: a pair that skinning
+	 * leaves touching is kept as it is. */
+	if (lvp__triangles_cross(search->moved, moved) != LVP__APART &&
+	    lvp__triangles_cross(search->skinned, skinned) != LVP__CROSS)
+		search->limit = fminf(search->limit, lvp__share_apart(search->moved, search->skinned, moved, skinned));
+	return false;
+}
+
+/* The first round: every pair of triangles, one of them moved, whose boxes overlap. */
+static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
+{
+	const lvp__contact_pass *pass = context;
+	lvp__contact *contact = &pass->binding->contact;
+	const uint8_t *moved = contact->moved;
+	if (a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
+	    a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2])
+		return;
+	if (!moved[a->vertices[0]] && !moved[a->vertices[1]] && !moved[a->vertices[2]] && !moved[b->vertices[0]] &&
+	    !moved[b->vertices[1]] && !moved[b->vertices[2]])
+		return;
+	lvp__triangle_search search;
+	search.pass = pass;
+	search.corners = a->vertices;
+	search.limit = 1.0f;
+	memcpy(search.lo, a->lo, sizeof(search.lo));
+	memcpy(search.hi, a->hi, sizeof(search.hi));
+	for (int i = 0; i < 3; ++i) {
+		search.moved[i] = lvp__load(a->corners[i]);
+		search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)a->vertices[i]);
+	}
+	lvp__visit_candidate(&search, b);
+	contact->limit[a->source] = fminf(contact->limit[a->source], search.limit);
+	contact->limit[b->source] = fminf(contact->limit[b->source], search.limit);
+}
+
+/* Later rounds: the triangles around the vertices shortened in the round before, each against the
+ * tree (each writes its own limit only). */
+static void lvp__search_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__contact_pass *pass = context;
+	lvp_binding *binding = pass->binding;
+	lvp__contact *contact = &binding->contact;
+	for (int32_t t = begin; t < end; ++t) {
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		contact->limit[t] = 1.0f;
+		if (!contact->moved[corners[0]] && !contact->moved[corners[1]] && !contact->moved[corners[2]])
+			continue;
+		lvp__triangle_search search;
+		search.pass = pass;
+		search.corners = corners;
+		search.limit = 1.0f;
+		for (int i = 0; i < 3; ++i) {
+			search.moved[i] = lvp__load(binding->step.positions + 3 * (int64_t)corners[i]);
+			search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
+		}
+		for (int axis = 0; axis < 3; ++axis) {
+			const float *a = binding->step.positions + 3 * (int64_t)corners[0] + axis;
+			const float *b = binding->step.positions + 3 * (int64_t)corners[1] + axis;
+			const float *c = binding->step.positions + 3 * (int64_t)corners[2] + axis;
+			search.lo[axis] = lvp__min3(*a, *b, *c);
+			search.hi[axis] = lvp__max3(*a, *b, *c);
+		}
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_candidate, &search);
+		contact->limit[t] = search.limit;
+	}
+}
+
+lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	lvp__contact *contact = &binding->contact;
+	if (contact->bvh.nodes)
+		return lvp_success;
+	bool ok = true;
+	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
+	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	lvp_result result = ok ? lvp__bvh_build(&contact->bvh, binding->rest_positions, binding->mesh.triangles,
+	                                        binding->triangle_count, r_diag)
+	                       : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+	                                   "could not allocate the contact test of %d triangles.",
+	                                   (int)binding->triangle_count);
+	if (result)
+		lvp__contact_free(contact);
+	return result;
+}
+
+/* The mean of the scales around vertex k (over the corners of its triangles), or its own when
+ * smaller: where an offset is shortened, its neighbours' are shortened a little too, so that the
+ * shortened patch has no rim. */
+static float lvp__smoothed_scale(const lvp_binding *binding, const float *scale, int32_t k)
+{
+	const lvp__mesh *mesh = &binding->mesh;
+	double sum = 0.0;
+	int32_t count = 0;
+	for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+		for (int i = 0; i < 3; ++i, ++count)
+			sum += scale[mesh->triangles[3 * (int64_t)mesh->vertex_triangles[c] + i]];
+	float mean = count > 0 ? (float)(sum / count) : scale[k];
+	return mean < scale[k] ? mean : scale[k];
+}
+
+/* step.positions: each dynamic vertex at its share (contact.scale) of its offset in `corrected`. */
+static void lvp__place_shortened(lvp_binding *binding, const float *positions, const float *corrected)
+{
+	const float *scale = binding->contact.scale;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		float *p = binding->step.positions + 3 * k;
+		const float *skinned = positions + 3 * k, *full = corrected + 3 * k;
+		for (int c = 0; c < 3; ++c)
+			p[c] = skinned[c] + scale[k] * (full[c] - skinned[c]);
+	}
+}
+
+/* Rounds of shortening (contact.scale, step.positions placed by it): the first tests every pair of
+ * triangles one of which moved (`every_pair`) or the triangles around contact.moved, each later
+ * one the triangles around the corners the round before shortened. Returns whether it shortened
+ * any offset. */
+static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *pass, const float *corrected,
+                                bool every_pair)
+{
+	lvp__contact *contact = &binding->contact;
+	int32_t n = binding->vertex_count, f = binding->triangle_count;
+	const uint8_t *held = binding->fold.held;
+	float *scale = contact->scale, *next = contact->next_scale;
+	bool shortened = false;
+	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
+		lvp__bvh_refit(&contact->bvh, binding->step.positions);
+		if (round == 0 && every_pair) {
+			for (int32_t t = 0; t < f; ++t)
+				contact->limit[t] = 1.0f;
+			lvp__bvh_self_overlaps(&contact->bvh, lvp__visit_pair, (void *)pass);
+		} else {
+			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, (void *)pass, f, LVP__GRAIN);
+		}
+		/* Each corner of a crossing keeps the square of the share the pair allows: a pair that barely
+		 * crosses is barely shortened (the result follows the pose without a jump), a deeper one a
+		 * little more than it needs, so that rounding does not bring it back. The last round keeps
+		 * nothing: a pair still crossing then is skinning's own, or fold-over's, whose vertices (held
+		 * on their contact surfaces) keep their place. */
+		bool any = false, last = round + 1 == LVP__CONTACT_ROUNDS;
+		memset(contact->moved, 0, (size_t)n);
+		for (int32_t t = 0; t < f; ++t) {
+			if (!(contact->limit[t] < 1.0f))
+				continue;
+			float keep = last ? 0.0f : contact->limit[t] * contact->limit[t];
+			for (int i = 0; i < 3; ++i) {
+				int32_t k = binding->mesh.triangles[3 * (int64_t)t + i];
+				if (held[k])
+					continue;
+				next[k] = fminf(next[k], keep * scale[k]);
+				contact->moved[k] = 1;
+				any = true;
+			}
+		}
+		if (!any)
+			break;
+		memcpy(scale, next, sizeof(float) * (size_t)n);
+		lvp__place_shortened(binding, pass->positions, corrected);
+		shortened = true;
+	}
+	return shortened;
+}
+
+int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first)
+{
+	lvp__contact *contact = &binding->contact;
+	int32_t n = binding->vertex_count;
+	const int32_t *dynamic = binding->dynamic.vertices, dynamic_count = binding->dynamic.vertex_count;
+	const uint8_t *held = binding->fold.held;
+	float *corrected = binding->fold.saved, *scale = contact->scale, *next = contact->next_scale;
+	memcpy(corrected, binding->step.positions, sizeof(float) * 3 * (size_t)n);
+	memset(contact->moved, 0, (size_t)n);
+	if (first)
+		memset(contact->shortened, 0, (size_t)n);
+	for (int32_t v = 0; v < dynamic_count; ++v) {
+		int32_t k = dynamic[v];
+		scale[k] = next[k] = 1.0f;
+		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
+	}
+	lvp__contact_pass pass = {binding, positions};
+	if (lvp__shorten_rounds(binding, &pass, corrected, true)) {
+		/* The rim: as many smoothing passes whatever the number of rounds, so that a frame that needs
+		 * one round more does not spread the shortening further than the frame before. Shortening one
+		 * side of a pair more than the other can make it cross, so the smoothed patch is tested again. */
+		for (int pass_index = 0; pass_index < LVP__CONTACT_SMOOTHING; ++pass_index) {
+			for (int32_t v = 0; v < dynamic_count; ++v)
+				next[dynamic[v]] = held[dynamic[v]] ? 1.0f : lvp__smoothed_scale(binding, scale, dynamic[v]);
+			memcpy(scale, next, sizeof(float) * (size_t)n);
+		}
+		lvp__place_shortened(binding, positions, corrected);
+		for (int32_t v = 0; v < dynamic_count; ++v)
+			contact->moved[dynamic[v]] = scale[dynamic[v]] < 1.0f;
+		lvp__shorten_rounds(binding, &pass, corrected, false);
+	}
+	int32_t shortened = 0;
+	for (int32_t v = 0; v < dynamic_count; ++v) {
+		int32_t k = dynamic[v];
+		if (scale[k] < 1.0f) {
+			contact->shortened[k] = 1;
+			++shortened;
+		}
+	}
+	return shortened;
+}
+
+void lvp__fade_map_where_shortened(lvp_binding *binding)
+{
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		binding->frame_map.gamma[k] *= binding->contact.scale[k];
+	}
+}
+
+int32_t lvp__shortened_count(const lvp_binding *binding)
+{
+	int32_t count = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+		count += binding->contact.shortened[binding->dynamic.vertices[v]];
+	return count;
+}
+
+void lvp__contact_free(lvp__contact *contact)
+{
+	lvp__bvh_free(&contact->bvh);
+	free(contact->limit);
+	free(contact->moved);
+	free(contact->shortened);
+	free(contact->scale);
+	free(contact->next_scale);
+	memset(contact, 0, sizeof(*contact));
+}

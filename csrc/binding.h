@@ -333,8 +333,10 @@ typedef struct lvp__contact {
 	float *limit;              /* per triangle, this round: the share of the offsets that keeps it apart
 	                              from every triangle it crosses and did not cross skinned (1: none) */
 	uint8_t *moved;            /* per vertex: its triangles are tested this round */
+	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is (lvp__bvh_mark) */
 	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
+	int32_t too_many;          /* the last lvp__keep_skin_apart gave up: triangles crossing anew, else 0 */
 } lvp__contact;
 
 /* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
@@ -730,7 +732,8 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
  * every pair of triangles that crosses after the correction but not in the input, by halves over a
  * few rounds (the last takes them away), smoothed around them; vertices held by fold-over keep
  * theirs. first: the frame's first call (forgets contact.shortened). Returns how many dynamic
- * vertices it shortened. Uses fold.saved as scratch. */
+ * vertices it shortened; when more than one triangle in LVP__CONTACT_MOST crosses anew it gives up,
+ * leaves step.positions as they were and sets contact.too_many. Uses fold.saved as scratch. */
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);
 /* Fades frame_map.gamma by what the last lvp__keep_skin_apart left of each offset (contact.scale):
  * where skin met skin, the next volume step moves it as much less. */

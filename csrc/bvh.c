@@ -373,6 +373,22 @@ void lvp__bvh_refit(lvp__bvh *bvh, const float *positions)
 	}
 }
 
+void lvp__bvh_mark(const lvp__bvh *bvh, const uint8_t *vertex_marked, uint8_t *r_marked)
+{
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		uint8_t any = 0;
+		if (node->count > 0) {
+			for (int32_t i = node->index; i < node->index + node->count && !any; ++i)
+				for (int c = 0; c < 3; ++c)
+					any |= vertex_marked[bvh->triangles[i].vertices[c]];
+		} else {
+			any = r_marked[node->index] | r_marked[node->index + 1];
+		}
+		r_marked[index] = any;
+	}
+}
+
 void lvp__bvh_free(lvp__bvh *bvh)
 {
 	if (!bvh)
@@ -555,19 +571,21 @@ static inline bool lvp__nodes_overlap(const lvp__bvh_node *a, const lvp__bvh_nod
 	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
 }
 
-void lvp__bvh_self_overlaps(const lvp__bvh *bvh, lvp__bvh_visit_pair visit, void *context)
+/* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes may overlap. */
+static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32_t first_a, int32_t first_b,
+                               lvp__bvh_visit_pair visit, void *context)
 {
-	if (bvh->triangle_count == 0)
-		return;
 	/* Pairs of nodes to visit, (a, a) standing for the pairs within a. A pop pushes at most three
 	 * pairs, each one level deeper on one side; a pair's two depths sum to less than 2 * 72. */
 	int32_t stack[2 * 4 * 2 * LVP__BVH_STACK];
 	int top = 0;
-	stack[top++] = 0;
-	stack[top++] = 0;
+	stack[top++] = first_a;
+	stack[top++] = first_b;
 	while (top > 0) {
 		int32_t b = stack[--top], a = stack[--top];
 		const lvp__bvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
+		if (marked && !marked[a] && !marked[b])
+			continue;
 		if (a == b) {
 			if (na->count > 0) {
 				for (int32_t i = na->index; i < na->index + na->count; ++i)
@@ -595,5 +613,60 @@ void lvp__bvh_self_overlaps(const lvp__bvh *bvh, lvp__bvh_visit_pair visit, void
 		int32_t other = split_a ? b : a;
 		stack[top++] = split->index, stack[top++] = other;
 		stack[top++] = split->index + 1, stack[top++] = other;
+	}
+}
+
+/* Levels of the tree above the subtrees searched each on its own: up to 64 tasks. */
+#define LVP__BVH_TASK_DEPTH 6
+
+typedef struct lvp__overlap_tasks {
+	const lvp__bvh *bvh;
+	const uint8_t *marked;
+	lvp__bvh_visit_pair visit;
+	void *context;
+	const int32_t *first, *second; /* the pairs of nodes of the phase running */
+} lvp__overlap_tasks;
+
+static void lvp__overlap_task(void *context, int32_t begin, int32_t end)
+{
+	const lvp__overlap_tasks *tasks = context;
+	for (int32_t i = begin; i < end; ++i)
+		lvp__overlaps_from(tasks->bvh, tasks->marked, tasks->first[i], tasks->second[i], tasks->visit, tasks->context);
+}
+
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__pool *pool, lvp__bvh_visit_pair visit,
+                            void *context)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	/* The subtrees LVP__BVH_TASK_DEPTH levels down (or leaves above that) share no triangle, so they
+	 * are searched at once; then, level by level from the deepest, the pairs between the two
+	 * children of each node above them, which share none either. */
+	enum { SUBTREES = 1 << LVP__BVH_TASK_DEPTH };
+	int32_t subtrees[SUBTREES], subtree_count = 0;
+	int32_t lefts[LVP__BVH_TASK_DEPTH][SUBTREES / 2], rights[LVP__BVH_TASK_DEPTH][SUBTREES / 2];
+	int32_t level_count[LVP__BVH_TASK_DEPTH] = {0};
+	int32_t stack[2 * (LVP__BVH_TASK_DEPTH + 1)];
+	int top = 0;
+	stack[top++] = 0;
+	stack[top++] = 0;
+	while (top > 0) {
+		int32_t depth = stack[--top], node = stack[--top];
+		const lvp__bvh_node *n = &bvh->nodes[node];
+		if (n->count > 0 || depth == LVP__BVH_TASK_DEPTH) {
+			subtrees[subtree_count++] = node;
+			continue;
+		}
+		lefts[depth][level_count[depth]] = n->index;
+		rights[depth][level_count[depth]++] = n->index + 1;
+		stack[top++] = n->index + 1, stack[top++] = depth + 1;
+		stack[top++] = n->index, stack[top++] = depth + 1;
+	}
+	lvp__overlap_tasks tasks = {bvh, marked, visit, context, subtrees, subtrees};
+	lvp__parallel_for(pool, lvp__overlap_task, &tasks, subtree_count, 1);
+	for (int depth = LVP__BVH_TASK_DEPTH - 1; depth >= 0; --depth) {
+		tasks.first = lefts[depth];
+		tasks.second = rights[depth];
+		lvp__parallel_for(pool, lvp__overlap_task, &tasks, level_count[depth], 1);
 	}
 }

@@ -13,6 +13,10 @@
 
 /* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
 #define LVP__CONTACT_ROUNDS 8
+/* A check that finds more than one triangle in this many crossing anew gives up (the pose pushes
+ * skin through skin everywhere, and shortening would cost seconds): that frame keeps the correction
+ * as it was, and says so. */
+#define LVP__CONTACT_MOST 20
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
 /* Passes of lvp__smoothed_scale after each round. */
@@ -237,6 +241,12 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	                       : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
 	                                   "could not allocate the contact test of %d triangles.",
 	                                   (int)binding->triangle_count);
+	if (!result) {
+		contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+		if (!ok)
+			result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+			                   "could not allocate the contact test of %d triangles.", (int)binding->triangle_count);
+	}
 	if (result)
 		lvp__contact_free(contact);
 	return result;
@@ -287,7 +297,9 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 		if (round == 0 && every_pair) {
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
-			lvp__bvh_self_overlaps(&contact->bvh, lvp__visit_pair, (void *)pass);
+			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
+			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, LVP__POOL_FOR(binding, f), lvp__visit_pair,
+			                       (void *)pass);
 		} else {
 			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, (void *)pass, f, LVP__GRAIN);
 		}
@@ -297,6 +309,15 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 		 * nothing: a pair still crossing then is skinning's own, or fold-over's, whose vertices (held
 		 * on their contact surfaces) keep their place. */
 		bool any = false, last = round + 1 == LVP__CONTACT_ROUNDS;
+		if (round == 0 && every_pair) {
+			int32_t crossing = 0;
+			for (int32_t t = 0; t < f; ++t)
+				crossing += contact->limit[t] < 1.0f;
+			if (crossing > f / LVP__CONTACT_MOST) {
+				contact->too_many = crossing;
+				return false;
+			}
+		}
 		memset(contact->moved, 0, (size_t)n);
 		for (int32_t t = 0; t < f; ++t) {
 			if (!(contact->limit[t] < 1.0f))
@@ -331,13 +352,14 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 	memset(contact->moved, 0, (size_t)n);
 	if (first)
 		memset(contact->shortened, 0, (size_t)n);
+	contact->too_many = 0;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
 		scale[k] = next[k] = 1.0f;
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
 	lvp__contact_pass pass = {binding, positions};
-	if (lvp__shorten_rounds(binding, &pass, corrected, true)) {
+	if (lvp__shorten_rounds(binding, &pass, corrected, true) && !contact->too_many) {
 		/* The rim: as many smoothing passes whatever the number of rounds, so that a frame that needs
 		 * one round more does not spread the shortening further than the frame before. Shortening one
 		 * side of a pair more than the other can make it cross, so the smoothed patch is tested again. */
@@ -382,6 +404,7 @@ void lvp__contact_free(lvp__contact *contact)
 {
 	lvp__bvh_free(&contact->bvh);
 	free(contact->limit);
+	free(contact->moved_nodes);
 	free(contact->moved);
 	free(contact->shortened);
 	free(contact->scale);

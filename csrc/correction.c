@@ -886,13 +886,15 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		lvp__measure_positions(binding, rest_positions, totals);
 	}
 	stats->shortened_vertices = 0;
+	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {
 		/* Offsets that would push skin through skin are shortened (contact.c). What they could not
 		 * carry is restored again through the map faded as much as they were shortened (those that
 		 * fold-over put on a contact surface still held), and that correction is checked in turn,
 		 * until one shortens nothing (a bent tail: twice). */
 		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
-		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0; ++cycle) {
+		stats->crossing_triangles = binding->contact.too_many;
+		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0 && !binding->contact.too_many; ++cycle) {
 			int32_t ignored;
 			lvp__fade_map_where_shortened(binding);
 			lvp__movable_regions(binding);

@@ -209,7 +209,10 @@
  *   still crossing away; the shortening is smoothed over 4 rings around (never lengthening an
  *   offset). The volume they could not carry is then restored again through the map faded by
  *   as much as each vertex was shortened, and that correction is checked in turn, at most 4
- *   times. Vertices fold-over put on a contact surface keep their place. Result: no pair crosses
+ *   times. Vertices fold-over put on a contact surface keep their place. Where the correction makes
+ *   more than one triangle in 20 cross anew (a pose that folds the skin everywhere), shortening
+ *   would cost seconds: the frame keeps the correction as it is and stats.crossing_triangles says
+ *   how many. Result: no pair crosses
  *   that did not cross in plain skinning (to the bisection's precision; a pair that plain
  *   skinning leaves touching can still flip), the volume is restored as before (within the
  *   tolerance on every case measured: the giraffe's 28 single-joint poses, a hand closing into a
@@ -581,6 +584,9 @@ typedef struct lvp_frame_stats {
 	                              from the positions alone, without the closed form for rigid parts */
 	int32_t shortened_vertices; /* options.keep_apart: vertices whose offset was shortened to keep
 	                             skin from crossing skin (CONTACT), 0 without it */
+	int32_t crossing_triangles; /* options.keep_apart: 0, or the triangles the correction made cross
+	                             when there were too many to keep apart (more than 1 in 20): the
+	                             frame was left as corrected (CONTACT) */
 } lvp_frame_stats;
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what

@@ -156,8 +156,9 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         BoolProperty,
         name="Keep Skin Apart",
         description="Never push skin through skin: where the correction would make two parts of the surface "
-                    "cross that plain skinning keeps apart, it is shortened there and the volume goes elsewhere",
-        default=True,
+                    "cross that plain skinning keeps apart, it is shortened there and the volume goes elsewhere. "
+                    "Slower: for close-ups and renders",
+        default=False,
     )
     painted_vertex_group: _setting(
         StringProperty,

@@ -1,11 +1,12 @@
 /*
- * contact.c - the correction never pushes skin through skin (lvp.h, CONTACT). Where plain skinning
- * brings two sheets of skin close (the inside of a bent finger, the thumb's web, a fingertip on the
- * palm), the offsets, along each side's own normal, point the sheets at each other, and a fraction of
- * a millimetre can push one through the other: more crossing triangles than skinning alone. Here
- * every pair of triangles that crosses after the correction but did not cross in the skinning is
- * found (a hierarchy over the corrected triangles, refitted each round), and the offsets of its
- * corners are halved; a few rounds, each testing only the triangles around the vertices it moved.
+ * contact.c - the correction never pushes skin through skin (lvp.h, CONTACT; docs/method.md, Keeping
+ * skin apart). Where plain skinning brings two sheets of skin close (the inside of a bent finger, the
+ * thumb's web, a fingertip on the palm), the offsets, along each side's own normal, point the sheets
+ * at each other, and a fraction of a millimetre can push one through the other: more crossing
+ * triangles than skinning alone. Here every pair of triangles that crosses after the correction but
+ * not in the skinning is found (a hierarchy over the triangles, refitted to each round's positions),
+ * and the offsets of its corners are shortened to what keeps the pair apart (a bisected share of
+ * them); a few rounds, then the shortening smoothed around and the smoothed patch tested again.
  */
 #include "binding.h"
 
@@ -19,7 +20,7 @@
 #define LVP__CONTACT_MOST 20
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
-/* Passes of lvp__smoothed_scale after each round. */
+/* Passes of lvp__smoothed_scale after the rounds (4 rings of the mesh). */
 #define LVP__CONTACT_SMOOTHING 4
 
 static inline float lvp__min3(float a, float b, float c)

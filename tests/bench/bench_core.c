@@ -264,10 +264,10 @@ int main(void)
 				c.stretch = 1.0f;
 				c.bulge_width = 1.0f;
 				run_case(&c, cores);
-				c.pose = "every joint, bulge width 1, whole mesh";
+				c.pose = "every joint, bulge width 1, whole mesh"; /* the add-on's defaults */
 				c.restore = LVP_RESTORE_WHOLE_MESH;
 				run_case(&c, cores);
-				c.pose = "every joint, bulge width 1, whole mesh, kept apart"; /* the add-on's defaults */
+				c.pose = "every joint, bulge width 1, whole mesh, kept apart"; /* with Keep Skin Apart */
 				c.keep_apart = 1;
 				run_case(&c, cores);
 				c.keep_apart = 0;

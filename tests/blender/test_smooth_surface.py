@@ -1,10 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The correction keeps the surface smooth on the real cases of real_cases.py (the measures of QUALITY.md, from
-surface_quality.py), with the add-on's defaults: what issue 24 asks where it is met today, and no worse than
-today where it is not (README, Limitations, gives the numbers of both).
+surface_quality.py), with the add-on's defaults and Keep Skin Apart on: what issue 24 asks where it is met
+today, and no worse than today where it is not (README, Limitations, gives the numbers of both).
 
 - Every pose: the volume within 0.5 % and no crossing pair that does not cross in plain skinning (Keep Skin
-  Apart, on by default; counted, 240 against 240 on the human bent hard, 194 against 220 at the fist; without it
+  Apart; counted, 240 against 240 on the human bent hard, 194 against 220 at the fist; without it
   241 against 240, 10 against 0 on the hand a little past half closed, 254 against 220 at the fist).
 - A Rigify human with a closed body and heat weights, elbows, knees and hips bent hard, and bent half as far: at
   most one crease added per 300 edges and roughness at most a quarter of the largest offset.
@@ -71,6 +71,7 @@ class TestRigifyHuman(SurfaceCase):
             raise unittest.SkipTest("this Blender has no Rigify add-on")
         cls.body, cls.rig = real_cases.rigify_human()
         helpers.add_volume_preservation(cls.body)
+        cls.body.lvp.keep_apart = True
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
 
     def test_bent_hard(self):
@@ -118,6 +119,7 @@ class TestHand(SurfaceCase):
         helpers.reset_scene()
         cls.obj, cls.rig = real_cases.hand()
         helpers.add_volume_preservation(cls.obj)
+        cls.obj.lvp.keep_apart = True
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.obj.data), helpers.mesh_triangles(cls.obj.data))
 
     def at_fraction(self, fraction):

@@ -729,9 +729,9 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 /* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Shortens the offsets (step.positions against `positions`, the input points) of the corners of
- * every pair of triangles that crosses after the correction but not in the input, by halves over a
- * few rounds (the last takes them away), smoothed around them; vertices held by fold-over keep
- * theirs. first: the frame's first call (forgets contact.shortened). Returns how many dynamic
+ * every pair of triangles that crosses after the correction but not in the input, to what keeps the
+ * pair apart, over a few rounds (the last takes them away), smoothed around them; vertices held by
+ * fold-over keep theirs. first: the frame's first call (forgets contact.shortened). Returns how many dynamic
  * vertices it shortened; when more than one triangle in LVP__CONTACT_MOST crosses anew it gives up,
  * leaves step.positions as they were and sets contact.too_many. Uses fold.saved as scratch. */
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);

@@ -893,7 +893,6 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		 * fold-over put on a contact surface still held), and that correction is checked in turn,
 		 * until one shortens nothing (a bent tail: twice). */
 		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
-		stats->crossing_triangles = binding->contact.too_many;
 		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0 && !binding->contact.too_many; ++cycle) {
 			int32_t ignored;
 			lvp__fade_map_where_shortened(binding);
@@ -904,6 +903,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__measure_positions(binding, rest_positions, totals);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);
+		stats->crossing_triangles = binding->contact.too_many; /* the last check gave up */
 	}
 	memset(binding->fold.held, 0, (size_t)n);
 }

@@ -1307,7 +1307,7 @@ static PyMethodDef lvp_py__binding_methods[] = {
     {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
      "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
      "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None, displacement_limit=0.0, "
-     "restore='EACH_REGION') -> dict\n"
+     "restore='EACH_REGION', keep_apart=False) -> dict\n"
      "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
     {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
      "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"

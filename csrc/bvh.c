@@ -1,7 +1,8 @@
 /*
- * bvh.c - binned-SAH bounding volume hierarchy over mesh triangles and segment queries against it, for the
- * exact visibility test of automatic weights (Rohmer, Hahmann, Cani 2008, section 5.1: "ray tracing
- * against the mesh is the exact alternative"). See bvh.h for the algorithm, memory and performance.
+ * bvh.c - binned-SAH bounding volume hierarchy over mesh triangles, and the queries against it: segments,
+ * for the exact visibility test of automatic weights (Rohmer, Hahmann, Cani 2008, section 5.1: "ray
+ * tracing against the mesh is the exact alternative"); boxes and the tree against itself, refitted to a
+ * pose, for keeping skin apart (contact.c). See bvh.h for the algorithm, memory and performance.
  */
 #include "bvh.h"
 

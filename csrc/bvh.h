@@ -1,6 +1,7 @@
 /*
  * bvh.h - a bounding volume hierarchy over the triangles of a mesh (internal, not part of the API), for the
- * exact visibility test of the automatic weights (paper 5.1): does a straight segment cross the surface?
+ * exact visibility test of the automatic weights (paper 5.1: does a straight segment cross the surface?)
+ * and for keeping skin apart (contact.c: which triangles may touch which, refitted to each pose).
  *
  * ALGORITHM: top-down binned SAH (16 bins on each axis) over axis-aligned boxes, leaves of at most 8
  * triangles; below depth 40, or when the centroids coincide, splits at the object median instead, which
@@ -8,7 +9,8 @@
  * that the float box test never culls what the double triangle test would hit.
  * MEMORY: about 2F nodes of 36 bytes (with the parent links) and F triangles of 72 bytes (a copy of the
  * corners in leaf order, for locality), plus 40F bytes during the build.
- * PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes.
+ * PERFORMANCE: build O(F log F); a segment query visits O(log F) nodes on ordinary meshes; a refit O(F);
+ * the tree against itself about O(F) pairs of nodes where the surface does not fold onto itself.
  */
 #ifndef LVP_BVH_H
 #define LVP_BVH_H

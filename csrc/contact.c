@@ -144,6 +144,32 @@ static float lvp__share_apart(const lvp__vec3 x_moved[3], const lvp__vec3 x_skin
 	return (float)apart;
 }
 
+/* Whether a corner of the triangle (its vertices) is marked in `moved`. */
+static inline bool lvp__any_moved(const uint8_t *moved, const int32_t vertices[3])
+{
+	return moved[vertices[0]] || moved[vertices[1]] || moved[vertices[2]];
+}
+
+/* The search of the triangle with these corners, `moved` where the correction put them (the tree's
+ * refitted copy, or step.positions): those, where the skinning put them, and the box of the first. */
+static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const int32_t corners[3],
+                                           const float *const moved[3])
+{
+	lvp__triangle_search search;
+	search.pass = pass;
+	search.corners = corners;
+	search.limit = 1.0f;
+	for (int i = 0; i < 3; ++i) {
+		search.moved[i] = lvp__load(moved[i]);
+		search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
+	}
+	for (int axis = 0; axis < 3; ++axis) {
+		search.lo[axis] = lvp__min3(moved[0][axis], moved[1][axis], moved[2][axis]);
+		search.hi[axis] = lvp__max3(moved[0][axis], moved[1][axis], moved[2][axis]);
+	}
+	return search;
+}
+
 static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 {
 	lvp__triangle_search *search = context;
@@ -176,19 +202,10 @@ static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp
 	if (a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
 	    a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2])
 		return;
-	if (!moved[a->vertices[0]] && !moved[a->vertices[1]] && !moved[a->vertices[2]] && !moved[b->vertices[0]] &&
-	    !moved[b->vertices[1]] && !moved[b->vertices[2]])
+	if (!lvp__any_moved(moved, a->vertices) && !lvp__any_moved(moved, b->vertices))
 		return;
-	lvp__triangle_search search;
-	search.pass = pass;
-	search.corners = a->vertices;
-	search.limit = 1.0f;
-	memcpy(search.lo, a->lo, sizeof(search.lo));
-	memcpy(search.hi, a->hi, sizeof(search.hi));
-	for (int i = 0; i < 3; ++i) {
-		search.moved[i] = lvp__load(a->corners[i]);
-		search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)a->vertices[i]);
-	}
+	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
+	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
 	lvp__visit_candidate(&search, b);
 	contact->limit[a->source] = fminf(contact->limit[a->source], search.limit);
 	contact->limit[b->source] = fminf(contact->limit[b->source], search.limit);
@@ -204,23 +221,12 @@ static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 	for (int32_t t = begin; t < end; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		contact->limit[t] = 1.0f;
-		if (!contact->moved[corners[0]] && !contact->moved[corners[1]] && !contact->moved[corners[2]])
+		if (!lvp__any_moved(contact->moved, corners))
 			continue;
-		lvp__triangle_search search;
-		search.pass = pass;
-		search.corners = corners;
-		search.limit = 1.0f;
-		for (int i = 0; i < 3; ++i) {
-			search.moved[i] = lvp__load(binding->step.positions + 3 * (int64_t)corners[i]);
-			search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
-		}
-		for (int axis = 0; axis < 3; ++axis) {
-			const float *a = binding->step.positions + 3 * (int64_t)corners[0] + axis;
-			const float *b = binding->step.positions + 3 * (int64_t)corners[1] + axis;
-			const float *c = binding->step.positions + 3 * (int64_t)corners[2] + axis;
-			search.lo[axis] = lvp__min3(*a, *b, *c);
-			search.hi[axis] = lvp__max3(*a, *b, *c);
-		}
+		const float *const moved[3] = {binding->step.positions + 3 * (int64_t)corners[0],
+		                               binding->step.positions + 3 * (int64_t)corners[1],
+		                               binding->step.positions + 3 * (int64_t)corners[2]};
+		lvp__triangle_search search = lvp__search_of(pass, corners, moved);
 		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_candidate, &search);
 		contact->limit[t] = search.limit;
 	}
@@ -231,26 +237,22 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	lvp__contact *contact = &binding->contact;
 	if (contact->bvh.nodes)
 		return lvp_success;
+	lvp_result result = lvp__bvh_build(&contact->bvh, binding->rest_positions, binding->mesh.triangles,
+	                                   binding->triangle_count, r_diag);
+	if (result)
+		return result;
 	bool ok = true;
+	contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
-	lvp_result result = ok ? lvp__bvh_build(&contact->bvh, binding->rest_positions, binding->mesh.triangles,
-	                                        binding->triangle_count, r_diag)
-	                       : lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
-	                                   "could not allocate the contact test of %d triangles.",
-	                                   (int)binding->triangle_count);
-	if (!result) {
-		contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
-		if (!ok)
-			result = lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
-			                   "could not allocate the contact test of %d triangles.", (int)binding->triangle_count);
-	}
-	if (result)
-		lvp__contact_free(contact);
-	return result;
+	if (ok)
+		return lvp_success;
+	lvp__contact_free(contact);
+	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "could not allocate the contact test of %d triangles.",
+	                 (int)binding->triangle_count);
 }
 
 /* The mean of the scales around vertex k (over the corners of its triangles), or its own when

@@ -900,9 +900,10 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__measure_positions(binding, rest_positions, totals);
 			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
 			shortened = lvp__keep_skin_apart(binding, positions, false);
-			lvp__measure_positions(binding, rest_positions, totals);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);
+		if (stats->shortened_vertices > 0) /* each check leaves the positions it shortened unmeasured */
+			lvp__measure_positions(binding, rest_positions, totals);
 		stats->crossing_triangles = binding->contact.too_many; /* the last check gave up */
 	}
 	memset(binding->fold.held, 0, (size_t)n);

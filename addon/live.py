@@ -171,7 +171,7 @@ def correct_object(obj, depsgraph, check_topology=False):
         if bound is None:
             raise PassThrough()  # the status says why (bindings.rebind, refresh_map)
         _read_pose(obj, depsgraph, bound, armature_object)
-        stats = _correct(obj, bound, check_topology)
+        stats = _correct(obj, bound, check_topology, _for_final_output(depsgraph))
     except PassThrough as why:
         if why.message is not None:
             SESSION.set_status(obj, why.level, why.message)
@@ -221,6 +221,12 @@ def _follow_display(obj, bound, previous_bound, previous_map):
     if is_main_thread() and (settings.display != 'NONE' and bound is not previous_bound or
                              settings.display == 'CORRECTION_MAP' and bound.map_key != previous_map):
         display.update_display(obj)
+
+
+def _for_final_output(depsgraph):
+    """Whether this correction is seen in a render or written by a bake (the render settings apply) rather
+    than in the viewport."""
+    return depsgraph.mode == 'RENDER' or SESSION.baking
 
 
 def _mode_name(depsgraph):
@@ -291,17 +297,19 @@ def _read_pose(obj, depsgraph, bound, armature_object):
         raise PassThrough("Passing the mesh through: " + problem)
 
 
-def _correct(obj, bound, check_topology):
-    """The core's correction of bound.positions into bound.offsets; its statistics. Where Fold-Over
+def _correct(obj, bound, check_topology, final_output):
+    """The core's correction of bound.positions into bound.offsets (final_output: with the render
+    settings); its statistics. Where Fold-Over
     Prevention fails at this pose (no finite result, or a blown-up one), the frame is corrected without
     it, and stats["fold_over_failed"] says why, rather than the whole mesh falling back to plain skinning."""
     rest_positions = None
     if obj.data.shape_keys is not None:
         rest_positions = _shape_key_rest(obj, bound, check_topology)
     fold_over = obj.lvp.fold_over and bound.mode == 'LOCAL'
-    stats, failure = _core_correction(obj, bound, rest_positions, fold_over)
+    keep_apart = obj.lvp.keep_apart_render if final_output else obj.lvp.keep_apart
+    stats, failure = _core_correction(obj, bound, rest_positions, fold_over, keep_apart)
     if failure is not None and fold_over:
-        stats, without = _core_correction(obj, bound, rest_positions, False)
+        stats, without = _core_correction(obj, bound, rest_positions, False, keep_apart)
         if without is None:
             stats["fold_over_failed"] = failure.reason
         failure = without
@@ -311,7 +319,7 @@ def _correct(obj, bound, check_topology):
     return stats
 
 
-def _core_correction(obj, bound, rest_positions, fold_over):
+def _core_correction(obj, bound, rest_positions, fold_over, keep_apart):
     """(stats, None) for a correction that may be shown, or (stats, PassThrough) saying why not."""
     settings = obj.lvp
     try:
@@ -319,7 +327,7 @@ def _core_correction(obj, bound, rest_positions, fold_over):
                                       rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=fold_over, displacement_limit=bound.displacement_limit,
-                                      restore=settings.restore, keep_apart=settings.keep_apart)
+                                      restore=settings.restore, keep_apart=keep_apart)
     except (ValueError, MemoryError) as error:
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])

@@ -154,11 +154,19 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
     )
     keep_apart: _setting(
         BoolProperty,
-        name="Keep Skin Apart",
-        description="Never push skin through skin: where the correction would make two parts of the surface "
-                    "cross that plain skinning keeps apart, it is shortened there and the volume goes elsewhere. "
-                    "Slower: for close-ups and renders",
+        name="Keep Skin Apart in the Viewport",
+        description="Never push skin through skin while animating: where the correction would make two parts of "
+                    "the surface cross that plain skinning keeps apart, it is shortened there and the volume goes "
+                    "elsewhere. Several times slower than the correction alone",
         default=False,
+    )
+    keep_apart_render: _setting(
+        BoolProperty,
+        name="Keep Skin Apart in Renders",
+        description="Never push skin through skin in renders and in Bake to PC2: where the correction would make "
+                    "two parts of the surface cross that plain skinning keeps apart, it is shortened there and the "
+                    "volume goes elsewhere",
+        default=True,
     )
     painted_vertex_group: _setting(
         StringProperty,

@@ -10,6 +10,7 @@ else is rebuilt from the file when needed, and forgotten when another file is lo
 - the changes to bound meshes not yet read, and the add-on's own updates (changes.MeshChanges);
 - the objects the viewport left uncorrected because they are hidden (corrected once shown again);
 - whether a render from the interface started without Lock Interface (the panel says so);
+- whether a bake is running: its frames are corrected with the render settings (Keep Skin Apart);
 - while a file is saved, the offsets taken out of the offsets objects (the file holds no correction).
 
 Only the handlers, the operators and the panel run on the main thread or with the interface locked,
@@ -27,6 +28,7 @@ class Session:
         self._statuses = {}     # object name -> (level, message)
         self._hidden = set()    # names of the objects the viewport hides
         self._render_without_lock = False
+        self._baking = False
         self._offsets_while_saving = {}  # offsets object name -> its offsets, from save_pre to save_post
         self.changes = changes.MeshChanges()
 
@@ -157,6 +159,14 @@ class Session:
         """A render thread was not corrected: Lock Interface is off."""
         self._render_without_lock = True
 
+    @property
+    def baking(self):
+        """Whether a bake is running: it evaluates the viewport's depsgraph, but what it writes is final
+        output, corrected with the render settings as Blender's Alembic and USD exporters evaluate."""
+        return self._baking
+
+    def note_baking(self, baking):
+        self._baking = bool(baking)
 
     # ---- saving ---------------------------------------------------------------------------------------
 

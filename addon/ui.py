@@ -91,9 +91,11 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         fold_over = column.column(heading="Fold-Over")
         fold_over.active = settings.effect != 'GLOBAL'
         fold_over.prop(settings, "fold_over", text="Prevent")
-        keep_apart = column.column()
+        # Viewport and Render, as Blender's own modifiers split what costs time (Subdivision's levels).
+        keep_apart = column.column(heading="Keep Skin Apart")
         keep_apart.active = settings.effect != 'GLOBAL'
-        keep_apart.prop(settings, "keep_apart")
+        keep_apart.prop(settings, "keep_apart", text="Viewport")
+        keep_apart.prop(settings, "keep_apart_render", text="Render")
         column.prop(settings, "display")
 
         render = context.scene.render

@@ -155,6 +155,7 @@ class Bake:
     def start(self):
         self._frame_before = (self.scene.frame_current, self.scene.frame_subframe)
         self.started = time.monotonic()
+        SESSION.note_baking(True)  # until restore_frame: the frames are corrected with the render settings
         for target in self.targets:
             # A script may have changed weights or the rest mesh without an update since: the first
             # frame baked reads them again.
@@ -196,6 +197,7 @@ class Bake:
         self.restore_frame()
 
     def restore_frame(self):
+        SESSION.note_baking(False)
         if self._frame_before is not None:
             frame, subframe = self._frame_before
             self._frame_before = None

@@ -152,6 +152,28 @@ def select_only(*objects):
         bpy.context.view_layer.objects.active = objects[0]
 
 
+def render_tiny_still(scene):
+    """An F12 render of scene in this process (bpy.ops.render.render): Cycles, one sample, 4 x 4 pixels, a
+    camera added when the scene has none; only the handlers it runs matter. The scene's settings come back."""
+    render = scene.render
+    kept = (render.engine, render.resolution_x, render.resolution_y, scene.camera)
+    camera = None
+    if scene.camera is None:
+        camera = link(bpy.data.objects.new("TinyRenderCamera", bpy.data.cameras.new("TinyRenderCamera")))
+        scene.camera = camera
+    render.engine = 'CYCLES'
+    samples, denoising = scene.cycles.samples, scene.cycles.use_denoising
+    scene.cycles.samples, scene.cycles.use_denoising = 1, False  # Debian's Blender has no OpenImageDenoise
+    render.resolution_x = render.resolution_y = 4
+    try:
+        bpy.ops.render.render()
+    finally:
+        scene.cycles.samples, scene.cycles.use_denoising = samples, denoising
+        render.engine, render.resolution_x, render.resolution_y, scene.camera = kept
+        if camera is not None:
+            bpy.data.objects.remove(camera)
+
+
 def cylinder_mesh(name="Cylinder", rings=16, around=16, radius=0.5, length=4.0, caps=True):
     """The paper's cylinder: rings x around side vertices along +Z from 0 to length, closed by two
     n-gon caps (no extra vertices), faces wound outward."""

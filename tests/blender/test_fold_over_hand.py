@@ -22,6 +22,7 @@ the joint (the bisector of the bone segments, as the paper has it) a palm bone d
 contact in the middle of the palm: 564 crossing pairs at the fist, sheets of skin pulled out under the hand.
 """
 
+import os
 import unittest
 
 import bpy
@@ -123,6 +124,53 @@ class TestFoldOverHand(unittest.TestCase):
         # skinning has none, and 254 against 220 at the fist.
         for row in self.measured:
             self.assertEqual(row["vp"]["new crossings"], 0, "frame %d" % row["frame"])
+
+    def test_renders_and_bakes_keep_skin_apart(self):
+        """With the add-on's defaults (Keep Skin Apart off in the viewport, on in renders), an F12 render and a
+        bake at the fist get the kept-apart correction, the viewport the faster one."""
+        settings = self.obj.lvp
+        probe = bpy.data.objects.new("Probe", bpy.data.meshes.new("Probe")).lvp
+        self.assertEqual((probe.keep_apart, probe.keep_apart_render), (False, True), "the defaults")
+        scene = bpy.context.scene
+        fist = real_cases.HAND_FRAMES[1]
+        session = self.addon.session.SESSION
+        settings.keep_apart_render = True
+        try:
+            settings.keep_apart = False
+            scene.frame_set(fist)
+            self.assertEqual(session.bound(self.obj).stats["shortened_vertices"], 0)
+            viewport = list(self.addon.offsets.read(self.obj))
+            settings.keep_apart = True
+            bpy.context.view_layer.update()
+            kept_apart = list(self.addon.offsets.read(self.obj))
+            self.assertGreater(session.bound(self.obj).stats["shortened_vertices"], 1000)
+            self.assertNotEqual(kept_apart, viewport)
+            settings.keep_apart = False
+            bpy.context.view_layer.update()
+
+            rendered = []
+
+            def after_correction(_scene, depsgraph=None):
+                if depsgraph is not None and depsgraph.mode == 'RENDER':
+                    rendered.append(list(self.addon.offsets.read(self.obj)))
+            bpy.app.handlers.frame_change_post.append(after_correction)  # after the add-on's
+            try:
+                helpers.render_tiny_still(scene)
+            finally:
+                bpy.app.handlers.frame_change_post.remove(after_correction)
+            self.assertEqual(len(rendered), 1)
+            self.assertEqual(rendered[0], kept_apart, "the render shows the kept-apart correction")
+            self.assertEqual(list(self.addon.offsets.read(self.obj)), viewport, "the viewport its own again")
+
+            helpers.select_only(self.obj)
+            out = helpers.fresh_directory("bake_keep_apart")
+            self.assertEqual(bpy.ops.object.lvp_bake(filepath=out, frame_start=fist, frame_end=fist), {'FINISHED'})
+            _header, samples = self.addon.bake.pc2.read_pc2(os.path.join(out, self.obj.name + ".pc2"))
+            self.assertEqual(list(samples[0]), list(self.measured[-1]["vp"]["positions"]),
+                             "the bake writes the kept-apart correction")
+            self.assertEqual(list(self.addon.offsets.read(self.obj)), viewport, "the viewport its own again")
+        finally:
+            settings.keep_apart = True
 
     def test_volume_and_no_fallback(self):
         for row in self.measured:

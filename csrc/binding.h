@@ -336,6 +336,8 @@ typedef struct lvp__contact {
 	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is (lvp__bvh_mark) */
 	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
+	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
+	                              (lvp__pin_held); its offset is never shortened */
 	int32_t too_many;          /* the last lvp__keep_skin_apart gave up: triangles crossing anew, else 0 */
 } lvp__contact;
 

@@ -144,10 +144,10 @@ static float lvp__share_apart(const lvp__vec3 x_moved[3], const lvp__vec3 x_skin
 	return (float)apart;
 }
 
-/* Whether a corner of the triangle (its vertices) is marked in `moved`. */
-static inline bool lvp__any_moved(const uint8_t *moved, const int32_t vertices[3])
+/* Whether a corner of the triangle (its vertices) is marked in `marks`. */
+static inline bool lvp__any_marked(const uint8_t *marks, const int32_t vertices[3])
 {
-	return moved[vertices[0]] || moved[vertices[1]] || moved[vertices[2]];
+	return marks[vertices[0]] || marks[vertices[1]] || marks[vertices[2]];
 }
 
 /* The search of the triangle with these corners, `moved` where the correction put them (the tree's
@@ -170,16 +170,26 @@ static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const 
 	return search;
 }
 
-static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
+/* Whether the searched triangle and `other` may cross: they share no corner (neighbours meet at
+ * their shared corners, which is no crossing) and their boxes overlap (a leaf's box holds several
+ * triangles). */
+static bool lvp__may_cross(const lvp__triangle_search *search, const lvp__bvh_triangle *other)
 {
-	lvp__triangle_search *search = context;
 	const int32_t *t = search->corners;
 	for (int i = 0; i < 3; ++i)
 		if (other->vertices[i] == t[0] || other->vertices[i] == t[1] || other->vertices[i] == t[2])
-			return false; /* neighbours meet at their shared corners, which is no crossing */
-	for (int axis = 0; axis < 3; ++axis) /* a leaf's box holds several triangles */
+			return false;
+	for (int axis = 0; axis < 3; ++axis)
 		if (other->lo[axis] > search->hi[axis] || other->hi[axis] < search->lo[axis])
 			return false;
+	return true;
+}
+
+static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
+{
+	lvp__triangle_search *search = context;
+	if (!lvp__may_cross(search, other))
+		return false;
 	lvp__vec3 moved[3], skinned[3];
 	for (int i = 0; i < 3; ++i) {
 		moved[i] = lvp__load(other->corners[i]);
@@ -202,7 +212,7 @@ static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp
 	if (a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
 	    a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2])
 		return;
-	if (!lvp__any_moved(moved, a->vertices) && !lvp__any_moved(moved, b->vertices))
+	if (!lvp__any_marked(moved, a->vertices) && !lvp__any_marked(moved, b->vertices))
 		return;
 	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
 	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
@@ -221,7 +231,7 @@ static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 	for (int32_t t = begin; t < end; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		contact->limit[t] = 1.0f;
-		if (!lvp__any_moved(contact->moved, corners))
+		if (!lvp__any_marked(contact->moved, corners))
 			continue;
 		const float *const moved[3] = {binding->step.positions + 3 * (int64_t)corners[0],
 		                               binding->step.positions + 3 * (int64_t)corners[1],
@@ -246,6 +256,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	if (ok)
@@ -292,7 +303,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 {
 	lvp__contact *contact = &binding->contact;
 	int32_t n = binding->vertex_count, f = binding->triangle_count;
-	const uint8_t *held = binding->fold.held;
+	const uint8_t *pinned = contact->pinned;
 	float *scale = contact->scale, *next = contact->next_scale;
 	bool shortened = false;
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
@@ -309,8 +320,8 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 		/* Each corner of a crossing keeps the square of the share the pair allows: a pair that barely
 		 * crosses is barely shortened (the result follows the pose without a jump), a deeper one a
 		 * little more than it needs, so that rounding does not bring it back. The last round keeps
-		 * nothing: a pair still crossing then is skinning's own, or fold-over's, whose vertices (held
-		 * on their contact surfaces) keep their place. */
+		 * nothing: a pair still crossing then is skinning's own, or meets a vertex fold-over pinned on
+		 * its contact surface (lvp__pin_held), which keeps its place. */
 		bool any = false, last = round + 1 == LVP__CONTACT_ROUNDS;
 		if (round == 0 && every_pair) {
 			int32_t crossing = 0;
@@ -328,7 +339,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			float keep = last ? 0.0f : contact->limit[t] * contact->limit[t];
 			for (int i = 0; i < 3; ++i) {
 				int32_t k = binding->mesh.triangles[3 * (int64_t)t + i];
-				if (held[k])
+				if (pinned[k])
 					continue;
 				next[k] = fminf(next[k], keep * scale[k]);
 				contact->moved[k] = 1;
@@ -344,17 +355,86 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	return shortened;
 }
 
+/* With the tree refitted to the skinning: stops at the first triangle the searched one crosses there
+ * (limit 0), touching within rounding included. */
+static bool lvp__visit_skinned_crossing(void *context, const lvp__bvh_triangle *other)
+{
+	lvp__triangle_search *search = context;
+	if (!lvp__may_cross(search, other))
+		return false;
+	lvp__vec3 skinned[3];
+	for (int i = 0; i < 3; ++i)
+		skinned[i] = lvp__load(other->corners[i]);
+	if (lvp__triangles_cross(search->skinned, skinned) == LVP__APART)
+		return false;
+	search->limit = 0.0f;
+	return true;
+}
+
+/* contact.pinned: the patches of vertices fold-over holds on a contact surface (fold.held; a patch:
+ * held vertices joined by edges) where some triangle crosses skin in the skinning (touching within
+ * rounding counts). Fold-over undid those crossings, and shortening the offsets of such a patch would
+ * bring them back, so it keeps its place. The other patches are shortened as any: where the
+ * skinning crosses nothing yet (a finger half closed), skin put on the contact plane can meet skin
+ * coming from the other side, and only moving it back keeps the two apart. */
+static void lvp__pin_held(lvp_binding *binding, const float *positions)
+{
+	lvp__contact *contact = &binding->contact;
+	const uint8_t *held = binding->fold.held;
+	int32_t n = binding->vertex_count, f = binding->triangle_count;
+	memset(contact->pinned, 0, (size_t)n);
+	bool any = false;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count && !any; ++v)
+		any = held[binding->dynamic.vertices[v]];
+	if (!any)
+		return;
+	lvp__bvh_refit(&contact->bvh, positions);
+	lvp__contact_pass pass = {binding, positions};
+	for (int32_t t = 0; t < f; ++t) {
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		if (!lvp__any_marked(held, corners))
+			continue;
+		const float *const skinned[3] = {positions + 3 * (int64_t)corners[0], positions + 3 * (int64_t)corners[1],
+		                                 positions + 3 * (int64_t)corners[2]};
+		lvp__triangle_search search = lvp__search_of(&pass, corners, skinned);
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_skinned_crossing, &search);
+		if (search.limit < 1.0f)
+			for (int i = 0; i < 3; ++i)
+				contact->pinned[corners[i]] = held[corners[i]];
+	}
+	/* Out to the whole patch, a ring or more a pass (patches are a few rings across). */
+	const lvp__mesh *mesh = &binding->mesh;
+	for (bool grew = true; grew;) {
+		grew = false;
+		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+			int32_t k = binding->dynamic.vertices[v];
+			if (!held[k] || contact->pinned[k])
+				continue;
+			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+				const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
+				if (contact->pinned[corners[0]] || contact->pinned[corners[1]] || contact->pinned[corners[2]]) {
+					contact->pinned[k] = 1;
+					grew = true;
+					break;
+				}
+			}
+		}
+	}
+}
+
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first)
 {
 	lvp__contact *contact = &binding->contact;
 	int32_t n = binding->vertex_count;
 	const int32_t *dynamic = binding->dynamic.vertices, dynamic_count = binding->dynamic.vertex_count;
-	const uint8_t *held = binding->fold.held;
+	const uint8_t *pinned = contact->pinned;
 	float *corrected = binding->fold.saved, *scale = contact->scale, *next = contact->next_scale;
 	memcpy(corrected, binding->step.positions, sizeof(float) * 3 * (size_t)n);
 	memset(contact->moved, 0, (size_t)n);
-	if (first)
+	if (first) {
 		memset(contact->shortened, 0, (size_t)n);
+		lvp__pin_held(binding, positions);
+	}
 	contact->too_many = 0;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
@@ -368,7 +448,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		 * side of a pair more than the other can make it cross, so the smoothed patch is tested again. */
 		for (int pass_index = 0; pass_index < LVP__CONTACT_SMOOTHING; ++pass_index) {
 			for (int32_t v = 0; v < dynamic_count; ++v)
-				next[dynamic[v]] = held[dynamic[v]] ? 1.0f : lvp__smoothed_scale(binding, scale, dynamic[v]);
+				next[dynamic[v]] = pinned[dynamic[v]] ? 1.0f : lvp__smoothed_scale(binding, scale, dynamic[v]);
 			memcpy(scale, next, sizeof(float) * (size_t)n);
 		}
 		lvp__place_shortened(binding, positions, corrected);
@@ -410,6 +490,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->moved_nodes);
 	free(contact->moved);
 	free(contact->shortened);
+	free(contact->pinned);
 	free(contact->scale);
 	free(contact->next_scale);
 	memset(contact, 0, sizeof(*contact));

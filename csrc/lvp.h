@@ -209,7 +209,10 @@
  *   still crossing away; the shortening is smoothed over 4 rings around (never lengthening an
  *   offset). The volume they could not carry is then restored again through the map faded by
  *   as much as each vertex was shortened, and that correction is checked in turn, at most 4
- *   times. Vertices fold-over put on a contact surface keep their place. Where the correction makes
+ *   times. Vertices fold-over put on a contact surface keep their place in each patch of them
+ *   where the skinned triangles cross skin (fold-over undid that crossing; moving them back would
+ *   bring it back); the other patches are shortened as any (a finger half closed, crossing nothing
+ *   yet, whose skin held on the contact plane meets skin from the other side). Where the correction makes
  *   more than one triangle in 20 cross anew (a pose that folds the skin everywhere), shortening
  *   would cost seconds: the frame keeps the correction as it is and stats.crossing_triangles says
  *   how many. Result: no pair crosses

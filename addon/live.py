@@ -327,7 +327,8 @@ def _core_correction(obj, bound, rest_positions, fold_over, keep_apart):
                                       rest_positions=rest_positions, rigid_space=bound.skeleton.rigid_space,
                                       iterations=settings.iterations, tolerance=settings.tolerance / 100.0,
                                       fold_over=fold_over, displacement_limit=bound.displacement_limit,
-                                      restore=settings.restore, keep_apart=keep_apart)
+                                      restore=settings.restore, keep_apart=keep_apart,
+                                      smoothing_passes=settings.smoothing)
     except (ValueError, MemoryError) as error:
         raise PassThrough("Passing the mesh through: %s" % error) from None
     stats["worst_region_name"] = bound.skeleton.region_name(stats["worst_region"])

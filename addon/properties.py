@@ -130,6 +130,14 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
                     "weights blend, as the paper does. Not used where the Armature modifier has a Vertex Group",
         default=1.0, min=0.0, max=8.0, soft_max=3.0,
     )
+    smoothing: _setting(
+        IntProperty,
+        name="Smoothing",
+        description="Passes smoothing the correction over the surface, so that offsets along normals that turn "
+                    "fast (a folding knuckle, the palm of a closing hand) open no creases; the volume is restored "
+                    "after them. 0 keeps the paper's offsets",
+        default=2, min=0, max=64, soft_max=8,
+    )
     iterations: _setting(
         IntProperty,
         name="Iterations",

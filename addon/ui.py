@@ -82,6 +82,9 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         bulge = column.column()
         bulge.active = settings.effect != 'GLOBAL' and not (armature is not None and armature.vertex_group)
         bulge.prop(settings, "bulge_width")
+        smoothing = column.column()
+        smoothing.active = settings.effect != 'GLOBAL'
+        smoothing.prop(settings, "smoothing")
         restore = column.column()
         restore.active = settings.effect != 'GLOBAL'
         restore.prop(settings, "restore")

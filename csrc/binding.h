@@ -361,6 +361,7 @@ typedef struct lvp__step {
 	float *positions;          /* vertex_count*3: the frame's positions as the steps move them */
 	int32_t *moved;            /* per vertex: vertices moved by the last step */
 	float *backup;             /* vertex_count*3: their positions before it, in the same order */
+	float *smoothing_offsets;  /* vertex_count*3: the offsets a smoothing pass reads (offset_smoothing.c) */
 	int32_t moved_count;
 	int32_t *chunk_moved;      /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
 	double *change;            /* per region: V_s - V_s,rest in rest-world units */
@@ -441,6 +442,12 @@ void lvp__parts_free(lvp__parts *parts);
 static inline int32_t lvp__caller_bone(const lvp_binding *binding, int32_t i)
 {
 	return binding->rig.bone_source && i >= 0 ? binding->rig.bone_source[i] : i;
+}
+
+/* Whether vertex k can move in a step: the frame's map lets it, and fold-over does not hold it. */
+static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
+{
+	return binding->frame_map.gamma[k] > 0.0f && !binding->fold.held[k];
 }
 
 /* Whether vertex k follows the bone of skin class bone_class rigidly this frame (it does not move
@@ -726,6 +733,12 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
  * rest (rest_positions: the frame's, NULL for the bind's), and forgets its contacts (before the
  * first lvp__fold_over of a frame). */
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
+
+/* offset_smoothing.c */
+/* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
+ * against `positions`, the input points): each takes half its own offset and half the mean of its
+ * neighbours'. The volume is not restored here. */
+void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes);
 
 /* contact.c */
 /* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */

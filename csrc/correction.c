@@ -39,6 +39,10 @@ static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.restore", -1,
 		                 "options.restore is %d; use LVP_RESTORE_EACH_REGION (0) or LVP_RESTORE_WHOLE_MESH (1).",
 		                 (int)options->restore);
+	if (options->smoothing_passes < 0 || options->smoothing_passes > LVP_MAX_SMOOTHING_PASSES)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_passes", -1,
+		                 "options.smoothing_passes is %d; it must be between 0 (none, the paper's) and %d passes.",
+		                 (int)options->smoothing_passes, LVP_MAX_SMOOTHING_PASSES);
 	if (!(options->displacement_limit >= 0.0f))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.displacement_limit", -1,
 		                 "options.displacement_limit is %g; use 0 or infinity (no limit), or a distance above 0.",
@@ -107,12 +111,6 @@ static inline lvp__support lvp__vertex_support(const lvp_binding *binding, int32
 		support.count = 1;
 	}
 	return support;
-}
-
-/* Whether vertex k can move in a step: the frame's map lets it, and fold-over does not hold it. */
-static inline bool lvp__can_move(const lvp_binding *binding, int32_t k)
-{
-	return binding->frame_map.gamma[k] > 0.0f && !binding->fold.held[k];
 }
 
 /* What the solve sees of a group (lvp.h, GROUPS): the sums over its regions of their changes,
@@ -856,6 +854,15 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
 	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
 	stats->active_regions = first_active;
+	if (options->smoothing_passes > 0 && binding->mode == LVP_MODE_LOCAL) {
+		/* Offsets along normals that turn fast (folds) open creases: smoothed, then the volume the
+		 * smoothing took is restored by the same steps (a few percent of the offsets, along the
+		 * normals again). */
+		int32_t ignored;
+		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
+		lvp__measure_positions(binding, rest_positions, totals);
+		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+	}
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
@@ -1146,6 +1153,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->positions = lvp__calloc(n * 3, sizeof(float), &ok);
 	step->moved = lvp__calloc(n, sizeof(int32_t), &ok);
 	step->backup = lvp__calloc(n * 3, sizeof(float), &ok);
+	step->smoothing_offsets = lvp__calloc(n * 3, sizeof(float), &ok);
 	step->chunk_moved = lvp__calloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
 	step->change = lvp__calloc(s, sizeof(double), &ok);
 	step->target = lvp__calloc(s, sizeof(double), &ok);
@@ -1168,7 +1176,8 @@ bool lvp__step_alloc(lvp_binding *binding)
 
 void lvp__step_free(lvp__step *step)
 {
-	void *arrays[] = {step->positions, step->moved, step->backup, step->chunk_moved, step->change, step->target,
+	void *arrays[] = {step->positions, step->moved, step->backup, step->smoothing_offsets, step->chunk_moved,
+	                  step->change, step->target,
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
 	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response};

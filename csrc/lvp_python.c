@@ -1091,6 +1091,7 @@ static const lvp_py__rename lvp_py__frame_renames[] = {{"vertex_count", "positio
                                                        {"options.rigid_space", "rigid_space"},
                                                        {"options.displacement_limit", "displacement_limit"},
                                                        {"options.restore", "restore"},
+                                                       {"options.smoothing_passes", "smoothing_passes"},
                                                        {"r_changes", "positions"},
                                                        {NULL, NULL}};
 
@@ -1098,14 +1099,14 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 {
 	static char *keywords[] = {"positions",  "bone_matrices", "out_positions", "out_offsets", "rest_positions",
 	                           "iterations", "tolerance",     "fold_over",     "rigid_space", "displacement_limit",
-	                           "restore",    "keep_apart",    NULL};
+	                           "restore",    "keep_apart",    "smoothing_passes", NULL};
 	PyObject *positions_object, *matrices_object, *out_positions_object = NULL, *out_offsets_object = NULL;
 	PyObject *rest_object = NULL, *iterations = NULL, *tolerance = NULL, *fold_over = NULL, *space_object = NULL;
-	PyObject *limit = NULL, *restore = NULL, *keep_apart = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOOOO:correct", keywords, &positions_object,
+	PyObject *limit = NULL, *restore = NULL, *keep_apart = NULL, *smoothing = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OO|$OOOOOOOOOOO:correct", keywords, &positions_object,
 	                                 &matrices_object, &out_positions_object, &out_offsets_object, &rest_object,
 	                                 &iterations, &tolerance, &fold_over, &space_object, &limit, &restore,
-	                                 &keep_apart))
+	                                 &keep_apart, &smoothing))
 		return NULL;
 	lvp_py__binding *self = (lvp_py__binding *)object;
 	lvp_py__call call;
@@ -1116,6 +1117,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	    lvp_py__parse_float(&call, tolerance, "tolerance", &options.tolerance) != 0 ||
 	    lvp_py__parse_bool(&call, fold_over, "fold_over", &options.fold_over) != 0 ||
 	    lvp_py__parse_bool(&call, keep_apart, "keep_apart", &options.keep_apart) != 0 ||
+	    lvp_py__parse_int(&call, smoothing, "smoothing_passes", &options.smoothing_passes) != 0 ||
 	    lvp_py__parse_float(&call, limit, "displacement_limit", &options.displacement_limit) != 0 ||
 	    lvp_py__parse_choice(&call, restore, "restore", lvp_py__restore_names, 2, &restore_index) != 0 ||
 	    lvp_py__enter(self) != 0)
@@ -1307,7 +1309,7 @@ static PyMethodDef lvp_py__binding_methods[] = {
     {"correct", LVP_PY__KEYWORDS(lvp_py__binding_correct), METH_VARARGS | METH_KEYWORDS,
      "correct(positions, bone_matrices, *, out_positions=None, out_offsets=None, rest_positions=None, "
      "iterations=8, tolerance=1e-4, fold_over=False, rigid_space=None, displacement_limit=0.0, "
-     "restore='EACH_REGION', keep_apart=False) -> dict\n"
+     "restore='EACH_REGION', keep_apart=False, smoothing_passes=0) -> dict\n"
      "Corrects one frame of skinned positions so every region keeps its rest volume; returns the frame's stats."},
     {"segmentation", LVP_PY__KEYWORDS(lvp_py__binding_segmentation), METH_VARARGS | METH_KEYWORDS,
      "segmentation(out_vertex_regions=None, out_triangle_regions=None)\n"

@@ -150,7 +150,8 @@ def main():
         start = time.perf_counter()
         bound.binding.correct(bound.positions, bound.bone_matrices, out_offsets=helpers.array(
             'f', bytes(4 * len(bound.offsets))), iterations=ours.lvp.iterations, tolerance=ours.lvp.tolerance / 100.0,
-            restore=ours.lvp.restore, keep_apart=ours.lvp.keep_apart)
+            restore=ours.lvp.restore, keep_apart=ours.lvp.keep_apart,
+            smoothing_passes=ours.lvp.smoothing)
         correct_times.append(time.perf_counter() - start)
     results["core_correct"] = 1000.0 * statistics.median(correct_times)
     stats = bound.stats or {}

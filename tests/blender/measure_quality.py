@@ -8,7 +8,8 @@ animation against the skin's motion (popping); with --render DIR, one close-up p
 VP | VP+fold) into DIR. Nothing is asserted: these are the numbers issues 24-26 are judged by.
 
     tests/blender/blender_chroot.sh 5.2 run -b --factory-startup --python tests/blender/measure_quality.py \
-        -- [--cases body,hand] [--no-gltf] [--render /tmp/quality_renders] [--bulge-width W] [--auto-weights]
+        -- [--cases body,hand] [--no-gltf] [--render /tmp/quality_renders] [--bulge-width W] [--smoothing N]
+           [--keep-apart] [--auto-weights]
     blender -b --factory-startup --python tests/blender/measure_quality.py -- ...
 
 The add-on comes from dist/ as in the tests (./build.sh package first).
@@ -41,6 +42,9 @@ def arguments():
     parser.add_argument("--no-gltf", action="store_true", help="leave out the glTF round-tripped versions")
     parser.add_argument("--render", metavar="DIR", help="render a close-up per case at its hardest pose into DIR")
     parser.add_argument("--bulge-width", type=float, help="the objects' Bulge Width (default: the add-on's)")
+    parser.add_argument("--smoothing", type=int, help="the objects' Smoothing (default: the add-on's)")
+    parser.add_argument("--keep-apart", action="store_true",
+                        help="Keep Skin Apart in the viewport too (renders have it on by default)")
     parser.add_argument("--auto-weights", action="store_true",
                         help="weight the human with the add-on's Auto Weights (its defaults) instead of heat weights")
     return parser.parse_args(argv)
@@ -217,7 +221,11 @@ def add_volume_preservation(options, objects):
     for _title, obj in objects:
         if options.bulge_width is not None:
             obj.lvp.bulge_width = options.bulge_width
-        print("%s: Bulge Width %g" % (obj.name, obj.lvp.bulge_width))
+        if options.smoothing is not None:
+            obj.lvp.smoothing = options.smoothing
+        obj.lvp.keep_apart = options.keep_apart
+        print("%s: Bulge Width %g, Smoothing %d, Keep Skin Apart in the viewport %s"
+              % (obj.name, obj.lvp.bulge_width, obj.lvp.smoothing, "on" if obj.lvp.keep_apart else "off"))
 
 
 def main():

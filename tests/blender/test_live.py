@@ -181,6 +181,7 @@ class TestCylinder(CylinderTestCase):
         # gives what one pass gives.
         self.scene.frame_set(10)
         settings = self.obj.lvp
+        settings.smoothing = 0  # the paper's passes alone (Smoothing restores the volume with more)
         default_error, plain = self.errors_at_current_frame()
         default_passes = self.bound().stats["iterations"]
         settings.tolerance = 5.0
@@ -366,7 +367,9 @@ class TestRegionGivenUp(helpers.AddonTestCase):
         # The joint bent 60 degrees, away from the fold, is still corrected.
         moved = max(Vector(offsets[3 * k:3 * k + 3]).length for k in range(len(obj.data.vertices))
                     if obj.data.vertices[k].co.z > 1.25)
-        self.assertGreater(moved, 0.5 * upper)
+        # (0.54 of the largest offset there before, 0.48 with the default 2 passes of Smoothing, which lower a
+        # bulge's peak.)
+        self.assertGreater(moved, 0.4 * upper)
 
 
 class TestCylinderPreserveVolume(CylinderTestCase):

@@ -67,8 +67,8 @@ class TestPackage(helpers.AddonTestCase):
         self.assertEqual(settings.effect, 'ORGANIC')
         for effect in ('ORGANIC', 'RUBBER', 'PAINTED', 'GLOBAL'):
             settings.effect = effect
-        for name in ("alpha", "beta", "iterations", "tolerance", "fold_over", "keep_apart", "keep_apart_render",
-                     "painted_vertex_group", "region_restrictions"):
+        for name in ("alpha", "beta", "iterations", "tolerance", "smoothing", "fold_over", "keep_apart",
+                     "keep_apart_render", "painted_vertex_group", "region_restrictions"):
             self.assertTrue(hasattr(settings, name), name)
 
     def test_disable_and_enable_again(self):

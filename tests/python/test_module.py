@@ -367,6 +367,17 @@ class TestBinding(unittest.TestCase):
         self.assertGreater(stats['max_displacement'], 0.0)
         rest_volume = stats['volume_rest']
         self.assertLess(abs(stats['volume_after'] - rest_volume), abs(stats['volume_before'] - rest_volume))
+        # Smoothing the offsets: another shape, the volume restored as well (lvp.h, OFFSET SMOOTHING).
+        binding.correct(positions, matrices, out_offsets=offsets)
+        smoothed = zeros('f', 3 * tube.vertex_count)
+        stats = binding.correct(positions, matrices, out_offsets=smoothed, smoothing_passes=2)
+        self.assertNotEqual(smoothed, offsets)
+        self.assertLess(abs(stats['volume_after'] / rest_volume - 1.0), 1e-4)
+        for passes in (-1, 65):
+            with self.assertRaises(_lvp.Error) as caught:
+                binding.correct(positions, matrices, out_offsets=offsets, smoothing_passes=passes)
+            self.assertEqual((caught.exception.code, caught.exception.argument),
+                             ('invalid_option', 'smoothing_passes'), str(caught.exception))
 
     def test_correct_in_place(self):
         tube = Tube()

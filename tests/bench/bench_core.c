@@ -46,7 +46,9 @@ typedef struct bench_case {
 	float bulge_width;  /* lvp_bind_options.bulge_width (0, the core's default: none; the add-on's is 1) */
 	int32_t fold_over;  /* lvp_frame_options.fold_over */
 	int32_t restore;    /* lvp_frame_options.restore (the core's default: each region; the add-on's: the whole mesh) */
-	int32_t keep_apart; /* lvp_frame_options.keep_apart (the core's default: off; the add-on's: on) */
+	int32_t keep_apart; /* lvp_frame_options.keep_apart (the core's default: off; the add-on's: off in the
+	                       viewport, on in renders) */
+	int32_t smoothing;  /* lvp_frame_options.smoothing_passes (the core's default: 0; the add-on's: 2) */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -75,6 +77,7 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	frame_options.fold_over = c->fold_over;
 	frame_options.restore = c->restore;
 	frame_options.keep_apart = c->keep_apart;
+	frame_options.smoothing_passes = c->smoothing;
 	int repeats = rig->vertex_count > 500000 ? 7 : 21;
 	double times[21];
 	for (int i = 0; i < repeats; ++i) {
@@ -243,6 +246,10 @@ int main(void)
 				c.keep_apart = 1; /* lvp.h, CONTACT */
 				run_case(&c, cores);
 				c.keep_apart = 0;
+				c.pose = all ? "every joint, whole mesh, smoothed" : "one joint, whole mesh, smoothed";
+				c.smoothing = 2; /* lvp.h, OFFSET SMOOTHING */
+				run_case(&c, cores);
+				c.smoothing = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;
 				c.pose = all ? "every joint" : "one joint";
 			}
@@ -271,6 +278,10 @@ int main(void)
 				c.keep_apart = 1;
 				run_case(&c, cores);
 				c.keep_apart = 0;
+				c.pose = "every joint, bulge width 1, whole mesh, smoothed"; /* the add-on's viewport */
+				c.smoothing = 2;
+				run_case(&c, cores);
+				c.smoothing = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;
 			}
 			free(c.rotations);

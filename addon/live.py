@@ -298,10 +298,10 @@ def _read_pose(obj, depsgraph, bound, armature_object):
 
 
 def _correct(obj, bound, check_topology, final_output):
-    """The core's correction of bound.positions into bound.offsets (final_output: with the render
-    settings); its statistics. Where Fold-Over
-    Prevention fails at this pose (no finite result, or a blown-up one), the frame is corrected without
-    it, and stats["fold_over_failed"] says why, rather than the whole mesh falling back to plain skinning."""
+    """The core's correction of bound.positions into bound.offsets, with the render settings when
+    final_output (a render, a bake); its statistics. Where Fold-Over Prevention fails at this pose (no
+    finite result, or a blown-up one), the frame is corrected without it, and stats["fold_over_failed"]
+    says why, rather than the whole mesh falling back to plain skinning."""
     rest_positions = None
     if obj.data.shape_keys is not None:
         rest_positions = _shape_key_rest(obj, bound, check_topology)

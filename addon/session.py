@@ -162,7 +162,7 @@ class Session:
     @property
     def baking(self):
         """Whether a bake is running: it evaluates the viewport's depsgraph, but what it writes is final
-        output, corrected with the render settings as Blender's Alembic and USD exporters evaluate."""
+        output, corrected with the render settings, as Blender's own exporters evaluate by default."""
         return self._baking
 
     def note_baking(self, baking):

@@ -545,8 +545,8 @@ typedef enum lvp_restore {
 
 typedef struct lvp_frame_options {
 	int32_t max_iterations; /* correction steps per volume correction, 1..1000, default 8; 1 is
-	                           the paper's single pass. Fold-over runs up to 4 more volume
-	                           corrections, each with this budget. */
+	                           the paper's single pass. Smoothing runs one more volume correction
+	                           and fold-over up to 4 more, each with this budget. */
 	float tolerance;        /* stop when every region is within tolerance * its reference volume
 	                           of its target (ALGORITHM, 3); > 0, default 1e-4 (0.01 %) */
 	int32_t fold_over;      /* nonzero: fold-over prevention (local mode only), default 0 */

@@ -63,6 +63,9 @@ def add_volume_preservation(obj, fold_over=False):
     if result != {'FINISHED'}:
         raise RuntimeError("object.lvp_add failed on %s: %r" % (obj.name, result))
     obj.lvp.fold_over = fold_over
+    # The pictures are renders, which keep skin apart by default; the numbers written on them are measured
+    # in this process's viewport depsgraph, so it does the same.
+    obj.lvp.keep_apart = obj.lvp.keep_apart_render
     bpy.context.view_layer.update()
 
 

@@ -3,7 +3,7 @@
  * one joint, the correction pushes the inside of the bend through itself where plain skinning does
  * not, and keep_apart takes that back with the volume still restored; bent 70 degrees at every
  * joint, the correction would cross more than one triangle in 20, and the frame keeps the
- * correction as it is and says so; with fold-over too, bent 40 to 140 degrees at one joint, never more
+ * correction as it is and says so; with fold-over too, bent 100 and 140 degrees at one joint, never more
  * crossing pairs than plain skinning or fold-over alone. (The giraffe's 28 single-joint poses:
  * test_giraffe.c; a hand closing: tests/blender/test_fold_over_hand.py.)
  */
@@ -118,11 +118,13 @@ static void test_too_many_crossings(void)
 	free_tube(&tube);
 }
 
-/* With fold-over too, bending from 40 to 140 degrees: never more crossing pairs than plain skinning or
- * fold-over alone (vertices fold-over holds where skinning crosses itself keep their place). */
+/* With fold-over too, bent 100 and 140 degrees (plain skinning crosses itself from about 75): never more
+ * crossing pairs than plain skinning or fold-over alone (vertices fold-over holds where skinning crosses
+ * itself keep their place; shortened as any, 82 and 162 pairs came back where fold-over alone has none).
+ * Two angles: the exact count of crossing pairs is the cost here. */
 static void test_with_fold_over(void)
 {
-	for (int degrees = 40; degrees <= 140; degrees += 10) {
+	for (int degrees = 100; degrees <= 140; degrees += 40) {
 		bent_tube tube = make_tube(degrees, false);
 		size_t values = 3 * (size_t)tube.rig.vertex_count;
 		float *folded = malloc(sizeof(float) * values), *apart = malloc(sizeof(float) * values);

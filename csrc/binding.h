@@ -745,8 +745,9 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Shortens the offsets (step.positions against `positions`, the input points) of the corners of
  * every pair of triangles that crosses after the correction but not in the input, to what keeps the
- * pair apart, over a few rounds (the last takes them away), smoothed around them; vertices held by
- * fold-over keep theirs. first: the frame's first call (forgets contact.shortened). Returns how many dynamic
+ * pair apart, over a few rounds (the last takes them away), smoothed around them; the patches of
+ * vertices fold-over holds where the input crosses itself keep theirs (contact.pinned). first: the
+ * frame's first call (forgets contact.shortened, finds contact.pinned). Returns how many dynamic
  * vertices it shortened; when more than one triangle in LVP__CONTACT_MOST crosses anew it gives up,
  * leaves step.positions as they were and sets contact.too_many. Uses fold.saved as scratch. */
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);

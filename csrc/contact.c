@@ -412,7 +412,7 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 				continue;
 			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
 				const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
-				if (contact->pinned[corners[0]] || contact->pinned[corners[1]] || contact->pinned[corners[2]]) {
+				if (lvp__any_marked(contact->pinned, corners)) {
 					contact->pinned[k] = 1;
 					grew = true;
 					break;

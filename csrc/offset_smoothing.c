@@ -9,8 +9,6 @@
  */
 #include "binding.h"
 
-#include <string.h>
-
 typedef struct lvp__smoothing_pass {
 	lvp_binding *binding;
 	const float *positions; /* the frame's input points */

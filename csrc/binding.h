@@ -313,6 +313,9 @@ typedef struct lvp__joint {
 	lvp__vec3 axis;            /* posed bend axis, unit */
 	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
 	double reach;              /* along the axis: the child bone's flesh radius */
+	double half_bend_sine;     /* sine of half the angle the child turned by against the parent */
+	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
+	double window;             /* the crease's skin that may cross the plane (foldover.c) */
 } lvp__joint;
 
 /* Fold-over prevention (foldover.c). */
@@ -323,8 +326,8 @@ typedef struct lvp__fold {
 	int32_t *border_offsets;   /* per neighbour entry (s, j) + 1 into border_vertices */
 	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
-	uint8_t *held;             /* per vertex: moved back to a contact surface and held there, kept
-	                              zero between frames */
+	uint8_t *held;             /* per vertex: moved back to a contact surface and held there (nonzero:
+	                              the round that did, foldover.c), kept zero between frames */
 } lvp__fold;
 
 /* Skin kept from passing through skin (contact.c), allocated at the first frame that asks. */

@@ -13,6 +13,33 @@
 
 #include <stdlib.h>
 
+/* The pressing of skin onto a contact plane, as shares of the child's flesh radius (joint->reach):
+ * - LVP__CREASE_WINDOW: the skin at the bottom of the crease, on either side of the plane within
+ *   this at rest, may cross the plane by as much as it lay in front of this depth at rest; the
+ *   window closes as the joint bends to a right angle (times the cosine of the bend), where the
+ *   two sides of the crease do press on each other. The skin's sheet passes through the plane
+ *   there, and as the joint bends, skinning shifts where it passes: its vertices cross the plane
+ *   by a fraction of an edge long before any skin meets. One vertex pressed back and its
+ *   neighbours not (one just on the other side at rest, one a little deeper) was a spike as tall
+ *   as the offsets.
+ * - LVP__OTHER_SIDE_FADE: the skin of a region on the other side of the plane at rest (heat
+ *   weights give a finger's region palm skin behind its knuckle) may cross it further the deeper
+ *   it lay there, without limit from this depth on. It was never pressed, and its neighbours a
+ *   hair on the region's own side were pressed fully: a step of twice an edge at the fist.
+ * - LVP__SOFT_CONTACT: skin on the concave side of the bend is pressed from this far (times the
+ *   sine of half the bend, so not at all before the joint bends) in front of the plane, gently at
+ *   first, fully at this far past it: projected exactly, the pressed skin met the free skin beside
+ *   it at an angle (a crease). Fading towards the flanks, where nothing presses the skin. */
+#define LVP__CREASE_WINDOW 0.25
+#define LVP__OTHER_SIDE_FADE 0.5
+#define LVP__SOFT_CONTACT 0.5
+
+/* binding->fold.held, per vertex: */
+enum {
+	LVP__HELD_BEFORE = 1,    /* held by an earlier round of this frame: not pressed again */
+	LVP__HELD_THIS_ROUND = 2 /* held by this round (lvp__fold_over) */
+};
+
 /* binding->fold.contact, per neighbour entry (s, j) of this frame: */
 enum {
 	LVP__CONTACT_NONE = 0, /* no skin crossed between s and j */
@@ -72,6 +99,7 @@ static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 
 	if (!(lvp__length(normal) > 1e-3) || !(lvp__length(axis) > 1e-3))
 		return false;
 	r_joint->normal = lvp__unit(normal);
+	r_joint->half_bend_sine = lvp__length(lvp__cross(unbent, r_joint->normal));
 	r_joint->axis = lvp__unit(axis);
 	r_joint->concave = lvp__unit(concave);
 	return true;
@@ -97,6 +125,33 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
 {
 	double side = fabs(lvp__dot(lvp__sub(p, joint->point), joint->axis));
 	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
+}
+
+/* How far a vertex may lie across the joint's plane (along its normal) given how far across the
+ * rest plane it lay at rest (negative: on its own side); INFINITY where it is never pressed
+ * (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's sheet is. */
+static double lvp__allowed_across(const lvp__joint *joint, double rest_side)
+{
+	double window = joint->window, fade = LVP__OTHER_SIDE_FADE * joint->reach;
+	if (rest_side <= 0.0)
+		return fmax(0.0, rest_side + window);
+	if (rest_side >= fade)
+		return INFINITY;
+	return (rest_side + window) / (1.0 - rest_side / fade);
+}
+
+/* How far to press a vertex `excess` across what it may (negative: short of it) back along the
+ * plane's normal, with the contact softened over `soft` (LVP__SOFT_CONTACT): nothing from `soft`
+ * short of the limit, then quadratically, all of the excess from `soft` past it on; its slope
+ * is continuous, so the pressed skin runs into the free skin without a kink. */
+static double lvp__press(double excess, double soft)
+{
+	if (!(soft > 0.0))
+		return fmax(0.0, excess);
+	double x = excess + soft;
+	if (x <= 0.0)
+		return 0.0;
+	return x >= 2.0 * soft ? x - soft : x * x / (4.0 * soft);
 }
 
 /* The entry of region s's neighbours for bone j, or -1. */
@@ -177,6 +232,9 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 				joint->rest_normal = lvp__scale(joint->rest_normal, -1.0);
 			}
 			joint->reach = binding->fold.radius[child];
+			double sine = joint->half_bend_sine; /* cos(bend) = 1 - 2 sin(bend / 2)^2 */
+			joint->soft = LVP__SOFT_CONTACT * joint->reach * sine;
+			joint->window = LVP__CREASE_WINDOW * joint->reach * fmax(0.0, 1.0 - 2.0 * sine * sine);
 			joint->bends = joint->reach > 0.0;
 			/* Of a group (a B-Bone's joints), only the first meets the parent at a crease: the
 			 * others' borders with it run along the bone. */
@@ -212,26 +270,35 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
 			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
-				/* Only vertices that were on their own side at rest can cross. */
-				if (lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal) >= 0.0)
+				/* Pressed once: pressing again would soften its contact twice. */
+				if (binding->fold.held[k] == LVP__HELD_BEFORE)
 					continue;
-				lvp__vec3 p = lvp__load(work + 3 * k);
-				double across = lvp__dot(lvp__sub(p, joint->point), joint->normal);
-				if (!(across > 0.0))
+				double rest_side =
+				    lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
+				double allowed = lvp__allowed_across(joint, rest_side);
+				if (allowed == INFINITY)
+					continue;
+				lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+				double soft = joint->soft * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach);
+				double push = lvp__press(lvp__dot(from_joint, joint->normal) - allowed + gap, soft);
+				if (!(push > 0.0))
 					continue;
 				double held = lvp__across_joint(joint, p);
 				if (!(held > 0.0))
 					continue;
-				lvp__vec3 q = lvp__sub(p, lvp__scale(joint->normal, held * (across + gap)));
+				lvp__vec3 q = lvp__sub(p, lvp__scale(joint->normal, held * push));
 				work[3 * k] = (float)q.x;
 				work[3 * k + 1] = (float)q.y;
 				work[3 * k + 2] = (float)q.z;
 				lvp__mark_contact(binding, s, n, j);
 				moved += !binding->fold.held[k];
-				binding->fold.held[k] = 1;
+				binding->fold.held[k] = LVP__HELD_THIS_ROUND;
 				lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
 			}
 		}
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		if (binding->fold.held[k] == LVP__HELD_THIS_ROUND)
+			binding->fold.held[k] = LVP__HELD_BEFORE;
 	return moved;
 }
 

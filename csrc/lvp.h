@@ -163,7 +163,11 @@
  *   of that plane at rest and across it now goes back onto it (within the child's flesh radius
  *   of the joint along the bend's axis, tapering off at twice that) and is held there while
  *   further volume steps run with the map faded near the contact, so the squeezed volume becomes
- *   a bulge beside it (paper Fig. 10d). Contact test and volume step alternate up to 4 more
+ *   a bulge beside it (paper Fig. 10d). Pressed softly, so that it runs into the free skin without
+ *   a kink; the skin at the bottom of the crease, which the plane cuts at rest, may cross it by as
+ *   much as it lay near it at rest until the joint bends to a right angle; a vertex of s on j's
+ *   side at rest crosses further the deeper it lay there (docs/method.md, foldover.c). Contact
+ *   test and volume step alternate up to 4 more
  *   rounds; a round that would move a vertex more than twice as far as the correction before it
  *   is undone and ends them (the frame keeps its contacts, a little volume missing). Limits:
  *   bones without a joint between them (a fingertip on the palm, a thumb on the index), two

@@ -97,10 +97,10 @@ static void free_finger(bent_finger *f)
 
 static void test_fold_over_removes_self_intersections(void)
 {
-	/* Plain skinning crosses itself from about 50 degrees; asserted up to 90 degrees, printed
-	 * beyond (past 90 degrees the crease can be pressed so flat that projecting it onto the
-	 * contact surface folds it, 4 pairs at 110 degrees; past 110 the tip crosses the first
-	 * phalanx, bones that are not neighbours: limitations stated in lvp.h and README). */
+	/* Plain skinning crosses itself from about 50 degrees; asserted up to 110 degrees, printed
+	 * beyond (past 110 the tip crosses the first phalanx, bones that are not neighbours: a
+	 * limitation stated in lvp.h and README). Pressed exactly onto the contact plane, the crease
+	 * itself folded past 90 degrees (4 pairs at 110); pressed softly it does not. */
 	const double angles[] = {60, 70, 80, 90, 95, 100, 110, 120};
 	printf("  finger, both knuckles bent; intersecting triangle pairs and volume error:\n");
 	printf("  angle | plain SSD        | volume only      | volume + fold-over (moved vertices)\n");
@@ -126,7 +126,7 @@ static void test_fold_over_removes_self_intersections(void)
 		       100 * (fold_stats.volume_before - rest) / rest, (long long)volume_only,
 		       100 * (volume_stats.volume_after - rest) / rest, (long long)after,
 		       100 * (fold_stats.volume_after - rest) / rest, (int)fold_stats.folded_vertices);
-		if (angles[i] <= 90) {
+		if (angles[i] <= 110) {
 			CHECK(before > 0); /* the finger does fold through itself */
 			CHECK(after == 0);
 			CHECK(fold_stats.folded_vertices > 0);

@@ -32,7 +32,7 @@
  *   it at an angle (a crease). Fading towards the flanks, where nothing presses the skin. */
 #define LVP__CREASE_WINDOW 0.25
 #define LVP__OTHER_SIDE_FADE 0.5
-#define LVP__SOFT_CONTACT 0.5
+#define LVP__SOFT_CONTACT 0.4
 
 /* binding->fold.held, per vertex: */
 enum {

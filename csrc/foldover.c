@@ -79,7 +79,15 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	                                           lvp__motion_apart(binding, s, j, rig->tails[j])));
 	if (!(moved > 0.0) || !(fmin(at_j, at_s) <= 0.1 * moved))
 		return false;
-	*r_child = at_j <= at_s ? j : s;
+	int32_t child = at_j <= at_s ? j : s, parent = child == s ? j : s;
+	/* Both heads in place: the bones turn about one line through both (two thighs raised alike
+	 * turn about the line through the hips). A joint only when the child's head lies in the
+	 * parent's flesh; two thighs' skins meet at the crotch, but nothing there folds. */
+	if (fmax(at_j, at_s) <= 0.1 * moved &&
+	    !(lvp__segment_distance(rig->heads[child], rig->heads[parent], rig->tails[parent]) <=
+	      binding->fold.radius[parent]))
+		return false;
+	*r_child = child;
 	return true;
 }
 

@@ -56,6 +56,24 @@ class TestGLTFHand(unittest.TestCase):
     def test_fist(self):
         self.assertLikeTheWeldedHand(real_cases.HAND_FRAMES[1])
 
+    def test_fold_over_and_keep_apart(self):
+        # Fold-Over Prevention once made the split hand diverge and fall back to plain skinning at both poses:
+        # with it, and with Keep Skin Apart, the copies of a point still move together as the welded hand's.
+        for obj in (self.hand, self.split):
+            obj.lvp.fold_over = obj.lvp.keep_apart = True
+        try:
+            for frame in (11, real_cases.HAND_FRAMES[1]):
+                self.assertLikeTheWeldedHand(frame)
+                positions = helpers.evaluated_positions(self.split)
+                plain = quality.count_crossing_pairs(helpers.uncorrected_positions(self.split), self.split_mesh)
+                corrected = quality.count_crossing_pairs(positions, self.split_mesh)
+                print("\n    split hand, frame %d: crossing pairs plain %d, with Fold-Over %d" % (frame, plain, corrected),
+                      end="")
+                self.assertLessEqual(corrected, plain // 2, "frame %d" % frame)
+        finally:
+            for obj in (self.hand, self.split):
+                obj.lvp.fold_over = obj.lvp.keep_apart = False
+
 
 class TestMeasureQuality(unittest.TestCase):
     """measure_quality.py, which README names for the surface numbers, runs and measures the hand as

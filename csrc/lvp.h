@@ -156,25 +156,25 @@
  *   Where a region's bone s and a neighbouring bone j bend about a joint (the head of one, the
  *   child, that their relative motion leaves in place: found from the motion, no hierarchy
  *   needed; when it leaves both heads in place, only if the child's head lies within the
- *   parent's flesh radius of the parent's bone), the contact surface is the plane halfway between where the child would point had
- *   it moved with the parent and where it points, through the crease: where the two regions'
- *   skins meet on the concave side of the bend, when that is within the child's flesh radius of
- *   the joint (moved from the joint by at most half that radius; of a group, only its first
- *   bone's joint moves: GROUPS). A vertex of s on its own side
- *   of that plane at rest and across it now goes back onto it (within the child's flesh radius
- *   of the joint along the bend's axis, tapering off at twice that) and is held there while
- *   further volume steps run with the map faded near the contact, so the squeezed volume becomes
- *   a bulge beside it (paper Fig. 10d). Pressed softly, so that it runs into the free skin without
- *   a kink; the skin at the bottom of the crease, which the plane cuts at rest, may cross it by as
- *   much as it lay near it at rest until the joint bends to a right angle; a vertex of s on j's
- *   side at rest crosses further the deeper it lay there (docs/method.md, foldover.c). Contact
- *   test and volume step alternate up to 4 more
- *   rounds; a round that would move a vertex more than twice as far as the correction before it
- *   is undone and ends them (the frame keeps its contacts, a little volume missing). Limits:
- *   bones without a joint between them (a fingertip on the palm, a thumb on the index), two
- *   parts of one bone's flesh and the joints of one B-Bone are not separated; at the edge of the
- *   skin pressed onto the plane the skin beside it may cross it; where two bones lie on top of
- *   each other (a joint folded to 180 degrees) there is no plane.
+ *   parent's flesh radius of the parent's bone), the contact surface is the plane halfway
+ *   between where the child would point had it moved with the parent and where it points,
+ *   through the crease: where the two regions' skins meet on the concave side of the bend, when
+ *   that is within the child's flesh radius of the joint (moved from the joint by at most half
+ *   that radius; of a group, only its first bone's joint moves: GROUPS). A vertex of s on its
+ *   own side of that plane at rest and across it now goes back onto it (within the child's
+ *   flesh radius of the joint along the bend's axis, tapering off at twice that) and is held
+ *   there while further volume steps run with the map faded near the contact, so the squeezed
+ *   volume becomes a bulge beside it (paper Fig. 10d). It is pressed softly, so that it runs
+ *   into the free skin without a kink; the skin at the bottom of the crease, which the plane
+ *   cuts at rest, may cross it by as much as it lay near it at rest until the joint bends to a
+ *   right angle; a vertex of s on j's side at rest crosses further the deeper it lay there
+ *   (docs/method.md, foldover.c). Contact test and volume step alternate up to 4 more rounds;
+ *   a round that would move a vertex more than twice as far as the correction before it is
+ *   undone and ends them (the frame keeps its contacts, a little volume missing). Limits: bones
+ *   without a joint between them (a fingertip on the palm, a thumb on the index), two parts of
+ *   one bone's flesh and the joints of one B-Bone are not separated; at the edge of the skin
+ *   pressed onto the plane the skin beside it may cross it; where two bones lie on top of each
+ *   other (a joint folded to 180 degrees) there is no plane.
  *
  * FALLBACKS (defined outcomes for awkward input; everything else is an error)
  *

@@ -25,8 +25,9 @@
  *     leaves its outputs untouched (lvp.h CONVENTIONS);
  *   - a binding reports the counts it was bound with, regions in [-1, region_count) and a
  *     correction map in [0, 1];
- *   - lvp_correct's stats count at most max_iterations passes without fold-over (with it, the
- *     volume steps that follow each contact test have their own budget); lvp_auto_weights writes
+ *   - lvp_correct's stats count at most max_iterations passes without fold-over for each attempt
+ *     (one, and one more for each group given up: lvp.h, DEGRADING; with fold-over, the volume
+ *     steps that follow each contact test have their own budget); lvp_auto_weights writes
  *     well-formed rows.
  *   A violation prints what went wrong and aborts, which libFuzzer records as a crash.
  *
@@ -814,10 +815,15 @@ static void fuzz_correct(lvp_binding *binding, fuzz_case *c, uint8_t how, const 
 		/* Fold-over alternates contact tests with volume steps that each have their own
 		 * max_iterations (csrc/correction.c): only frames without it are held to the cap. */
 		int fold = frame ? frame->fold_over : lvp_frame_default_options().fold_over;
-		if (stats.iterations < 0 || (!fold && stats.iterations > cap)) {
-			char what[128];
-			snprintf(what, sizeof(what), "stats.iterations = %d, max_iterations = %d, fold_over = %d",
-			         (int)stats.iterations, (int)cap, frame ? (int)frame->fold_over : 0);
+		/* Each attempt after giving a group up (lvp.h, DEGRADING) is a volume correction with its
+		 * own budget too. */
+		int64_t budget = (int64_t)cap * (1 + (int64_t)stats.given_up_regions);
+		if (stats.iterations < 0 || (!fold && stats.iterations > budget)) {
+			char what[160];
+			snprintf(what, sizeof(what),
+			         "stats.iterations = %d, max_iterations = %d, given_up_regions = %d, fold_over = %d",
+			         (int)stats.iterations, (int)cap, (int)stats.given_up_regions,
+			         frame ? (int)frame->fold_over : 0);
 			fuzz_violation("lvp_correct", what);
 		}
 	}

@@ -316,6 +316,8 @@ typedef struct lvp__joint {
 	double half_bend_sine;     /* sine of half the angle the child turned by against the parent */
 	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
 	double window;             /* the crease's skin that may cross the plane (foldover.c) */
+	int32_t child, parent;     /* the two bones: the child turns about its head */
+	bool child_side;           /* the region of this entry is the child's */
 } lvp__joint;
 
 /* Fold-over prevention (foldover.c). */
@@ -326,6 +328,8 @@ typedef struct lvp__fold {
 	int32_t *border_offsets;   /* per neighbour entry (s, j) + 1 into border_vertices */
 	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
+	int32_t *plane_entry;      /* per bone, this frame: the entry whose plane all its joints as the
+	                              child share (lvp__share_child_planes), or -1 */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there (nonzero:
 	                              the round that did, foldover.c), kept zero between frames */
 } lvp__fold;

@@ -156,7 +156,8 @@
  *   Where a region's bone s and a neighbouring bone j bend about a joint (the head of one, the
  *   child, that their relative motion leaves in place: found from the motion, no hierarchy
  *   needed; when it leaves both heads in place, only if the child's head lies within the
- *   parent's flesh radius of the parent's bone), the contact surface is the plane halfway
+ *   parent's flesh radius of the parent's bone; a child of several such bones takes the plane
+ *   of the one whose bone passes nearest its head), the contact surface is the plane halfway
  *   between where the child would point had it moved with the parent and where it points,
  *   through the crease: where the two regions' skins meet on the concave side of the bend, when
  *   that is within the child's flesh radius of the joint (moved from the joint by at most half

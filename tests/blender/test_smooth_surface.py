@@ -93,9 +93,9 @@ class TestRigifyHuman(SurfaceCase):
         # Fold-Over Prevention too: fewer crossing pairs than plain skinning, and no skin pressed where no joint
         # folds. The two thighs raised alike turn about one line through both hips, which left both heads in
         # place: taken for a joint (foldover.c, lvp__joint_child), the inner skin of one thigh was pressed onto a
-        # plane across the other, roughness 0.78 of the largest offset there. Now 0.50, at the armpit: the upper
-        # arm's skin meets the spine's, the shoulder's and the breast's, each pair with a plane of its own (a
-        # limitation, README).
+        # plane across the other, roughness 0.78 of the largest offset there; then 0.50 at the armpit, where the
+        # upper arm's skin meets the spine's, the shoulder's and the breast's, each pair pressing onto a plane of
+        # its own until they shared the plane of the bone the arm hangs from. Now 0.36, at a thigh (README).
         real_cases.pose_rigify_human(self.rig, 1.0)
         self.body.lvp.fold_over = True
         try:
@@ -113,7 +113,7 @@ class TestRigifyHuman(SurfaceCase):
                  fold["roughness"] / fold["largest_offset"]))
         self.assertLess(abs(fold["volume"]), 0.005)
         self.assertLess(fold["crossings"], measured["plain"]["crossings"])
-        self.assertLessEqual(fold["roughness"], 0.6 * fold["largest_offset"])
+        self.assertLessEqual(fold["roughness"], 0.45 * fold["largest_offset"])
 
     def test_a_wrist_alone(self):
         # A small joint on a big mesh: the wrist bent 40 degrees loses 7 % of the hand's region but 0.007 % of

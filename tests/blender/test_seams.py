@@ -67,8 +67,8 @@ class TestGLTFHand(unittest.TestCase):
                 positions = helpers.evaluated_positions(self.split)
                 plain = quality.count_crossing_pairs(helpers.uncorrected_positions(self.split), self.split_mesh)
                 corrected = quality.count_crossing_pairs(positions, self.split_mesh)
-                print("\n    split hand, frame %d: crossing pairs plain %d, with Fold-Over %d" % (frame, plain, corrected),
-                      end="")
+                print("\n    split hand, frame %d: crossing pairs plain %d, with Fold-Over %d"
+                      % (frame, plain, corrected), end="")
                 self.assertLessEqual(corrected, plain // 2, "frame %d" % frame)
         finally:
             for obj in (self.hand, self.split):

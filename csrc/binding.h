@@ -313,7 +313,6 @@ typedef struct lvp__joint {
 	lvp__vec3 axis;            /* posed bend axis, unit */
 	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
 	double reach;              /* along the axis: the child bone's flesh radius */
-	double half_bend_sine;     /* sine of half the angle the child turned by against the parent */
 	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
 	double window;             /* the crease's skin that may cross the plane (foldover.c) */
 	int32_t child, parent;     /* the two bones: the child turns about its head */

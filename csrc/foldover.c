@@ -66,6 +66,13 @@ static double lvp__motion_apart(const lvp_binding *binding, int32_t s, int32_t j
 	                            lvp__transform_point(&binding->rig.skin[j], p)));
 }
 
+/* How far the parent's bone passes from the child's head, at rest. */
+static double lvp__parent_distance(const lvp_binding *binding, int32_t child, int32_t parent)
+{
+	const lvp__rig *rig = &binding->rig;
+	return lvp__segment_distance(rig->heads[child], rig->heads[parent], rig->tails[parent]);
+}
+
 /* The joint of bones s and j: the head of one of them (the child's, where a bone turns about its
  * parent) that their relative motion leaves in place, while it moves the bones' other ends apart.
  * Found from the motion, so the rig's hierarchy is not needed, and a pair that meets without a
@@ -83,9 +90,7 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	/* Both heads in place: the bones turn about one line through both (two thighs raised alike
 	 * turn about the line through the hips). A joint only when the child's head lies in the
 	 * parent's flesh; two thighs' skins meet at the crotch, but nothing there folds. */
-	if (fmax(at_j, at_s) <= 0.1 * moved &&
-	    !(lvp__segment_distance(rig->heads[child], rig->heads[parent], rig->tails[parent]) <=
-	      binding->fold.radius[parent]))
+	if (fmax(at_j, at_s) <= 0.1 * moved && !(lvp__parent_distance(binding, child, parent) <= binding->fold.radius[parent]))
 		return false;
 	*r_child = child;
 	return true;
@@ -107,7 +112,6 @@ static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 
 	if (!(lvp__length(normal) > 1e-3) || !(lvp__length(axis) > 1e-3))
 		return false;
 	r_joint->normal = lvp__unit(normal);
-	r_joint->half_bend_sine = lvp__length(lvp__cross(unbent, r_joint->normal));
 	r_joint->axis = lvp__unit(axis);
 	r_joint->concave = lvp__unit(concave);
 	return true;
@@ -208,13 +212,6 @@ static void lvp__place_at_border(const lvp_binding *binding, const float *rest, 
 	    lvp__add(joint->rest_point, lvp__scale(joint->rest_normal, fmax(-most, fmin(most, at_rest / weight))));
 }
 
-/* How far the parent's bone passes from the child's head, at rest. */
-static double lvp__parent_distance(const lvp_binding *binding, const lvp__joint *joint)
-{
-	const lvp__rig *rig = &binding->rig;
-	return lvp__segment_distance(rig->heads[joint->child], rig->heads[joint->parent], rig->tails[joint->parent]);
-}
-
 /* A bone whose skin meets the skin of several bones it turns against (the upper arm's meets the
  * spine's, the shoulder's and the breast's) folds at one crease: all its joints as the child take
  * the plane of the one whose parent's bone passes nearest its head, the bone it hangs from. Each
@@ -232,7 +229,8 @@ static void lvp__share_child_planes(lvp_binding *binding)
 		if (!joints[n].bends)
 			continue;
 		int32_t *best = &plane_entry[joints[n].child];
-		if (*best < 0 || lvp__parent_distance(binding, &joints[n]) < lvp__parent_distance(binding, &joints[*best]))
+		if (*best < 0 || lvp__parent_distance(binding, joints[n].child, joints[n].parent) <
+		                     lvp__parent_distance(binding, joints[*best].child, joints[*best].parent))
 			*best = n;
 	}
 	for (int32_t n = 0; n < entries; ++n) {
@@ -278,16 +276,18 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
 			joint->rest_normal = lvp__unit(direction);
-			if (!lvp__contact_plane(joint, lvp__transform_vector(&rig->skin[parent], direction),
-			                        lvp__transform_vector(&rig->skin[child], direction)))
+			lvp__vec3 unbent = lvp__transform_vector(&rig->skin[parent], direction);
+			if (!lvp__contact_plane(joint, unbent, lvp__transform_vector(&rig->skin[child], direction)))
 				continue;
+			/* The sine of half the bend: the normal lies halfway between unbent and bent. */
+			double sine = lvp__length(lvp__cross(lvp__unit(unbent), joint->normal));
 			if (child == s) { /* the normals point from s's side to j's */
 				joint->normal = lvp__scale(joint->normal, -1.0);
 				joint->rest_normal = lvp__scale(joint->rest_normal, -1.0);
 			}
 			joint->reach = binding->fold.radius[child];
-			double sine = joint->half_bend_sine; /* cos(bend) = 1 - 2 sin(bend / 2)^2 */
 			joint->soft = LVP__SOFT_CONTACT * joint->reach * sine;
+			/* cos(bend) = 1 - 2 sin(bend / 2)^2 */
 			joint->window = LVP__CREASE_WINDOW * joint->reach * fmax(0.0, 1.0 - 2.0 * sine * sine);
 			joint->bends = joint->reach > 0.0;
 			/* Of a group (a B-Bone's joints), only the first meets the parent at a crease: the

@@ -42,6 +42,7 @@ void lvp_free(lvp_binding *binding)
 	free(binding->rest_positions);
 	lvp__weld_free(&binding->weld);
 	lvp__rig_free(&binding->rig);
+	lvp__bone_lines_free(&binding->lines);
 	lvp__mesh_free(&binding->mesh);
 	lvp__reach_free(&binding->reach);
 	lvp__map_free(&binding->map);
@@ -202,8 +203,11 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 		return lvp__bind_out_of_memory(binding, r_diag);
 	memcpy(binding->rest_positions, rest_positions, sizeof(float) * 3 * (size_t)vertex_count);
 	memcpy(binding->mesh.triangles, triangles, sizeof(int32_t) * 3 * (size_t)triangle_count);
-	if (has_skeleton)
+	if (has_skeleton) {
 		lvp__rig_copy(binding, weights, skeleton);
+		if (!lvp__build_bone_lines(binding, skeleton, options->bone_groups))
+			return lvp__bind_out_of_memory(binding, r_diag);
+	}
 
 	if ((result = lvp__segment(binding, r_diag))) {
 		lvp_free(binding);

@@ -106,16 +106,25 @@ typedef struct lvp__rig {
 	int32_t *bone_source;     /* per bone: its caller's bone; NULL when none is a copy */
 	lvp__mat4 *rest_matrices, *rest_inverse;
 	double *rest_det;         /* det of the rest matrices' 3x3 part */
-	lvp__vec3 *heads, *tails;
-	double *bone_length;
-	double reach;             /* the farthest rest head or tail from the mesh's origin */
+	lvp__vec3 *heads;
+	lvp__vec3 *tails;         /* the caller's: only a B-Bone's joints use them (bone_lines.c) */
 	/* This frame (lvp__prepare_frame): */
 	lvp__mat4 *posed, *posed_inverse;
 	lvp__mat4 *skin;          /* posed * rest^-1 */
-	lvp__vec3 *posed_heads, *posed_tails;
+	lvp__vec3 *posed_heads;
 	double *kappa;            /* per region: det(rest) / det(posed) of its bone */
 	uint8_t *region_skipped;  /* per region: its bone is scaled to zero (lvp.h, the documented fallback) */
 } lvp__rig;
+
+/* Where each bone runs through its flesh at rest (bone_lines.c): segments taken from the joints
+ * and the skin, never from the caller's tails. */
+typedef struct lvp__bone_lines {
+	int32_t *offsets;         /* bone_count+1 into from and to */
+	lvp__vec3 *from, *to;     /* the segments of each bone */
+	lvp__vec3 *end;           /* per bone: where it points from its head (its children's heads' mean) */
+	double *length;           /* per bone: |end - head|; 0 for a bone that is a point */
+	double reach;             /* the farthest head or segment end from the mesh's origin */
+} lvp__bone_lines;
 
 /* The bound mesh as the method walks it (segmentation.c): regions, triangles sorted by region,
  * and the adjacency every stage uses. */
@@ -409,6 +418,7 @@ struct lvp_binding {
 
 	lvp__weld weld;
 	lvp__rig rig;
+	lvp__bone_lines lines;
 	lvp__mesh mesh;
 	lvp__reach reach;
 	lvp__map map;
@@ -545,6 +555,14 @@ static inline int32_t lvp__vertex_point(const lvp_binding *binding, int32_t k)
 {
 	return binding->weld.vertex_point ? binding->weld.vertex_point[k] : k;
 }
+
+/* bone_lines.c */
+/* The bones' lines (lvp__bone_lines), after lvp__rig_copy; bone_groups as lvp_bind_options'.
+ * False when out of memory. */
+bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, const int32_t *bone_groups);
+/* Rest distance from p to the nearest of the bone's segments (INFINITY for a bone without any). */
+double lvp__bone_distance(const lvp_binding *binding, int32_t bone, lvp__vec3 p);
+void lvp__bone_lines_free(lvp__bone_lines *lines);
 
 /* rig.c */
 /* Copies the weights, normalized by their sum (their bones are already in weight_bones,

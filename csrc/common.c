@@ -157,6 +157,12 @@ lvp_result lvp__check_skeleton(const lvp_skeleton *skeleton, lvp_diagnostic *r_d
 		return result;
 	if ((result = lvp__check_float_array(skeleton->tails, n * 3, "skeleton.tails", r_diag)))
 		return result;
+	for (int64_t i = 0; skeleton->parents && i < n; ++i)
+		if (skeleton->parents[i] < -1 || skeleton->parents[i] >= n || skeleton->parents[i] == i)
+			return lvp__fail(r_diag, lvp_error_index_out_of_range, "skeleton.parents", i,
+			                 "skeleton.parents[%lld] is %d; a bone's parent is another of the %lld bones "
+			                 "(0 to %lld), or -1 for none.",
+			                 (long long)i, (int)skeleton->parents[i], (long long)n, (long long)(n - 1));
 	for (int64_t i = 0; i < n; ++i) {
 		lvp__mat4 m = lvp__mat4_load(skeleton->rest_matrices + 16 * i), inverse;
 		if (!lvp__mat4_invert_affine(&inverse, &m))

@@ -69,8 +69,7 @@ static double lvp__motion_apart(const lvp_binding *binding, int32_t s, int32_t j
 /* How far the parent's bone passes from the child's head, at rest. */
 static double lvp__parent_distance(const lvp_binding *binding, int32_t child, int32_t parent)
 {
-	const lvp__rig *rig = &binding->rig;
-	return lvp__segment_distance(rig->heads[child], rig->heads[parent], rig->tails[parent]);
+	return lvp__bone_distance(binding, parent, binding->rig.heads[child]);
 }
 
 /* The joint of bones s and j: the head of one of them (the child's, where a bone turns about its
@@ -82,8 +81,8 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	const lvp__rig *rig = &binding->rig;
 	double at_j = lvp__motion_apart(binding, s, j, rig->heads[j]);
 	double at_s = lvp__motion_apart(binding, s, j, rig->heads[s]);
-	double moved = fmax(fmax(at_j, at_s), fmax(lvp__motion_apart(binding, s, j, rig->tails[s]),
-	                                           lvp__motion_apart(binding, s, j, rig->tails[j])));
+	double moved = fmax(fmax(at_j, at_s), fmax(lvp__motion_apart(binding, s, j, binding->lines.end[s]),
+	                                           lvp__motion_apart(binding, s, j, binding->lines.end[j])));
 	if (!(moved > 0.0) || !(fmin(at_j, at_s) <= 0.1 * moved))
 		return false;
 	int32_t child = at_j <= at_s ? j : s, parent = child == s ? j : s;
@@ -253,18 +252,18 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	const lvp__rig *rig = &binding->rig;
+	const lvp__bone_lines *lines = &binding->lines;
 	memset(binding->fold.contact, 0, (size_t)binding->mesh.neighbour_offsets[binding->region_count]);
 	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
 			lvp__joint *joint = &binding->fold.joints[n];
 			int32_t j = binding->mesh.neighbour_bones[n], child;
 			joint->bends = false;
-			if (rig->region_skipped[s] || rig->region_skipped[j] || !(rig->bone_length[s] > 0.0) ||
-			    !(rig->bone_length[j] > 0.0) || !lvp__bends(binding, s, j))
+			if (rig->region_skipped[s] || rig->region_skipped[j] || !(lines->length[s] > 0.0) ||
+			    !(lines->length[j] > 0.0) || !lvp__bends(binding, s, j))
 				continue;
-			/* The joints of one B-Bone share its segment and bend all along it, not at its head. */
-			if (lvp__length(lvp__sub(rig->heads[s], rig->heads[j])) <= 1e-6 * rig->bone_length[s] &&
-			    lvp__length(lvp__sub(rig->tails[s], rig->tails[j])) <= 1e-6 * rig->bone_length[s])
+			/* The joints of one B-Bone (one group) bend all along it, not at its head. */
+			if (binding->system.group_leader[s] == binding->system.group_leader[j])
 				continue;
 			if (!lvp__joint_child(binding, s, j, &child))
 				continue;
@@ -272,7 +271,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->child = child;
 			joint->parent = parent;
 			joint->child_side = child == s;
-			lvp__vec3 direction = lvp__sub(rig->tails[child], rig->heads[child]); /* at rest */
+			lvp__vec3 direction = lvp__sub(lines->end[child], rig->heads[child]); /* at rest */
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
 			joint->rest_normal = lvp__unit(direction);
@@ -321,7 +320,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 				continue;
 			int32_t j = binding->mesh.neighbour_bones[n];
 			/* The skin of the two sides does not quite touch. */
-			double gap = 1e-4 * (binding->rig.bone_length[s] + binding->rig.bone_length[j]);
+			double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
 			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
 			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
@@ -407,8 +406,8 @@ static void lvp__flesh_radii(lvp_binding *binding)
 		int32_t first = binding->mesh.region_vertex_offsets[s], end = binding->mesh.region_vertex_offsets[s + 1];
 		double sum = 0.0;
 		for (int32_t i = first; i < end; ++i)
-			sum += lvp__segment_distance(lvp__load(binding->rest_positions + 3 * binding->mesh.region_vertices[i]),
-			                             binding->rig.heads[s], binding->rig.tails[s]);
+			sum += lvp__bone_distance(binding, s,
+			                          lvp__load(binding->rest_positions + 3 * binding->mesh.region_vertices[i]));
 		binding->fold.radius[s] = end > first ? sum / (end - first) : 0.0;
 	}
 }

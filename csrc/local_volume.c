@@ -388,7 +388,7 @@ void lvp__reference_volumes(lvp_binding *binding)
 			lvp__vec3 p2 = lvp__load(rest + 3 * binding->mesh.triangles[3 * t + 2]);
 			double area = 0.5 * lvp__length(lvp__cross(lvp__sub(p1, p0), lvp__sub(p2, p0)));
 			lvp__vec3 centroid = lvp__scale(lvp__add(lvp__add(p0, p1), p2), 1.0 / 3.0);
-			volume += area * lvp__segment_distance(centroid, binding->rig.heads[r], binding->rig.tails[r]) / 3.0;
+			volume += area * lvp__bone_distance(binding, r, centroid) / 3.0;
 		}
 		binding->measure.reference_volume[r] = volume;
 	}

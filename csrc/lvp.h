@@ -90,11 +90,27 @@
  *   only touch at a vertex stay apart. The API still speaks of the caller's vertices:
  *   lvp_vertex_count(), the per-vertex outputs and the arrays the calls take.
  *
+ * BONE LINES (where each bone runs through its flesh at rest)
+ *
+ *   The method measures distances to the bones (the organic map's d, the bulge's reach, the
+ *   flesh radius, an open region's reference volume) and bends skin about them (fold-over).
+ *   Skinning moves the skin by the heads, the weights and the bones' transforms alone, never by
+ *   a tail or a roll, which importers guess; so the core takes each bone's line from the joints
+ *   and the skin, and the same skinning gives the same correction however the tails and rolls
+ *   point. A bone with children (lvp_skeleton.parents) runs from its head to each child's head
+ *   that lies away from it: a palm to every knuckle, a pelvis to the spine and both hips. A bone
+ *   without runs from its head into the skin it dominates (area-weighted): towards the skin's
+ *   centroid (its principal axis when the head sits at the centroid), from a flesh radius inside
+ *   where the skin ends behind the head to a flesh radius inside where it ends ahead. Without
+ *   parents every bone is taken as one without children. The joints of a B-Bone (bones grouped
+ *   by lvp_bind_options.bone_groups) keep the caller's head and tail, whose curve does move the
+ *   skin, and a bone whose tail is its head is a point.
+ *
  * CORRECTION MAPS (gamma: where the volume goes; paper 4 and 5.3)
  *
  *   With w_k = max_i omega_ki (the vertex's largest normalized weight) and d_k the rest
- *   distance from vertex k to the nearest bone segment (optionally among chosen bones only,
- *   per region: paper Fig. 11):
+ *   distance from vertex k to the nearest bone line (BONE LINES; optionally among chosen bones
+ *   only, per region: paper Fig. 11):
  *     LVP_MAP_ORGANIC (default)  gamma_k = (1 - w_k)^alpha * d_k^beta            (eq. 7)
  *     LVP_MAP_RUBBER             gamma_k = (1 - w_k)^alpha                        (4.2)
  *     LVP_MAP_BOUNDARY_FADE      gamma_sk = max(2 w_k - 1, 0)^alpha * d_k^beta    (eq. 8 literal)
@@ -392,8 +408,13 @@ lvp_result lvp_skin_dual_quaternion(float *r_positions, const float *rest_positi
 typedef struct lvp_skeleton {
 	int32_t bone_count;
 	const float *rest_matrices; /* bone_count*16: the bone frames at rest (T-bar_i), invertible */
-	const float *heads;         /* bone_count*3: rest position of the bone segment's start */
-	const float *tails;         /* bone_count*3: rest position of its end (may equal the head) */
+	const float *heads;         /* bone_count*3: rest position of the bone's head (its joint) */
+	const float *tails;         /* bone_count*3: rest position of its end (may equal the head); read
+	                               by lvp_auto_weights, and by lvp_bind for the joints of a B-Bone
+	                               only (BONE LINES) */
+	const int32_t *parents;     /* bone_count, or NULL: each bone's parent among these bones (the
+	                               nearest ancestor that is one of them), -1 for none; lvp_bind
+	                               takes the bones' lines from it (BONE LINES) */
 } lvp_skeleton;
 
 /* ---------------------------------------------------------------------------------------

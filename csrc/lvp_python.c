@@ -28,8 +28,8 @@
 #define LVP_PY__VERSION_STRING(major, minor, patch)                                                                 \
 	LVP_PY__STRINGIFY(major) "." LVP_PY__STRINGIFY(minor) "." LVP_PY__STRINGIFY(patch)
 
-/* The most buffers one call takes (Binding: mesh, weights, skeleton and map arrays). */
-#define LVP_PY__MAX_BUFFERS 12
+/* The most buffers one call takes (Binding: mesh, weights, skeleton, parents and map arrays). */
+#define LVP_PY__MAX_BUFFERS 13
 
 /* ---- buffers ------------------------------------------------------------------------------------------- */
 
@@ -407,6 +407,7 @@ static const lvp_py__rename lvp_py__common_renames[] = {
     {"skeleton.rest_matrices", "rest_matrices"},
     {"skeleton.heads", "heads"},
     {"skeleton.tails", "tails"},
+    {"skeleton.parents", "parents"},
     {"triangle_count", "triangles"},
     {"options.thread_count", "threads"},
     {"options.bulge_width", "bulge_width"},
@@ -922,22 +923,22 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	                           "weight_values",  "rest_matrices", "heads",            "tails",
 	                           "mode",           "map",       "alpha",               "beta",
 	                           "painted",        "region_bone_offsets", "region_bones", "threads",
-	                           "bone_groups",    "bulge_width", NULL};
+	                           "bone_groups",    "bulge_width", "parents", NULL};
 	PyObject *rest_object, *triangles_object, *offsets_object, *bones_object, *values_object;
 	PyObject *matrices_object, *heads_object, *tails_object, *mode = NULL, *threads = NULL, *groups_object = NULL;
-	PyObject *bulge_width = NULL;
+	PyObject *bulge_width = NULL, *parents_object = NULL;
 	lvp_py__map_arguments map_arguments = {NULL, NULL, NULL, NULL, NULL, NULL};
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOOOO:Binding", keywords, &rest_object,
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOOOOO|$OOOOOOOOOOO:Binding", keywords, &rest_object,
 	                                 &triangles_object, &offsets_object, &bones_object, &values_object,
 	                                 &matrices_object, &heads_object, &tails_object, &mode, &map_arguments.map,
 	                                 &map_arguments.alpha, &map_arguments.beta, &map_arguments.painted,
 	                                 &map_arguments.region_bone_offsets, &map_arguments.region_bones, &threads,
-	                                 &groups_object, &bulge_width))
+	                                 &groups_object, &bulge_width, &parents_object))
 		return NULL;
 	lvp_py__call call;
 	lvp_bind_options options = lvp_bind_default_options();
 	int mode_index = (int)options.mode;
-	lvp_py__array rest, triangles, offsets, bones, values, groups;
+	lvp_py__array rest, triangles, offsets, bones, values, groups, parents;
 	const lvp_py__array *weight_parts[3] = {&offsets, &bones, &values};
 	bool weights_given = false;
 	lvp_skeleton skeleton;
@@ -959,9 +960,13 @@ static PyObject *lvp_py__binding_new(PyTypeObject *type, PyObject *args, PyObjec
 	    (weights_given && lvp_py__expect_weights(&call, &offsets, &bones, &values, vertex_count) != 0) ||
 	    lvp_py__take(&call, &groups, groups_object, "bone_groups", LVP_PY__INT32, false, true) != 0 ||
 	    (skeleton.rest_matrices &&
-	     lvp_py__expect_count(&call, &groups, skeleton.bone_count, "one per bone of rest_matrices") != 0))
+	     lvp_py__expect_count(&call, &groups, skeleton.bone_count, "one per bone of rest_matrices") != 0) ||
+	    lvp_py__take(&call, &parents, parents_object, "parents", LVP_PY__INT32, false, true) != 0 ||
+	    (skeleton.rest_matrices &&
+	     lvp_py__expect_count(&call, &parents, skeleton.bone_count, "one per bone of rest_matrices") != 0))
 		return lvp_py__abandon(&call);
 	options.mode = (lvp_mode)mode_index;
+	skeleton.parents = parents.given && skeleton.rest_matrices ? parents.data : NULL;
 	options.bone_groups = groups.given && skeleton.rest_matrices ? groups.data : NULL; /* none: the core says so */
 	lvp_weights weights = {offsets.data, bones.data, values.data};
 	lvp_binding *binding = NULL;
@@ -1344,7 +1349,8 @@ static PyGetSetDef lvp_py__binding_getset[] = {
 static PyType_Slot lvp_py__binding_slots[] = {
     {Py_tp_doc, "Binding(rest_positions, triangles, weight_offsets, weight_bones, weight_values, rest_matrices, "
                 "heads, tails, *, mode='LOCAL', map='ORGANIC', alpha=1.0, beta=1.0, painted=None, "
-                "region_bone_offsets=None, region_bones=None, threads=1, bone_groups=None, bulge_width=0.0)\n"
+                "region_bone_offsets=None, region_bones=None, threads=1, bone_groups=None, bulge_width=0.0, "
+                "parents=None)\n"
                 "A mesh bound to its skeleton and weights at rest; corrects frames. One call at a time per object."},
     {Py_tp_new, lvp_py__binding_new},
     {Py_tp_dealloc, lvp_py__binding_dealloc},

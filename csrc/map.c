@@ -61,7 +61,7 @@ static double lvp__vertex_distance(const lvp_binding *binding, int32_t k, const 
 	double best = INFINITY;
 	for (int32_t i = 0; i < bone_count; ++i) {
 		int32_t bone = bones ? bones[i] : i;
-		double d = lvp__segment_distance(p, binding->rig.heads[bone], binding->rig.tails[bone]);
+		double d = lvp__bone_distance(binding, bone, p);
 		best = d < best ? d : best;
 	}
 	return isfinite(best) ? best : 0.0;

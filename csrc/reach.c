@@ -81,7 +81,7 @@ static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, cons
 		double thickness = INFINITY, edges = 0.0;
 		for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e) {
 			int32_t bone = binding->rig.weight_bones[e];
-			thickness = fmin(thickness, lvp__segment_distance(p, binding->rig.heads[bone], binding->rig.tails[bone]));
+			thickness = fmin(thickness, lvp__bone_distance(binding, bone, p));
 		}
 		int32_t begin = diffusion->neighbour_offsets[k], end = diffusion->neighbour_offsets[k + 1];
 		for (int32_t e = begin; e < end; ++e)

@@ -26,7 +26,6 @@ static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 /* The internal bones: each a copy of its caller's bone (binding.h). */
 static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
 {
-	binding->rig.reach = 0.0;
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
 		int32_t source = lvp__caller_bone(binding, i);
 		binding->rig.rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
@@ -34,9 +33,6 @@ static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleto
 		binding->rig.rest_det[i] = lvp__mat4_det3(&binding->rig.rest_matrices[i]);
 		binding->rig.heads[i] = lvp__load(skeleton->heads + 3 * source);
 		binding->rig.tails[i] = lvp__load(skeleton->tails + 3 * source);
-		binding->rig.bone_length[i] = lvp__length(lvp__sub(binding->rig.tails[i], binding->rig.heads[i]));
-		binding->rig.reach =
-		    fmax(binding->rig.reach, fmax(lvp__length(binding->rig.heads[i]), lvp__length(binding->rig.tails[i])));
 	}
 }
 
@@ -71,7 +67,6 @@ lvp_result lvp__prepare_frame(lvp_binding *binding, const float *bone_matrices, 
 			binding->rig.posed[i] = lvp__mat4_load(bone_matrices + 16 * source);
 			binding->rig.skin[i] = lvp__mat4_mul(&binding->rig.posed[i], &binding->rig.rest_inverse[i]);
 			binding->rig.posed_heads[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.heads[i]);
-			binding->rig.posed_tails[i] = lvp__transform_point(&binding->rig.skin[i], binding->rig.tails[i]);
 			bool invertible = lvp__mat4_invert_affine(&binding->rig.posed_inverse[i], &binding->rig.posed[i]);
 			if (binding->mode != LVP_MODE_LOCAL)
 				continue;
@@ -99,12 +94,10 @@ bool lvp__rig_alloc(lvp_binding *binding, const lvp_weights *weights)
 		rig->rest_det = lvp__calloc(b, sizeof(double), &ok);
 		rig->heads = lvp__calloc(b, sizeof(lvp__vec3), &ok);
 		rig->tails = lvp__calloc(b, sizeof(lvp__vec3), &ok);
-		rig->bone_length = lvp__calloc(b, sizeof(double), &ok);
 		rig->posed = lvp__calloc(b, sizeof(lvp__mat4), &ok);
 		rig->posed_inverse = lvp__calloc(b, sizeof(lvp__mat4), &ok);
 		rig->skin = lvp__calloc(b, sizeof(lvp__mat4), &ok);
 		rig->posed_heads = lvp__calloc(b, sizeof(lvp__vec3), &ok);
-		rig->posed_tails = lvp__calloc(b, sizeof(lvp__vec3), &ok);
 	}
 	rig->kappa = lvp__calloc(s, sizeof(double), &ok);
 	rig->region_skipped = lvp__calloc(s, sizeof(uint8_t), &ok);
@@ -115,8 +108,8 @@ void lvp__rig_free(lvp__rig *rig)
 {
 	void *arrays[] = {rig->weight_offsets, rig->weight_bones, rig->weight_values, rig->bone_source,
 	                  rig->rest_matrices, rig->rest_inverse, rig->rest_det, rig->heads, rig->tails,
-	                  rig->bone_length, rig->posed, rig->posed_inverse, rig->skin, rig->posed_heads,
-	                  rig->posed_tails, rig->kappa, rig->region_skipped};
+	                  rig->posed, rig->posed_inverse, rig->skin, rig->posed_heads, rig->kappa,
+	                  rig->region_skipped};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

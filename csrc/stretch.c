@@ -45,8 +45,8 @@ static lvp_result lvp__stretch_out_of_memory(lvp_diagnostic *r_diag)
 /* Where the relative stretch of bones r and b is taken about (see the top of the file). */
 static lvp__vec3 lvp__pair_centre(const lvp_binding *binding, int32_t r, int32_t b)
 {
-	double head_b_to_r = lvp__segment_distance(binding->rig.heads[b], binding->rig.heads[r], binding->rig.tails[r]);
-	double head_r_to_b = lvp__segment_distance(binding->rig.heads[r], binding->rig.heads[b], binding->rig.tails[b]);
+	double head_b_to_r = lvp__bone_distance(binding, r, binding->rig.heads[b]);
+	double head_r_to_b = lvp__bone_distance(binding, b, binding->rig.heads[r]);
 	return head_b_to_r <= head_r_to_b ? binding->rig.heads[b] : binding->rig.heads[r];
 }
 

@@ -249,7 +249,7 @@ static void test_awkward_meshes_have_defined_outcomes(void)
 	memcpy(posed, s.posed, sizeof(float) * 32);
 	memcpy(posed + 32, s.posed + 16, sizeof(float) * 16);
 	lvp_weights weights = {offsets, rig->weight_bones, rig->weight_values};
-	lvp_skeleton skeleton = {3, matrices, heads, tails};
+	lvp_skeleton skeleton = {3, matrices, heads, tails, NULL};
 	lvp_binding *binding = NULL;
 	lvp_diagnostic diag;
 	CHECK_OK(lvp_bind(&binding, positions, n + 1, triangles, kept + 2, &weights, &skeleton, NULL, &diag), diag);

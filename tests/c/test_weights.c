@@ -99,7 +99,7 @@ static void add_bone(builder *b, double hx, double hy, double hz, double tx, dou
 
 static lvp_skeleton skeleton_of(const builder *b)
 {
-	lvp_skeleton s = {b->bone_count, b->rest_matrices, b->heads, b->tails};
+	lvp_skeleton s = {b->bone_count, b->rest_matrices, b->heads, b->tails, NULL};
 	return s;
 }
 

@@ -140,6 +140,7 @@ typedef struct fuzz_case {
 	int32_t *weight_bones;
 	float *weight_values;
 	float *rest_matrices, *heads, *tails; /* bone_count*16, *3, *3 */
+	int32_t *parents;                     /* bone_count: see fuzz_parents */
 	float *posed;                         /* bone_count*16: posed bone frames */
 	float *skin;                          /* bone_count*16: posed * rest^-1, or posed when singular */
 	float *deformed;                      /* vertex_count*3: this frame's positions */
@@ -168,6 +169,7 @@ static void fuzz_case_free(fuzz_case *c)
 	free(c->rest_matrices);
 	free(c->heads);
 	free(c->tails);
+	free(c->parents);
 	free(c->posed);
 	free(c->skin);
 	free(c->deformed);
@@ -186,6 +188,7 @@ static void fuzz_case_allocate(fuzz_case *c)
 	c->rest_matrices = fuzz_alloc((size_t)c->bone_count * 16, sizeof(float));
 	c->heads = fuzz_alloc((size_t)c->bone_count * 3, sizeof(float));
 	c->tails = fuzz_alloc((size_t)c->bone_count * 3, sizeof(float));
+	c->parents = fuzz_alloc((size_t)c->bone_count, sizeof(int32_t));
 	c->posed = fuzz_alloc((size_t)c->bone_count * 16, sizeof(float));
 	c->skin = fuzz_alloc((size_t)c->bone_count * 16, sizeof(float));
 	c->deformed = fuzz_alloc((size_t)c->vertex_count * 3, sizeof(float));
@@ -842,14 +845,29 @@ static void fuzz_correct(lvp_binding *binding, fuzz_case *c, uint8_t how, const 
 	free(before);
 }
 
+/* The bones' parents, from the heads so that the corpus decodes as before: a bone hangs from the one
+ * before it where its head's x is positive, from the first where it is negative, from none at 0 or
+ * NaN; with flag 0x10 none are given. */
+static const int32_t *fuzz_parents(fuzz_case *c, int32_t bone_count, uint8_t flags)
+{
+	if (flags & 0x10)
+		return NULL;
+	for (int32_t b = 0; b < bone_count; ++b) {
+		float x = c->heads[3 * b];
+		c->parents[b] = b == 0 ? -1 : x > 0.0f ? b - 1 : x < 0.0f ? 0 : -1;
+	}
+	return c->parents;
+}
+
 /* Binds with the given weights and runs frames, a map change and more frames. */
 static void fuzz_bind_and_run(fuzz_case *c, fuzz_reader *r, const lvp_weights *weights, int32_t vertex_count,
                               int32_t triangle_count, int32_t bone_count)
 {
-	lvp_skeleton skeleton = {bone_count, c->rest_matrices, c->heads, c->tails};
+	lvp_skeleton skeleton = {bone_count, c->rest_matrices, c->heads, c->tails, NULL};
 	uint8_t flags = fuzz_byte(r);
 	if (flags & 0x10)
 		skeleton.rest_matrices = NULL;
+	skeleton.parents = bone_count <= c->bone_count ? fuzz_parents(c, bone_count, flags) : NULL;
 	lvp_bind_options options = lvp_bind_default_options();
 	options.mode = (flags & 1) ? LVP_MODE_GLOBAL : LVP_MODE_LOCAL;
 	if ((flags & 0x60) == 0x60)
@@ -982,7 +1000,7 @@ static void fuzz_run(const uint8_t *data, size_t size)
 	}
 
 	/* Automatic weights, then a binding with them. */
-	lvp_skeleton skeleton = {bone_count, c.rest_matrices, c.heads, c.tails};
+	lvp_skeleton skeleton = {bone_count, c.rest_matrices, c.heads, c.tails, NULL};
 	lvp_auto_weights_options auto_options = lvp_auto_weights_default_options();
 	uint8_t auto_flags = fuzz_byte(r);
 	auto_options.alpha = fuzz_option_float(r, auto_options.alpha);

@@ -526,6 +526,24 @@ class TestBinding(unittest.TestCase):
         self.assertLess(abs(volume(out, tube.triangles) - rest_volume) / rest_volume, 1e-3)
         self.assertEqual(stats['active_regions'], 1)
 
+    def test_tails_do_not_change_the_correction(self):
+        # Skinning reads no tail: with the bones' parents given, the tails are not read either (lvp.h, BONE
+        # LINES). Tails pointing across the tube, as an importer may guess them, give the same offsets.
+        tube = Tube()
+        angle = math.radians(80)
+        positions, matrices = tube.skinned(angle), tube.bone_matrices(angle)
+        across = array.array('f', [-tube.length / 2, 0.3, 0, 0, 0, -0.7])
+        parents = array.array('i', [-1, 0])
+        offsets = []
+        for tails in (tube.tails, across):
+            out = zeros('f', 3 * tube.vertex_count)
+            binding = _lvp.Binding(tube.positions, tube.triangles, tube.weight_offsets, tube.weight_bones,
+                                   tube.weight_values, tube.rest_matrices, tube.heads, tails, parents=parents)
+            binding.correct(positions, matrices, out_offsets=out)
+            offsets.append(out)
+        self.assertGreater(max(abs(value) for value in offsets[0]), 1e-3)
+        self.assertEqual(offsets[0], offsets[1])
+
     def test_bulge_width(self):
         # A wider bulge restores the same volume with a smaller largest offset.
         tube = Tube()
@@ -772,16 +790,16 @@ class TestErrors(unittest.TestCase):
                 'rest_matrices': tube.rest_matrices, 'heads': tube.heads, 'tails': tube.tails,
                 'painted': array.array('f', [1.0] * tube.vertex_count),
                 'region_bone_offsets': array.array('i', [0, 1, 2]), 'region_bones': array.array('i', [0, 1]),
-                'bone_groups': array.array('i', [0, 1])}
+                'bone_groups': array.array('i', [0, 1]), 'parents': array.array('i', [-1, 0])}
 
     def test_binding_buffers(self):
         tube = Tube()
         optional = ('weight_offsets', 'weight_bones', 'weight_values', 'rest_matrices', 'heads', 'tails', 'painted',
-                    'region_bone_offsets', 'region_bones', 'bone_groups')
+                    'region_bone_offsets', 'region_bones', 'bone_groups', 'parents')
         self.check_every_buffer(_lvp.Binding, self.binding_arguments(tube), optional=optional)
         # None for one array of a group that must come together.
         for name in optional:
-            if name not in ('painted', 'bone_groups'):
+            if name not in ('painted', 'bone_groups', 'parents'):
                 with self.subTest(argument=name, bad='None alone'):
                     self.assertValueErrorNames(name, _lvp.Binding, **dict(self.binding_arguments(tube), **{name: None}))
 
@@ -826,6 +844,12 @@ class TestErrors(unittest.TestCase):
         # A group is named by a bone index, one per bone.
         self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0, 2])))
         self.assertValueErrorNames('bone_groups', _lvp.Binding, **dict(arguments, bone_groups=array.array('i', [0])))
+        # A parent is another bone, or -1.
+        for parents in ([-1, 2], [-2, 0], [0, 1]):
+            message = self.assertValueErrorNames('parents', _lvp.Binding,
+                                                 **dict(arguments, parents=array.array('i', parents)))
+            self.assertIn("-1 for none", message)
+        self.assertValueErrorNames('parents', _lvp.Binding, **dict(arguments, parents=array.array('i', [-1])))
         for bad in (-1.0, 9.0, math.nan, 'wide'):
             self.assertValueErrorNames('bulge_width', _lvp.Binding, **arguments, bulge_width=bad)
         # A character needs its weights and bones; only a prop in GLOBAL mode goes without.

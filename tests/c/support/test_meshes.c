@@ -50,7 +50,7 @@ lvp_weights test_rig_weights(const test_rig *rig)
 
 lvp_skeleton test_rig_skeleton(const test_rig *rig)
 {
-	lvp_skeleton s = {rig->bone_count, rig->rest_matrices, rig->heads, rig->tails};
+	lvp_skeleton s = {rig->bone_count, rig->rest_matrices, rig->heads, rig->tails, rig->parents};
 	return s;
 }
 

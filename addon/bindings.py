@@ -240,6 +240,7 @@ def bind(obj, depsgraph=None, inputs=None):
     try:
         binding = _lvp.Binding(positions, triangles, offsets, bones, values, rest_matrices, heads, tails,
                                mode=shape[0], threads=thread_count(), bone_groups=core_skeleton.bone_groups(),
+                               parents=core_skeleton.parents(),
                                bulge_width=bulge_width, **map_arguments(obj, settings, core_skeleton, inputs))
     except _lvp.Error as error:
         message = str(error)
@@ -280,12 +281,21 @@ def stray_vertex(positions, heads, tails):
     return index, farthest
 
 
+# The rule a binding is made by, recorded with each bind: a record of an earlier rule is bound by this one
+# when the file is opened, and the panel says so (RULE_CHANGED) until the next Bind. 1: each bone's line
+# comes from the joints and its skin, not from its tail (lvp.h, BONE LINES); 0: files bound before.
+BIND_RULE = 1
+RULE_CHANGED = ("this file was bound by an earlier version, whose correction followed the bones' tails; "
+                "it now follows the joints (press Bind to record it)")
+
+
 def new_bind_record(obj, bound):
     """Stores a fresh bind record on the object for bound and caches it (operators only)."""
     SESSION.forget(obj)
     SESSION.changes.expect_own_update(obj)  # bound was made of the mesh as it is now
     obj.lvp.bind_id = uuid.uuid4().hex
     obj.lvp.topology_signature = bound.topology
+    obj.lvp.bind_rule = BIND_RULE
     bound.recorded_as(obj.lvp.bind_id)
     SESSION.keep(obj, bound)
 
@@ -317,7 +327,7 @@ def ensure(obj, depsgraph=None):
     except BindError as error:
         SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    bound.recorded_as(settings.bind_id)
+    bound.recorded_as(settings.bind_id, RULE_CHANGED if settings.bind_rule < BIND_RULE else None)
     SESSION.keep(obj, bound)
     # Lazy binds are rare (file load, undo, rename): a good moment to drop the bindings of objects
     # that were renamed or deleted.
@@ -360,6 +370,6 @@ def rebind(obj, bound, depsgraph=None, reason=None, inputs=None):
     except BindError as error:
         SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    rebound.recorded_as(bound.bind_id, reason)
+    rebound.recorded_as(bound.bind_id, reason or (RULE_CHANGED if obj.lvp.bind_rule < BIND_RULE else None))
     SESSION.keep(obj, rebound)
     return rebound

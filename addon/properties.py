@@ -207,6 +207,10 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
     topology_signature: StringProperty(
         override=OVERRIDABLE,
         name="Topology Signature", description="Topology of the mesh at the last bind", options={'HIDDEN'})
+    bind_rule: IntProperty(
+        override=OVERRIDABLE,
+        name="Bind Rule", description="The rule the last bind was made by (bindings.BIND_RULE; 0: before the rules "
+                                      "were numbered)", options={'HIDDEN'}, default=0, min=0)
     previous_color_attribute: StringProperty(
         override=OVERRIDABLE,
         name="Previous Colour Attribute",

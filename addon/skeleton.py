@@ -25,7 +25,9 @@ dual quaternion) skinning of those joints is then exactly Blender's deformation,
 core's contract asks for (lvp.h, lvp_correct). Each joint is a region, measured in its own frame,
 so a curved B-Bone is measured along its curve. A joint's frame is pose_bone.matrix @
 bbone_segment_matrix(i) (rest: bone.matrix_local @ bbone_segment_matrix(i, rest=True)); its
-segment for the organic map's distances is the whole bone, from head to tail.
+line for the organic map's distances is the whole bone, from head to tail, since the tail shapes
+the curve. Every other bone's line the core takes from the joints (its children's heads) and its
+skin, never from its tail or roll (lvp.h, BONE LINES): importers guess those.
 
 The split uses the base mesh, as bound. Shape keys or modifiers before the Armature modifier that
 slide a vertex along a B-Bone change Blender's split slightly, which the binding does not follow.
@@ -123,6 +125,14 @@ def straight_segment(head_tail, segments):
     return index, blend
 
 
+def _bound_ancestor(bone, bound):
+    """The name of bone's nearest ancestor that is in bound (names), or None."""
+    parent = bone.parent
+    while parent is not None and parent.name not in bound:
+        parent = parent.parent
+    return None if parent is None else parent.name
+
+
 class CoreSkeleton:
     """The bones given to the core for one binding, read at bind time.
 
@@ -177,6 +187,7 @@ class CoreSkeleton:
         for name in bone_names:
             bone = data_bones[name]
             self._head_tail[name] = (premat @ Vector(bone.head_local), premat @ Vector(bone.tail_local))
+        self._bound_parent = {name: _bound_ancestor(data_bones[name], self.first_core_bone) for name in bone_names}
 
     @property
     def core_bone_count(self):
@@ -240,6 +251,21 @@ class CoreSkeleton:
             heads[3 * index:3 * index + 3] = array('f', head)
             tails[3 * index:3 * index + 3] = array('f', tail)
         return rest_matrices, heads, tails
+
+    def parents(self):
+        """Per core bone, the core bone it hangs from, or -1 (int32): the core takes each bone's line from its
+        children's heads (lvp.h, BONE LINES). A bone hangs from its nearest bound ancestor, at that bone's last
+        joint when it is a B-Bone; a B-Bone's joints hang one from the one before."""
+        parents = mesh_data.int_array(len(self.bones))
+        for index, (name, joint) in enumerate(self.bones):
+            if joint == STILL:
+                parents[index] = -1
+            elif joint > 0:
+                parents[index] = index - 1
+            else:
+                ancestor = self._bound_parent[name]
+                parents[index] = -1 if ancestor is None else self.core_bones_of(ancestor)[-1]
+        return parents
 
     def split_weights(self, pose, positions, offsets, bones, values):
         """Weights over bone_names (compressed rows, see mesh_data.weights_csr) -> weights over the core

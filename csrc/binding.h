@@ -108,6 +108,7 @@ typedef struct lvp__rig {
 	double *rest_det;         /* det of the rest matrices' 3x3 part */
 	lvp__vec3 *heads;
 	lvp__vec3 *tails;         /* the caller's: only a B-Bone's joints use them (bone_lines.c) */
+	double reach;             /* the farthest rest head from the mesh's origin */
 	/* This frame (lvp__prepare_frame): */
 	lvp__mat4 *posed, *posed_inverse;
 	lvp__mat4 *skin;          /* posed * rest^-1 */
@@ -116,14 +117,11 @@ typedef struct lvp__rig {
 	uint8_t *region_skipped;  /* per region: its bone is scaled to zero (lvp.h, the documented fallback) */
 } lvp__rig;
 
-/* Where each bone runs through its flesh at rest (bone_lines.c): segments taken from the joints
- * and the skin, never from the caller's tails. */
+/* Where each bone runs through its flesh at rest (bone_lines.c): a segment per bone, taken from
+ * the joints and the skin, never from the caller's tails. */
 typedef struct lvp__bone_lines {
-	int32_t *offsets;         /* bone_count+1 into from and to */
-	lvp__vec3 *from, *to;     /* the segments of each bone */
-	lvp__vec3 *end;           /* per bone: where it points from its head (its children's heads' mean) */
-	double *length;           /* per bone: |end - head|; 0 for a bone that is a point */
-	double reach;             /* the farthest head or segment end from the mesh's origin */
+	lvp__vec3 *from, *to;     /* per bone: its head, and where its line ends */
+	double *length;           /* per bone: |to - from|; 0 for a bone that is a point */
 } lvp__bone_lines;
 
 /* The bound mesh as the method walks it (segmentation.c): regions, triangles sorted by region,
@@ -560,7 +558,7 @@ static inline int32_t lvp__vertex_point(const lvp_binding *binding, int32_t k)
 /* The bones' lines (lvp__bone_lines), after lvp__rig_copy; bone_groups as lvp_bind_options'.
  * False when out of memory. */
 bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, const int32_t *bone_groups);
-/* Rest distance from p to the nearest of the bone's segments (INFINITY for a bone without any). */
+/* Rest distance from p to the bone's line. */
 double lvp__bone_distance(const lvp_binding *binding, int32_t bone, lvp__vec3 p);
 void lvp__bone_lines_free(lvp__bone_lines *lines);
 

@@ -7,13 +7,16 @@
  * Armature modifier moves the skin by the heads, the weights and the bones' transforms alone,
  * while importers guess tails (glTF stores joints, not bones; FBX adds leaf bones) and game and
  * retargeted rigs roll bones anyhow. So:
- * - a bone with children runs from its head to each child's head: a palm to every knuckle, a
- *   pelvis to the spine and both hips, a phalanx to the next. Only children that carry skin count:
- *   a leaf bone that moves nothing (FBX's `_end` bones, an IK target) says nothing of the flesh;
- * - a bone without (a fingertip, the head, a toe) runs from its head into its own skin (the
- *   vertices it dominates, weighted by area so that the tessellation does not count): towards the
- *   skin's centroid (its principal axis when the head sits at the centroid), from where the skin
- *   ends behind the head to where it ends ahead, each end a flesh radius inside the skin;
+ * - a bone with one child runs from its head to the child's head (a phalanx to the next). Only
+ *   children that carry skin and lie away from the head count: a leaf bone that moves nothing
+ *   (FBX's `_end` bones, an IK target) says nothing of the flesh;
+ * - a bone with several runs from its head to their heads' mean: a palm down the middle of the
+ *   hand, as a rig's own palm bone runs (a line to every knuckle put the palm's skin between the
+ *   knuckles as near its bone as the knuckles, and the hand bulged elsewhere from frame to frame);
+ * - a bone without (a fingertip, the head, a toe) runs from its head through the centroid of its
+ *   own skin (the points it dominates, weighted by their area so that the tessellation does not
+ *   count) to as far beyond it: to the tip of a finger whose skin reaches evenly from the joint
+ *   to the tip; a bone that dominates no skin is a point at its head;
  * - the joints of a B-Bone (bones of one group of more than one, lvp_bind_options.bone_groups)
  *   keep the caller's head and tail: the curve between them does move the skin;
  * - a bone whose caller gave it no length (the still bone of a masked Armature modifier) is a point.
@@ -21,15 +24,6 @@
 #include "binding.h"
 
 #include <stdlib.h>
-
-/* Per bone, what its own skin is made of, summed over the vertices it dominates. */
-typedef struct lvp__skin_sums {
-	double area;
-	lvp__vec3 moment;   /* sum a p: the area-weighted centroid times the area */
-	double second[6];   /* sum a p p^T about the head: xx, xy, xz, yy, yz, zz */
-	double ahead, behind; /* the furthest skin along the axis from the head, ahead and behind */
-	double radius;      /* sum a |p - the line|: the flesh radius times the area */
-} lvp__skin_sums;
 
 /* The dominant bone of point k (its largest weight; the first of equal ones), or -1. */
 static int32_t lvp__dominant_bone(const lvp_binding *binding, int32_t k)
@@ -44,49 +38,23 @@ static int32_t lvp__dominant_bone(const lvp_binding *binding, int32_t k)
 	return best;
 }
 
-/* Each point's area: a third of its triangles'. */
-static void lvp__point_areas(const lvp_binding *binding, double *r_area)
+/* Per bone, the area of the skin it dominates and that skin's area-weighted sum of positions: each
+ * point counts with a third of its triangles' area. */
+static void lvp__sum_skins(const lvp_binding *binding, double *r_area, lvp__vec3 *r_moment)
 {
 	const float *rest = binding->rest_positions;
 	for (int32_t t = 0; t < binding->triangle_count; ++t) {
 		const int32_t *v = binding->mesh.triangles + 3 * t;
-		lvp__vec3 a = lvp__load(rest + 3 * v[0]), b = lvp__load(rest + 3 * v[1]), c = lvp__load(rest + 3 * v[2]);
-		double third = lvp__length(lvp__cross(lvp__sub(b, a), lvp__sub(c, a))) / 6.0;
-		for (int i = 0; i < 3; ++i)
-			r_area[v[i]] += third;
+		lvp__vec3 p[3] = {lvp__load(rest + 3 * v[0]), lvp__load(rest + 3 * v[1]), lvp__load(rest + 3 * v[2])};
+		double third = lvp__length(lvp__cross(lvp__sub(p[1], p[0]), lvp__sub(p[2], p[0]))) / 6.0;
+		for (int i = 0; i < 3; ++i) {
+			int32_t bone = lvp__dominant_bone(binding, v[i]);
+			if (bone < 0)
+				continue;
+			r_area[bone] += third;
+			r_moment[bone] = lvp__add(r_moment[bone], lvp__scale(p[i], third));
+		}
 	}
-}
-
-/* The unit eigenvector of the largest eigenvalue of the symmetric matrix s (xx, xy, xz, yy, yz,
- * zz), by power iteration from the coordinate axis of the largest diagonal entry. */
-static lvp__vec3 lvp__principal_axis(const double s[6])
-{
-	lvp__vec3 v = s[0] >= s[3] && s[0] >= s[5] ? lvp__v(1.0, 0.0, 0.0)
-	              : (s[3] >= s[5] ? lvp__v(0.0, 1.0, 0.0) : lvp__v(0.0, 0.0, 1.0));
-	for (int i = 0; i < 64; ++i) {
-		lvp__vec3 w = lvp__v(s[0] * v.x + s[1] * v.y + s[2] * v.z, s[1] * v.x + s[3] * v.y + s[4] * v.z,
-		                     s[2] * v.x + s[4] * v.y + s[5] * v.z);
-		double length = lvp__length(w);
-		if (!(length > 0.0))
-			break;
-		v = lvp__scale(w, 1.0 / length);
-	}
-	return v;
-}
-
-/* The direction a bone without children points in, from its head h into its skin. */
-static lvp__vec3 lvp__skin_axis(const lvp__skin_sums *sums, lvp__vec3 h)
-{
-	lvp__vec3 centroid = lvp__scale(sums->moment, 1.0 / sums->area), towards = lvp__sub(centroid, h);
-	/* The spread of the skin about its centroid: sum a (p - h)(p - h)^T less the centroid's part. */
-	const lvp__vec3 c = towards;
-	double a = sums->area, spread[6] = {sums->second[0] / a - c.x * c.x, sums->second[1] / a - c.x * c.y,
-	                                    sums->second[2] / a - c.x * c.z, sums->second[3] / a - c.y * c.y,
-	                                    sums->second[4] / a - c.y * c.z, sums->second[5] / a - c.z * c.z};
-	double size = sqrt(fmax(0.0, spread[0] + spread[3] + spread[5]));
-	if (lvp__length(towards) > 1e-3 * size)
-		return lvp__scale(towards, 1.0 / lvp__length(towards));
-	return lvp__principal_axis(spread); /* the head in the middle of its skin */
 }
 
 static bool lvp__same_point(lvp__vec3 a, lvp__vec3 b, double tolerance)
@@ -109,98 +77,34 @@ static bool lvp__keeps_caller_segment(const lvp_binding *binding, const lvp_skel
 	return false;
 }
 
-/* The heads of caller bone c's children that carry skin (carries, per caller bone) and lie away
- * from its head, each once: r_heads (when not NULL) gets them; returns how many. */
-static int32_t lvp__child_heads(const lvp_skeleton *skeleton, const uint8_t *carries, int32_t c, double tolerance,
-                                lvp__vec3 *r_heads)
+/* Where internal bone i's line ends (lvp__bone_lines.to), from its caller's children (carries: per
+ * caller bone, whether it carries skin) or its own skin (area, moment: lvp__sum_skins). */
+static lvp__vec3 lvp__line_end(const lvp_binding *binding, const lvp_skeleton *skeleton, const uint8_t *carries,
+                               int32_t i, double area, lvp__vec3 moment, double tolerance)
 {
-	if (!skeleton->parents)
-		return 0;
-	lvp__vec3 head = lvp__load(skeleton->heads + 3 * c);
-	int32_t count = 0;
-	for (int32_t j = 0; j < skeleton->bone_count; ++j) {
+	lvp__vec3 head = binding->rig.heads[i];
+	int32_t c = lvp__caller_bone(binding, i), children = 0;
+	lvp__vec3 sum = lvp__v(0.0, 0.0, 0.0);
+	for (int32_t j = 0; skeleton->parents && j < skeleton->bone_count; ++j) {
 		if (j == c || skeleton->parents[j] != c || !carries[j])
 			continue;
 		lvp__vec3 child = lvp__load(skeleton->heads + 3 * j);
 		bool again = lvp__same_point(child, head, tolerance);
-		/* A B-Bone child's joints share its head; listed once. */
-		for (int32_t i = 0; i < j && !again; ++i)
-			again = i != c && skeleton->parents[i] == c && carries[i] &&
-			        lvp__same_point(lvp__load(skeleton->heads + 3 * i), child, tolerance);
-		if (again)
-			continue;
-		if (r_heads)
-			r_heads[count] = child;
-		++count;
-	}
-	return count;
-}
-
-/* The skin sums of every bone without children (leaf[i]): area, moment and second moments, then,
- * along each one's axis (r_axis), how far its skin reaches and its flesh radius. */
-static void lvp__sum_skins(const lvp_binding *binding, const uint8_t *leaf, const double *point_area,
-                           const int32_t *dominant, lvp__skin_sums *sums, lvp__vec3 *r_axis)
-{
-	const float *rest = binding->rest_positions;
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
-		int32_t i = dominant[k];
-		if (i < 0 || !leaf[i] || !(point_area[k] > 0.0))
-			continue;
-		double a = point_area[k];
-		lvp__vec3 p = lvp__load(rest + 3 * k), d = lvp__sub(p, binding->rig.heads[i]);
-		lvp__skin_sums *s = &sums[i];
-		s->area += a;
-		s->moment = lvp__add(s->moment, lvp__scale(p, a));
-		double second[6] = {d.x * d.x, d.x * d.y, d.x * d.z, d.y * d.y, d.y * d.z, d.z * d.z};
-		for (int e = 0; e < 6; ++e)
-			s->second[e] += a * second[e];
-	}
-	for (int32_t i = 0; i < binding->bone_count; ++i)
-		if (leaf[i] && sums[i].area > 0.0)
-			r_axis[i] = lvp__skin_axis(&sums[i], binding->rig.heads[i]);
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
-		int32_t i = dominant[k];
-		if (i < 0 || !leaf[i] || !(sums[i].area > 0.0) || !(point_area[k] > 0.0))
-			continue;
-		lvp__vec3 d = lvp__sub(lvp__load(rest + 3 * k), binding->rig.heads[i]);
-		double along = lvp__dot(d, r_axis[i]);
-		sums[i].ahead = fmax(sums[i].ahead, along);
-		sums[i].behind = fmax(sums[i].behind, -along);
-		sums[i].radius += point_area[k] * lvp__length(lvp__sub(d, lvp__scale(r_axis[i], along)));
-	}
-}
-
-/* Fills lines->from/to of bone i with its segments and its end, counting them in lines->offsets
- * (the segments of the bones before it are in place). */
-static void lvp__place_segments(lvp_binding *binding, const lvp_skeleton *skeleton, const uint8_t *carries,
-                                int32_t i, bool keeps, const lvp__skin_sums *skin, lvp__vec3 axis, double tolerance,
-                                lvp__vec3 *scratch)
-{
-	lvp__bone_lines *lines = &binding->lines;
-	lvp__vec3 head = binding->rig.heads[i];
-	int32_t at = lines->offsets[i];
-	int32_t children =
-	    keeps ? 0 : lvp__child_heads(skeleton, carries, lvp__caller_bone(binding, i), tolerance, scratch);
-	lvp__vec3 end = head;
-	if (keeps) {
-		lines->from[at] = head;
-		lines->to[at++] = end = binding->rig.tails[i];
-	} else if (children > 0) {
-		lvp__vec3 sum = lvp__v(0.0, 0.0, 0.0);
-		for (int32_t c = 0; c < children; ++c) {
-			lines->from[at] = head;
-			lines->to[at++] = scratch[c];
-			sum = lvp__add(sum, scratch[c]);
+		/* A B-Bone child's joints share its head: counted once. */
+		for (int32_t k = 0; k < j && !again; ++k)
+			again = k != c && skeleton->parents[k] == c && carries[k] &&
+			        lvp__same_point(lvp__load(skeleton->heads + 3 * k), child, tolerance);
+		if (!again) {
+			sum = lvp__add(sum, child);
+			++children;
 		}
-		end = lvp__scale(sum, 1.0 / children);
-	} else {
-		double radius = skin->area > 0.0 ? skin->radius / skin->area : 0.0;
-		lines->from[at] = lvp__add(head, lvp__scale(axis, -fmax(0.0, skin->behind - radius)));
-		lines->to[at++] = end = lvp__add(head, lvp__scale(axis, fmax(0.0, skin->ahead - radius)));
 	}
-	lines->offsets[i + 1] = at;
-	lines->end[i] = end;
-	lines->length[i] = lvp__length(lvp__sub(end, head));
+	if (children > 0)
+		return lvp__scale(sum, 1.0 / children);
+	if (!(area > 0.0))
+		return head;
+	lvp__vec3 centroid = lvp__scale(moment, 1.0 / area);
+	return lvp__add(head, lvp__scale(lvp__sub(centroid, head), 2.0));
 }
 
 bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, const int32_t *bone_groups)
@@ -216,67 +120,40 @@ bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, c
 		tolerance = fmax(tolerance, lvp__length(binding->rig.heads[i]));
 	tolerance *= 1e-6;
 
-	uint8_t *keeps = lvp__calloc((size_t)b, 1, &ok), *leaf = lvp__calloc((size_t)b, 1, &ok);
 	uint8_t *carries = lvp__calloc((size_t)skeleton->bone_count, 1, &ok);
-	for (int32_t e = 0; ok && e < binding->rig.weight_offsets[n]; ++e)
-		if (binding->rig.weight_values[e] > 0.0f)
-			carries[lvp__caller_bone(binding, binding->rig.weight_bones[e])] = 1;
-	int32_t *dominant = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
-	double *point_area = lvp__calloc((size_t)n, sizeof(double), &ok);
-	lvp__skin_sums *skins = lvp__calloc((size_t)b, sizeof(lvp__skin_sums), &ok);
-	lvp__vec3 *axis = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
-	lvp__vec3 *scratch = lvp__calloc((size_t)skeleton->bone_count, sizeof(lvp__vec3), &ok);
-	lines->offsets = lvp__calloc((size_t)b + 1, sizeof(int32_t), &ok);
-	lines->end = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
+	double *area = lvp__calloc((size_t)b, sizeof(double), &ok);
+	lvp__vec3 *moment = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
+	lines->from = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
+	lines->to = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
 	lines->length = lvp__calloc((size_t)b, sizeof(double), &ok);
-	int32_t segments = 0;
-	for (int32_t i = 0; ok && i < b; ++i) {
-		keeps[i] = lvp__keeps_caller_segment(binding, skeleton, bone_groups, i);
-		int32_t children =
-		    keeps[i] ? 0 : lvp__child_heads(skeleton, carries, lvp__caller_bone(binding, i), tolerance, NULL);
-		leaf[i] = !keeps[i] && children == 0;
-		segments += children > 0 ? children : 1;
-	}
-	lines->from = lvp__calloc((size_t)segments, sizeof(lvp__vec3), &ok);
-	lines->to = lvp__calloc((size_t)segments, sizeof(lvp__vec3), &ok);
 	if (ok) {
-		for (int32_t k = 0; k < n; ++k)
-			dominant[k] = lvp__dominant_bone(binding, k);
-		lvp__point_areas(binding, point_area);
-		lvp__sum_skins(binding, leaf, point_area, dominant, skins, axis);
-		lines->reach = 0.0;
+		for (int32_t e = 0; e < binding->rig.weight_offsets[n]; ++e)
+			if (binding->rig.weight_values[e] > 0.0f)
+				carries[lvp__caller_bone(binding, binding->rig.weight_bones[e])] = 1;
+		lvp__sum_skins(binding, area, moment);
 		for (int32_t i = 0; i < b; ++i) {
-			lvp__place_segments(binding, skeleton, carries, i, keeps[i], &skins[i], axis[i], tolerance, scratch);
-			lines->reach = fmax(lines->reach, lvp__length(binding->rig.heads[i]));
-			for (int32_t s = lines->offsets[i]; s < lines->offsets[i + 1]; ++s)
-				lines->reach = fmax(lines->reach, fmax(lvp__length(lines->from[s]), lvp__length(lines->to[s])));
+			lvp__vec3 head = binding->rig.heads[i];
+			lines->from[i] = head;
+			lines->to[i] = lvp__keeps_caller_segment(binding, skeleton, bone_groups, i)
+			                   ? binding->rig.tails[i]
+			                   : lvp__line_end(binding, skeleton, carries, i, area[i], moment[i], tolerance);
+			lines->length[i] = lvp__length(lvp__sub(lines->to[i], head));
 		}
 	}
-	free(keeps);
-	free(leaf);
 	free(carries);
-	free(dominant);
-	free(point_area);
-	free(skins);
-	free(axis);
-	free(scratch);
+	free(area);
+	free(moment);
 	return ok;
 }
 
 double lvp__bone_distance(const lvp_binding *binding, int32_t bone, lvp__vec3 p)
 {
-	const lvp__bone_lines *lines = &binding->lines;
-	double best = INFINITY;
-	for (int32_t s = lines->offsets[bone]; s < lines->offsets[bone + 1]; ++s)
-		best = fmin(best, lvp__segment_distance(p, lines->from[s], lines->to[s]));
-	return best;
+	return lvp__segment_distance(p, binding->lines.from[bone], binding->lines.to[bone]);
 }
 
 void lvp__bone_lines_free(lvp__bone_lines *lines)
 {
-	free(lines->offsets);
 	free(lines->from);
 	free(lines->to);
-	free(lines->end);
 	free(lines->length);
 }

@@ -103,7 +103,7 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 	 * is relative to the point and to the skin's translations (of the order of the bones' distance
 	 * from the origin); not to the whole mesh's size, which one stray vertex far away would make
 	 * so large that every vertex looked rigid and nothing was corrected. */
-	float noise = (float)(1e-6 * binding->lines.reach) + 1e-6f * sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+	float noise = (float)(1e-6 * binding->rig.reach) + 1e-6f * sqrtf(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
 	return spread < noise ? 0.0f : spread;
 }
 
@@ -215,7 +215,7 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 			double off = lvp__length(lvp__sub(lvp__load(positions + 3 * k), expected));
 			/* Float rounding of Blender's skinning is of 1e-7 of the point's and the bones' size;
 			 * a frame that is not this skinning is off by far more. */
-			double allowed = 1e-4 * (binding->lines.reach + lvp__length(x) + lvp__length(expected));
+			double allowed = 1e-4 * (binding->rig.reach + lvp__length(x) + lvp__length(expected));
 			largest = fmax(largest, off);
 			if (!(off <= allowed))
 				hold = false;

@@ -97,14 +97,14 @@
  *   Skinning moves the skin by the heads, the weights and the bones' transforms alone, never by
  *   a tail or a roll, which importers guess; so the core takes each bone's line from the joints
  *   and the skin, and the same skinning gives the same correction however the tails and rolls
- *   point. A bone with children (lvp_skeleton.parents) runs from its head to each child's head
- *   that lies away from it: a palm to every knuckle, a pelvis to the spine and both hips. A bone
- *   without runs from its head into the skin it dominates (area-weighted): towards the skin's
- *   centroid (its principal axis when the head sits at the centroid), from a flesh radius inside
- *   where the skin ends behind the head to a flesh radius inside where it ends ahead. Without
- *   parents every bone is taken as one without children. The joints of a B-Bone (bones grouped
- *   by lvp_bind_options.bone_groups) keep the caller's head and tail, whose curve does move the
- *   skin, and a bone whose tail is its head is a point.
+ *   point. Each bone's line is a segment from its head: to its child's head (lvp_skeleton.parents;
+ *   children that carry no weight or sit at the head do not count), to the mean of its
+ *   children's heads when it has several (a palm down the middle of the hand), and for a bone
+ *   without children through the area-weighted centroid of the skin it dominates to as far
+ *   beyond (a fingertip to the tip); a bone that dominates no skin is a point at its head.
+ *   Without parents every bone is taken as one without children. The joints of a B-Bone (bones
+ *   grouped by lvp_bind_options.bone_groups) keep the caller's head and tail, whose curve does
+ *   move the skin, and a bone whose tail is its head is a point.
  *
  * CORRECTION MAPS (gamma: where the volume goes; paper 4 and 5.3)
  *

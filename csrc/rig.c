@@ -26,6 +26,7 @@ static void lvp__copy_weights(lvp_binding *binding, const lvp_weights *weights)
 /* The internal bones: each a copy of its caller's bone (binding.h). */
 static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleton)
 {
+	binding->rig.reach = 0.0;
 	for (int32_t i = 0; i < binding->bone_count; ++i) {
 		int32_t source = lvp__caller_bone(binding, i);
 		binding->rig.rest_matrices[i] = lvp__mat4_load(skeleton->rest_matrices + 16 * source);
@@ -33,6 +34,7 @@ static void lvp__copy_skeleton(lvp_binding *binding, const lvp_skeleton *skeleto
 		binding->rig.rest_det[i] = lvp__mat4_det3(&binding->rig.rest_matrices[i]);
 		binding->rig.heads[i] = lvp__load(skeleton->heads + 3 * source);
 		binding->rig.tails[i] = lvp__load(skeleton->tails + 3 * source);
+		binding->rig.reach = fmax(binding->rig.reach, lvp__length(binding->rig.heads[i]));
 	}
 }
 

@@ -138,6 +138,23 @@ class TestSaveAndReopen(FileTestCase):
                                    1e-5, "frame %d in the fresh Blender" % frame)
             self.assertEqual(result["frame%d_status" % frame][0], 'INFO', result["frame%d_status" % frame])
 
+    def test_file_bound_by_the_old_rule_is_bound_again(self):
+        # A file saved by a version whose correction followed the bones' tails (its record has no rule, 0):
+        # opened, it is bound by today's rule, shows what a fresh bind shows, and the panel says why.
+        scene = bpy.context.scene
+        scene.frame_set(10)
+        expected = helpers.evaluated_positions(self.obj)
+        self.obj.lvp.bind_rule = 0
+        path = self.save("old_rule.blend")
+        result = self.dump_in_child(path, CHILD_DUMP, "old_rule", [10], "reopen a file of the old rule")
+        self.assertTrue(result["bound"], "the binding was not rebuilt after opening the file")
+        self.assertSmallerThan(helpers.max_distance(array('f', result["frame10"]), expected), 1e-5,
+                               "frame 10 as a fresh bind shows it")
+        level, message = result["frame10_status"][:2]
+        self.assertEqual(level, 'INFO', message)
+        self.assertIn("bound again by itself: this file was bound by an earlier version", message)
+        self.assertIn("press Bind", message)
+
     def test_saved_file_carries_no_correction(self):
         # Opened where the add-on does not run (a farm machine without it), the file must show plain
         # skinning at every frame, not the correction of the frame it was saved at on other poses.

@@ -409,9 +409,17 @@ class TestStrayVertex(helpers.AddonTestCase):
         self.assertIn("vertex %d " % stray, status, what)
         stats = self.addon.session.SESSION.bound(obj).stats
         # A loose vertex is in no region: both are corrected (by one multiplier). A vertex of the cap
-        # makes the upper region's volume mostly its spike's, in which the bend's loss is lost (what the
-        # status says); the lower region is still corrected.
-        self.assertEqual(stats["active_regions"], 2 if loose else 1, "%s: the regions corrected" % what)
+        # makes the upper region mostly its spike: the lower region is still corrected, and the upper
+        # one too when the bend's loss still shows against the reference of its own volume (lvp.h,
+        # lvp_frame_options.tolerance), whose distances are to the upper bone's line; that line runs
+        # through the centroid of the bone's skin (lvp.h, BONE LINES), and the spike's triangles pull
+        # it their way (corrected with the cap vertex at 1000, not at 1e6). Either way nothing moves
+        # further than the bend needs (0.08 to 0.09 units, the radius 0.5).
+        if loose:
+            self.assertEqual(stats["active_regions"], 2, "%s: the regions corrected" % what)
+        else:
+            self.assertIn(stats["active_regions"], (1, 2), "%s: the regions corrected" % what)
+        self.assertSmallerThan(helpers.max_abs(helpers.offsets_of(obj)), 0.2, "%s: the largest offset" % what)
         if loose:
             corrected, plain = helpers.volume_errors(obj)
             self.assertSmallerThan(corrected, 0.1 * plain, "%s: the volume (plain %g)" % (what, plain))

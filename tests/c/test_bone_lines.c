@@ -4,8 +4,9 @@
  * at random, with the bones rolled at random (every rest and posed frame turned about its head
  * by the same rotation, so that the skinning is the same), and with an unweighted leaf bone at
  * each bone's tail (FBX's `_end` bones): the offsets must be the same, to 1e-3 of the largest, on
- * a finger bent until its skin crosses itself and on the paper's giraffe, with fold-over and
- * keeping skin apart on.
+ * a finger bent until its skin crosses itself and on the paper's giraffe, with fold-over on (which
+ * bends skin about the bones' lines; keeping skin apart reads none, and is tested with them in
+ * tests/blender/test_bone_tails.py).
  */
 #include "lvp.h"
 #include "support/bind_rig.h"
@@ -134,7 +135,7 @@ static void variant_skeleton(const posed_rig *p, tails_variant variant, uint64_t
 	*r_bone_count = count;
 }
 
-/* The offsets of p corrected with fold-over and keeping skin apart, the skeleton as given. */
+/* The offsets of p corrected with fold-over, the skeleton as given. */
 static float *correct_with(const posed_rig *p, const float *rest, const float *posed, const float *heads,
                            const float *tails, const int32_t *parents, int32_t bone_count)
 {
@@ -151,7 +152,6 @@ static float *correct_with(const posed_rig *p, const float *rest, const float *p
 		return offsets;
 	lvp_frame_options options = lvp_frame_default_options();
 	options.fold_over = 1;
-	options.keep_apart = 1;
 	CHECK_OK(lvp_correct(NULL, offsets, binding, p->skinned, posed, NULL, &options, NULL, &diag), diag);
 	lvp_free(binding);
 	return offsets;

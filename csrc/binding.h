@@ -736,12 +736,14 @@ bool lvp__solve_system(lvp_binding *binding, double largest_diagonal);
 /* stretch.c */
 /* The bones weighting each region's triangles, and the centre of each pair (lvp.h, ALGORITHM 3). */
 lvp_result lvp__build_stretch_pairs(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* This frame's stretch.change, zero for every region when no bone is stretched (needs
+/* This frame's stretch.change, zero for every region when no bone is stretched, or when no
+ * region's volume changes by more than `tolerance` of its reference by the stretch (needs
  * lvp__prepare_frame and this frame's dynamic set, lvp__find_dynamic_set); sets and returns
- * stretch_frame.
+ * stretch.any.
  * rest_positions: this frame's rest, or NULL for the bind rest; rigid_space: see lvp.h
  * (lvp_frame_options), checked. */
-bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space);
+bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space,
+                          double tolerance);
 
 /* foldover.c */
 /* Moves the vertices that crossed into a neighbouring bone's flesh back to the contact surface

@@ -842,7 +842,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	lvp__measure_positions(binding, rest_positions, totals);
 	/* Each region aims at zero change, or where bones are stretched against each other at the
 	 * change their stretch alone gives it (stretch.c; zero without stretch). */
-	lvp__stretch_targets(binding, rest_positions, options->rigid_space);
+	lvp__stretch_targets(binding, rest_positions, options->rigid_space, options->tolerance);
 	memcpy(binding->step.target, binding->stretch.change, sizeof(double) * (size_t)binding->region_count);
 	lvp__movable_regions(binding);
 	if (attempt == 0) {

@@ -51,7 +51,9 @@
  *      steps are taken. A region's target is zero change plus its share of restoring the whole
  *      mesh's volume (each separate part's, see SEGMENTATION). In a frame where bones scale
  *      (squash and stretch; the paper's bones are rigid) the target is instead the change the
- *      bones' scales alone give the region, and the whole mesh keeps the scaled volume.
+ *      bones' scales alone give the region, and the whole mesh keeps the scaled volume; a
+ *      stretch that changes no region's volume by more than the tolerance is none (exporters
+ *      round scale keys).
  *   4. Smoothing the offsets, when enabled: see OFFSET SMOOTHING.
  *   5. Fold-over prevention (paper 5.4), when enabled: see FOLD-OVER.
  *   6. Keeping skin apart, when enabled: see CONTACT.

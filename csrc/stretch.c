@@ -314,7 +314,8 @@ static void lvp__reference_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
-bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space)
+bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, const float *rigid_space,
+                          double tolerance)
 {
 	int32_t s = binding->region_count;
 	bool had_stretch = binding->stretch.any;
@@ -360,6 +361,20 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 	int64_t work = lvp__cut_reference_groups(binding, stretched);
 	lvp__loop_context context = {binding, rest_positions ? rest_positions : binding->rest_positions};
 	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__reference_loop, &context, binding->stretch.group_count, 1);
+	/* A stretch that changes no region's volume by more than the tolerance is no squash and stretch
+	 * the correction could tell from the volume it restores: the scale keys of exported animations
+	 * carry such noise (a glTF horse's bones scaled by 1e-5 against each other in every frame), and
+	 * taking it for a stretch gave up restoring the whole mesh (lvp.h, RESTORE). */
+	bool matters = false;
+	for (int32_t i = 0; i < stretched && !matters; ++i) {
+		int32_t r = binding->stretch.regions[i];
+		matters = fabs(binding->stretch.change[r]) > tolerance * binding->measure.reference_volume[r];
+	}
+	if (!matters) {
+		for (int32_t i = 0; i < stretched; ++i)
+			binding->stretch.change[binding->stretch.regions[i]] = 0.0;
+		return false;
+	}
 	binding->stretch.any = true;
 	return true;
 }

@@ -184,7 +184,8 @@ typedef struct lvp__frame_map {
 	int32_t *skin_class;      /* per bone: bones with equal skin matrices this frame share a class */
 	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
 	int32_t *vertex_class;    /* per vertex: the skin class all its bones share this frame, or -1 */
-	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map, or moved by fold-over */
+	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map (by the classes alone:
+	                             frame_map.c), or moved by fold-over */
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
 	 * lvp__frame_map_stale clears it when something else changes one of them. */

@@ -436,9 +436,13 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		lvp__pin_held(binding, positions);
 	}
 	contact->too_many = 0;
+	/* Every vertex, not only the dynamic ones: a crossing's corners and the rim's neighbours may be
+	 * static, and what an earlier frame left of them shortened this one (a frame played to differed
+	 * from the same frame opened at). */
+	for (int32_t k = 0; k < n; ++k)
+		scale[k] = next[k] = 1.0f;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
-		scale[k] = next[k] = 1.0f;
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
 	lvp__contact_pass pass = {binding, positions};

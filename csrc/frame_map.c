@@ -160,6 +160,26 @@ static inline float lvp__frame_gamma(const lvp_binding *binding, const float *re
 	return gamma * lvp__vertex_spread(binding, rest + 3 * k, k);
 }
 
+/* Whether the map may move vertex k of the given class this frame: decided by the skin classes
+ * alone, never by the value of its map, so that a frame whose classes are last frame's has last
+ * frame's dynamic vertices (lvp__build_frame_map reuses them). With a bulge width, a vertex that
+ * moves rigidly may still be moved by the joints of the regions that reach it, when those fall
+ * into more than one class; its map is then zero only while they carry it alike to float noise,
+ * and was taken for rigid at that frame: a frame played to differed from the same frame opened
+ * at, by the joints that began to bend since. */
+static bool lvp__map_may_move(const lvp_binding *binding, int32_t k, int32_t vertex_class)
+{
+	if (!(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+		return false;
+	if (!binding->map.options.deformation_weighted || vertex_class < 0)
+		return true;
+	if (!binding->reach.own)
+		return false;
+	int32_t classes[LVP__SPREAD_KEPT];
+	float class_weight[LVP__SPREAD_KEPT];
+	return lvp__vertex_classes(binding, k, classes, class_weight) != 1;
+}
+
 /* Per vertex, independent of every other: split over the worker threads. A class is the index
  * of its first bone (lvp__skin_classes), so it names that bone's displacement. */
 static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
@@ -172,7 +192,7 @@ static void lvp__frame_map_loop(void *context, int32_t begin, int32_t end)
 		changed = changed || binding->frame_map.vertex_class[k] != vertex_class;
 		binding->frame_map.vertex_class[k] = vertex_class;
 		binding->frame_map.gamma[k] = lvp__frame_gamma(binding, c->positions, k, vertex_class);
-		uint8_t dynamic = vertex_class < 0 || binding->frame_map.gamma[k] > 0.0f;
+		uint8_t dynamic = vertex_class < 0 || lvp__map_may_move(binding, k, vertex_class);
 		changed = changed || binding->frame_map.vertex_dynamic[k] != dynamic;
 		binding->frame_map.vertex_dynamic[k] = dynamic;
 	}

@@ -369,20 +369,24 @@ def _not_the_bound_skinning(obj, stats):
             "to %.3g): press Bind if the weights or the rig changed" % stats["unskinned_distance"])
 
 
+# The shown volume may end this far from the rest (a share of it) before the panel warns: "Correcting" alone
+# means the volume is back.
+SHORTFALL = 0.005
+
+
 def _volume_shortfall(stats):
-    """What is left when the correction could not bring the volume back at this pose (neither the whole
-    mesh nor its worst region at least halfway back: a map that cannot move the skin there, steps that
-    made things worse and were undone), or None."""
+    """What is left when the correction did not bring the volume back at this pose, past SHORTFALL of the rest
+    volume (a map that cannot move the skin there, steps that made things worse and were undone), with the region
+    furthest from its own, or None. Not in frames where bones scale: their volume is not the rest's."""
     rest = stats["volume_rest"]
-    if not rest:
+    if not rest or stats.get("bones_scale"):
         return None
     before, after = (stats[key] / rest - 1.0 for key in ("volume_before", "volume_after"))
-    region_before, region_after = stats["worst_region_change_before"], stats["worst_region_change_after"]
-    if abs(after) <= 0.5 * abs(before) + 1e-3 or abs(region_after) <= 0.5 * abs(region_before) + 1e-3:
+    if abs(after) <= SHORTFALL:
         return None
     return ("the volume comes back only from %+.2f %% to %+.2f %% at this pose (region %s: %+.2f %%): the map "
             "cannot move the skin there, or the correction's steps made it worse"
-            % (100.0 * before, 100.0 * after, stats["worst_region_name"], 100.0 * region_after))
+            % (100.0 * before, 100.0 * after, stats["worst_region_name"], 100.0 * stats["worst_region_change_after"]))
 
 
 def _given_up(stats):
@@ -394,8 +398,9 @@ def _given_up(stats):
     why = ("its correction moved the skin too far (a joint folded onto itself?)" if stats["given_up_diverged"]
            else "its volume could not be brought back, and its steps held back the others' (a joint folded onto "
                 "itself?)")
-    return ("region %s%s left as plain skinning at this pose, the rest corrected: %s"
-            % (stats["given_up_region_name"], others, why))
+    rest = "the rest corrected" if stats["active_regions"] > 0 else "and no other region corrected either"
+    return ("region %s%s left as plain skinning at this pose, %s: %s"
+            % (stats["given_up_region_name"], others, rest, why))
 
 
 def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):

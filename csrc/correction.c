@@ -913,6 +913,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__measure_positions(binding, rest_positions, totals);
 		stats->crossing_triangles = binding->contact.too_many; /* the last check gave up */
 	}
+	stats->bones_scale = lvp__bones_scale(binding);
 	memset(binding->fold.held, 0, (size_t)n);
 }
 

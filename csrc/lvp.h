@@ -636,6 +636,9 @@ typedef struct lvp_frame_stats {
 	int32_t crossing_triangles; /* options.keep_apart: 0, or the triangles the correction made cross
 	                             when there were too many to keep apart (more than 1 in 20): the
 	                             frame was left as corrected (CONTACT) */
+	int32_t bones_scale;      /* 1: bones scale this frame beyond the tolerance (squash and stretch,
+	                             ALGORITHM 3): each region keeps the volume its bones' scales give
+	                             it, and volume_after is not meant to be volume_rest */
 } lvp_frame_stats;
 
 /* Corrects one frame. positions: vertex_count*3, the skinned (deformed) positions, e.g. what

@@ -62,13 +62,12 @@ def assert_never_silently_wrong(test, obj, message):
                                "against the core's %g" % (message, status, stats["volume_after"]))
         if level != 'INFO':
             return level, status  # "Correcting, but ...": it says what keeps it from correcting fully
-        # Something was corrected: the whole volume or the worst region, at least halfway back.
+        # "Correcting" alone: the volume is back, within half a percent of the rest (where bones scale, of
+        # the volume their scales give, which the core measures region by region).
         rest = stats["volume_rest"]
         whole_before, whole_after = (abs(stats[key] / rest - 1.0) for key in ("volume_before", "volume_after"))
-        before, after = stats["worst_region_change_before"], stats["worst_region_change_after"]
-        test.assertTrue(whole_after <= 0.5 * whole_before + 1e-3 or abs(after) <= 0.5 * abs(before) + 1e-3,
-                        "%s: %r, but the volume goes from %+.3g to %+.3g and the worst region from %+.3g to %+.3g"
-                        % (message, status, whole_before, whole_after, before, after))
+        test.assertTrue(stats["bones_scale"] or whole_after <= test.addon.live.SHORTFALL,
+                        "%s: %r, but the volume goes from %+.3g to %+.3g" % (message, status, whole_before, whole_after))
     else:
         plain = helpers.uncorrected_positions(obj)
         test.assertSmallerThan(helpers.max_distance(shown, plain), 1e-6, "%s: %r, yet a correction is shown"
@@ -176,6 +175,18 @@ class TestCannotRestore(HostileTestCase):
         level, status = self.assertNeverSilentlyWrong(message="painted map of zeros")
         self.assertEqual(level, 'WARNING', status)
         self.assertIn("the volume comes back only", status)
+
+    def test_stopped_short_by_a_loose_tolerance(self):
+        # Most of the volume back, not all of it: the first pass at 90 degrees ends 0.7 % short (README,
+        # Tolerance), past the half percent that "Correcting" alone promises.
+        self.obj.lvp.tolerance = 5.0
+        self.obj.lvp.smoothing = 0
+        self.obj.lvp.restore = 'WHOLE_MESH'
+        self.show_frame(10)
+        level, status = self.assertNeverSilentlyWrong(message="tolerance 5 %")
+        self.assertEqual(level, 'WARNING', status)
+        self.assertIn("the volume comes back only from -11.", status)
+        self.assertIn("region ", status)
 
 
 class TestFoldOverFails(HostileTestCase):

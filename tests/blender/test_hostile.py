@@ -358,6 +358,18 @@ class TestNodeGroupBroken(HostileTestCase):
         self.assertTrue(self.addon.node_group.is_current(self.group()))
         self.assertEqual(self.modifiers(), ["Volume Preservation"])
 
+    def test_deleted_group_then_another_frame(self):
+        # The pose changed after the group was deleted, then another frame: the first frame shown after it
+        # is corrected too, not plain skinning under "Correcting".
+        self.delete_group()
+        helpers.bend(self.rig, 45.0)
+        bpy.context.view_layer.update()
+        self.scene.frame_set(7)
+        level, status = self.assertNeverSilentlyWrong(message="node group deleted, pose changed, frame 7")
+        self.assertTrue(status.startswith("Correcting"), status)
+        self.assertGreater(helpers.max_distance(helpers.evaluated_positions(self.obj),
+                                                helpers.uncorrected_positions(self.obj)), 1e-3, "a correction shown")
+
     def test_remove_after_deleting_the_group(self):
         self.delete_group()
         helpers.select_only(self.obj)

@@ -289,6 +289,11 @@ RULE_CHANGED = ("this file was bound by an earlier version, whose correction fol
                 "it now follows the joints (press Bind to record it)")
 
 
+def _rule_changed(obj):
+    """RULE_CHANGED when obj's bind record was made by an earlier rule, else None."""
+    return RULE_CHANGED if obj.lvp.bind_rule < BIND_RULE else None
+
+
 def new_bind_record(obj, bound):
     """Stores a fresh bind record on the object for bound and caches it (operators only)."""
     SESSION.forget(obj)
@@ -327,7 +332,7 @@ def ensure(obj, depsgraph=None):
     except BindError as error:
         SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    bound.recorded_as(settings.bind_id, RULE_CHANGED if settings.bind_rule < BIND_RULE else None)
+    bound.recorded_as(settings.bind_id, _rule_changed(obj))
     SESSION.keep(obj, bound)
     # Lazy binds are rare (file load, undo, rename): a good moment to drop the bindings of objects
     # that were renamed or deleted.
@@ -370,6 +375,6 @@ def rebind(obj, bound, depsgraph=None, reason=None, inputs=None):
     except BindError as error:
         SESSION.set_status(obj, 'ERROR', str(error))
         return None
-    rebound.recorded_as(bound.bind_id, reason or (RULE_CHANGED if obj.lvp.bind_rule < BIND_RULE else None))
+    rebound.recorded_as(bound.bind_id, reason or _rule_changed(obj))
     SESSION.keep(obj, rebound)
     return rebound

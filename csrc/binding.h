@@ -120,8 +120,8 @@ typedef struct lvp__rig {
 /* Where each bone runs through its flesh at rest (bone_lines.c): a segment per bone, taken from
  * the joints and the skin, never from the caller's tails. */
 typedef struct lvp__bone_lines {
-	lvp__vec3 *from, *to;     /* per bone: its head, and where its line ends */
-	double *length;           /* per bone: |to - from|; 0 for a bone that is a point */
+	lvp__vec3 *end;           /* per bone: where its line ends; it starts at the bone's head (rig.heads) */
+	double *length;           /* per bone: |end - head|; 0 for a bone that is a point */
 } lvp__bone_lines;
 
 /* The bound mesh as the method walks it (segmentation.c): regions, triangles sorted by region,
@@ -572,6 +572,9 @@ void lvp__rig_copy(lvp_binding *binding, const lvp_weights *weights, const lvp_s
 lvp_result lvp__prepare_frame(lvp_binding *binding, const float *bone_matrices, lvp_diagnostic *r_diag);
 
 /* segmentation.c */
+/* Largest normalized weight of vertex k (into *r_max) and its bone, the one that dominates it (ties:
+ * lower bone index); -1 if none. Needs the rig's weights only. */
+int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_max);
 lvp_result lvp__segment(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* Each region's distinct corner vertices (lvp__mesh); after lvp__segment. */
 lvp_result lvp__build_region_corners(lvp_binding *binding, lvp_diagnostic *r_diag);

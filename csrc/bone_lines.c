@@ -25,19 +25,6 @@
 
 #include <stdlib.h>
 
-/* The dominant bone of point k (its largest weight; the first of equal ones), or -1. */
-static int32_t lvp__dominant_bone(const lvp_binding *binding, int32_t k)
-{
-	int32_t best = -1;
-	float most = 0.0f;
-	for (int32_t e = binding->rig.weight_offsets[k]; e < binding->rig.weight_offsets[k + 1]; ++e)
-		if (binding->rig.weight_values[e] > most) {
-			most = binding->rig.weight_values[e];
-			best = binding->rig.weight_bones[e];
-		}
-	return best;
-}
-
 /* Per bone, the area of the skin it dominates and that skin's area-weighted sum of positions: each
  * point counts with a third of its triangles' area. */
 static void lvp__sum_skins(const lvp_binding *binding, double *r_area, lvp__vec3 *r_moment)
@@ -48,7 +35,8 @@ static void lvp__sum_skins(const lvp_binding *binding, double *r_area, lvp__vec3
 		lvp__vec3 p[3] = {lvp__load(rest + 3 * v[0]), lvp__load(rest + 3 * v[1]), lvp__load(rest + 3 * v[2])};
 		double third = lvp__length(lvp__cross(lvp__sub(p[1], p[0]), lvp__sub(p[2], p[0]))) / 6.0;
 		for (int i = 0; i < 3; ++i) {
-			int32_t bone = lvp__dominant_bone(binding, v[i]);
+			float unused;
+			int32_t bone = lvp__main_bone(binding, v[i], &unused);
 			if (bone < 0)
 				continue;
 			r_area[bone] += third;
@@ -77,7 +65,7 @@ static bool lvp__keeps_caller_segment(const lvp_binding *binding, const lvp_skel
 	return false;
 }
 
-/* Where internal bone i's line ends (lvp__bone_lines.to), from its caller's children (carries: per
+/* Where internal bone i's line ends (lvp__bone_lines.end), from its caller's children (carries: per
  * caller bone, whether it carries skin) or its own skin (area, moment: lvp__sum_skins). */
 static lvp__vec3 lvp__line_end(const lvp_binding *binding, const lvp_skeleton *skeleton, const uint8_t *carries,
                                int32_t i, double area, lvp__vec3 moment, double tolerance)
@@ -123,8 +111,7 @@ bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, c
 	uint8_t *carries = lvp__calloc((size_t)skeleton->bone_count, 1, &ok);
 	double *area = lvp__calloc((size_t)b, sizeof(double), &ok);
 	lvp__vec3 *moment = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
-	lines->from = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
-	lines->to = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
+	lines->end = lvp__calloc((size_t)b, sizeof(lvp__vec3), &ok);
 	lines->length = lvp__calloc((size_t)b, sizeof(double), &ok);
 	if (ok) {
 		for (int32_t e = 0; e < binding->rig.weight_offsets[n]; ++e)
@@ -132,12 +119,10 @@ bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, c
 				carries[lvp__caller_bone(binding, binding->rig.weight_bones[e])] = 1;
 		lvp__sum_skins(binding, area, moment);
 		for (int32_t i = 0; i < b; ++i) {
-			lvp__vec3 head = binding->rig.heads[i];
-			lines->from[i] = head;
-			lines->to[i] = lvp__keeps_caller_segment(binding, skeleton, bone_groups, i)
-			                   ? binding->rig.tails[i]
-			                   : lvp__line_end(binding, skeleton, carries, i, area[i], moment[i], tolerance);
-			lines->length[i] = lvp__length(lvp__sub(lines->to[i], head));
+			lines->end[i] = lvp__keeps_caller_segment(binding, skeleton, bone_groups, i)
+			                    ? binding->rig.tails[i]
+			                    : lvp__line_end(binding, skeleton, carries, i, area[i], moment[i], tolerance);
+			lines->length[i] = lvp__length(lvp__sub(lines->end[i], binding->rig.heads[i]));
 		}
 	}
 	free(carries);
@@ -148,12 +133,11 @@ bool lvp__build_bone_lines(lvp_binding *binding, const lvp_skeleton *skeleton, c
 
 double lvp__bone_distance(const lvp_binding *binding, int32_t bone, lvp__vec3 p)
 {
-	return lvp__segment_distance(p, binding->lines.from[bone], binding->lines.to[bone]);
+	return lvp__segment_distance(p, binding->rig.heads[bone], binding->lines.end[bone]);
 }
 
 void lvp__bone_lines_free(lvp__bone_lines *lines)
 {
-	free(lines->from);
-	free(lines->to);
+	free(lines->end);
 	free(lines->length);
 }

@@ -81,8 +81,8 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	const lvp__rig *rig = &binding->rig;
 	double at_j = lvp__motion_apart(binding, s, j, rig->heads[j]);
 	double at_s = lvp__motion_apart(binding, s, j, rig->heads[s]);
-	double moved = fmax(fmax(at_j, at_s), fmax(lvp__motion_apart(binding, s, j, binding->lines.to[s]),
-	                                           lvp__motion_apart(binding, s, j, binding->lines.to[j])));
+	double moved = fmax(fmax(at_j, at_s), fmax(lvp__motion_apart(binding, s, j, binding->lines.end[s]),
+	                                           lvp__motion_apart(binding, s, j, binding->lines.end[j])));
 	if (!(moved > 0.0) || !(fmin(at_j, at_s) <= 0.1 * moved))
 		return false;
 	int32_t child = at_j <= at_s ? j : s, parent = child == s ? j : s;
@@ -271,7 +271,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->child = child;
 			joint->parent = parent;
 			joint->child_side = child == s;
-			lvp__vec3 direction = lvp__sub(lines->to[child], rig->heads[child]); /* at rest */
+			lvp__vec3 direction = lvp__sub(lines->end[child], rig->heads[child]); /* at rest */
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
 			joint->rest_normal = lvp__unit(direction);

@@ -7,8 +7,7 @@
 
 #include <stdlib.h>
 
-/* Largest normalized weight of vertex k and its bone (ties: lower bone index); -1 if none. */
-static int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_max)
+int32_t lvp__main_bone(const lvp_binding *binding, int32_t k, float *r_max)
 {
 	int32_t best = -1;
 	float best_weight = 0.0f;

@@ -209,16 +209,8 @@ static void check_variants(const char *name, const posed_rig *p)
 
 static posed_rig pose_rig(test_rig rig, const float *rotations)
 {
-	posed_rig p = {rig, malloc(sizeof(float) * 16 * (size_t)rig.bone_count), NULL};
-	float *skin = malloc(sizeof(float) * 16 * (size_t)rig.bone_count);
-	test_pose(p.posed, &p.rig, rotations);
-	test_skin_matrices(skin, &p.rig, p.posed);
-	p.skinned = malloc(sizeof(float) * 3 * (size_t)rig.vertex_count);
-	lvp_weights weights = test_rig_weights(&p.rig);
-	lvp_diagnostic diag;
-	CHECK_OK(lvp_skin_linear(p.skinned, p.rig.positions, p.rig.vertex_count, &weights, skin, p.rig.bone_count, &diag),
-	         diag);
-	free(skin);
+	posed_rig p = {rig, NULL, NULL};
+	CHECK(test_pose_and_skin(&p.rig, rotations, &p.posed, &p.skinned) == 0);
 	return p;
 }
 

@@ -196,10 +196,16 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 		skinned[i] = lvp__load(search->pass->positions + 3 * (int64_t)other->vertices[i]);
 	}
 	/* Unsure counts as crossing after the correction and as apart before it: a pair that skinning
-	 * leaves touching is kept as it is. */
-	if (lvp__triangles_cross(search->moved, moved) != LVP__APART &&
-	    lvp__triangles_cross(search->skinned, skinned) != LVP__CROSS)
-		search->limit = fminf(search->limit, lvp__share_apart(search->moved, search->skinned, moved, skinned));
+	 * leaves touching is kept as it is. Unsure both before and after is skinning's own: two triangles
+	 * in one plane (a flat face, a flat strip bent in its plane), where the signs cannot tell and the
+	 * surface measures see no crossing. */
+	int after = lvp__triangles_cross(search->moved, moved);
+	if (after == LVP__APART)
+		return false;
+	int before = lvp__triangles_cross(search->skinned, skinned);
+	if (before == LVP__CROSS || (before == LVP__UNSURE && after == LVP__UNSURE))
+		return false;
+	search->limit = fminf(search->limit, lvp__share_apart(search->moved, search->skinned, moved, skinned));
 	return false;
 }
 

@@ -123,6 +123,9 @@ for sel in "${selectors[@]}"; do
 	# python3-numpy: Blender's glTF add-on needs it (the round trips of test_imports and real_cases.py).
 	if [ "$sel" = 3.4 ]; then ensure_packages blender python3-numpy; fi
 done
+# Real skinned, animated files (test_assimp_models), shown inside the chroots at the same path.
+if [ "$list" = 0 ]; then ensure_packages assimp-testmodels; fi
+export LVP_CHROOT_BINDS="${LVP_CHROOT_BINDS:+$LVP_CHROOT_BINDS:}/usr/share/assimp"
 
 # Blender's user directories: fresh for this run (an extension installed by a test stays here).
 export BLENDER_USER_RESOURCES="${BLENDER_USER_RESOURCES:-$RUN_TMP/user}"

@@ -423,9 +423,6 @@ def _status_of_correction(obj, depsgraph, bound, stats, armature_modifier):
         vertex, distance = bound.stray_vertex
         warnings.append("vertex %d lies %.3g away from the armature, a stray? Its region's volume is measured "
                         "wrong; move it back or delete it, then Bind" % (vertex, distance))
-    if stats.get("crossing_triangles"):
-        warnings.append("Keep Skin Apart is left out at this pose, where the correction crosses %d triangles "
-                        "(more than 1 in 20) into the skin" % stats["crossing_triangles"])
     if stats.get("fold_over_failed"):
         warnings.append("Fold-Over Prevention is left out at this pose, where it failed (%s)"
                         % stats["fold_over_failed"])

@@ -352,7 +352,8 @@ typedef struct lvp__contact {
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
 	                              (lvp__pin_held); its offset is never shortened */
-	int32_t too_many;          /* the last lvp__keep_skin_apart gave up: triangles crossing anew, else 0 */
+	int32_t crossed;           /* the last lvp__keep_skin_apart: triangles its first round found crossing
+	                              anew (each kept apart since) */
 } lvp__contact;
 
 /* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
@@ -776,8 +777,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
  * pair apart, over a few rounds (the last takes them away), smoothed around them; the patches of
  * vertices fold-over holds where the input crosses itself keep theirs (contact.pinned). first: the
  * frame's first call (forgets contact.shortened, finds contact.pinned). Returns how many dynamic
- * vertices it shortened; when more than one triangle in LVP__CONTACT_MOST crosses anew it gives up,
- * leaves step.positions as they were and sets contact.too_many. Uses fold.saved as scratch. */
+ * vertices it shortened, and sets contact.crossed. Uses fold.saved as scratch. */
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);
 /* Fades frame_map.gamma by what the last lvp__keep_skin_apart left of each offset (contact.scale):
  * where skin met skin, the next volume step moves it as much less. */

@@ -14,10 +14,6 @@
 
 /* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
 #define LVP__CONTACT_ROUNDS 8
-/* A check that finds more than one triangle in this many crossing anew gives up (the pose pushes
- * skin through skin everywhere, and shortening would cost seconds): that frame keeps the correction
- * as it was, and says so. */
-#define LVP__CONTACT_MOST 20
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
 /* Passes of lvp__smoothed_scale after the rounds (4 rings of the mesh). */
@@ -333,10 +329,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			int32_t crossing = 0;
 			for (int32_t t = 0; t < f; ++t)
 				crossing += contact->limit[t] < 1.0f;
-			if (crossing > f / LVP__CONTACT_MOST) {
-				contact->too_many = crossing;
-				return false;
-			}
+			contact->crossed = crossing;
 		}
 		memset(contact->moved, 0, (size_t)n);
 		for (int32_t t = 0; t < f; ++t) {
@@ -441,7 +434,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		memset(contact->shortened, 0, (size_t)n);
 		lvp__pin_held(binding, positions);
 	}
-	contact->too_many = 0;
+	contact->crossed = 0;
 	/* Every vertex, not only the dynamic ones: a crossing's corners and the rim's neighbours may be
 	 * static, and what an earlier frame left of them shortened this one (a frame played to differed
 	 * from the same frame opened at). */
@@ -452,7 +445,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
 	lvp__contact_pass pass = {binding, positions};
-	if (lvp__shorten_rounds(binding, &pass, corrected, true) && !contact->too_many) {
+	if (lvp__shorten_rounds(binding, &pass, corrected, true)) {
 		/* The rim: as many smoothing passes whatever the number of rounds, so that a frame that needs
 		 * one round more does not spread the shortening further than the frame before. Shortening one
 		 * side of a pair more than the other can make it cross, so the smoothed patch is tested again. */

@@ -900,7 +900,8 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		 * fold-over put on a contact surface still held), and that correction is checked in turn,
 		 * until one shortens nothing (a bent tail: twice). */
 		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
-		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0 && !binding->contact.too_many; ++cycle) {
+		stats->crossing_triangles = binding->contact.crossed;
+		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0; ++cycle) {
 			int32_t ignored;
 			lvp__fade_map_where_shortened(binding);
 			lvp__movable_regions(binding);
@@ -911,7 +912,6 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		stats->shortened_vertices = lvp__shortened_count(binding);
 		if (stats->shortened_vertices > 0) /* each check leaves the positions it shortened unmeasured */
 			lvp__measure_positions(binding, rest_positions, totals);
-		stats->crossing_triangles = binding->contact.too_many; /* the last check gave up */
 	}
 	stats->bones_scale = lvp__bones_scale(binding);
 	memset(binding->fold.held, 0, (size_t)n);

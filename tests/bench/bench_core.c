@@ -139,8 +139,13 @@ static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, 
 	return elapsed;
 }
 
+/* `bench_core TEXT` runs only the cases whose mesh or pose names contain TEXT (a profile of one). */
+static const char *only_cases;
+
 static void run_case(bench_case *c, int32_t cores)
 {
+	if (only_cases && !strstr(c->name, only_cases) && !strstr(c->pose, only_cases))
+		return;
 	test_rig *rig = &c->rig;
 	int32_t n = rig->vertex_count, b = rig->bone_count;
 	float *posed[POSES], *skinned[POSES];
@@ -210,8 +215,9 @@ static float *giraffe_pose(const test_rig *rig)
 	return rotations;
 }
 
-int main(void)
+int main(int argc, char **argv)
 {
+	only_cases = argc > 1 ? argv[1] : NULL;
 	int32_t cores = (int32_t)sysconf(_SC_NPROCESSORS_ONLN);
 	cores = cores < 1 ? 1 : (cores > LVP_MAX_THREADS ? LVP_MAX_THREADS : cores);
 	printf("Core benchmark: median wall time per frame of an animation through %d poses (default options: organic "

@@ -27,6 +27,7 @@ import bpy
 
 import lvp_helpers as helpers
 import real_cases
+import surface_quality as quality
 import test_bake
 
 HORSE = os.path.join(helpers.REPO, "tests", "data", "horse", "horse-animations.glb")
@@ -113,6 +114,45 @@ class TestHorse(helpers.AddonTestCase):
             self.assertTrue(helpers.offsets_of(self.obj) == played[frame],
                             "frame %d opened alone differs from the frame played to" % frame)
         self.assertGreater(max(map(abs, played[last])), 0.0)
+
+
+class TestHorseSurface(helpers.AddonTestCase):
+    """The horse's surface with what renders have (Keep Skin Apart on), every frame of every action, by the
+    measures of ../shared/QUALITY.md against plain skinning at the same frame: no pair of triangles crossing that
+    does not cross in plain skinning (by the exact test: the count of crossing pairs, whose float prefilter can
+    miss a pair of plain skinning within rounding of touching, reads one more than plain skinning's on Idle, Rear,
+    Run and Walk, every such pair crossing in plain skinning too), creases added at most one per 300 edges, and
+    roughness against the largest offset. Keep Skin Apart never leaves a frame out: by a rule that gave up past
+    one triangle in 20 crossing anew, lay_to_idle had 56 crossing pairs more than plain skinning on 5 frames.
+    Measured on 3.4: creases 0-17 of 17 allowed (lay_to_idle); roughness 0.26-0.52 of the largest offset, above
+    the quarter QUALITY.md asks (issue 46), bounded here so that it does not grow."""
+
+    def test_every_frame_of_every_action_with_keep_skin_apart(self):
+        obj, rig = horse_scene()
+        obj.lvp.keep_apart = True
+        mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
+        creases_allowed = len(mesh.interior_edges()) / 300.0
+        scene = bpy.context.scene
+        for action in sorted(bpy.data.actions, key=lambda action: action.name):
+            rig.animation_data.action = action
+            first, last = (int(round(frame)) for frame in action.frame_range)
+            new_crossings = creases = 0
+            rough = 0.0
+            for frame in range(first, last + 1):
+                scene.frame_set(frame)
+                self.assertEqual(self.status_of(obj), ('INFO', "Correcting"), "%s, frame %d" % (action.name, frame))
+                measured = quality.measure_pose(mesh, helpers.uncorrected_positions(obj),
+                                                {"vp": helpers.evaluated_positions(obj)})
+                shown = measured["vp"]
+                new_crossings = max(new_crossings, shown["new crossings"])
+                creases = max(creases, shown["creases"])
+                if shown["largest_offset"] > 0.0:
+                    rough = max(rough, shown["roughness"] / shown["largest_offset"])
+            print("    %-22s crossing pairs plain skinning has not %d, creases added %d (%.1f allowed), roughness "
+                  "%.2f of the largest offset" % (action.name, new_crossings, creases, creases_allowed, rough))
+            self.assertEqual(new_crossings, 0, "%s: pairs crossing that plain skinning has not" % action.name)
+            self.assertLessEqual(creases, creases_allowed, "%s: creases added" % action.name)
+            self.assertSmallerThan(rough, 0.6, "%s: roughness against the largest offset" % action.name)
 
 
 class TestHorseBake(test_bake.CommandTestCase):

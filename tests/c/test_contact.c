@@ -2,8 +2,8 @@
  * test_contact.c - keeping skin apart (lvp.h, CONTACT) on a tube of eight bones: bent 70 degrees at
  * one joint, the correction pushes the inside of the bend through itself where plain skinning does
  * not, and keep_apart takes that back with the volume still restored; bent 70 degrees at every
- * joint, the correction would cross more than one triangle in 20, and the frame keeps the
- * correction as it is and says so; with fold-over too, bent 100 and 140 degrees at one joint, never more
+ * joint, where the correction crosses far more than one triangle in 20 anew, the same (it never
+ * gives up); with fold-over too, bent 100 and 140 degrees at one joint, never more
  * crossing pairs than plain skinning or fold-over alone. (The giraffe's 28 single-joint poses:
  * test_giraffe.c; a hand closing: tests/blender/test_fold_over_hand.py.)
  */
@@ -87,7 +87,7 @@ static void test_one_joint_kept_apart(void)
 		       100 * (with.volume_after / with.volume_rest - 1.0));
 		CHECK(before > plain);
 		CHECK(after <= plain);
-		CHECK(with.shortened_vertices > 0 && with.crossing_triangles == 0);
+		CHECK(with.shortened_vertices > 0 && with.crossing_triangles > 0);
 		CHECK(without.shortened_vertices == 0);
 		CHECK(fabs(with.volume_after / with.volume_rest - 1.0) < 1e-4);
 	}
@@ -97,20 +97,28 @@ static void test_one_joint_kept_apart(void)
 	free_tube(&tube);
 }
 
-static void test_too_many_crossings(void)
+static void test_every_joint_kept_apart(void)
 {
 	bent_tube tube = make_tube(70.0, true);
 	size_t values = 3 * (size_t)tube.rig.vertex_count;
 	float *crossing = malloc(sizeof(float) * values), *apart = malloc(sizeof(float) * values);
 	lvp_binding *binding = test_bind_rig(&tube.rig, NULL);
 	if (binding) {
-		correct(binding, &tube, 0, crossing);
+		lvp_frame_stats without = correct(binding, &tube, 0, crossing);
 		lvp_frame_stats with = correct(binding, &tube, 1, apart);
-		printf("  every joint at 70 degrees: %d triangles crossing anew of %d; the frame keeps its correction\n",
-		       with.crossing_triangles, tube.rig.triangle_count);
+		int64_t plain = test_count_intersecting_pairs(tube.skinned, tube.rig.triangles, tube.rig.triangle_count);
+		int64_t before = test_count_intersecting_pairs(crossing, tube.rig.triangles, tube.rig.triangle_count);
+		int64_t after = test_count_intersecting_pairs(apart, tube.rig.triangles, tube.rig.triangle_count);
+		printf("  every joint at 70 degrees: %d of %d triangles crossing anew; crossing pairs plain %lld, corrected "
+		       "%lld, kept apart %lld (%d vertices shortened); volume %+.4f%% / %+.4f%%\n",
+		       with.crossing_triangles, tube.rig.triangle_count, (long long)plain, (long long)before,
+		       (long long)after, with.shortened_vertices, 100 * (without.volume_after / without.volume_rest - 1.0),
+		       100 * (with.volume_after / with.volume_rest - 1.0));
 		CHECK(with.crossing_triangles > tube.rig.triangle_count / 20);
-		CHECK(with.shortened_vertices == 0);
-		CHECK(memcmp(crossing, apart, sizeof(float) * values) == 0);
+		CHECK(before > plain);
+		CHECK(after <= plain);
+		CHECK(with.shortened_vertices > 0);
+		CHECK(fabs(with.volume_after / with.volume_rest - 1.0) < 1e-3);
 	}
 	lvp_free(binding);
 	free(crossing);
@@ -151,7 +159,7 @@ static void test_with_fold_over(void)
 int main(void)
 {
 	RUN(test_one_joint_kept_apart);
-	RUN(test_too_many_crossings);
+	RUN(test_every_joint_kept_apart);
 	RUN(test_with_fold_over);
 	return check_failures() != 0;
 }

@@ -557,6 +557,24 @@ class AddonTestCase(unittest.TestCase):
     def status_of(self, obj):
         return self.addon.session.SESSION.status(obj)
 
+    def assertEachFrameAsOpenedAlone(self, obj, frames):
+        """Plays `frames` in order, then evaluates each again, last first, bound anew as a file opened at that
+        frame is: the same offsets, bit for bit, whatever was evaluated before. Returns {frame: offsets}."""
+        scene = bpy.context.scene
+        played = {}
+        for frame in frames:
+            scene.frame_set(frame)
+            played[frame] = offsets_of(obj)
+        for frame in reversed(frames):
+            self.addon.session.SESSION.forget(obj)
+            scene.frame_set(frame)
+            self.assertEqual(self.status_of(obj)[0], 'INFO', "frame %d: %s" % (frame, self.status_of(obj)))
+            alone = offsets_of(obj)
+            if alone != played[frame]:
+                self.fail("%s: frame %d opened alone differs from the frame played to by %g"
+                          % (obj.name, frame, max_distance(alone, played[frame])))
+        return played
+
     def assertStatusContains(self, obj, text):
         status = self.status_of(obj)
         self.assertIsNotNone(status, "no status for %s" % obj.name)

@@ -123,22 +123,9 @@ class ModelTestCase(helpers.AddonTestCase):
         self.assertGreaterEqual(worst_plain, self.plain_loss, "%s: plain skinning's worst loss" % self.name)
 
     def test_a_frame_is_the_same_whatever_came_before(self):
-        scene = bpy.context.scene
         self.obj.lvp.keep_apart = True
         self.obj.lvp.fold_over = True
-        frames = range(self.first, self.last + 1)
-        played = {}
-        for frame in frames:
-            scene.frame_set(frame)
-            played[frame] = helpers.offsets_of(self.obj)
-        for frame in reversed(frames):
-            self.addon.session.SESSION.forget(self.obj)  # bound again, as a file opened at this frame is
-            scene.frame_set(frame)
-            self.assertEqual(self.status_of(self.obj)[0], "INFO", "frame %d: %s" % (frame, self.status_of(self.obj)))
-            self.assertTrue(helpers.offsets_of(self.obj) == played[frame],
-                            "%s: frame %d opened alone differs from the frame played to by %g" % (
-                                self.name, frame, helpers.max_distance(helpers.offsets_of(self.obj),
-                                                                       played[frame])))
+        self.assertEachFrameAsOpenedAlone(self.obj, range(self.first, self.last + 1))
 
 
 class ModelBakeTestCase(test_bake.CommandTestCase):
@@ -157,15 +144,7 @@ class ModelBakeTestCase(test_bake.CommandTestCase):
         return obj, rig
 
     def test_jobs_2_equals_jobs_1_and_the_live_mesh(self):
-        frames = "%d-%d" % (self.first, self.last)
-        one, two = os.path.join(self.out, "one"), os.path.join(self.out, "two")
-        self.assertBakeOk(["--objects", self.obj.name, "--frames", frames, "--output", one])
-        output = self.assertBakeOk(["--objects", self.obj.name, "--frames", frames, "--output", two, "--jobs", "2"])
-        self.assertIn("job 2: frames ", output)
-        name = self.obj.name + ".pc2"
-        with open(os.path.join(one, name), "rb") as a, open(os.path.join(two, name), "rb") as b:
-            self.assertTrue(a.read() == b.read(), "%s: --jobs 2 and --jobs 1 differ" % self.name)
-        self.assertFramesEqualLive(self.obj, os.path.join(two, name), self.first, self.last)
+        self.assertJobsEqualOneJobAndLive(self.obj, self.first, self.last)
 
 
 class TestHuesitos(ModelTestCase):

@@ -100,19 +100,9 @@ class TestHorse(helpers.AddonTestCase):
 
     def test_a_frame_is_the_same_whatever_came_before(self):
         first, last = play(self.rig, "Walk")
-        scene = bpy.context.scene
         self.obj.lvp.keep_apart = True
         self.obj.lvp.fold_over = True
-        played = {}
-        for frame in range(first, last + 1):
-            scene.frame_set(frame)
-            played[frame] = helpers.offsets_of(self.obj)
-        for frame in reversed(range(first, last + 1)):
-            self.addon.session.SESSION.forget(self.obj)  # bound again, as a file opened at this frame is
-            scene.frame_set(frame)
-            self.assertEqual(self.status_of(self.obj)[0], 'INFO', "frame %d" % frame)
-            self.assertTrue(helpers.offsets_of(self.obj) == played[frame],
-                            "frame %d opened alone differs from the frame played to" % frame)
+        played = self.assertEachFrameAsOpenedAlone(self.obj, range(first, last + 1))
         self.assertGreater(max(map(abs, played[last])), 0.0)
 
 
@@ -169,16 +159,7 @@ class TestHorseBake(test_bake.CommandTestCase):
         return obj, rig
 
     def test_jobs_2_equals_jobs_1_and_the_live_mesh(self):
-        last = bpy.context.scene.frame_end
-        frames = "1-%d" % last
-        one, two = os.path.join(self.out, "one"), os.path.join(self.out, "two")
-        self.assertBakeOk(["--objects", self.obj.name, "--frames", frames, "--output", one])
-        output = self.assertBakeOk(["--objects", self.obj.name, "--frames", frames, "--output", two, "--jobs", "2"])
-        self.assertIn("job 2: frames ", output)
-        name = self.obj.name + ".pc2"
-        with open(os.path.join(one, name), "rb") as a, open(os.path.join(two, name), "rb") as b:
-            self.assertTrue(a.read() == b.read(), "--jobs 2 and --jobs 1 differ")
-        self.assertFramesEqualLive(self.obj, os.path.join(two, name), 1, last)
+        self.assertJobsEqualOneJobAndLive(self.obj, 1, bpy.context.scene.frame_end)
 
 
 if __name__ == "__main__":

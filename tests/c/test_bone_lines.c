@@ -19,12 +19,6 @@
 
 #define PI 3.14159265358979323846
 
-/* A posed rig: bone frames and the skinned positions of the rig's own bones. */
-typedef struct posed_rig {
-	test_rig rig;
-	float *posed, *skinned;
-} posed_rig;
-
 /* A deterministic pseudo-random number in [0, 1). */
 static double next_random(uint64_t *state)
 {
@@ -72,7 +66,7 @@ typedef enum tails_variant {
 
 /* The posed rig p given to the core another way (see tails_variant), with the same skinning.
  * The variant's bones come first, in the same order; r_bone_count receives how many there are. */
-static void variant_skeleton(const posed_rig *p, tails_variant variant, uint64_t *state, float **r_rest,
+static void variant_skeleton(const test_posed_rig *p, tails_variant variant, uint64_t *state, float **r_rest,
                              float **r_posed, float **r_tails, int32_t **r_parents, float **r_heads,
                              int32_t *r_bone_count)
 {
@@ -136,7 +130,7 @@ static void variant_skeleton(const posed_rig *p, tails_variant variant, uint64_t
 }
 
 /* The offsets of p corrected with fold-over, the skeleton as given. */
-static float *correct_with(const posed_rig *p, const float *rest, const float *posed, const float *heads,
+static float *correct_with(const test_posed_rig *p, const float *rest, const float *posed, const float *heads,
                            const float *tails, const int32_t *parents, int32_t bone_count)
 {
 	const test_rig *rig = &p->rig;
@@ -178,7 +172,7 @@ static double largest_difference(const float *a, const float *b, int32_t count)
 }
 
 /* Every variant of p against p as built. */
-static void check_variants(const char *name, const posed_rig *p)
+static void check_variants(const char *name, const test_posed_rig *p)
 {
 	static const char *variant_names[] = {"tails across", "tails at random", "tails and rolls at random",
 	                                      "leaf bones"};
@@ -207,26 +201,13 @@ static void check_variants(const char *name, const posed_rig *p)
 	free(clean);
 }
 
-static posed_rig pose_rig(test_rig rig, const float *rotations)
-{
-	posed_rig p = {rig, NULL, NULL};
-	CHECK(test_pose_and_skin(&p.rig, rotations, &p.posed, &p.skinned) == 0);
-	return p;
-}
-
-static void free_posed(posed_rig *p)
-{
-	test_rig_free(&p->rig);
-	free(p->posed);
-	free(p->skinned);
-}
-
 static void test_finger_whichever_way_the_tails_point(void)
 {
 	float rotations[12] = {0, 0, 0, 0, 1, 0, 0, (float)(100 * PI / 180), 1, 0, 0, (float)(100 * PI / 180)};
-	posed_rig p = pose_rig(test_make_finger(), rotations);
+	test_posed_rig p;
+	CHECK(test_pose_rig(test_make_finger(), rotations, &p) == 0);
 	check_variants("finger, both knuckles bent 100 degrees", &p);
-	free_posed(&p);
+	test_posed_rig_free(&p);
 }
 
 static void test_giraffe_whichever_way_the_tails_point(void)
@@ -249,10 +230,11 @@ static void test_giraffe_whichever_way_the_tails_point(void)
 		rotations[4 * bone] = 1.0f;
 		rotations[4 * bone + 3] = (float)(bends[i].degrees * PI / 180);
 	}
-	posed_rig p = pose_rig(rig, rotations);
+	test_posed_rig p;
+	CHECK(test_pose_rig(rig, rotations, &p) == 0);
 	check_variants("giraffe, neck and legs bent", &p);
 	free(rotations);
-	free_posed(&p);
+	test_posed_rig_free(&p);
 }
 
 int main(void)

@@ -19,25 +19,12 @@
 #define LENGTH 4.0f
 #define BAND 0.2f
 
-typedef struct bent_tube {
-	test_rig rig;
-	float *posed, *skinned;
-} bent_tube;
-
-static bent_tube make_bent_tube(double degrees)
+static test_posed_rig make_bent_tube(double degrees)
 {
-	bent_tube c;
-	c.rig = test_make_cylinder(32, 64, RADIUS, LENGTH, BAND);
+	test_posed_rig c;
 	float rotations[8] = {0, 0, 0, 0, 1, 0, 0, (float)(degrees * PI / 180.0)};
-	CHECK(test_pose_and_skin(&c.rig, rotations, &c.posed, &c.skinned) == 0);
+	CHECK(test_pose_rig(test_make_cylinder(32, 64, RADIUS, LENGTH, BAND), rotations, &c) == 0);
 	return c;
-}
-
-static void free_bent_tube(bent_tube *c)
-{
-	test_rig_free(&c->rig);
-	free(c->posed);
-	free(c->skinned);
 }
 
 static double mesh_volume(const float *positions, const test_rig *rig)
@@ -62,7 +49,7 @@ typedef struct bulge {
 	double error, largest, extent, roughness, ends;
 } bulge;
 
-static bulge measure(const bent_tube *c, const float *corrected, const float *offsets)
+static bulge measure(const test_posed_rig *c, const float *corrected, const float *offsets)
 {
 	const test_rig *rig = &c->rig;
 	int32_t n = rig->vertex_count;
@@ -107,7 +94,7 @@ static bulge measure(const bent_tube *c, const float *corrected, const float *of
 	return m;
 }
 
-static bulge correct_tube(const bent_tube *c, float width, int threads, float *r_offsets)
+static bulge correct_tube(const test_posed_rig *c, float width, int threads, float *r_offsets)
 {
 	lvp_bind_options options = lvp_bind_default_options();
 	options.bulge_width = width;
@@ -126,7 +113,7 @@ static bulge correct_tube(const bent_tube *c, float width, int threads, float *r
 
 static void test_a_narrow_band_bulges_as_wide_as_the_flesh(void)
 {
-	bent_tube c = make_bent_tube(70.0);
+	test_posed_rig c = make_bent_tube(70.0);
 	int32_t n = c.rig.vertex_count;
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)n), *threaded = malloc(sizeof(float) * 3 * (size_t)n);
 	printf("  tube r %.2f, weights blended over %.2f, bent 70 degrees:\n", RADIUS, BAND);
@@ -158,13 +145,13 @@ static void test_a_narrow_band_bulges_as_wide_as_the_flesh(void)
 	CHECK(memcmp(offsets, threaded, sizeof(float) * 3 * (size_t)n) == 0);
 	free(offsets);
 	free(threaded);
-	free_bent_tube(&c);
+	test_posed_rig_free(&c);
 }
 
 /* At rest nothing moves, however wide the bulge may be. */
 static void test_rest_pose_moves_nothing(void)
 {
-	bent_tube c = make_bent_tube(0.0);
+	test_posed_rig c = make_bent_tube(0.0);
 	int32_t n = c.rig.vertex_count;
 	float *offsets = malloc(sizeof(float) * 3 * (size_t)n);
 	bulge m = correct_tube(&c, 2.0f, 1, offsets);
@@ -174,7 +161,7 @@ static void test_rest_pose_moves_nothing(void)
 	CHECK(largest == 0.0);
 	CHECK(fabs(m.error) < 1e-6);
 	free(offsets);
-	free_bent_tube(&c);
+	test_posed_rig_free(&c);
 }
 
 static void test_the_width_is_checked(void)

@@ -19,37 +19,25 @@
 
 #define PI 3.14159265358979323846
 
-typedef struct bent_tube {
-	test_rig rig;
-	float *posed, *skinned;
-} bent_tube;
-
 /* The tube bent `degrees` at its middle joint, or at every joint. */
-static bent_tube make_tube(double degrees, bool every_joint)
+static test_posed_rig make_tube(double degrees, bool every_joint)
 {
-	bent_tube tube;
-	tube.rig = test_make_chain(8, 1.0f, 0.3f, 32, 20, 0.5f);
-	float *rotations = calloc((size_t)tube.rig.bone_count * 4, sizeof(float));
-	for (int32_t i = 1; i < tube.rig.bone_count; ++i) {
-		if (!every_joint && i != tube.rig.bone_count / 2)
+	test_rig rig = test_make_chain(8, 1.0f, 0.3f, 32, 20, 0.5f);
+	float *rotations = calloc((size_t)rig.bone_count * 4, sizeof(float));
+	for (int32_t i = 1; i < rig.bone_count; ++i) {
+		if (!every_joint && i != rig.bone_count / 2)
 			continue;
 		rotations[4 * i] = 1.0f;
 		rotations[4 * i + 3] = (float)(degrees * PI / 180.0);
 	}
-	CHECK(test_pose_and_skin(&tube.rig, rotations, &tube.posed, &tube.skinned) == 0);
+	test_posed_rig tube;
+	CHECK(test_pose_rig(rig, rotations, &tube) == 0);
 	free(rotations);
 	return tube;
 }
 
-static void free_tube(bent_tube *tube)
-{
-	free(tube->posed);
-	free(tube->skinned);
-	test_rig_free(&tube->rig);
-}
-
 /* Corrects the tube (the whole mesh restored), keep_apart on or off, into r_positions. */
-static lvp_frame_stats correct_with(lvp_binding *binding, const bent_tube *tube, int keep_apart, int fold_over,
+static lvp_frame_stats correct_with(lvp_binding *binding, const test_posed_rig *tube, int keep_apart, int fold_over,
                                     float *r_positions)
 {
 	lvp_frame_options options = lvp_frame_default_options();
@@ -63,14 +51,14 @@ static lvp_frame_stats correct_with(lvp_binding *binding, const bent_tube *tube,
 	return stats;
 }
 
-static lvp_frame_stats correct(lvp_binding *binding, const bent_tube *tube, int keep_apart, float *r_positions)
+static lvp_frame_stats correct(lvp_binding *binding, const test_posed_rig *tube, int keep_apart, float *r_positions)
 {
 	return correct_with(binding, tube, keep_apart, 0, r_positions);
 }
 
 static void test_one_joint_kept_apart(void)
 {
-	bent_tube tube = make_tube(70.0, false);
+	test_posed_rig tube = make_tube(70.0, false);
 	size_t values = 3 * (size_t)tube.rig.vertex_count;
 	float *crossing = malloc(sizeof(float) * values), *apart = malloc(sizeof(float) * values);
 	lvp_binding *binding = test_bind_rig(&tube.rig, NULL);
@@ -94,12 +82,12 @@ static void test_one_joint_kept_apart(void)
 	lvp_free(binding);
 	free(crossing);
 	free(apart);
-	free_tube(&tube);
+	test_posed_rig_free(&tube);
 }
 
 static void test_every_joint_kept_apart(void)
 {
-	bent_tube tube = make_tube(70.0, true);
+	test_posed_rig tube = make_tube(70.0, true);
 	size_t values = 3 * (size_t)tube.rig.vertex_count;
 	float *crossing = malloc(sizeof(float) * values), *apart = malloc(sizeof(float) * values);
 	lvp_binding *binding = test_bind_rig(&tube.rig, NULL);
@@ -123,7 +111,7 @@ static void test_every_joint_kept_apart(void)
 	lvp_free(binding);
 	free(crossing);
 	free(apart);
-	free_tube(&tube);
+	test_posed_rig_free(&tube);
 }
 
 /* With fold-over too, bent 100 and 140 degrees (plain skinning crosses itself from about 75): never more
@@ -133,7 +121,7 @@ static void test_every_joint_kept_apart(void)
 static void test_with_fold_over(void)
 {
 	for (int degrees = 100; degrees <= 140; degrees += 40) {
-		bent_tube tube = make_tube(degrees, false);
+		test_posed_rig tube = make_tube(degrees, false);
 		size_t values = 3 * (size_t)tube.rig.vertex_count;
 		float *folded = malloc(sizeof(float) * values), *apart = malloc(sizeof(float) * values);
 		lvp_binding *binding = test_bind_rig(&tube.rig, NULL);
@@ -152,7 +140,7 @@ static void test_with_fold_over(void)
 		lvp_free(binding);
 		free(folded);
 		free(apart);
-		free_tube(&tube);
+		test_posed_rig_free(&tube);
 	}
 }
 

@@ -17,34 +17,21 @@
 
 #define PI 3.14159265358979323846
 
-typedef struct posed_chain {
-	test_rig rig;
-	float *posed, *skinned;
-} posed_chain;
-
 /* The chain bent by `folded` degrees at its second bone's head and by 60 at its fourth's. */
-static posed_chain make_chain(double folded, double other)
+static test_posed_rig make_chain(double folded, double other)
 {
-	posed_chain c;
-	c.rig = test_make_chain(4, 1.0f, 0.3f, 24, 12, 0.3f);
+	test_posed_rig c;
 	float rotations[16] = {0};
 	rotations[4] = 1.0f;
 	rotations[7] = (float)(folded * PI / 180.0);
 	rotations[12] = 1.0f;
 	rotations[15] = (float)(other * PI / 180.0);
-	CHECK(test_pose_and_skin(&c.rig, rotations, &c.posed, &c.skinned) == 0);
+	CHECK(test_pose_rig(test_make_chain(4, 1.0f, 0.3f, 24, 12, 0.3f), rotations, &c) == 0);
 	return c;
 }
 
-static void free_chain(posed_chain *c)
-{
-	test_rig_free(&c->rig);
-	free(c->posed);
-	free(c->skinned);
-}
-
 /* Corrects the chain with the given limit; r_relative: each region's change / reference after. */
-static lvp_frame_stats correct(const posed_chain *c, lvp_binding *binding, float limit, float *r_out,
+static lvp_frame_stats correct(const test_posed_rig *c, lvp_binding *binding, float limit, float *r_out,
                                double r_relative[4])
 {
 	lvp_frame_options options = lvp_frame_default_options();
@@ -61,7 +48,7 @@ static lvp_frame_stats correct(const posed_chain *c, lvp_binding *binding, float
 
 static void test_a_folded_joint_keeps_the_skinning_and_the_rest_is_corrected(void)
 {
-	posed_chain folded = make_chain(180.0, 60.0), alone = make_chain(0.0, 60.0);
+	test_posed_rig folded = make_chain(180.0, 60.0), alone = make_chain(0.0, 60.0);
 	int32_t n = folded.rig.vertex_count;
 	lvp_binding *binding = test_bind_rig(&folded.rig, NULL);
 	float *out = malloc(sizeof(float) * 3 * (size_t)n);
@@ -108,13 +95,13 @@ static void test_a_folded_joint_keeps_the_skinning_and_the_rest_is_corrected(voi
 	free(unlimited);
 	free(out);
 	lvp_free(binding);
-	free_chain(&folded);
-	free_chain(&alone);
+	test_posed_rig_free(&folded);
+	test_posed_rig_free(&alone);
 }
 
 static void test_the_limit_is_checked(void)
 {
-	posed_chain c = make_chain(30.0, 30.0);
+	test_posed_rig c = make_chain(30.0, 30.0);
 	lvp_binding *binding = test_bind_rig(&c.rig, NULL);
 	float *out = malloc(sizeof(float) * 3 * (size_t)c.rig.vertex_count);
 	const float bad[2] = {-1.0f, NAN};
@@ -128,7 +115,7 @@ static void test_the_limit_is_checked(void)
 	}
 	free(out);
 	lvp_free(binding);
-	free_chain(&c);
+	test_posed_rig_free(&c);
 }
 
 int main(void)

@@ -520,6 +520,19 @@ int test_pose_and_skin(const test_rig *rig, const float *local_rotations, float 
 	return result == lvp_success ? 0 : -1;
 }
 
+int test_pose_rig(test_rig rig, const float *local_rotations, test_posed_rig *r)
+{
+	r->rig = rig;
+	return test_pose_and_skin(&r->rig, local_rotations, &r->posed, &r->skinned);
+}
+
+void test_posed_rig_free(test_posed_rig *p)
+{
+	test_rig_free(&p->rig);
+	free(p->posed);
+	free(p->skinned);
+}
+
 test_rig test_split_at_seams(const test_rig *rig, int32_t **r_original)
 {
 	int32_t n = rig->vertex_count, f = rig->triangle_count, b = rig->bone_count;

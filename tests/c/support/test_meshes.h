@@ -82,6 +82,18 @@ void test_skin_matrices(float *r_skin, const test_rig *rig, const float *posed);
  * 0, or -1 when the core refuses the skinning. */
 int test_pose_and_skin(const test_rig *rig, const float *local_rotations, float **r_posed, float **r_skinned);
 
+/* A rig with its pose: the bone matrices (bone_count*16) and the positions skinned by them
+ * (vertex_count*3), all owned (test_posed_rig_free). */
+typedef struct test_posed_rig {
+	test_rig rig;
+	float *posed, *skinned;
+} test_posed_rig;
+
+/* Takes `rig` and poses it by local_rotations (test_pose_and_skin) into *r. Returns 0, or -1 when
+ * the core refuses the skinning (*r is then still to be freed). */
+int test_pose_rig(test_rig rig, const float *local_rotations, test_posed_rig *r);
+void test_posed_rig_free(test_posed_rig *p);
+
 /* r = a * b, 4x4 row-major (r may be a or b). */
 void test_multiply_matrices(float r[16], const float a[16], const float b[16]);
 /* The same in double precision. */

@@ -7,7 +7,10 @@ checks look for the feature, not the version number, so a build between two know
 whichever path it has.
 """
 
+from array import array
+
 import bpy
+from mathutils import Matrix
 
 # ---- Geometry Nodes modifier inputs ---------------------------------------------------------
 # Up to Blender 5.1 a Geometry Nodes modifier keeps the values of its node group's inputs as custom
@@ -156,6 +159,34 @@ def bbone_mapping_mode(bone):
     """How a B-Bone maps its vertices to its segments: 'STRAIGHT' before 3.5 (the only way there
     was), or the bone's setting ('STRAIGHT' or 'CURVED') from 3.5 on."""
     return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
+
+
+# ---- matrices in bulk ------------------------------------------------------------------------
+# From Blender 4.x on, a mathutils Matrix exposes its floats through the buffer protocol, row by row:
+# bytes(matrix) reads all 16 at C speed. Blender 3.x's does not; its rows are read one by one. The
+# check looks at what this Blender's Matrix does, layout included.
+
+
+def _matrix_bytes_are_rows():
+    probe = Matrix(((1.0, 2.0, 3.0, 4.0), (5.0, 6.0, 7.0, 8.0), (9.0, 10.0, 11.0, 12.0), (13.0, 14.0, 15.0, 16.0)))
+    try:
+        data = bytes(probe)
+    except TypeError:
+        return False
+    return len(data) == 64 and array('f', data).tolist() == [float(value) for value in range(1, 17)]
+
+
+_MATRIX_BYTES = None
+
+
+def matrices_row_major(matrices):
+    """array('f'): the 4x4 matrices' floats, each row by row, in order."""
+    global _MATRIX_BYTES
+    if _MATRIX_BYTES is None:
+        _MATRIX_BYTES = _matrix_bytes_are_rows()
+    if _MATRIX_BYTES:
+        return array('f', b"".join(map(bytes, matrices)))
+    return array('f', [value for matrix in matrices for row in matrix for value in row.to_tuple()])
 
 
 def bone_selected(armature_object, name):

@@ -43,7 +43,7 @@ part in the organic map's distances (every region's distance term is restricted 
 import math
 from array import array
 
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
 from . import blender_api
 from . import mesh_data
@@ -77,8 +77,30 @@ def armature_space_to_mesh_space(mesh_object, armature_object):
 def deforming_bone_names(mesh_object, armature_object):
     """Names of the armature's deforming bones that have a vertex group on the mesh object, in the
     armature's bone order. These are the bones that are bound."""
-    group_names = {group.name for group in mesh_object.vertex_groups}
-    return [bone.name for bone in armature_object.data.bones if bone.use_deform and bone.name in group_names]
+    group_names = set(mesh_object.vertex_groups.keys())
+    bones = armature_object.data.bones
+    deform = array('b', bytes(len(bones)))
+    bones.foreach_get("use_deform", deform)
+    return [name for name, deforms in zip(bones.keys(), deform) if deforms and name in group_names]
+
+
+def _rest_state(mesh_object, armature_object):
+    """What binding reads of the rest skeleton, read in bulk (a few calls, not a walk over the bones):
+    the bones' names, rest matrices, tails, B-Bone segments and deform flags, and the object's vertex
+    group names. Equal states bind alike, but for the B-Bone mapping (an enum, which Blender does not
+    read in bulk)."""
+    bones = armature_object.data.bones
+    count = len(bones)
+    matrices = mesh_data.float_array(16 * count)
+    tails = mesh_data.float_array(3 * count)
+    segments = mesh_data.int_array(count)
+    deform = array('b', bytes(count))
+    bones.foreach_get("matrix_local", matrices)
+    bones.foreach_get("tail_local", tails)
+    bones.foreach_get("bbone_segments", segments)
+    bones.foreach_get("use_deform", deform)
+    return (tuple(bones.keys()), matrices.tobytes(), tails.tobytes(), segments.tobytes(), deform.tobytes(),
+            tuple(mesh_object.vertex_groups.keys()))
 
 
 def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
@@ -97,6 +119,7 @@ def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
 
 
 _IDENTITY = array('f', (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0))
+_IDENTITY_MATRIX = Matrix.Identity(4)
 
 
 def _segments(bone):
@@ -157,6 +180,7 @@ class CoreSkeleton:
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         self.segments = {name: _segments(data_bones[name]) for name in bone_names}
         self.mappings = {name: _mapping(data_bones[name]) for name in bone_names}
+        self._rest_state = _rest_state(mesh_object, armature_object)
         self.bones = []
         self.first_core_bone = {}
         # Per core bone: the rest frame in armature space (R, or R @ joint rest) and its inverse.
@@ -179,6 +203,7 @@ class CoreSkeleton:
         if mask is not None:
             self.still_bone = len(self.bones)
             self.bones.append((None, STILL))
+        self._bound_premat = premat.copy()
         self._bound_premat_inverse = premat.inverted_safe()
         self._to_bind_premat = None  # see _posed_to_bind_frames
         self._to_bind = None
@@ -356,13 +381,27 @@ class CoreSkeleton:
 
     def changed(self, mesh_object, armature_object, mask):
         """Why mesh_object's Armature modifier, following armature_object with mask (armature_mask()),
-        no longer deforms with this skeleton, or None. Cheap enough for every frame (a walk over the
-        armature's bones): the armature, the mask group, the bound bones (deforming, with a vertex
-        group), their rest pose and B-Bone segments and mapping."""
+        no longer deforms with this skeleton, or None. Cheap enough for every frame: the armature, the
+        mask group and the rest state (_rest_state) compared with the bind's, bone by bone only when
+        that differs; the B-Bone mappings."""
         if armature_object.name_full != self.armature_name:
             return "the Armature modifier follows %s instead of %s" % (armature_object.name, self.armature_name)
         if mask != self.mask:
             return "the vertex group of the Armature modifier changed"
+        data_bones = armature_object.data.bones
+        state = _rest_state(mesh_object, armature_object)
+        if state != self._rest_state:
+            reason = self._rest_changed(mesh_object, armature_object)
+            if reason is not None:
+                return reason
+            self._rest_state = state  # changes to what is not bound: nothing to bind again
+        for name, mapping in self.mappings.items():
+            if self.segments[name] > 1 and _mapping(data_bones[name]) != mapping:
+                return "the B-Bone vertex mapping of %r changed" % name
+        return None
+
+    def _rest_changed(self, mesh_object, armature_object):
+        """changed(), bone by bone: why the bound bones no longer deform as bound, or None."""
         if deforming_bone_names(mesh_object, armature_object) != self.bone_names:
             return "the deforming bones with a vertex group changed"
         data_bones = armature_object.data.bones
@@ -370,8 +409,6 @@ class CoreSkeleton:
             bone = data_bones[name]
             if _segments(bone) != self.segments[name]:
                 return "the B-Bone segments of %r changed" % name
-            if _mapping(bone) != self.mappings[name]:
-                return "the B-Bone vertex mapping of %r changed" % name
             matrix_local, tail_local = self._rest_bones[name]
             if bone.matrix_local != matrix_local or bone.tail_local != tail_local:
                 return "the rest pose of %r changed" % name
@@ -394,37 +431,38 @@ class CoreSkeleton:
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         to_bind = self._posed_to_bind_frames(premat)
         pose_bones = armature_object.pose.bones
-        pose_bone, posed_bone = None, None
-        values = []
-        for index, (name, joint) in enumerate(self.bones):
-            if joint == STILL:
-                values.extend(_IDENTITY)
+        frames = []
+        for name in self.bone_names:
+            pose_bone = pose_bones.get(name)
+            if pose_bone is None:
+                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
+            posed_bone = premat @ pose_bone.matrix
+            segments = self.segments[name]
+            if segments == 1:
+                frames.append(posed_bone)
                 continue
-            if pose_bone is None or pose_bone.name != name:
-                pose_bone = pose_bones.get(name)
-                if pose_bone is None:
-                    return "the bound bone %r has no pose in %s" % (name, armature_object.name)
-                posed_bone = premat @ pose_bone.matrix
-            posed = posed_bone
-            if joint != PLAIN:
-                try:
-                    posed = posed @ _segment_matrix(pose_bone, joint, False)
-                except RuntimeError:
-                    return "the B-Bone segments of %r are not evaluated" % name
-            for row in posed @ to_bind[index]:
-                values.extend(row)
-        out[:] = array('f', values)
+            segment_matrix = pose_bone.bbone_segment_matrix
+            try:
+                frames.extend([posed_bone @ segment_matrix(joint) for joint in range(segments + 1)])
+            except RuntimeError:
+                return "the B-Bone segments of %r are not evaluated" % name
+        if to_bind is not None:
+            frames = [frame @ correction for frame, correction in zip(frames, to_bind)]
+        if self.still_bone is not None:
+            frames.append(_IDENTITY_MATRIX)
+        out[:] = blender_api.matrices_row_major(frames)
         return None
 
     def _posed_to_bind_frames(self, premat):
-        """Per core bone, F^-1 @ premat^-1 @ rest_frame_at_bind, with F its rest frame in armature space:
-        premat @ posed @ this is the posed frame S @ rest_frame_at_bind (the top of this file). The
-        identity while the object has not moved against its armature since the bind; cached per premat."""
+        """Per real core bone, F^-1 @ premat^-1 @ rest_frame_at_bind, with F its rest frame in armature
+        space: premat @ posed @ this is the posed frame S @ rest_frame_at_bind (the top of this file).
+        None while the object has not moved against its armature since the bind (the identity); cached
+        per premat."""
         if self._to_bind_premat != premat:
             premat_inverse = premat.inverted_safe()
             self._rigid_space = mesh_data.float_array(16)
             mesh_data.flatten_matrix(premat_inverse, self._rigid_space, 0)
-            self._to_bind = [inverse @ premat_inverse @ rest for inverse, rest in
-                             zip(self._rest_armature_inverse, self.rest_frames)]
+            self._to_bind = None if premat == self._bound_premat else [
+                inverse @ premat_inverse @ rest for inverse, rest in zip(self._rest_armature_inverse, self.rest_frames)]
             self._to_bind_premat = premat.copy()
         return self._to_bind

@@ -85,7 +85,7 @@ def time_frames(scene, frames):
 
 def main():
     arguments = parse_arguments()
-    addon = helpers.enable_addon()
+    addon = helpers.enable_addon(check_volumes=False)
     scene = helpers.reset_scene()
     half = max(2, arguments.frames // 2)
     scene.frame_start = 1

@@ -81,7 +81,7 @@ def bake(blend, name, frames, jobs, directory):
 
 def main():
     arguments = parse_arguments()
-    helpers.enable_addon()
+    helpers.enable_addon(check_volumes=False)
     directory = helpers.test_tmp()
     dense_frames = max(8, arguments.frames // 5)
     scenes = [giraffe_blend(directory, arguments.frames) + (arguments.frames,),

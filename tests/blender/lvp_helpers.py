@@ -79,11 +79,13 @@ def _install_extension(zip_path):
     return module_name
 
 
-def enable_addon():
+def enable_addon(check_volumes=True):
     """Enables the add-on once per Blender process and returns its package module.
 
     Blender 4.2+: the packaged zip installed as an extension. Blender 3.4: the add-on folder (the
-    runner puts its parent on sys.path).
+    runner puts its parent on sys.path). check_volumes: every correction checked against volumes
+    measured on their own (_check_every_correction), for the rest of the process; benchmarks, which
+    time what users run, leave it off.
     """
     global _addon_module
     if _addon_module is not None and is_registered():
@@ -109,7 +111,8 @@ def enable_addon():
     _addon_module = importlib.import_module(module_name)
     if not hasattr(bpy.types.Object, "lvp"):
         raise RuntimeError("the add-on %s did not register (Object.lvp is missing)" % module_name)
-    _check_every_correction(_addon_module)
+    if check_volumes:
+        _check_every_correction(_addon_module)
     return _addon_module
 
 

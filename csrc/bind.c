@@ -55,6 +55,7 @@ void lvp_free(lvp_binding *binding)
 	lvp__fold_free(&binding->fold);
 	lvp__contact_free(&binding->contact);
 	lvp__part_volumes_free(&binding->parts);
+	lvp__smoothing_free(&binding->smoothing);
 	lvp__step_free(&binding->step);
 	free(binding);
 }
@@ -228,6 +229,7 @@ static lvp_result lvp__bind_points(lvp_binding **r_binding, lvp__weld *weld, con
 	    (result = lvp__build_region_system(
 	         binding, options->mode == LVP_MODE_LOCAL ? options->bone_groups : NULL, r_diag)) ||
 	    (result = lvp__build_stretch_pairs(binding, r_diag)) ||
+	    (result = lvp__build_smoothing(binding, r_diag)) ||
 	    (result = lvp__build_map(binding, &options->map, r_diag))) {
 		lvp_free(binding);
 		return result;

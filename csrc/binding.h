@@ -16,7 +16,7 @@
 
 /* The pool for a loop that does about `work` items of work (vertices, triangles): none when
  * that is too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
-#define LVP__POOL_FOR(binding, work) ((work) >= 8 * LVP__GRAIN ? (binding)->pool : NULL)
+#define LVP__POOL_FOR(binding, work) ((work) >= 2 * LVP__GRAIN ? (binding)->pool : NULL)
 
 /* The most cells a region system (region_system.c) is stored in: a step whose active regions'
  * profile would take more solves the coupled system for as many of them as fit (in the solve
@@ -203,7 +203,7 @@ typedef struct lvp__borders {
 	int32_t *edges;           /* 2 per border half-edge: a, b in the triangle's orientation */
 	int32_t *slots;           /* 2 per border half-edge: the slots of a and b for the region */
 	float *gradient;          /* 6 per border half-edge: this frame's border terms of the region's
-	                             volume gradient at a and at b (world, lvp__region_changes) */
+	                             volume gradient at a and at b (world, lvp__vertex_gradients) */
 	lvp__vec3 *rest;          /* 2 per border half-edge: with A, B its ends at rest in the region's rest
 	                             frame, A + B and A x B (all its side quad needs of the rest,
 	                             lvp__side_quad6; lvp__frame_rest) */
@@ -380,6 +380,7 @@ typedef struct lvp__step {
 	int32_t moved_count;
 	int32_t *chunk_moved;      /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
 	double *change;            /* per region: V_s - V_s,rest in rest-world units */
+	bool change_stale;         /* change is of positions before the last steps (lvp__global_steps) */
 	double *target;            /* per region: the change a region is corrected to (lvp__correct_volumes):
 	                              the stretch's change, plus its part of the whole mesh's fix */
 	double *uniform_gain;      /* per active region: what equal multipliers of all active regions do
@@ -400,7 +401,20 @@ typedef struct lvp__step {
 	bool spread_total;         /* steps also restore each part's volume (lvp__correct_volumes) */
 	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers and whole-mesh steps */
 	double *part_response;     /* per part: measured / predicted change of the last whole-mesh steps */
+	float *touched_phi;        /* per dynamic vertex (by its place in the set): the sum of its phi over the
+	                              groups touched this frame (lvp__global_steps, one part) */
+	bool uniform_step;         /* the step applies one multiplier through touched_phi (lvp__apply_loop) */
+	double uniform_mu;         /* that multiplier */
 } lvp__step;
+
+/* The edge neighbours of each vertex, each with how many triangles of the vertex it is a corner of
+ * (2 inside the surface, 1 on a border): what a smoothing pass averages over (offset_smoothing.c). */
+typedef struct lvp__smoothing {
+	int32_t *offsets;         /* vertex_count+1 */
+	int32_t *neighbours;
+	float *shares;            /* per neighbour: its triangles around the vertex */
+	float *total;             /* per vertex: the sum of its shares */
+} lvp__smoothing;
 
 struct lvp_binding {
 	lvp_mode mode;
@@ -431,6 +445,7 @@ struct lvp_binding {
 	lvp__fold fold;
 	lvp__contact contact;
 	lvp__part_volumes parts;
+	lvp__smoothing smoothing;
 	lvp__step step;
 };
 
@@ -620,10 +635,13 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions);
 /* The same after only the vertices moved[0..moved_count) moved: visits their triangles only
  * (and keeps the vertex terms current when they were). */
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count);
-/* What a correction step needs of the last measurement: normals, g and slot_g of the dynamic
- * vertices, the border terms of lvp__region_changes() included. Measuring alone does not need
- * them, so the measurement that ends the iteration skips them. */
+/* What a correction step needs of the last measurement (of step.positions): normals, g and slot_g
+ * of the dynamic vertices, the regions' border terms included. Measuring alone does not need them,
+ * so the measurement that ends the iteration skips them. */
 void lvp__vertex_gradients(lvp_binding *binding);
+/* Only the normals and g of the dynamic vertices: what a step of the whole mesh's one multiplier
+ * needs (lvp__global_steps), which reads no region's gradient. */
+void lvp__vertex_normals(lvp_binding *binding);
 /* Rest side: the region sums of the rest positions (NULL = bind rest) about the rest origins. */
 void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp__region_sums *r_totals);
 /* The rest side of a frame whose rest is rest_positions (NULL = bind rest): borders.rest, and the
@@ -631,8 +649,7 @@ void lvp__rest_constants(lvp_binding *binding, const float *rest_positions, lvp_
 const lvp__region_sums *lvp__frame_rest(lvp_binding *binding, const float *rest_positions);
 /* reference_volume[] from the bind rest (see lvp.h, lvp_frame_options.tolerance). */
 void lvp__reference_volumes(lvp_binding *binding);
-/* Region changes (rest-world units) from the last mesh pass, and the border terms of the
- * gradients (binding.h, borders.gradient); needs posed/posed_inverse. */
+/* Region changes (rest-world units) from the last mesh pass at `positions`; needs posed/posed_inverse. */
 void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp__region_sums *rest_totals,
                          double *r_change);
 /* Side quad (a, A, B, b) of the prism over the border half-edge a -> b (A, B: a and b at rest),
@@ -764,6 +781,9 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
 /* offset_smoothing.c */
+/* The neighbour lists of the smoothing passes (binding.smoothing), from the sorted triangles. */
+lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
+void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
  * neighbours'. The volume is not restored here. */

@@ -167,11 +167,15 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
-		lvp__support support = lvp__vertex_support(binding, k);
 		double sum = 0.0;
-		for (int32_t i = 0; i < support.count; ++i)
-			if (support.phi[i] > 0.0f)
-				sum += support.phi[i] * applied_mu[support.regions[i]];
+		if (binding->step.uniform_step) {
+			sum = (double)binding->step.touched_phi[v] * binding->step.uniform_mu;
+		} else {
+			lvp__support support = lvp__vertex_support(binding, k);
+			for (int32_t i = 0; i < support.count; ++i)
+				if (support.phi[i] > 0.0f)
+					sum += support.phi[i] * applied_mu[support.regions[i]];
+		}
 		float rho = (float)((double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * sum);
 		if (rho != 0.0f)
 			lvp__move_vertex(binding, k, rho, written++);
@@ -513,17 +517,35 @@ static void lvp__measure_positions(lvp_binding *binding, const float *rest_posit
 	lvp__find_dynamic_set(binding, rest_positions, totals, false);
 	lvp__mesh_pass(binding, binding->step.positions);
 	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
+	binding->step.change_stale = false;
 }
 
-/* Measures again after a step that moved only binding->step.moved: only their triangles are visited,
- * or, when they are most of the dynamic set, the whole set again (streaming and threaded). */
-static void lvp__remeasure(lvp_binding *binding, const lvp__region_sums *totals)
+/* The regions' changes of step.positions, when the last steps measured only the parts' volumes. */
+static void lvp__measure_changes(lvp_binding *binding, const lvp__region_sums *totals)
+{
+	if (!binding->step.change_stale)
+		return;
+	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
+	binding->step.change_stale = false;
+}
+
+/* The region sums again after a step that moved only binding->step.moved: only their triangles are
+ * visited, or, when they are most of the dynamic set, the whole set again (streaming and threaded).
+ * Enough for the whole mesh's and the parts' volumes; not for the regions' changes. */
+static void lvp__remeasure_sums(lvp_binding *binding)
 {
 	if (2 * binding->step.moved_count >= binding->dynamic.vertex_count)
 		lvp__mesh_pass(binding, binding->step.positions);
 	else
 		lvp__update_pass(binding, binding->step.positions, binding->step.moved, binding->step.moved_count);
+}
+
+/* Measures again after a step (lvp__remeasure_sums), the regions' changes included. */
+static void lvp__remeasure(lvp_binding *binding, const lvp__region_sums *totals)
+{
+	lvp__remeasure_sums(binding);
 	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
+	binding->step.change_stale = false;
 }
 
 /* Sum over the groups of their squared relative distance to their targets, and, spreading
@@ -592,11 +614,54 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 	return steps;
 }
 
+/* Per dynamic vertex that can move, the sum of its phi over the touched groups (step.touched_phi);
+ * zero for the others. With one part every touched group takes the same multiplier, so a vertex
+ * moves by gamma g times this sum times it, and the walk over its support is done once per call of
+ * lvp__global_steps instead of twice per step. */
+static void lvp__sum_touched_phi(lvp_binding *binding)
+{
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		double sum = 0.0;
+		if (lvp__can_move(binding, k)) {
+			lvp__support support = lvp__vertex_support(binding, k);
+			for (int32_t i = 0; i < support.count; ++i)
+				if (support.phi[i] > 0.0f && binding->step.region_touched[binding->system.group_leader[support.regions[i]]])
+					sum += support.phi[i];
+		}
+		binding->step.touched_phi[v] = (float)sum;
+	}
+}
+
+/* What one multiplier of every touched group does to each part's volume (eq. 5's denominator: sum
+ * over the vertices of gamma_k g_k^2 times their phi of the touched groups), into system. */
+static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *system)
+{
+	memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		double g = binding->measure.vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g * g;
+		if (one_part) {
+			system[0] += gain * binding->step.touched_phi[v];
+			continue;
+		}
+		if (!lvp__can_move(binding, k))
+			continue;
+		lvp__support support = lvp__vertex_support(binding, k);
+		for (int32_t i = 0; i < support.count; ++i) {
+			int32_t group = binding->system.group_leader[support.regions[i]];
+			if (support.phi[i] > 0.0f && binding->step.region_touched[group])
+				system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
+		}
+	}
+}
+
 /* One multiplier per part (one for the whole mesh when nothing is split) spread over the regions
  * touched this frame (eq. 5 with the sum of their maps, each step after the first scaled by how the
  * skin answered the one before) removes what is left of the part's change, holes capped: the whole
  * of LVP_RESTORE_WHOLE_MESH, and the second phase of the fallback of lvp__correct_volumes() once
- * every region is within tolerance of its rest volume. */
+ * every region is within tolerance of its rest volume. The steps read the parts' volumes only; the
+ * regions' changes are measured once, after the last. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
                                  const float *rest_positions, const lvp__region_sums *totals)
 {
@@ -608,27 +673,17 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	double *response = binding->step.part_response;
 	for (int32_t p = 0; p < binding->parts.count; ++p)
 		response[p] = 1.0;
+	bool one_part = binding->parts.count == 1, regions_measured = !binding->step.change_stale;
+	if (one_part && touched > 0)
+		lvp__sum_touched_phi(binding);
 	while (steps < budget && touched > 0) {
 		lvp__part_changes(binding);
 		if (!lvp__parts_off(binding, options->tolerance))
 			break;
 		memcpy(change_before, binding->parts.change, sizeof(double) * (size_t)binding->parts.count);
 		double before = lvp__parts_error(binding);
-		lvp__vertex_gradients(binding);
-		memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
-		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
-			int32_t k = binding->dynamic.vertices[v];
-			if (!lvp__can_move(binding, k))
-				continue;
-			lvp__support support = lvp__vertex_support(binding, k);
-			double gain =
-			    (double)binding->frame_map.gamma[k] * binding->measure.vertex_g[k] * binding->measure.vertex_g[k];
-			for (int32_t i = 0; i < support.count; ++i) {
-				int32_t group = binding->system.group_leader[support.regions[i]];
-				if (support.phi[i] > 0.0f && binding->step.region_touched[group])
-					system[lvp__region_part(binding, support.regions[i])] += gain * support.phi[i];
-			}
-		}
+		lvp__vertex_normals(binding);
+		lvp__whole_mesh_gains(binding, one_part, system);
 		bool any = false;
 		for (int32_t j = 0; j < touched; ++j) {
 			int32_t t = binding->step.active[j], p = lvp__region_part(binding, t);
@@ -637,13 +692,18 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		}
 		if (!any)
 			break;
+		binding->step.uniform_step = one_part;
+		binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
 		lvp__apply_multipliers(binding, binding->step.active, touched);
+		binding->step.uniform_step = false;
 		++steps;
-		lvp__remeasure(binding, totals);
+		lvp__remeasure_sums(binding);
+		regions_measured = false;
 		lvp__part_changes(binding);
 		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
+			regions_measured = true;
 			break;
 		}
 		/* The skin's true response is not the linear one (the normals turn as it moves): the next
@@ -654,6 +714,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			response[p] *= fmin(fmax(achieved, 0.25), 4.0);
 		}
 	}
+	binding->step.change_stale = !regions_measured;
 	return steps;
 }
 
@@ -721,14 +782,19 @@ static int32_t lvp__touch_movable_groups(lvp_binding *binding, double tolerance)
  * region changes: the uniform part leaves the range where the linearization holds) it is
  * undone, and the correction goes on in two phases: the regions to their targets, then one
  * multiplier for the whole mesh (lvp__global_steps). Returns the number of steps;
- * *r_first_active: the regions corrected by the first. */
+ * *r_first_active: the regions corrected by the first. measure_changes: the regions' changes are
+ * measured at the end (else they may be left of the positions before the last whole-mesh steps,
+ * for a caller that measures the positions afresh next). */
 static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_options *options,
                                     const float *rest_positions, const lvp__region_sums *totals,
-                                    int32_t *r_first_active)
+                                    int32_t *r_first_active, bool measure_changes)
 {
 	if (lvp__restores_whole_mesh(binding, options)) {
 		*r_first_active = lvp__touch_movable_groups(binding, options->tolerance);
-		return lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals);
+		int32_t steps = lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals);
+		if (measure_changes)
+			lvp__measure_changes(binding, totals);
+		return steps;
 	}
 	/* With a group given up, the whole mesh is not restored: its loss would be pushed into the
 	 * groups still corrected. */
@@ -743,7 +809,9 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
 	int32_t ignored;
 	steps += lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations - steps,
 	                                &ignored, &failed);
-	return steps + lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
+	steps += lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
+	lvp__measure_changes(binding, totals);
+	return steps;
 }
 
 /* A group's change against the change its bones' scales give it, relative to its reference. */
@@ -852,16 +920,18 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 
 	int32_t first_active = 0;
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
-	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active);
+	bool smoothing = options->smoothing_passes > 0 && binding->mode == LVP_MODE_LOCAL;
+	/* (the smoothing measures its positions afresh) */
+	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active, !smoothing);
 	stats->active_regions = first_active;
-	if (options->smoothing_passes > 0 && binding->mode == LVP_MODE_LOCAL) {
+	if (smoothing) {
 		/* Offsets along normals that turn fast (folds) open creases: smoothed, then the volume the
 		 * smoothing took is restored by the same steps (a few percent of the offsets, along the
 		 * normals again). */
 		int32_t ignored;
 		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
 		lvp__measure_positions(binding, rest_positions, totals);
-		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
 	}
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
@@ -882,7 +952,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			if (lvp__fade_map_at_contact(binding))
 				lvp__movable_regions(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
 			if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
 				memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
 				break;
@@ -906,7 +976,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__fade_map_where_shortened(binding);
 			lvp__movable_regions(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);
@@ -1172,6 +1242,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->part_total = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_response = lvp__calloc(parts, sizeof(double), &ok);
+	step->touched_phi = lvp__calloc(n, sizeof(float), &ok);
 	return ok;
 }
 
@@ -1181,7 +1252,8 @@ void lvp__step_free(lvp__step *step)
 	                  step->change, step->target,
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
-	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response};
+	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response,
+	                  step->touched_phi};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

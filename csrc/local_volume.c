@@ -401,12 +401,62 @@ typedef struct lvp__change_context {
 	double *r_change;
 } lvp__change_context;
 
-/* Regions [first, last): each writes only its change and its border edges' gradients. */
+/* What the side quads of region r's border edges are measured with this frame (lvp__border_side). */
+typedef struct lvp__border_frame {
+	const lvp__mat4 *to_local; /* world -> the region's bone frame */
+	double gradient_scale;     /* local 6 x volume -> world, in the top part's gradient units */
+	int32_t bone_class;
+	lvp__vec3 origin;          /* of the region's sums (lvp__mesh_pass) */
+} lvp__border_frame;
+
+static lvp__border_frame lvp__border_frame_of(const lvp_binding *binding, int32_t r)
+{
+	/* side gradients: local frame, 6 x volume -> world, in the units of the top part's gradient
+	 * (which the correction multiplies by kappa); q = L p => dV/dp = L^T dV/dq */
+	lvp__border_frame frame = {&binding->rig.posed_inverse[r], binding->rig.rest_det[r] / binding->rig.kappa[r] / 6.0,
+	                           binding->frame_map.skin_class[r], binding->measure.origin[r]};
+	return frame;
+}
+
+/* 6 x the volume of the side quad over border half-edge i (local units), and with r_gradient (6
+ * floats) the border terms of the region's volume gradient at its two ends. Zero, and no gradient,
+ * when both ends are static with the region's bone: rest and posed edge are the same in the bone's
+ * frame, the quad is flat, and neither end moves this frame. */
+static inline double lvp__border_side(const lvp_binding *binding, const lvp__border_frame *frame, int32_t i,
+                                      const float *positions, float *r_gradient)
+{
+	int32_t a = binding->borders.edges[2 * i], b = binding->borders.edges[2 * i + 1];
+	if (lvp__carried_rigidly(binding, a, frame->bone_class) && lvp__carried_rigidly(binding, b, frame->bone_class))
+		return 0.0;
+	lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
+	lvp__vec3 qa = lvp__transform_point(frame->to_local, pa), qb = lvp__transform_point(frame->to_local, pb);
+	const lvp__vec3 *rest = binding->borders.rest + 2 * i;
+	lvp__vec3 local[2];
+	double side6 = lvp__side_quad6(&local[0], &local[1], qa, qb, rest[0], rest[1]);
+	if (!r_gradient)
+		return side6;
+	/* The top's gradient was taken in its translation-invariant form, exact only where a vertex's
+	 * fan is closed; on the border the fan is open and the exact gradient about the frame origin o
+	 * differs by (p_k - o) x (p_end - p_start) / 6, which is this half-edge's share for both of its
+	 * ends. */
+	lvp__vec3 o = frame->origin;
+	lvp__vec3 top_share = lvp__scale(lvp__cross(lvp__sub(pb, o), lvp__sub(pa, o)), 1.0 / 6.0);
+	const double *m = frame->to_local->m;
+	double scale = frame->gradient_scale;
+	for (int end = 0; end < 2; ++end) {
+		lvp__vec3 g = local[end];
+		r_gradient[3 * end] = (float)(scale * (m[0] * g.x + m[4] * g.y + m[8] * g.z) + top_share.x);
+		r_gradient[3 * end + 1] = (float)(scale * (m[1] * g.x + m[5] * g.y + m[9] * g.z) + top_share.y);
+		r_gradient[3 * end + 2] = (float)(scale * (m[2] * g.x + m[6] * g.y + m[10] * g.z) + top_share.z);
+	}
+	return side6;
+}
+
+/* Regions [first, last): each writes only its change. */
 static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 {
 	const lvp__change_context *c = context;
 	lvp_binding *binding = c->binding;
-	const float *positions = c->positions;
 	for (int32_t r = first; r < last; ++r) {
 		if (binding->rig.region_skipped[r]) {
 			c->r_change[r] = 0.0;
@@ -416,39 +466,9 @@ static void lvp__region_change_loop(void *context, int32_t first, int32_t last)
 		double top = binding->rig.kappa[r] * binding->measure.sums[r].volume6 / 6.0;
 		double sides6 = 0.0;
 		if (binding->borders.offsets[r + 1] > binding->borders.offsets[r]) {
-			const lvp__mat4 *to_local = &binding->rig.posed_inverse[r];
-			const double *m = to_local->m;
-			/* side gradients: local frame, 6 x volume -> world, in the units of the top part's
-			 * gradient (which the correction multiplies by kappa); q = L p => dV/dp = L^T dV/dq */
-			double gradient_scale = binding->rig.rest_det[r] / binding->rig.kappa[r] / 6.0;
-			int32_t bone_class = binding->frame_map.skin_class[r];
-			lvp__vec3 o = binding->measure.origin[r];
-			for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i) {
-				int32_t a = binding->borders.edges[2 * i], b = binding->borders.edges[2 * i + 1];
-				/* Both ends static with the region's bone: rest and posed edge are the same in the
-				 * bone's frame, the quad is flat, and neither end moves this frame. */
-				if (lvp__carried_rigidly(binding, a, bone_class) && lvp__carried_rigidly(binding, b, bone_class))
-					continue;
-				lvp__vec3 pa = lvp__load(positions + 3 * a), pb = lvp__load(positions + 3 * b);
-				lvp__vec3 qa = lvp__transform_point(to_local, pa), qb = lvp__transform_point(to_local, pb);
-				const lvp__vec3 *rest = binding->borders.rest + 2 * i;
-				lvp__vec3 local[2];
-				sides6 += lvp__side_quad6(&local[0], &local[1], qa, qb, rest[0], rest[1]);
-				/* The top's gradient was taken in its translation-invariant form, exact only where
-				 * a vertex's fan is closed; on the border the fan is open and the exact gradient
-				 * about the frame origin o differs by (p_k - o) x (p_end - p_start) / 6, which is
-				 * this half-edge's share for both of its ends. */
-				lvp__vec3 top_share = lvp__scale(lvp__cross(lvp__sub(pb, o), lvp__sub(pa, o)), 1.0 / 6.0);
-				float *gradient = binding->borders.gradient + 6 * i;
-				for (int end = 0; end < 2; ++end) {
-					lvp__vec3 g = local[end];
-					gradient[3 * end] = (float)(gradient_scale * (m[0] * g.x + m[4] * g.y + m[8] * g.z) + top_share.x);
-					gradient[3 * end + 1] =
-					    (float)(gradient_scale * (m[1] * g.x + m[5] * g.y + m[9] * g.z) + top_share.y);
-					gradient[3 * end + 2] =
-					    (float)(gradient_scale * (m[2] * g.x + m[6] * g.y + m[10] * g.z) + top_share.z);
-				}
-			}
+			lvp__border_frame frame = lvp__border_frame_of(binding, r);
+			for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
+				sides6 += lvp__border_side(binding, &frame, i, c->positions, NULL);
 			/* local units -> rest-world units */
 			sides6 *= binding->rig.rest_det[r];
 		}
@@ -465,14 +485,31 @@ void lvp__region_changes(lvp_binding *binding, const float *positions, const lvp
 	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__region_change_loop, &context, binding->region_count, 1);
 }
 
-/* The border terms of the last lvp__region_changes() added to the slots' <n, gradient> of the
- * dynamic border vertices (static ones never move this frame: their slots are not kept). Each
- * such vertex's slots are first recomputed from its slot gradients, so that the border terms of
- * an earlier measurement are not counted again. Without them the corrections of a narrow weight
- * band, whose vertices are mostly on a region border, would be underestimated and converge
- * slowly. */
+/* Regions [first, last): the border terms of their volume gradients at step.positions
+ * (borders.gradient), each region writing only its own border edges'. */
+static void lvp__border_gradient_loop(void *context, int32_t first, int32_t last)
+{
+	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
+	for (int32_t r = first; r < last; ++r) {
+		if (binding->rig.region_skipped[r] || binding->borders.offsets[r + 1] == binding->borders.offsets[r])
+			continue;
+		lvp__border_frame frame = lvp__border_frame_of(binding, r);
+		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
+			lvp__border_side(binding, &frame, i, binding->step.positions, binding->borders.gradient + 6 * i);
+	}
+}
+
+/* The border terms of the regions' volume gradients at step.positions (lvp__border_side), added to
+ * the slots' <n, gradient> of the dynamic border vertices (static ones never move this frame:
+ * their slots are not kept). Each such vertex's slots are first recomputed from its slot
+ * gradients, so that the border terms of an earlier measurement are not counted again. Without
+ * them the corrections of a narrow weight band, whose vertices are mostly on a region border,
+ * would be underestimated and converge slowly. */
 static void lvp__add_border_gradients(lvp_binding *binding)
 {
+	lvp__loop_context context = {binding, NULL};
+	int64_t work = 8 * (int64_t)binding->borders.offsets[binding->region_count]; /* as lvp__region_changes */
+	lvp__parallel_for(LVP__POOL_FOR(binding, work), lvp__border_gradient_loop, &context, binding->region_count, 1);
 	int32_t touched = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r) {
 		if (binding->rig.region_skipped[r])
@@ -504,14 +541,19 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 		binding->measure.vertex_dirty[binding->measure.dirty_vertices[i]] = 0;
 }
 
+void lvp__vertex_normals(lvp_binding *binding)
+{
+	if (binding->measure.vertex_terms_current)
+		return;
+	lvp__loop_context context = {binding, NULL};
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__vertex_loop, &context,
+	                  binding->dynamic.vertex_count, LVP__GRAIN);
+	binding->measure.vertex_terms_current = true;
+}
+
 void lvp__vertex_gradients(lvp_binding *binding)
 {
-	if (!binding->measure.vertex_terms_current) {
-		lvp__loop_context context = {binding, NULL};
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__vertex_loop, &context,
-		                  binding->dynamic.vertex_count, LVP__GRAIN);
-		binding->measure.vertex_terms_current = true;
-	}
+	lvp__vertex_normals(binding);
 	lvp__add_border_gradients(binding);
 }
 

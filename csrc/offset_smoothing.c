@@ -9,6 +9,54 @@
  */
 #include "binding.h"
 
+#include <stdlib.h>
+
+lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	const lvp__mesh *mesh = &binding->mesh;
+	int32_t n = binding->vertex_count;
+	int64_t corners = mesh->vertex_corner_offsets[n];
+	lvp__smoothing *smoothing = &binding->smoothing;
+	bool ok = true;
+	smoothing->offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
+	smoothing->neighbours = lvp__calloc((size_t)(2 * corners) + 1, sizeof(int32_t), &ok);
+	smoothing->shares = lvp__calloc((size_t)(2 * corners) + 1, sizeof(float), &ok);
+	smoothing->total = lvp__calloc((size_t)n, sizeof(float), &ok);
+	if (!ok)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	int32_t written = 0;
+	for (int32_t k = 0; k < n; ++k) {
+		int32_t first = written;
+		/* The other corners of k's triangles; a vertex named again adds a share to its entry. */
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+			const int32_t *triangle = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
+			for (int i = 0; i < 3; ++i) {
+				int32_t j = triangle[i], e = first;
+				if (j == k)
+					continue;
+				while (e < written && smoothing->neighbours[e] != j)
+					++e;
+				if (e == written) {
+					smoothing->neighbours[written] = j;
+					smoothing->shares[written++] = 0.0f;
+				}
+				smoothing->shares[e] += 1.0f;
+				smoothing->total[k] += 1.0f;
+			}
+		}
+		smoothing->offsets[k + 1] = written;
+	}
+	return lvp_success;
+}
+
+void lvp__smoothing_free(lvp__smoothing *smoothing)
+{
+	free(smoothing->offsets);
+	free(smoothing->neighbours);
+	free(smoothing->shares);
+	free(smoothing->total);
+}
+
 typedef struct lvp__smoothing_pass {
 	lvp_binding *binding;
 	const float *positions; /* the frame's input points */
@@ -34,33 +82,27 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
 	lvp_binding *binding = pass->binding;
-	const lvp__mesh *mesh = &binding->mesh;
+	const lvp__smoothing *smoothing = &binding->smoothing;
 	const float *offsets = binding->step.smoothing_offsets;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		if (!lvp__can_move(binding, k))
+		if (!lvp__can_move(binding, k) || !(smoothing->total[k] > 0.0f))
 			continue;
+		/* A neighbour counts once per triangle it shares with k (smoothing.shares): twice inside
+		 * the surface, as the edge's two triangles weigh it. */
 		double sum[3] = {0.0, 0.0, 0.0};
-		int32_t count = 0;
-		/* Over the corners of its triangles: a neighbour counts once per triangle it shares with k,
-		 * twice inside the surface, as the edge's two triangles weigh it. */
-		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
-			const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
-			for (int i = 0; i < 3; ++i) {
-				int32_t j = corners[i];
-				if (j == k)
-					continue;
-				++count;
-				if (dynamic[j])
-					for (int a = 0; a < 3; ++a)
-						sum[a] += offsets[3 * j + a];
-			}
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+			int32_t j = smoothing->neighbours[e];
+			if (!dynamic[j])
+				continue;
+			double share = smoothing->shares[e];
+			for (int a = 0; a < 3; ++a)
+				sum[a] += share * offsets[3 * j + a];
 		}
-		if (count == 0)
-			continue;
 		float *p = binding->step.positions + 3 * k;
 		const float *own = offsets + 3 * k, *skinned = pass->positions + 3 * k;
+		double count = smoothing->total[k];
 		for (int a = 0; a < 3; ++a)
 			p[a] = skinned[a] + (float)(0.5 * own[a] + 0.5 * sum[a] / count);
 	}

@@ -4,57 +4,92 @@
  * lvp_free(). A loop is cut into fixed chunks that the workers and the calling thread take in
  * turn; every chunk writes only its own outputs, so the result does not depend on the thread
  * count or on which thread ran which chunk.
+ *
+ * A frame runs dozens of loops of a millisecond or less, with a little serial work between them.
+ * Waking a sleeping thread costs tens of microseconds, so a worker that finished a loop first
+ * watches for the next one for a while (LVP__WATCH_SPINS) before it sleeps; chunks are claimed
+ * with one atomic add, not a lock. The lock guards only the loop's start and end: a worker joins
+ * a loop under it, and the caller does not set up the next loop before every worker that joined
+ * has left, so no worker ever claims a chunk of a loop other than the one it read.
  */
 #include "threads.h"
 
 #include <pthread.h>
+#include <sched.h>
+#include <stdatomic.h>
 #include <stdlib.h>
+
+/* Polls of the loop counter a worker makes before sleeping, about a tenth of a millisecond. */
+#define LVP__WATCH_SPINS 4000
 
 struct lvp__pool {
 	int32_t worker_count;
 	pthread_t *workers;
 	pthread_mutex_t lock;
-	pthread_cond_t wake, finished;
-	/* the loop being run */
+	pthread_cond_t wake, left;
+	/* the loop being run: set by the caller under the lock, read by the workers that joined it */
 	lvp__task task;
 	void *context;
-	int32_t item_count, grain, next_chunk, chunk_count, chunks_done;
-	uint64_t generation;
-	bool stop;
+	int32_t item_count, grain, chunk_count;
+	atomic_int next_chunk, chunks_done;
+	int32_t joined, sleeping; /* under the lock: workers in the loop, workers waiting on wake */
+	atomic_uint_fast64_t generation;
+	atomic_bool stop;
 };
 
-/* Takes chunks until none is left; called with the lock held, returns with it held. */
+static inline void lvp__cpu_relax(void)
+{
+#if defined(__x86_64__) || defined(__i386__)
+	__builtin_ia32_pause();
+#elif defined(__aarch64__)
+	__asm__ __volatile__("yield");
+#endif
+}
+
+/* Takes chunks of the current loop until none is left. */
 static void lvp__run_chunks(lvp__pool *pool)
 {
-	while (pool->next_chunk < pool->chunk_count) {
-		int32_t chunk = pool->next_chunk++;
-		lvp__task task = pool->task;
-		void *context = pool->context;
+	for (;;) {
+		int32_t chunk = atomic_fetch_add_explicit(&pool->next_chunk, 1, memory_order_acquire);
+		if (chunk >= pool->chunk_count)
+			return;
 		int32_t begin = chunk * pool->grain;
 		int32_t end = begin + pool->grain < pool->item_count ? begin + pool->grain : pool->item_count;
-		pthread_mutex_unlock(&pool->lock);
-		task(context, begin, end);
-		pthread_mutex_lock(&pool->lock);
-		if (++pool->chunks_done == pool->chunk_count)
-			pthread_cond_broadcast(&pool->finished);
+		pool->task(pool->context, begin, end);
+		atomic_fetch_add_explicit(&pool->chunks_done, 1, memory_order_release);
 	}
 }
 
 static void *lvp__worker(void *argument)
 {
 	lvp__pool *pool = argument;
-	uint64_t seen = 0;
-	pthread_mutex_lock(&pool->lock);
+	uint_fast64_t seen = 0;
 	for (;;) {
-		while (!pool->stop && pool->generation == seen)
+		for (int spin = 0; spin < LVP__WATCH_SPINS; ++spin) {
+			if (atomic_load_explicit(&pool->generation, memory_order_relaxed) != seen ||
+			    atomic_load_explicit(&pool->stop, memory_order_relaxed))
+				break;
+			lvp__cpu_relax();
+		}
+		pthread_mutex_lock(&pool->lock);
+		while (!atomic_load(&pool->stop) && atomic_load(&pool->generation) == seen) {
+			++pool->sleeping;
 			pthread_cond_wait(&pool->wake, &pool->lock);
-		if (pool->stop)
-			break;
-		seen = pool->generation;
+			--pool->sleeping;
+		}
+		if (atomic_load(&pool->stop)) {
+			pthread_mutex_unlock(&pool->lock);
+			return NULL;
+		}
+		seen = atomic_load(&pool->generation);
+		++pool->joined;
+		pthread_mutex_unlock(&pool->lock);
 		lvp__run_chunks(pool);
+		pthread_mutex_lock(&pool->lock);
+		if (--pool->joined == 0)
+			pthread_cond_signal(&pool->left);
+		pthread_mutex_unlock(&pool->lock);
 	}
-	pthread_mutex_unlock(&pool->lock);
-	return NULL;
 }
 
 lvp_result lvp__pool_create(lvp__pool **r_pool, int32_t thread_count)
@@ -76,7 +111,11 @@ lvp_result lvp__pool_create(lvp__pool **r_pool, int32_t thread_count)
 		return lvp_error_thread;
 	}
 	pthread_cond_init(&pool->wake, NULL);
-	pthread_cond_init(&pool->finished, NULL);
+	pthread_cond_init(&pool->left, NULL);
+	atomic_init(&pool->next_chunk, 0);
+	atomic_init(&pool->chunks_done, 0);
+	atomic_init(&pool->generation, 0);
+	atomic_init(&pool->stop, false);
 	for (int32_t i = 0; i < thread_count - 1; ++i) {
 		if (pthread_create(&pool->workers[i], NULL, lvp__worker, pool) != 0) {
 			lvp__pool_destroy(pool);
@@ -93,13 +132,13 @@ void lvp__pool_destroy(lvp__pool *pool)
 	if (!pool)
 		return;
 	pthread_mutex_lock(&pool->lock);
-	pool->stop = true;
+	atomic_store(&pool->stop, true);
 	pthread_cond_broadcast(&pool->wake);
 	pthread_mutex_unlock(&pool->lock);
 	for (int32_t i = 0; i < pool->worker_count; ++i)
 		pthread_join(pool->workers[i], NULL);
 	pthread_cond_destroy(&pool->wake);
-	pthread_cond_destroy(&pool->finished);
+	pthread_cond_destroy(&pool->left);
 	pthread_mutex_destroy(&pool->lock);
 	free(pool->workers);
 	free(pool);
@@ -113,18 +152,31 @@ void lvp__parallel_for(lvp__pool *pool, lvp__task task, void *context, int32_t i
 		task(context, 0, item_count);
 		return;
 	}
+	int32_t chunk_count = (int32_t)(((int64_t)item_count + grain - 1) / grain);
 	pthread_mutex_lock(&pool->lock);
 	pool->task = task;
 	pool->context = context;
 	pool->item_count = item_count;
 	pool->grain = grain;
-	pool->next_chunk = 0;
-	pool->chunks_done = 0;
-	pool->chunk_count = (int32_t)(((int64_t)item_count + grain - 1) / grain);
-	++pool->generation;
-	pthread_cond_broadcast(&pool->wake);
+	pool->chunk_count = chunk_count;
+	/* A worker that joined the loop before this one and has not left yet may claim a chunk of this
+	 * one: the claim (an acquire) reads this store (a release, after the fields and the count). */
+	atomic_store(&pool->chunks_done, 0);
+	atomic_store(&pool->next_chunk, 0);
+	atomic_fetch_add(&pool->generation, 1);
+	if (pool->sleeping > 0)
+		pthread_cond_broadcast(&pool->wake);
+	pthread_mutex_unlock(&pool->lock);
 	lvp__run_chunks(pool);
-	while (pool->chunks_done < pool->chunk_count)
-		pthread_cond_wait(&pool->finished, &pool->lock);
+	/* The last chunks are being run by workers: a chunk's time at most. */
+	for (int spin = 0; atomic_load_explicit(&pool->chunks_done, memory_order_acquire) < chunk_count; ++spin) {
+		if (spin < LVP__WATCH_SPINS)
+			lvp__cpu_relax();
+		else
+			sched_yield();
+	}
+	pthread_mutex_lock(&pool->lock);
+	while (pool->joined > 0)
+		pthread_cond_wait(&pool->left, &pool->lock);
 	pthread_mutex_unlock(&pool->lock);
 }

@@ -403,6 +403,7 @@ typedef struct lvp__step {
 	double *part_response;     /* per part: measured / predicted change of the last whole-mesh steps */
 	float *touched_phi;        /* per dynamic vertex (by its place in the set): the sum of its phi over the
 	                              groups touched this frame (lvp__global_steps, one part) */
+	double *chunk_gain;        /* per LVP__GRAIN dynamic vertices: their part of the whole mesh's gain */
 	bool uniform_step;         /* the step applies one multiplier through touched_phi (lvp__apply_loop) */
 	double uniform_mu;         /* that multiplier */
 } lvp__step;

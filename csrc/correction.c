@@ -617,10 +617,11 @@ static int32_t lvp__volume_iterations(lvp_binding *binding, const lvp_frame_opti
 /* Per dynamic vertex that can move, the sum of its phi over the touched groups (step.touched_phi);
  * zero for the others. With one part every touched group takes the same multiplier, so a vertex
  * moves by gamma g times this sum times it, and the walk over its support is done once per call of
- * lvp__global_steps instead of twice per step. */
-static void lvp__sum_touched_phi(lvp_binding *binding)
+ * lvp__global_steps instead of twice per step. Dynamic vertices [begin, end), each its own. */
+static void lvp__touched_phi_loop(void *context, int32_t begin, int32_t end)
 {
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+	lvp_binding *binding = context;
+	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
 		double sum = 0.0;
 		if (lvp__can_move(binding, k)) {
@@ -633,20 +634,45 @@ static void lvp__sum_touched_phi(lvp_binding *binding)
 	}
 }
 
+/* Chunks [begin, end) of LVP__GRAIN dynamic vertices: sum gamma_k g_k^2 touched_phi_k over each into
+ * step.chunk_gain (one part). */
+static void lvp__gain_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = context;
+	for (int32_t chunk = begin; chunk < end; ++chunk) {
+		int32_t first = chunk * LVP__GRAIN, last = first + LVP__GRAIN;
+		last = last < binding->dynamic.vertex_count ? last : binding->dynamic.vertex_count;
+		double sum = 0.0;
+		for (int32_t v = first; v < last; ++v) {
+			float phi = binding->step.touched_phi[v];
+			if (!(phi > 0.0f)) /* g is of the vertices that can move only */
+				continue;
+			int32_t k = binding->dynamic.vertices[v];
+			double g = binding->measure.vertex_g[k];
+			sum += (double)binding->frame_map.gamma[k] * g * g * phi;
+		}
+		binding->step.chunk_gain[chunk] = sum;
+	}
+}
+
 /* What one multiplier of every touched group does to each part's volume (eq. 5's denominator: sum
- * over the vertices of gamma_k g_k^2 times their phi of the touched groups), into system. */
+ * over the vertices of gamma_k g_k^2 times their phi of the touched groups), into system. With one
+ * part, summed by chunks of the dynamic vertices (in parallel), then the chunks in order. */
 static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *system)
 {
 	memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
+	if (one_part) {
+		int32_t chunks = (binding->dynamic.vertex_count + LVP__GRAIN - 1) / LVP__GRAIN;
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__gain_loop, binding, chunks, 1);
+		for (int32_t chunk = 0; chunk < chunks; ++chunk)
+			system[0] += binding->step.chunk_gain[chunk];
+		return;
+	}
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		double g = binding->measure.vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g * g;
-		if (one_part) {
-			system[0] += gain * binding->step.touched_phi[v];
-			continue;
-		}
 		if (!lvp__can_move(binding, k))
 			continue;
+		double g = binding->measure.vertex_g[k], gain = (double)binding->frame_map.gamma[k] * g * g;
 		lvp__support support = lvp__vertex_support(binding, k);
 		for (int32_t i = 0; i < support.count; ++i) {
 			int32_t group = binding->system.group_leader[support.regions[i]];
@@ -675,7 +701,8 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		response[p] = 1.0;
 	bool one_part = binding->parts.count == 1, regions_measured = !binding->step.change_stale;
 	if (one_part && touched > 0)
-		lvp__sum_touched_phi(binding);
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__touched_phi_loop, binding,
+		                  binding->dynamic.vertex_count, LVP__GRAIN);
 	while (steps < budget && touched > 0) {
 		lvp__part_changes(binding);
 		if (!lvp__parts_off(binding, options->tolerance))
@@ -1243,6 +1270,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_response = lvp__calloc(parts, sizeof(double), &ok);
 	step->touched_phi = lvp__calloc(n, sizeof(float), &ok);
+	step->chunk_gain = lvp__calloc(n / LVP__GRAIN + 1, sizeof(double), &ok);
 	return ok;
 }
 
@@ -1253,7 +1281,7 @@ void lvp__step_free(lvp__step *step)
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
 	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response,
-	                  step->touched_phi};
+	                  step->touched_phi, step->chunk_gain};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);
 }

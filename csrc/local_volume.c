@@ -173,8 +173,8 @@ static void lvp__region_sums_from_pieces(lvp_binding *binding)
 	}
 }
 
-/* Every triangle around a dynamic vertex is dynamic, so its gradients are complete; static
- * vertices never move this frame and need none. */
+/* Every triangle around a dynamic vertex is dynamic, so its gradients are complete. Only the
+ * vertices that can move need them: a step reads no other vertex's normal or g. */
 static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
@@ -182,6 +182,8 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 	const float *triangle_gradient = binding->measure.triangle_gradient;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
+		if (!lvp__can_move(binding, k))
+			continue;
 		int32_t first = binding->mesh.vertex_corner_offsets[k], last = binding->mesh.vertex_corner_offsets[k + 1];
 		int32_t slot_first = binding->mesh.slot_offsets[k];
 		if (binding->mesh.slot_offsets[k + 1] - slot_first == 1) {
@@ -273,8 +275,7 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 			sg[1] += d[1];
 			sg[2] += d[2];
 			int32_t k = binding->mesh.triangles[3 * t + c];
-			if (!binding->measure.vertex_dirty[k] &&
-			    binding->frame_map.vertex_dynamic[k]) { /* static ones need no normal */
+			if (!binding->measure.vertex_dirty[k] && lvp__can_move(binding, k)) { /* no other needs a normal */
 				binding->measure.vertex_dirty[k] = 1;
 				binding->measure.dirty_vertices[touched++] = k;
 			}
@@ -500,8 +501,7 @@ static void lvp__border_gradient_loop(void *context, int32_t first, int32_t last
 }
 
 /* The border terms of the regions' volume gradients at step.positions (lvp__border_side), added to
- * the slots' <n, gradient> of the dynamic border vertices (static ones never move this frame:
- * their slots are not kept). Each such vertex's slots are first recomputed from its slot
+ * the slots' <n, gradient> of the border vertices that can move (no step reads the others'). Each such vertex's slots are first recomputed from its slot
  * gradients, so that the border terms of an earlier measurement are not counted again. Without
  * them the corrections of a narrow weight band, whose vertices are mostly on a region border,
  * would be underestimated and converge slowly. */
@@ -517,7 +517,7 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 		for (int32_t i = binding->borders.offsets[r]; i < binding->borders.offsets[r + 1]; ++i)
 			for (int end = 0; end < 2; ++end) {
 				int32_t k = binding->borders.edges[2 * i + end];
-				if (binding->frame_map.vertex_dynamic[k] && !binding->measure.vertex_dirty[k]) {
+				if (lvp__can_move(binding, k) && !binding->measure.vertex_dirty[k]) {
 					binding->measure.vertex_dirty[k] = 1;
 					binding->measure.dirty_vertices[touched++] = k;
 					lvp__vertex_terms(binding, k);
@@ -531,7 +531,7 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 			for (int end = 0; end < 2; ++end) {
 				int32_t k = binding->borders.edges[2 * i + end];
 				int32_t slot = binding->borders.slots[2 * i + end];
-				if (!binding->frame_map.vertex_dynamic[k] || slot < 0)
+				if (!lvp__can_move(binding, k) || slot < 0)
 					continue;
 				const float *n = binding->measure.normals + 3 * k, *g = binding->borders.gradient + 6 * i + 3 * end;
 				binding->measure.slot_g[slot] += n[0] * g[0] + n[1] * g[1] + n[2] * g[2];

@@ -164,6 +164,19 @@ static bool lvp__bone_stretch(lvp_binding *binding, int32_t i, const lvp__mat4 *
 	return lvp__mat4_invert_affine(stretch + 1, stretch);
 }
 
+typedef struct lvp__stretch_context {
+	lvp_binding *binding;
+	const lvp__mat4 *to_rigid, *from_rigid;
+} lvp__stretch_context;
+
+/* Bones [begin, end): each writes only its own stretch. */
+static void lvp__bone_stretch_loop(void *context, int32_t begin, int32_t end)
+{
+	const lvp__stretch_context *c = context;
+	for (int32_t i = begin; i < end; ++i)
+		c->binding->stretch.bone_stretch_invertible[i] = lvp__bone_stretch(c->binding, i, c->to_rigid, c->from_rigid);
+}
+
 /* The stretch of bone b against region r's bone in the mesh's coordinates, U_r^-1 U_b - I taken
  * back from the rigid frame (r_u_minus_i: its linear part; the translation is not used): what
  * F_rb = skin_r^-1 skin_b is once the turns are taken out (F_rb = U_r^-1 Q_r^-1 Q_b U_b).
@@ -335,8 +348,10 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 			memset(binding->stretch.change, 0, sizeof(double) * (size_t)s);
 		return false;
 	}
-	for (int32_t i = 0; i < binding->bone_count; ++i)
-		binding->stretch.bone_stretch_invertible[i] = lvp__bone_stretch(binding, i, &to_rigid, &from_rigid);
+	lvp__stretch_context bones = {binding, &to_rigid, &from_rigid};
+	/* an eigen decomposition a bone, as much as some 32 vertices of a mesh pass */
+	lvp__parallel_for(LVP__POOL_FOR(binding, 32 * (int64_t)binding->bone_count), lvp__bone_stretch_loop, &bones,
+	                  binding->bone_count, 64);
 	/* Each pair's relative stretch (zero for the pairs that have none), and the regions with some.
 	 * A region is seen from its own bone, which must be invertible (a region whose bone is scaled
 	 * to zero is skipped: correction.c); the bones it blends with need not be. A bone scaled to

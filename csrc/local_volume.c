@@ -231,7 +231,8 @@ void lvp__mesh_pass(lvp_binding *binding, const float *positions)
 	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.region_offsets[binding->region_count + 1]),
 	                  lvp__piece_loop, &context, binding->measure.piece_count, 1);
 	lvp__region_sums_from_pieces(binding);
-	binding->measure.vertex_terms_current = false; /* gathered by lvp__vertex_gradients() when a step needs them */
+	/* gathered by lvp__vertex_gradients() or lvp__vertex_normals() when a step needs them */
+	binding->measure.vertex_terms_current = binding->measure.normals_current = false;
 }
 
 void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_t *moved, int32_t moved_count)
@@ -267,8 +268,10 @@ void lvp__update_pass(lvp_binding *binding, const float *positions, const int32_
 			old[c] = g[c];
 		}
 		binding->measure.triangle_volume6[t] = v;
-		if (!binding->measure.vertex_terms_current)
-			continue; /* the slot gradients are gathered afresh from the triangles when needed */
+		if (!binding->measure.vertex_terms_current) {
+			binding->measure.normals_current = false; /* gathered afresh from the triangles when needed */
+			continue;
+		}
 		for (int c = 0; c < 3; ++c) {
 			float *sg = binding->measure.slot_gradient + 3 * binding->mesh.corner_slot[3 * t + c];
 			sg[0] += d[0];
@@ -541,19 +544,50 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 		binding->measure.vertex_dirty[binding->measure.dirty_vertices[i]] = 0;
 }
 
+/* The normals and g of the dynamic vertices [begin, end) that can move, from their triangles'
+ * gradients, without the slots (lvp__vertex_normals). */
+static void lvp__normal_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
+	const float *triangle_gradient = binding->measure.triangle_gradient;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		if (!lvp__can_move(binding, k))
+			continue;
+		float gx = 0.0f, gy = 0.0f, gz = 0.0f;
+		for (int32_t i = binding->mesh.vertex_corner_offsets[k]; i < binding->mesh.vertex_corner_offsets[k + 1]; ++i) {
+			const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
+			gx += g[0];
+			gy += g[1];
+			gz += g[2];
+		}
+		float length = sqrtf(gx * gx + gy * gy + gz * gz);
+		float inverse = length > 0.0f ? 1.0f / length : 0.0f;
+		binding->measure.normals[3 * k] = gx * inverse;
+		binding->measure.normals[3 * k + 1] = gy * inverse;
+		binding->measure.normals[3 * k + 2] = gz * inverse;
+		binding->measure.vertex_g[k] = length;
+	}
+}
+
 void lvp__vertex_normals(lvp_binding *binding)
 {
-	if (binding->measure.vertex_terms_current)
+	if (binding->measure.vertex_terms_current || binding->measure.normals_current)
 		return;
 	lvp__loop_context context = {binding, NULL};
-	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__vertex_loop, &context,
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__normal_loop, &context,
 	                  binding->dynamic.vertex_count, LVP__GRAIN);
-	binding->measure.vertex_terms_current = true;
+	binding->measure.normals_current = true;
 }
 
 void lvp__vertex_gradients(lvp_binding *binding)
 {
-	lvp__vertex_normals(binding);
+	if (!binding->measure.vertex_terms_current) {
+		lvp__loop_context context = {binding, NULL};
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__vertex_loop, &context,
+		                  binding->dynamic.vertex_count, LVP__GRAIN);
+		binding->measure.vertex_terms_current = binding->measure.normals_current = true;
+	}
 	lvp__add_border_gradients(binding);
 }
 

@@ -289,7 +289,8 @@
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
  *   hierarchy, about 150 bytes a triangle; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
- *   for every thread count (reductions use a fixed partition).
+ *   for every thread count (reductions use a fixed partition). Between the loops of a frame the
+ *   workers watch for the next one for about a tenth of a millisecond before they sleep.
  *
  * PERFORMANCE
  *
@@ -301,10 +302,13 @@
  *   its diffused rows reach): a triangle that its
  *   region's bone carries rigidly enters the measurement in closed form (which relies on
  *   `positions` being the skinning of the rest, as lvp_correct() says, and is checked each frame
- *   on a sample). Per step, a few passes over those triangles and vertices, and a solve of the
- *   active regions' system within its profile (a chain of m regions O(m), regions coupled all
- *   with all m^3 / 3), in at most 65,536 cells; the regions past what fits take the
- *   single-region step of eq. 5. Measured times: BENCHMARKS.md.
+ *   on a sample); bones whose skin matrices agree are found in O(B log B) each frame. Per step, a
+ *   few passes over those triangles and vertices, and a solve of the active regions' system
+ *   within its profile (a chain of m regions O(m), regions coupled all with all m^3 / 3), in at
+ *   most 65,536 cells; the regions past what fits take the single-region step of eq. 5.
+ *   Restoring the whole mesh (RESTORE), a step reads only the volume: no region's border is
+ *   visited until the regions' changes are read, so many small regions (the joints of B-Bones)
+ *   cost about what a few large ones do. Measured times: BENCHMARKS.md.
  */
 #ifndef LVP_H
 #define LVP_H

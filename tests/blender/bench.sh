@@ -16,7 +16,9 @@ source "$HERE/bench_common.sh"
 
 status=0
 bench_in_each_blender blender-bench bench.py '/^Blender [0-9].*vertices/' '/^re-evaluation /' "$@" || status=1
-# a generated Rigify human, about 25k vertices (issue 47)
+# a generated Rigify human, about 25k and about 100k vertices
 bench_in_each_blender blender-bench-rigify bench_rigify.py '/^Blender [0-9].*Rigify/' '/^status: /' || status=1
+bench_in_each_blender blender-bench-rigify bench_rigify.py '/^Blender [0-9].*Rigify/' '/^status: /' \
+	--voxel 0.0052 --updates 12 || status=1
 "$HERE/bench_bake.sh" || status=1  # bake speed to PC2 with 1 and 2 jobs (issue 4)
 exit $status

@@ -279,13 +279,15 @@ typedef struct frame_job {
 	const float *positions, *posed;
 	float *out;
 	lvp_result result;
+	const lvp_frame_options *options; /* NULL: the defaults */
 } frame_job;
 
 static void *run_frame(void *argument)
 {
 	frame_job *job = argument;
 	for (int i = 0; i < 3; ++i)
-		job->result = lvp_correct(job->out, NULL, job->binding, job->positions, job->posed, NULL, NULL, NULL, NULL);
+		job->result =
+		    lvp_correct(job->out, NULL, job->binding, job->positions, job->posed, NULL, job->options, NULL, NULL);
 	return NULL;
 }
 
@@ -310,15 +312,19 @@ static void test_threads_give_identical_results(void)
 		outputs[i] = calloc((size_t)n * 3, sizeof(float));
 	}
 	CHECK(n > 8 * 4096); /* several chunks (LVP__GRAIN) per loop */
-	/* Three times: with the default map; with a painted map that holds every fifth ring still,
-	 * so that the chunks of a step move different numbers of vertices; and with the default map
+	/* Four times: with the default map; with a painted map that holds every fifth ring still,
+	 * so that the chunks of a step move different numbers of vertices; with the default map
 	 * and every other bone scaled by 1.2, so that the reference pass of every region runs
-	 * (stretch.c, split in groups of regions). */
+	 * (stretch.c, split in groups of regions); and unscaled again with the add-on's defaults
+	 * (the whole mesh restored, its gain summed by chunks, and smoothing). */
+	lvp_frame_options whole_mesh = lvp_frame_default_options();
+	whole_mesh.restore = LVP_RESTORE_WHOLE_MESH;
+	whole_mesh.smoothing_passes = 2;
 	float *painted = malloc(sizeof(float) * (size_t)n);
 	for (int32_t k = 0; k < n; ++k)
 		painted[k] = (k / 48) % 5 == 0 ? 0.0f : 1.0f;
-	for (int round = 0; round < 3; ++round) {
-		for (int i = 0; i < 3 && round > 0; ++i) {
+	for (int round = 0; round < 4; ++round) {
+		for (int i = 0; i < 3 && round > 0 && round < 3; ++i) {
 			lvp_map_options map = lvp_bind_default_options().map;
 			map.map = round == 1 ? LVP_MAP_PAINTED : LVP_MAP_ORGANIC;
 			map.painted = round == 1 ? painted : NULL;
@@ -329,11 +335,17 @@ static void test_threads_give_identical_results(void)
 				test_scale_bone(posed + 16 * i, 1.2, 1.2, 1.2);
 			skin_linear(skinned, &rig, posed);
 		}
+		if (round == 3) {
+			free(posed);
+			free(skinned);
+			pose_and_skin(&rig, rotations, &posed, &skinned);
+		}
 		/* bindings 1 and 2 (3 and 4 threads each) run at the same time from two threads */
 		pthread_t threads[2];
 		frame_job jobs[3];
 		for (int i = 0; i < 3; ++i) {
-			frame_job job = {bindings[i], skinned, posed, outputs[i], lvp_error_null_argument};
+			frame_job job = {bindings[i], skinned, posed, outputs[i], lvp_error_null_argument,
+			                 round == 3 ? &whole_mesh : NULL};
 			jobs[i] = job;
 		}
 		run_frame(&jobs[0]);
@@ -350,6 +362,13 @@ static void test_threads_give_identical_results(void)
 			CHECK(lvp_correct(outputs[2], NULL, bindings[2], skinned, posed, NULL, NULL, &stats, NULL) == lvp_success);
 			CHECK(stats.volume_after > 1.1 * stats.volume_rest);
 			CHECK(fabs(stats.worst_region_change_after) < 1e-3);
+		}
+		if (round == 3) { /* the whole mesh back at its rest volume */
+			lvp_frame_stats stats;
+			CHECK(lvp_correct(outputs[2], NULL, bindings[2], skinned, posed, NULL, &whole_mesh, &stats, NULL) ==
+			      lvp_success);
+			CHECK(fabs(stats.volume_after / stats.volume_rest - 1.0) < 1e-4);
+			CHECK(stats.volume_before < (1.0 - 1e-3) * stats.volume_rest);
 		}
 		double moved = 0.0;
 		for (int32_t k = 0; k < n; ++k)

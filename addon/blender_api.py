@@ -161,6 +161,15 @@ def bbone_mapping_mode(bone):
     return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
 
 
+def bbone_mapping_modes(bones):
+    """bytes: every bone's B-Bone mapping as a number, read in bulk (empty before 3.5, which has none)."""
+    if "bbone_mapping_mode" not in bpy.types.Bone.bl_rna.properties:
+        return b""
+    modes = array('i', bytes(4 * len(bones)))
+    bones.foreach_get("bbone_mapping_mode", modes)
+    return modes.tobytes()
+
+
 # ---- matrices in bulk ------------------------------------------------------------------------
 # From Blender 4.x on, a mathutils Matrix exposes its floats through the buffer protocol, row by row:
 # bytes(matrix) reads all 16 at C speed. Blender 3.x's does not; its rows are read one by one. The

@@ -86,9 +86,8 @@ def deforming_bone_names(mesh_object, armature_object):
 
 def _rest_state(mesh_object, armature_object):
     """What binding reads of the rest skeleton, read in bulk (a few calls, not a walk over the bones):
-    the bones' names, rest matrices, tails, B-Bone segments and deform flags, and the object's vertex
-    group names. Equal states bind alike, but for the B-Bone mapping (an enum, which Blender does not
-    read in bulk)."""
+    the bones' names, rest matrices, tails, B-Bone segments, mappings and deform flags, and the
+    object's vertex group names. Equal states bind alike."""
     bones = armature_object.data.bones
     count = len(bones)
     matrices = mesh_data.float_array(16 * count)
@@ -99,8 +98,8 @@ def _rest_state(mesh_object, armature_object):
     bones.foreach_get("tail_local", tails)
     bones.foreach_get("bbone_segments", segments)
     bones.foreach_get("use_deform", deform)
-    return (tuple(bones.keys()), matrices.tobytes(), tails.tobytes(), segments.tobytes(), deform.tobytes(),
-            tuple(mesh_object.vertex_groups.keys()))
+    return (tuple(bones.keys()), matrices.tobytes(), tails.tobytes(), segments.tobytes(),
+            blender_api.bbone_mapping_modes(bones), deform.tobytes(), tuple(mesh_object.vertex_groups.keys()))
 
 
 def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
@@ -383,21 +382,17 @@ class CoreSkeleton:
         """Why mesh_object's Armature modifier, following armature_object with mask (armature_mask()),
         no longer deforms with this skeleton, or None. Cheap enough for every frame: the armature, the
         mask group and the rest state (_rest_state) compared with the bind's, bone by bone only when
-        that differs; the B-Bone mappings."""
+        that differs."""
         if armature_object.name_full != self.armature_name:
             return "the Armature modifier follows %s instead of %s" % (armature_object.name, self.armature_name)
         if mask != self.mask:
             return "the vertex group of the Armature modifier changed"
-        data_bones = armature_object.data.bones
         state = _rest_state(mesh_object, armature_object)
         if state != self._rest_state:
             reason = self._rest_changed(mesh_object, armature_object)
             if reason is not None:
                 return reason
             self._rest_state = state  # changes to what is not bound: nothing to bind again
-        for name, mapping in self.mappings.items():
-            if self.segments[name] > 1 and _mapping(data_bones[name]) != mapping:
-                return "the B-Bone vertex mapping of %r changed" % name
         return None
 
     def _rest_changed(self, mesh_object, armature_object):
@@ -409,6 +404,8 @@ class CoreSkeleton:
             bone = data_bones[name]
             if _segments(bone) != self.segments[name]:
                 return "the B-Bone segments of %r changed" % name
+            if _mapping(bone) != self.mappings[name]:
+                return "the B-Bone vertex mapping of %r changed" % name
             matrix_local, tail_local = self._rest_bones[name]
             if bone.matrix_local != matrix_local or bone.tail_local != tail_local:
                 return "the rest pose of %r changed" % name

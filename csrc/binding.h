@@ -179,16 +179,9 @@ typedef struct lvp__reach {
 } lvp__reach;
 
 /* This frame's map and the vertices' classes (frame_map.c). */
-/* A bone and the sum of its skin matrix's entries (lvp__skin_classes). */
-typedef struct lvp__bone_key {
-	double key;
-	int32_t bone;
-} lvp__bone_key;
-
 typedef struct lvp__frame_map {
 	float *gamma;             /* per vertex: the bind map times map.area_weight and the deformation weighting */
 	int32_t *skin_class;      /* per bone: bones with equal skin matrices this frame share a class */
-	lvp__bone_key *bone_keys; /* per caller's bone: scratch of lvp__skin_classes */
 	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
 	int32_t *vertex_class;    /* per vertex: the skin class all its bones share this frame, or -1 */
 	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map (by the classes alone:

@@ -809,17 +809,20 @@ static int32_t lvp__touch_movable_groups(lvp_binding *binding, double tolerance)
  * region changes: the uniform part leaves the range where the linearization holds) it is
  * undone, and the correction goes on in two phases: the regions to their targets, then one
  * multiplier for the whole mesh (lvp__global_steps). Returns the number of steps;
- * *r_first_active: the regions corrected by the first. measure_changes: the regions' changes are
- * measured at the end (else they may be left of the positions before the last whole-mesh steps,
- * for a caller that measures the positions afresh next). */
+ * *r_first_active: the regions corrected by the first. smoothing_follows: the offsets are smoothed
+ * next and the volume corrected again after that, so restoring the whole mesh takes one step here
+ * (the smoothing moves the skin by more than what a second step would remove, and the steps after
+ * it remove what is left), and the regions' changes are left of the positions before that step
+ * (the caller measures the positions afresh); else they are measured at the end. */
 static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_options *options,
                                     const float *rest_positions, const lvp__region_sums *totals,
-                                    int32_t *r_first_active, bool measure_changes)
+                                    int32_t *r_first_active, bool smoothing_follows)
 {
 	if (lvp__restores_whole_mesh(binding, options)) {
 		*r_first_active = lvp__touch_movable_groups(binding, options->tolerance);
-		int32_t steps = lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals);
-		if (measure_changes)
+		int32_t steps = lvp__global_steps(binding, options, smoothing_follows ? 1 : options->max_iterations,
+		                                  rest_positions, totals);
+		if (!smoothing_follows)
 			lvp__measure_changes(binding, totals);
 		return steps;
 	}
@@ -948,8 +951,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	int32_t first_active = 0;
 	/* max_iterations bounds all the steps of the frame: 1 is the paper's single local pass. */
 	bool smoothing = options->smoothing_passes > 0 && binding->mode == LVP_MODE_LOCAL;
-	/* (the smoothing measures its positions afresh) */
-	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active, !smoothing);
+	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active, smoothing);
 	stats->active_regions = first_active;
 	if (smoothing) {
 		/* Offsets along normals that turn fast (folds) open creases: smoothed, then the volume the
@@ -958,7 +960,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		int32_t ignored;
 		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
 		lvp__measure_positions(binding, rest_positions, totals);
-		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
+		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
 	}
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
@@ -979,7 +981,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			if (lvp__fade_map_at_contact(binding))
 				lvp__movable_regions(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
 			if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
 				memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
 				break;
@@ -1003,7 +1005,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__fade_map_where_shortened(binding);
 			lvp__movable_regions(binding);
 			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, true);
+			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);

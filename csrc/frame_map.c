@@ -13,70 +13,29 @@
 #include <string.h>
 
 /* Bones whose skin matrices agree (to 1e-6 of their size) this frame share a class: the
- * vertices they alone move, move rigidly. A bone's class is the first bone before it (in bone
- * order) that leads a class and agrees with it. Two matrices that agree have sums of their 12
- * entries within 12e-6 of the size of each other, so the candidates are looked up among the
- * bones sorted by that sum: about B log B for a rig of B bones (Rigify's human has 700 and more),
- * not B^2. Bones with equal sums that do not agree are compared with at most LVP__CLASS_SCAN of
- * them; past that, a bone is its own class (correct, only slower). */
-#define LVP__CLASS_SCAN 1024
-
-static int lvp__compare_keys(const void *a, const void *b)
-{
-	const lvp__bone_key *x = a, *y = b;
-	if (x->key != y->key)
-		return x->key < y->key ? -1 : 1;
-	return (x->bone > y->bone) - (x->bone < y->bone);
-}
-
-/* Whether bone i's skin agrees with bone j's to 1e-6 of bone i's size (scale). */
-static bool lvp__skins_agree(const lvp_binding *binding, int32_t i, int32_t j, double scale)
-{
-	const double *m = binding->rig.skin[i].m, *other = binding->rig.skin[j].m;
-	for (int c = 0; c < 12; ++c)
-		if (!(fabs(m[c] - other[c]) <= 1e-6 * scale))
-			return false;
-	return true;
-}
-
+ * vertices they alone move, move rigidly. Quadratic in the bones, so only for rigs of up to
+ * LVP__CLASS_BONES bones; beyond, every bone is its own class (correct, only slower). */
+#define LVP__CLASS_BONES 512
 static void lvp__skin_classes(lvp_binding *binding)
 {
 	int32_t b = binding->caller_bone_count;
-	lvp__bone_key *sorted = binding->frame_map.bone_keys;
 	for (int32_t i = 0; i < b; ++i) {
-		const double *m = binding->rig.skin[i].m;
-		double key = 0.0;
-		for (int c = 0; c < 12; ++c)
-			key += m[c];
-		sorted[i].key = key;
-		sorted[i].bone = i;
-	}
-	qsort(sorted, (size_t)b, sizeof(lvp__bone_key), lvp__compare_keys);
-	for (int32_t i = 0; i < b; ++i) {
-		const double *m = binding->rig.skin[i].m;
-		double scale = 1.0, key = 0.0;
-		for (int c = 0; c < 12; ++c) {
-			scale = fmax(scale, fabs(m[c]));
-			key += m[c];
-		}
-		/* The sorted bones whose sum is within reach (a little more, for the sums' own rounding). */
-		double reach = 13e-6 * scale;
-		int32_t lo = 0, hi = b;
-		while (lo < hi) {
-			int32_t mid = lo + (hi - lo) / 2;
-			if (sorted[mid].key < key - reach)
-				lo = mid + 1;
-			else
-				hi = mid;
-		}
 		int32_t skin_class = i;
-		for (int32_t e = lo, scanned = 0; e < b && sorted[e].key <= key + reach && scanned < LVP__CLASS_SCAN; ++e) {
-			int32_t j = sorted[e].bone;
-			if (j >= skin_class || binding->frame_map.skin_class[j] != j)
+		const double *m = binding->rig.skin[i].m;
+		double scale = 1.0;
+		for (int c = 0; c < 12; ++c)
+			scale = fmax(scale, fabs(m[c]));
+		for (int32_t j = 0; j < i && b <= LVP__CLASS_BONES; ++j) {
+			if (binding->frame_map.skin_class[j] != j)
 				continue;
-			++scanned;
-			if (lvp__skins_agree(binding, i, j, scale))
+			const double *other = binding->rig.skin[j].m;
+			bool same = true;
+			for (int c = 0; c < 12 && same; ++c)
+				same = fabs(m[c] - other[c]) <= 1e-6 * scale;
+			if (same) {
 				skin_class = j;
+				break;
+			}
 		}
 		if (binding->frame_map.skin_class[i] != skin_class) {
 			binding->frame_map.current = false;
@@ -357,7 +316,6 @@ bool lvp__frame_map_alloc(lvp_binding *binding)
 	bool ok = true;
 	frame_map->gamma = lvp__calloc(n, sizeof(float), &ok);
 	frame_map->skin_class = lvp__calloc(b, sizeof(int32_t), &ok);
-	frame_map->bone_keys = lvp__calloc(b, sizeof(lvp__bone_key), &ok);
 	frame_map->skin_displacement = lvp__calloc(b * 12, sizeof(float), &ok);
 	frame_map->vertex_class = lvp__calloc(n, sizeof(int32_t), &ok);
 	frame_map->vertex_dynamic = lvp__calloc(n, sizeof(uint8_t), &ok);
@@ -369,7 +327,6 @@ void lvp__frame_map_free(lvp__frame_map *frame_map)
 {
 	free(frame_map->gamma);
 	free(frame_map->skin_class);
-	free(frame_map->bone_keys);
 	free(frame_map->skin_displacement);
 	free(frame_map->vertex_class);
 	free(frame_map->vertex_dynamic);

@@ -230,7 +230,8 @@
  *   within `tolerance` as before. On a hand closing into a fist, 2 passes: creases added 133 -> 55,
  *   offsets' roughness 0.14 -> 0.09 of the largest, crossing pairs 254 -> 237 (docs/method.md,
  *   Smoothing the offsets). Cost: the passes, O(dynamic vertices x valence) each, and one more
- *   volume correction, usually a step or two.
+ *   volume correction, usually a step or two. Restoring the whole mesh, the correction before the
+ *   smoothing takes one step only: the smoothing moves the skin by more than a second step would.
  *
  * CONTACT (lvp_frame_options.keep_apart, local mode)
  *
@@ -302,10 +303,10 @@
  *   its diffused rows reach): a triangle that its
  *   region's bone carries rigidly enters the measurement in closed form (which relies on
  *   `positions` being the skinning of the rest, as lvp_correct() says, and is checked each frame
- *   on a sample); bones whose skin matrices agree are found in O(B log B) each frame. Per step, a
- *   few passes over those triangles and vertices, and a solve of the active regions' system
- *   within its profile (a chain of m regions O(m), regions coupled all with all m^3 / 3), in at
- *   most 65,536 cells; the regions past what fits take the single-region step of eq. 5.
+ *   on a sample). Per step, a few passes over those triangles and vertices, and a solve of the
+ *   active regions' system within its profile (a chain of m regions O(m), regions coupled all
+ *   with all m^3 / 3), in at most 65,536 cells; the regions past what fits take the
+ *   single-region step of eq. 5.
  *   Restoring the whole mesh (RESTORE), a step reads only the volume: no region's border is
  *   visited until the regions' changes are read, so many small regions (the joints of B-Bones)
  *   cost about what a few large ones do. Measured times: BENCHMARKS.md.

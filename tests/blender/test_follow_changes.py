@@ -102,6 +102,27 @@ class TestFollowChanges(FollowTestCase):
         self.assertSkinningMatchesBlender("core skinning vs the Armature modifier, new rest pose")
         self.assertSameAsBindButton("followed vs Bind")
 
+    def test_bbone_segments_and_mapping_changed(self):
+        """Settings of a bound bone that change how Blender deforms with it, not its rest pose: its B-Bone
+        segments, then (Blender 4.2+) how its vertices are placed along them."""
+        self.scene.frame_set(10)
+        bone = self.rig.data.bones["Lower"]
+        bone.bbone_segments = 4
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertStatusContains(self.obj, "bound again by itself: the B-Bone segments of 'Lower' changed")
+        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier, B-Bone segments")
+        if "bbone_mapping_mode" not in bpy.types.Bone.bl_rna.properties:
+            return  # before 4.2, a B-Bone has one mapping
+        before = self.bound()
+        bone.bbone_mapping_mode = 'CURVED'
+        self.scene.frame_set(9)
+        self.scene.frame_set(10)
+        self.assertIsNot(self.bound(), before)
+        self.assertStatusContains(self.obj, "bound again by itself: the B-Bone vertex mapping of 'Lower' changed")
+        self.assertSkinningMatchesBlender("core skinning vs the Armature modifier, Curved mapping")
+        self.assertSameAsBindButton("followed vs Bind")
+
     def test_weights_changed_by_a_script_then_rendered(self):
         """No update between the change and the render (a frame change brings none): the render reads
         the weights again at its start."""

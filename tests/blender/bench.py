@@ -60,11 +60,6 @@ def dense_character(name, rig, rings):
     return obj
 
 
-def show_only(setups, shown):
-    for obj in set(setups.values()):
-        obj.hide_viewport = obj is not shown
-
-
 def set_correction(addon, on):
     """Registers or unregisters the add-on's handlers: with them off, the modifier's node group still
     runs (and adds the offsets last written), but nothing is corrected or written."""
@@ -114,18 +109,18 @@ def main():
     chunk = 6
     times = {name: [] for name in setups}
     for name, obj in setups.items():  # warm up
-        show_only(setups, obj)
+        helpers.show_only_one(setups, obj)
         set_correction(addon, name != "node_group_only")
         scene.frame_set(1)
         time_frames(scene, frames[:4])
     for start in range(0, len(frames), chunk):
         for name, obj in setups.items():
-            show_only(setups, obj)
+            helpers.show_only_one(setups, obj)
             set_correction(addon, name != "node_group_only")
             scene.frame_set(frames[start] - 1)
             times[name].extend(time_frames(scene, frames[start:start + chunk]))
     results = {name: 1000.0 * statistics.median(values) for name, values in times.items()}
-    show_only(setups, ours)
+    helpers.show_only_one(setups, ours)
 
     # Blender's evaluation after the offsets are written, alone: the offsets object's mesh tagged as
     # the handlers do (addon/offsets.py, write), the view layer updated, the correction off.

@@ -67,11 +67,6 @@ def copy_character(body, rig, name):
     return obj
 
 
-def show_only(setups, shown):
-    for obj in setups.values():
-        obj.hide_viewport = obj is not shown
-
-
 class Timed:
     """Wall time spent in a function while installed (its calls summed), the function left as it was after."""
 
@@ -133,13 +128,13 @@ def main():
     chunk = 4
     poses = [hard, less]
     for name, obj in setups.items():  # warm up: binds, first evaluations
-        show_only(setups, obj)
+        helpers.show_only_one(setups, obj)
         for pose in poses:
             set_pose(rig, pose)
             bpy.context.view_layer.update()
     for first in range(0, updates, chunk):
         for name, obj in setups.items():
-            show_only(setups, obj)
+            helpers.show_only_one(setups, obj)
             for update in range(first, min(first + chunk, updates)):
                 set_pose(rig, poses[update % 2])
                 with Timed(addon.handlers, "_correct") as in_handler, \
@@ -156,7 +151,7 @@ def main():
     # Blender's evaluation after the offsets are written, alone (bench.py): the offsets object's mesh
     # tagged as the handlers do, the view layer updated, the correction off.
     ours = setups["volume_preservation"]
-    show_only(setups, ours)
+    helpers.show_only_one(setups, ours)
     addon.handlers.unregister()
     holder = helpers.offsets_object(ours)
     reevaluation = []

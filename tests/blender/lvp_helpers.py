@@ -202,6 +202,13 @@ def select_only(*objects):
         bpy.context.view_layer.objects.active = objects[0]
 
 
+def show_only_one(setups, shown):
+    """Of the objects of setups (a dict), only shown is shown in the viewport: the benchmarks time one setup
+    at a time, the others not evaluated."""
+    for obj in set(setups.values()):
+        obj.hide_viewport = obj is not shown
+
+
 def render_tiny_still(scene):
     """An F12 render of scene in this process (bpy.ops.render.render): Cycles, one sample, 4 x 4 pixels, a
     camera added when the scene has none; only the handlers it runs matter. The scene's settings come back."""

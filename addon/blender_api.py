@@ -171,9 +171,9 @@ def bbone_mapping_modes(bones):
 
 
 # ---- matrices in bulk ------------------------------------------------------------------------
-# From Blender 4.x on, a mathutils Matrix exposes its floats through the buffer protocol, row by row:
-# bytes(matrix) reads all 16 at C speed. Blender 3.x's does not; its rows are read one by one. The
-# check looks at what this Blender's Matrix does, layout included.
+# Blender 5.2's mathutils Matrix exposes its floats through the buffer protocol, row by row: bytes(matrix)
+# reads all 16 at C speed. 3.4's and 4.3's do not; their rows are read one by one. The check looks at
+# what this Blender's Matrix does, layout included.
 
 
 def _matrix_bytes_are_rows():

@@ -627,7 +627,8 @@ static void lvp__touched_phi_loop(void *context, int32_t begin, int32_t end)
 		if (lvp__can_move(binding, k)) {
 			lvp__support support = lvp__vertex_support(binding, k);
 			for (int32_t i = 0; i < support.count; ++i)
-				if (support.phi[i] > 0.0f && binding->step.region_touched[binding->system.group_leader[support.regions[i]]])
+				if (support.phi[i] > 0.0f &&
+				    binding->step.region_touched[binding->system.group_leader[support.regions[i]]])
 					sum += support.phi[i];
 		}
 		binding->step.touched_phi[v] = (float)sum;

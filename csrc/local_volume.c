@@ -504,10 +504,10 @@ static void lvp__border_gradient_loop(void *context, int32_t first, int32_t last
 }
 
 /* The border terms of the regions' volume gradients at step.positions (lvp__border_side), added to
- * the slots' <n, gradient> of the border vertices that can move (no step reads the others'). Each such vertex's slots are first recomputed from its slot
- * gradients, so that the border terms of an earlier measurement are not counted again. Without
- * them the corrections of a narrow weight band, whose vertices are mostly on a region border,
- * would be underestimated and converge slowly. */
+ * the slots' <n, gradient> of the border vertices that can move (no step reads the others'). Each
+ * such vertex's slots are first recomputed from its slot gradients, so that the border terms of an
+ * earlier measurement are not counted again. Without them the corrections of a narrow weight band,
+ * whose vertices are mostly on a region border, would be underestimated and converge slowly. */
 static void lvp__add_border_gradients(lvp_binding *binding)
 {
 	lvp__loop_context context = {binding, NULL};

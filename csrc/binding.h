@@ -415,7 +415,6 @@ typedef struct lvp__smoothing {
 	int32_t *offsets;         /* vertex_count+1 */
 	int32_t *neighbours;
 	float *shares;            /* per neighbour: its triangles around the vertex */
-	float *total;             /* per vertex: the sum of its shares */
 } lvp__smoothing;
 
 struct lvp_binding {

@@ -50,6 +50,34 @@ static inline double lvp__triangle_terms(float r_gradient[3], const float *posit
 	return volume6;
 }
 
+/* Vertex k's normal and g from its volume gradient (gx, gy, gz): its direction, and its length,
+ * <n_k, grad_k V> = |grad_k V|. */
+static inline void lvp__set_normal(lvp_binding *binding, int32_t k, float gx, float gy, float gz)
+{
+	float length = sqrtf(gx * gx + gy * gy + gz * gz);
+	float inverse = length > 0.0f ? 1.0f / length : 0.0f;
+	binding->measure.normals[3 * k] = gx * inverse;
+	binding->measure.normals[3 * k + 1] = gy * inverse;
+	binding->measure.normals[3 * k + 2] = gz * inverse;
+	binding->measure.vertex_g[k] = length;
+}
+
+/* The sum of the last mesh pass's gradients of the triangles around vertex k, into r_g. */
+static inline void lvp__gather_gradient(const lvp_binding *binding, int32_t k, float r_g[3])
+{
+	const float *triangle_gradient = binding->measure.triangle_gradient;
+	float gx = 0.0f, gy = 0.0f, gz = 0.0f;
+	for (int32_t i = binding->mesh.vertex_corner_offsets[k]; i < binding->mesh.vertex_corner_offsets[k + 1]; ++i) {
+		const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
+		gx += g[0];
+		gy += g[1];
+		gz += g[2];
+	}
+	r_g[0] = gx;
+	r_g[1] = gy;
+	r_g[2] = gz;
+}
+
 /* Normal, g and the slots' <n, gradient> of vertex k from its slot gradients. */
 static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 {
@@ -61,16 +89,11 @@ static inline void lvp__vertex_terms(lvp_binding *binding, int32_t k)
 		gy += slot_gradient[3 * i + 1];
 		gz += slot_gradient[3 * i + 2];
 	}
-	float length = sqrtf(gx * gx + gy * gy + gz * gz);
-	float inverse = length > 0.0f ? 1.0f / length : 0.0f;
-	float nx = gx * inverse, ny = gy * inverse, nz = gz * inverse;
-	binding->measure.normals[3 * k] = nx;
-	binding->measure.normals[3 * k + 1] = ny;
-	binding->measure.normals[3 * k + 2] = nz;
-	binding->measure.vertex_g[k] = length; /* <n_k, grad_k V> = |grad_k V| */
+	lvp__set_normal(binding, k, gx, gy, gz);
+	const float *n = binding->measure.normals + 3 * k;
 	for (int32_t i = first; i < last; ++i)
 		binding->measure.slot_g[i] =
-		    nx * slot_gradient[3 * i] + ny * slot_gradient[3 * i + 1] + nz * slot_gradient[3 * i + 2];
+		    n[0] * slot_gradient[3 * i] + n[1] * slot_gradient[3 * i + 1] + n[2] * slot_gradient[3 * i + 2];
 }
 
 
@@ -187,18 +210,7 @@ static void lvp__vertex_loop(void *context, int32_t begin, int32_t end)
 		int32_t first = binding->mesh.vertex_corner_offsets[k], last = binding->mesh.vertex_corner_offsets[k + 1];
 		int32_t slot_first = binding->mesh.slot_offsets[k];
 		if (binding->mesh.slot_offsets[k + 1] - slot_first == 1) {
-			/* inside a region: one slot, summed in registers */
-			float gx = 0.0f, gy = 0.0f, gz = 0.0f;
-			for (int32_t i = first; i < last; ++i) {
-				const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
-				gx += g[0];
-				gy += g[1];
-				gz += g[2];
-			}
-			float *sg = slot_gradient + 3 * slot_first;
-			sg[0] = gx;
-			sg[1] = gy;
-			sg[2] = gz;
+			lvp__gather_gradient(binding, k, slot_gradient + 3 * slot_first); /* inside a region: one slot */
 		} else {
 			for (int32_t slot = slot_first; slot < binding->mesh.slot_offsets[k + 1]; ++slot)
 				slot_gradient[3 * slot] = slot_gradient[3 * slot + 1] = slot_gradient[3 * slot + 2] = 0.0f;
@@ -549,24 +561,13 @@ static void lvp__add_border_gradients(lvp_binding *binding)
 static void lvp__normal_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = ((lvp__loop_context *)context)->binding;
-	const float *triangle_gradient = binding->measure.triangle_gradient;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
-		float gx = 0.0f, gy = 0.0f, gz = 0.0f;
-		for (int32_t i = binding->mesh.vertex_corner_offsets[k]; i < binding->mesh.vertex_corner_offsets[k + 1]; ++i) {
-			const float *g = triangle_gradient + 3 * binding->mesh.vertex_triangles[i];
-			gx += g[0];
-			gy += g[1];
-			gz += g[2];
-		}
-		float length = sqrtf(gx * gx + gy * gy + gz * gz);
-		float inverse = length > 0.0f ? 1.0f / length : 0.0f;
-		binding->measure.normals[3 * k] = gx * inverse;
-		binding->measure.normals[3 * k + 1] = gy * inverse;
-		binding->measure.normals[3 * k + 2] = gz * inverse;
-		binding->measure.vertex_g[k] = length;
+		float g[3];
+		lvp__gather_gradient(binding, k, g);
+		lvp__set_normal(binding, k, g[0], g[1], g[2]);
 	}
 }
 

@@ -21,7 +21,6 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 	smoothing->offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
 	smoothing->neighbours = lvp__calloc((size_t)(2 * corners) + 1, sizeof(int32_t), &ok);
 	smoothing->shares = lvp__calloc((size_t)(2 * corners) + 1, sizeof(float), &ok);
-	smoothing->total = lvp__calloc((size_t)n, sizeof(float), &ok);
 	if (!ok)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	int32_t written = 0;
@@ -41,7 +40,6 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 					smoothing->shares[written++] = 0.0f;
 				}
 				smoothing->shares[e] += 1.0f;
-				smoothing->total[k] += 1.0f;
 			}
 		}
 		smoothing->offsets[k + 1] = written;
@@ -54,7 +52,6 @@ void lvp__smoothing_free(lvp__smoothing *smoothing)
 	free(smoothing->offsets);
 	free(smoothing->neighbours);
 	free(smoothing->shares);
-	free(smoothing->total);
 }
 
 typedef struct lvp__smoothing_pass {
@@ -87,22 +84,24 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		if (!lvp__can_move(binding, k) || !(smoothing->total[k] > 0.0f))
+		if (!lvp__can_move(binding, k))
 			continue;
 		/* A neighbour counts once per triangle it shares with k (smoothing.shares): twice inside
-		 * the surface, as the edge's two triangles weigh it. */
-		double sum[3] = {0.0, 0.0, 0.0};
+		 * the surface, as the edge's two triangles weigh it; one that cannot move counts with no
+		 * offset. */
+		double sum[3] = {0.0, 0.0, 0.0}, count = 0.0;
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
 			int32_t j = smoothing->neighbours[e];
-			if (!dynamic[j])
-				continue;
 			double share = smoothing->shares[e];
-			for (int a = 0; a < 3; ++a)
-				sum[a] += share * offsets[3 * j + a];
+			count += share;
+			if (dynamic[j])
+				for (int a = 0; a < 3; ++a)
+					sum[a] += share * offsets[3 * j + a];
 		}
+		if (count == 0.0)
+			continue;
 		float *p = binding->step.positions + 3 * k;
 		const float *own = offsets + 3 * k, *skinned = pass->positions + 3 * k;
-		double count = smoothing->total[k];
 		for (int a = 0; a < 3; ++a)
 			p[a] = skinned[a] + (float)(0.5 * own[a] + 0.5 * sum[a] / count);
 	}

@@ -136,7 +136,7 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         description="Passes smoothing the correction over the surface, so that offsets along normals that turn "
                     "fast (a folding knuckle, the palm of a closing hand) open no creases; the volume is restored "
                     "after them. 0 keeps the paper's offsets",
-        default=2, min=0, max=64, soft_max=8,
+        default=6, min=0, max=64, soft_max=16,
     )
     iterations: _setting(
         IntProperty,

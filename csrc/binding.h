@@ -187,6 +187,10 @@ typedef struct lvp__frame_map {
 	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map (by the classes alone:
 	                             frame_map.c), or moved by fold-over */
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
+	int32_t *filled;          /* the vertices of holes in the moving skin (frame_map.c), in order */
+	int32_t *filled_before;   /* scratch: the frame before's, to tell whether they changed */
+	float *filled_gamma;      /* scratch: their maps before they are written */
+	int32_t filled_count;
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
 	 * lvp__frame_map_stale clears it when something else changes one of them. */
 	bool current;
@@ -377,7 +381,9 @@ typedef struct lvp__step {
 	float *positions;          /* vertex_count*3: the frame's positions as the steps move them */
 	int32_t *moved;            /* per vertex: vertices moved by the last step */
 	float *backup;             /* vertex_count*3: their positions before it, in the same order */
-	float *smoothing_offsets;  /* vertex_count*3: the offsets a smoothing pass reads (offset_smoothing.c) */
+	float *smoothing_offsets;  /* vertex_count*3: the offsets a smoothing pass reads, and after the passes
+	                              the smoothed offsets (offset_smoothing.c) */
+	float *smoothing_scratch;  /* vertex_count*3: the offsets every other smoothing pass writes */
 	int32_t moved_count;
 	int32_t *chunk_moved;      /* per LVP__GRAIN dynamic vertices: how many a step moved, -1 if none ran */
 	double *change;            /* per region: V_s - V_s,rest in rest-world units */
@@ -402,11 +408,14 @@ typedef struct lvp__step {
 	bool spread_total;         /* steps also restore each part's volume (lvp__correct_volumes) */
 	double *part_total, *part_gain; /* per part: scratch of the uniform multipliers and whole-mesh steps */
 	double *part_response;     /* per part: measured / predicted change of the last whole-mesh steps */
+	double *part_mu;           /* per part: its multiplier of the smoothed offsets (along_offsets) */
 	float *touched_phi;        /* per dynamic vertex (by its place in the set): the sum of its phi over the
 	                              groups touched this frame (lvp__global_steps, one part) */
 	double *chunk_gain;        /* per LVP__GRAIN dynamic vertices: their part of the whole mesh's gain */
 	bool uniform_step;         /* the step applies one multiplier through touched_phi (lvp__apply_loop) */
 	double uniform_mu;         /* that multiplier */
+	bool along_offsets;        /* the step moves each vertex by part_mu of its part times its smoothed
+	                              offset (lvp__apply_loop) */
 } lvp__step;
 
 /* The edge neighbours of each vertex, each with how many triangles of the vertex it is a corner of
@@ -787,7 +796,8 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
- * neighbours'. The volume is not restored here. */
+ * neighbours'. The volume is not restored here; step.smoothing_offsets is left holding the smoothed
+ * offsets. */
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes);
 
 /* contact.c */

@@ -79,6 +79,22 @@ static void lvp__move_vertex(lvp_binding *binding, int32_t k, float rho, int32_t
 	binding->step.moved[slot] = k;
 }
 
+/* Moves vertex k by mu times its smoothed offset (step.smoothing_offsets), remembering it as
+ * lvp__move_vertex does, with the same bound on the step. */
+static void lvp__move_vertex_along_offset(lvp_binding *binding, int32_t k, double mu, int32_t slot)
+{
+	const float *o = binding->step.smoothing_offsets + 3 * k;
+	double d[3] = {mu * o[0], mu * o[1], mu * o[2]};
+	double length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), limit = 0.25 * binding->size;
+	double scale = length > limit ? limit / length : 1.0;
+	float *p = binding->step.positions + 3 * k, *backup = binding->step.backup + 3 * slot;
+	for (int c = 0; c < 3; ++c) {
+		backup[c] = p[c];
+		p[c] += (float)(scale * d[c]);
+	}
+	binding->step.moved[slot] = k;
+}
+
 /* Puts the vertices of the last step back where they were. */
 static void lvp__undo_step(lvp_binding *binding)
 {
@@ -156,8 +172,9 @@ static bool lvp__measured_group(const lvp_binding *binding, int32_t r, lvp__grou
 
 /* Moves the dynamic vertices [begin, end) by rho_k n_k, rho_k = gamma_k g_k sum_t phi_kt mu_t (gamma
  * the frame's map, 1 / A_k included)
- * over their support (the step's multipliers in applied_mu), listing the moved ones from
- * moved[begin] on; chunk_moved of the chunk says how many. */
+ * over their support (the step's multipliers in applied_mu), or with step.along_offsets by their
+ * part's multiplier times their smoothed offset, listing the moved ones from moved[begin] on;
+ * chunk_moved of the chunk says how many. */
 static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 {
 	lvp_binding *binding = context;
@@ -167,6 +184,13 @@ static void lvp__apply_loop(void *context, int32_t begin, int32_t end)
 		int32_t k = binding->dynamic.vertices[v];
 		if (!lvp__can_move(binding, k))
 			continue;
+		if (binding->step.along_offsets) {
+			double mu = binding->step.part_mu[binding->parts.vertex_part ? binding->parts.vertex_part[k] : 0];
+			const float *o = binding->step.smoothing_offsets + 3 * k;
+			if (mu != 0.0 && (o[0] != 0.0f || o[1] != 0.0f || o[2] != 0.0f))
+				lvp__move_vertex_along_offset(binding, k, mu, written++);
+			continue;
+		}
 		double sum = 0.0;
 		if (binding->step.uniform_step) {
 			sum = (double)binding->step.touched_phi[v] * binding->step.uniform_mu;
@@ -656,6 +680,49 @@ static void lvp__gain_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* g_k <n_k, o_k> of dynamic vertex v (its volume gradient against its smoothed offset), or 0 for
+ * one that cannot move. */
+static inline double lvp__offset_gain(const lvp_binding *binding, int32_t v)
+{
+	int32_t k = binding->dynamic.vertices[v];
+	if (!lvp__can_move(binding, k))
+		return 0.0;
+	const float *n = binding->measure.normals + 3 * k, *o = binding->step.smoothing_offsets + 3 * k;
+	return (double)binding->measure.vertex_g[k] * ((double)n[0] * o[0] + (double)n[1] * o[1] + (double)n[2] * o[2]);
+}
+
+/* Chunks [begin, end) of LVP__GRAIN dynamic vertices: their sums of lvp__offset_gain into
+ * step.chunk_gain (one part). */
+static void lvp__offset_gain_loop(void *context, int32_t begin, int32_t end)
+{
+	lvp_binding *binding = context;
+	for (int32_t chunk = begin; chunk < end; ++chunk) {
+		int32_t first = chunk * LVP__GRAIN, last = first + LVP__GRAIN;
+		last = last < binding->dynamic.vertex_count ? last : binding->dynamic.vertex_count;
+		double sum = 0.0;
+		for (int32_t v = first; v < last; ++v)
+			sum += lvp__offset_gain(binding, v);
+		binding->step.chunk_gain[chunk] = sum;
+	}
+}
+
+/* What one multiplier of every vertex's smoothed offset does to each part's volume (sum over its
+ * vertices of g_k <n_k, o_k>), into system; summed as lvp__whole_mesh_gains does. */
+static void lvp__offset_gains(lvp_binding *binding, bool one_part, double *system)
+{
+	memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
+	if (one_part) {
+		int32_t chunks = (binding->dynamic.vertex_count + LVP__GRAIN - 1) / LVP__GRAIN;
+		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__offset_gain_loop, binding,
+		                  chunks, 1);
+		for (int32_t chunk = 0; chunk < chunks; ++chunk)
+			system[0] += binding->step.chunk_gain[chunk];
+		return;
+	}
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+		system[binding->parts.vertex_part[binding->dynamic.vertices[v]]] += lvp__offset_gain(binding, v);
+}
+
 /* What one multiplier of every touched group does to each part's volume (eq. 5's denominator: sum
  * over the vertices of gamma_k g_k^2 times their phi of the touched groups), into system. With one
  * part, summed by chunks of the dynamic vertices (in parallel), then the chunks in order. */
@@ -690,7 +757,7 @@ static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *s
  * every region is within tolerance of its rest volume. The steps read the parts' volumes only; the
  * regions' changes are measured once, after the last. */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
-                                 const float *rest_positions, const lvp__region_sums *totals)
+                                 const float *rest_positions, const lvp__region_sums *totals, bool along_offsets)
 {
 	int32_t steps = 0, touched = 0;
 	for (int32_t r = 0; r < binding->region_count; ++r)
@@ -701,7 +768,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	for (int32_t p = 0; p < binding->parts.count; ++p)
 		response[p] = 1.0;
 	bool one_part = binding->parts.count == 1, regions_measured = !binding->step.change_stale;
-	if (one_part && touched > 0)
+	if (one_part && touched > 0 && !along_offsets)
 		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__touched_phi_loop, binding,
 		                  binding->dynamic.vertex_count, LVP__GRAIN);
 	while (steps < budget && touched > 0) {
@@ -711,19 +778,32 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		memcpy(change_before, binding->parts.change, sizeof(double) * (size_t)binding->parts.count);
 		double before = lvp__parts_error(binding);
 		lvp__vertex_normals(binding);
-		lvp__whole_mesh_gains(binding, one_part, system);
 		bool any = false;
-		for (int32_t j = 0; j < touched; ++j) {
-			int32_t t = binding->step.active[j], p = lvp__region_part(binding, t);
-			binding->step.mu[t] = system[p] > 0.0 ? -binding->parts.change[p] / (system[p] * response[p]) : 0.0;
-			any = any || system[p] > 0.0;
+		if (along_offsets) {
+			lvp__offset_gains(binding, one_part, system);
+			/* The offsets point out where the volume was lost and in where it was gained, so
+			 * the gain has the sign of the correction; a multiplier of -1 or less would turn
+			 * the offsets round, which the map's steps do better. */
+			for (int32_t p = 0; p < binding->parts.count; ++p) {
+				double mu = system[p] != 0.0 ? -binding->parts.change[p] / (system[p] * response[p]) : 0.0;
+				binding->step.part_mu[p] = isfinite(mu) && mu > -1.0 ? mu : 0.0;
+				any = any || binding->step.part_mu[p] != 0.0;
+			}
+		} else {
+			lvp__whole_mesh_gains(binding, one_part, system);
+			for (int32_t j = 0; j < touched; ++j) {
+				int32_t t = binding->step.active[j], p = lvp__region_part(binding, t);
+				binding->step.mu[t] = system[p] > 0.0 ? -binding->parts.change[p] / (system[p] * response[p]) : 0.0;
+				any = any || system[p] > 0.0;
+			}
 		}
 		if (!any)
 			break;
-		binding->step.uniform_step = one_part;
+		binding->step.uniform_step = one_part && !along_offsets;
 		binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
+		binding->step.along_offsets = along_offsets;
 		lvp__apply_multipliers(binding, binding->step.active, touched);
-		binding->step.uniform_step = false;
+		binding->step.uniform_step = binding->step.along_offsets = false;
 		++steps;
 		lvp__remeasure_sums(binding);
 		regions_measured = false;
@@ -822,7 +902,7 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
 	if (lvp__restores_whole_mesh(binding, options)) {
 		*r_first_active = lvp__touch_movable_groups(binding, options->tolerance);
 		int32_t steps = lvp__global_steps(binding, options, smoothing_follows ? 1 : options->max_iterations,
-		                                  rest_positions, totals);
+		                                  rest_positions, totals, false);
 		if (!smoothing_follows)
 			lvp__measure_changes(binding, totals);
 		return steps;
@@ -840,7 +920,25 @@ static int32_t lvp__correct_volumes(lvp_binding *binding, const lvp_frame_option
 	int32_t ignored;
 	steps += lvp__volume_iterations(binding, options, rest_positions, totals, options->max_iterations - steps,
 	                                &ignored, &failed);
-	steps += lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals);
+	steps += lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals, false);
+	lvp__measure_changes(binding, totals);
+	return steps;
+}
+
+/* The volume the smoothing took, restored. Restoring the whole mesh, along the smoothed offsets
+ * themselves: each part's offsets grow by one factor, so the shape the smoothing gave is kept
+ * (through the map the volume would go back where the map peaks, and on a coarse mesh, where a
+ * vertex's weights differ much from its neighbours', put back the peak the smoothing took
+ * away); what they cannot restore (a part whose offsets do not change its volume) goes through
+ * the map. Each region to its own volume, through the map as before the smoothing. */
+static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_options *options,
+                                     const float *rest_positions, const lvp__region_sums *totals)
+{
+	int32_t ignored;
+	if (!lvp__restores_whole_mesh(binding, options))
+		return lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+	int32_t steps = lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals, true);
+	steps += lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals, false);
 	lvp__measure_changes(binding, totals);
 	return steps;
 }
@@ -958,10 +1056,9 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		/* Offsets along normals that turn fast (folds) open creases: smoothed, then the volume the
 		 * smoothing took is restored by the same steps (a few percent of the offsets, along the
 		 * normals again). */
-		int32_t ignored;
 		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
 		lvp__measure_positions(binding, rest_positions, totals);
-		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
@@ -1255,6 +1352,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->moved = lvp__calloc(n, sizeof(int32_t), &ok);
 	step->backup = lvp__calloc(n * 3, sizeof(float), &ok);
 	step->smoothing_offsets = lvp__calloc(n * 3, sizeof(float), &ok);
+	step->smoothing_scratch = lvp__calloc(n * 3, sizeof(float), &ok);
 	step->chunk_moved = lvp__calloc(n / LVP__GRAIN + 1, sizeof(int32_t), &ok);
 	step->change = lvp__calloc(s, sizeof(double), &ok);
 	step->target = lvp__calloc(s, sizeof(double), &ok);
@@ -1272,6 +1370,7 @@ bool lvp__step_alloc(lvp_binding *binding)
 	step->part_total = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_gain = lvp__calloc(parts, sizeof(double), &ok);
 	step->part_response = lvp__calloc(parts, sizeof(double), &ok);
+	step->part_mu = lvp__calloc(parts, sizeof(double), &ok);
 	step->touched_phi = lvp__calloc(n, sizeof(float), &ok);
 	step->chunk_gain = lvp__calloc(n / LVP__GRAIN + 1, sizeof(double), &ok);
 	return ok;
@@ -1279,11 +1378,13 @@ bool lvp__step_alloc(lvp_binding *binding)
 
 void lvp__step_free(lvp__step *step)
 {
-	void *arrays[] = {step->positions, step->moved, step->backup, step->smoothing_offsets, step->chunk_moved,
+	void *arrays[] = {step->positions, step->moved, step->backup, step->smoothing_offsets, step->smoothing_scratch,
+	                  step->chunk_moved,
 	                  step->change, step->target,
 	                  step->uniform_gain, step->total_gain, step->diagonal, step->region_movable,
 	                  step->region_touched, step->active, step->active_index, step->mu, step->applied_mu,
 	                  step->moved_by, step->given_up, step->part_total, step->part_gain, step->part_response,
+	                  step->part_mu,
 	                  step->touched_phi, step->chunk_gain};
 	for (size_t i = 0; i < sizeof(arrays) / sizeof(arrays[0]); ++i)
 		free(arrays[i]);

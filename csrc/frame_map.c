@@ -245,6 +245,58 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 	return hold;
 }
 
+/* Whether vertex k lies in a hole or a bay of the moving skin: the map lets it move (its bind map
+ * is not zero) and the classes of the bones that reach it do not, while most of its neighbours
+ * are dynamic. Rows keep their strongest bones (reach.c), so where many bones overlap (a torso
+ * between four legs) the bone that bends can be the ninth of one vertex and the eighth of its
+ * neighbours: left still while they move, the vertex would stay where skinning put it, a dimple
+ * in the bulge, and the smoothing would pull the skin around it further out. Decided by the
+ * classes alone, as the dynamic flags are, from the flags before any hole is filled. */
+static bool lvp__is_hole(const lvp_binding *binding, int32_t k)
+{
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	if (binding->frame_map.vertex_dynamic[k] || !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+		return false;
+	int32_t dynamic = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
+	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+		dynamic += binding->frame_map.vertex_dynamic[smoothing->neighbours[e]];
+	return 2 * dynamic > count;
+}
+
+/* Finds the holes of the moving skin (lvp__is_hole), in vertex order, and makes them dynamic.
+ * Returns whether that differs from the frame before's holes. */
+static bool lvp__find_holes(lvp_binding *binding)
+{
+	lvp__frame_map *frame_map = &binding->frame_map;
+	int32_t before = frame_map->filled_count, count = 0;
+	memcpy(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)before);
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		if (lvp__is_hole(binding, k))
+			frame_map->filled[count++] = k;
+	for (int32_t i = 0; i < count; ++i)
+		frame_map->vertex_dynamic[frame_map->filled[i]] = 1;
+	frame_map->filled_count = count;
+	return count != before || memcmp(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)count);
+}
+
+/* A hole's map: the mean of its neighbours' maps, a neighbour that is still or another hole
+ * counting with none (all read before any is written), so that it moves with the skin around it
+ * and its map tapers where the moving skin ends. */
+static void lvp__fill_holes(lvp_binding *binding)
+{
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	lvp__frame_map *frame_map = &binding->frame_map;
+	for (int32_t i = 0; i < frame_map->filled_count; ++i) {
+		int32_t k = frame_map->filled[i];
+		double sum = 0.0;
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+			sum += frame_map->gamma[smoothing->neighbours[e]];
+		frame_map->filled_gamma[i] = (float)(sum / (double)(smoothing->offsets[k + 1] - smoothing->offsets[k]));
+	}
+	for (int32_t i = 0; i < frame_map->filled_count; ++i)
+		frame_map->gamma[frame_map->filled[i]] = frame_map->filled_gamma[i];
+}
+
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
  * vertices are dynamic (binding.h). */
 void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
@@ -271,14 +323,19 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 		 * and the walk over all vertices is skipped. */
 		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__frame_map_dynamic_loop,
 		                  &context, binding->dynamic.vertex_count, LVP__GRAIN);
+		lvp__fill_holes(binding);
 		return;
 	}
 	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
 	memset(binding->frame_map.chunk_changed, 0, (size_t)chunks);
 	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
+	bool holes_changed = lvp__find_holes(binding);
 	for (int32_t i = 0; i < chunks; ++i)
 		if (binding->frame_map.chunk_changed[i])
 			lvp__dynamic_set_stale(binding);
+	if (holes_changed)
+		lvp__dynamic_set_stale(binding);
+	lvp__fill_holes(binding);
 	binding->frame_map.current = true;
 }
 
@@ -320,6 +377,9 @@ bool lvp__frame_map_alloc(lvp_binding *binding)
 	frame_map->vertex_class = lvp__calloc(n, sizeof(int32_t), &ok);
 	frame_map->vertex_dynamic = lvp__calloc(n, sizeof(uint8_t), &ok);
 	frame_map->chunk_changed = lvp__calloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
+	frame_map->filled = lvp__calloc(n + 1, sizeof(int32_t), &ok);
+	frame_map->filled_before = lvp__calloc(n + 1, sizeof(int32_t), &ok);
+	frame_map->filled_gamma = lvp__calloc(n + 1, sizeof(float), &ok);
 	return ok;
 }
 
@@ -331,4 +391,7 @@ void lvp__frame_map_free(lvp__frame_map *frame_map)
 	free(frame_map->vertex_class);
 	free(frame_map->vertex_dynamic);
 	free(frame_map->chunk_changed);
+	free(frame_map->filled);
+	free(frame_map->filled_before);
+	free(frame_map->filled_gamma);
 }

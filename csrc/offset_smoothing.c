@@ -57,6 +57,8 @@ void lvp__smoothing_free(lvp__smoothing *smoothing)
 typedef struct lvp__smoothing_pass {
 	lvp_binding *binding;
 	const float *positions; /* the frame's input points */
+	const float *from;      /* the offsets a pass reads */
+	float *to;              /* and writes */
 } lvp__smoothing_pass;
 
 /* step.smoothing_offsets of the dynamic vertices in [begin, end): where the steps put them, less
@@ -73,46 +75,66 @@ static void lvp__take_offsets(void *context, int32_t begin, int32_t end)
 	}
 }
 
-/* One pass over the dynamic vertices in [begin, end) that can move: each reads the offsets taken
- * before the pass and writes only its own position, so the result does not depend on threads. */
+/* One pass over the dynamic vertices in [begin, end), from the offsets `from` into `to`: each that
+ * can move takes half its own and half the mean of its neighbours'; one that cannot keeps its own
+ * (none). Each reads `from` only and writes its own entry of `to`, so the result does not depend
+ * on threads. */
 static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
 	lvp_binding *binding = pass->binding;
 	const lvp__smoothing *smoothing = &binding->smoothing;
-	const float *offsets = binding->step.smoothing_offsets;
+	const float *from = pass->from;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		if (!lvp__can_move(binding, k))
-			continue;
+		const float *own = from + 3 * k;
+		float *out = pass->to + 3 * k;
 		/* A neighbour counts once per triangle it shares with k (smoothing.shares): twice inside
 		 * the surface, as the edge's two triangles weigh it; one that cannot move counts with no
-		 * offset. */
+		 * offset (a vertex outside the dynamic set has none, whatever its entry holds). */
 		double sum[3] = {0.0, 0.0, 0.0}, count = 0.0;
-		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
-			int32_t j = smoothing->neighbours[e];
-			double share = smoothing->shares[e];
-			count += share;
-			if (dynamic[j])
-				for (int a = 0; a < 3; ++a)
-					sum[a] += share * offsets[3 * j + a];
+		if (lvp__can_move(binding, k)) {
+			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+				int32_t j = smoothing->neighbours[e];
+				double share = smoothing->shares[e];
+				count += share;
+				if (dynamic[j])
+					for (int a = 0; a < 3; ++a)
+						sum[a] += share * from[3 * j + a];
+			}
 		}
-		if (count == 0.0)
-			continue;
-		float *p = binding->step.positions + 3 * k;
-		const float *own = offsets + 3 * k, *skinned = pass->positions + 3 * k;
 		for (int a = 0; a < 3; ++a)
-			p[a] = skinned[a] + (float)(0.5 * own[a] + 0.5 * sum[a] / count);
+			out[a] = count > 0.0 ? (float)(0.5 * own[a] + 0.5 * sum[a] / count) : own[a];
+	}
+}
+
+/* The smoothed offsets (`from`) into step.smoothing_offsets and onto the input points:
+ * step.positions of the dynamic vertices in [begin, end). */
+static void lvp__put_offsets(void *context, int32_t begin, int32_t end)
+{
+	const lvp__smoothing_pass *pass = context;
+	lvp_binding *binding = pass->binding;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		for (int c = 0; c < 3; ++c) {
+			float offset = pass->from[3 * k + c];
+			binding->step.smoothing_offsets[3 * k + c] = offset;
+			binding->step.positions[3 * k + c] = pass->positions[3 * k + c] + offset;
+		}
 	}
 }
 
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes)
 {
-	lvp__smoothing_pass pass = {binding, positions};
 	int32_t count = binding->dynamic.vertex_count;
+	lvp__smoothing_pass pass = {binding, positions, binding->step.smoothing_offsets, binding->step.smoothing_scratch};
+	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets, &pass, count, LVP__GRAIN);
 	for (int32_t i = 0; i < passes; ++i) {
-		lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets, &pass, count, LVP__GRAIN);
 		lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__smooth_range, &pass, count, LVP__GRAIN);
+		float *read = pass.to;
+		pass.to = (float *)pass.from;
+		pass.from = read;
 	}
+	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__put_offsets, &pass, count, LVP__GRAIN);
 }

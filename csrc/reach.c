@@ -17,6 +17,12 @@
 /* Most diffusion steps at bind: the steps grow with (thickness / edge length)^2, so a dense mesh
  * of thick flesh is widened less than asked rather than bound slowly (lvp.h, PERFORMANCE). */
 #define LVP__REACH_MOST_STEPS 32
+/* Fewest steps of any vertex's blend: 2, about two rings of the mesh. Where the flesh is no more
+ * than an edge or two thick (a low-poly character) its own width would blend a vertex's row with
+ * its ring only partly: rows keep their strongest bones, and a bone bending nearby then reaches
+ * some vertices and not their neighbours, the bulge rising and falling from one vertex to the
+ * next, narrower than the mesh can show smoothly. */
+#define LVP__REACH_LEAST_STEPS 2.0
 /* Entries below this fraction of their row's largest are dropped: they would cost each frame
  * and move nothing. */
 #define LVP__REACH_FLOOR 1e-2f
@@ -67,7 +73,7 @@ static void lvp__load_row(lvp__diffusion *diffusion, const lvp_binding *binding,
 
 /* Per vertex, how fast its row diffuses (1 for the vertex that needs the most steps), filled into
  * r_rates; returns the steps. A vertex needs lvp__blend_steps(width * thickness, edge), its edge
- * the mean length of its own edges. */
+ * the mean length of its own edges, and at least LVP__REACH_LEAST_STEPS. */
 static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, const lvp__diffusion *diffusion,
                                 double width)
 {
@@ -88,7 +94,8 @@ static int32_t lvp__reach_rates(float *r_rates, const lvp_binding *binding, cons
 			edges += lvp__length(lvp__sub(lvp__load(binding->rest_positions + 3 * diffusion->neighbours[e]), p));
 		if (end == begin || !(edges > 0.0) || !isfinite(thickness))
 			continue;
-		double steps = lvp__blend_steps(width * thickness, edges / (double)(end - begin));
+		double steps =
+		    fmax(lvp__blend_steps(width * thickness, edges / (double)(end - begin)), LVP__REACH_LEAST_STEPS);
 		r_rates[k] = (float)steps;
 		most = fmax(most, steps);
 	}

@@ -17,6 +17,7 @@
 
 #define PI 3.14159265358979323846
 #define POSES 3
+#define ADDON_SMOOTHING_PASSES 6 /* the add-on's Smoothing (addon/properties.py) */
 
 static double now(void)
 {
@@ -48,7 +49,8 @@ typedef struct bench_case {
 	int32_t restore;    /* lvp_frame_options.restore (the core's default: each region; the add-on's: the whole mesh) */
 	int32_t keep_apart; /* lvp_frame_options.keep_apart (the core's default: off; the add-on's: off in the
 	                       viewport, on in renders) */
-	int32_t smoothing;  /* lvp_frame_options.smoothing_passes (the core's default: 0; the add-on's: 2) */
+	int32_t smoothing;  /* lvp_frame_options.smoothing_passes (the core's default: 0; the add-on's:
+	                       ADDON_SMOOTHING_PASSES) */
 } bench_case;
 
 /* Median wall time of lvp_correct over `repeats` frames with `threads` threads; frame i shows
@@ -253,7 +255,7 @@ int main(int argc, char **argv)
 				run_case(&c, cores);
 				c.keep_apart = 0;
 				c.pose = all ? "every joint, whole mesh, smoothed" : "one joint, whole mesh, smoothed";
-				c.smoothing = 2; /* lvp.h, OFFSET SMOOTHING */
+				c.smoothing = ADDON_SMOOTHING_PASSES; /* lvp.h, OFFSET SMOOTHING */
 				run_case(&c, cores);
 				c.smoothing = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;
@@ -285,7 +287,7 @@ int main(int argc, char **argv)
 				run_case(&c, cores);
 				c.keep_apart = 0;
 				c.pose = "every joint, bulge width 1, whole mesh, smoothed"; /* the add-on's viewport */
-				c.smoothing = 2;
+				c.smoothing = ADDON_SMOOTHING_PASSES;
 				run_case(&c, cores);
 				c.smoothing = 0;
 				c.restore = LVP_RESTORE_EACH_REGION;

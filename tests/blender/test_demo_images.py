@@ -90,10 +90,11 @@ class TestCylinderSilhouettes(helpers.AddonTestCase):
         for name, mask in (("before", plain_mask), ("after", corrected_mask)):
             self.assertGreater(sum(mask), 0.1 * width * height, "the cylinder is missing from the %s render" % name)
 
-        # Around the joint (the weight band is 2.6 long, centred on the joint at z = 2, and the faces at
-        # its lower end reach below z = 0.6): the silhouettes differ, and the corrected one is larger (the
-        # lost volume is put back as a bulge).
-        joint = pixel_box(scene, camera, box_corners((-1.45, 0.9), (0.5, 2.9)))
+        # Around the joint (the weight band is 2.6 long, centred on the joint at z = 2, and the bulge tapers
+        # over one more flesh thickness past it, to the rings at z = 0.53 and 3.47, whose faces reach z = 0.27
+        # and, bent, y = -1.73): the silhouettes differ, and the corrected one is larger (the lost volume is
+        # put back as a bulge).
+        joint = pixel_box(scene, camera, box_corners((-1.75, 0.9), (0.2, 2.9)))
         changed = count_in_box(difference, width, joint, height)
         print("\n    cylinder at 90 degrees, %d x %d: %d pixels differ around the joint (%d gained), %d elsewhere"
               % (width, height, changed, count_in_box(gained, width, joint, height), sum(difference) - changed))
@@ -101,10 +102,12 @@ class TestCylinderSilhouettes(helpers.AddonTestCase):
         self.assertGreater(count_in_box(gained, width, joint, height), 0.6 * changed,
                            "the corrected silhouette should mostly grow at the joint")
 
-        # Far from the joint both ends follow one bone rigidly: identical pixels. The lower end is
-        # z < 0.7 at rest; after the 90 degree bend the upper end's rigid part is y < -1.3.
-        for name, y_range, z_range in (("lower end", (-0.7, 0.7), (-0.2, 0.45)),
-                                       ("upper end", (-2.2, -1.6), (1.3, 2.7))):
+        # Far from the joint both ends follow one bone rigidly: identical pixels. The weights' band ends at
+        # z = 0.7 (and 3.3) at rest, and the Bulge Width of 1 lets the bulge taper over one more flesh
+        # thickness, the radius of 0.5 (with 6 passes of smoothing the ring at z = 0.53 moves 0.012, the ring
+        # at 0.27 nothing): below z = 0.2, and past y = -1.8 after the 90 degree bend, nothing moves.
+        for name, y_range, z_range in (("lower end", (-0.7, 0.7), (-0.2, 0.2)),
+                                       ("upper end", (-2.2, -1.8), (1.3, 2.7))):
             box = pixel_box(scene, camera, box_corners(y_range, z_range))
             self.assertGreater(count_in_box(plain_mask, width, box, height), 50, "the %s is not in view" % name)
             self.assertEqual(count_in_box(difference, width, box, height), 0,

@@ -107,22 +107,21 @@ class TestHorse(helpers.AddonTestCase):
 
 
 class TestHorseSurface(helpers.AddonTestCase):
-    """The horse's surface with what renders have (Keep Skin Apart on), every frame of every action, by the
-    measures of ../shared/QUALITY.md against plain skinning at the same frame: no pair of triangles crossing that
-    does not cross in plain skinning (by the exact test: the count of crossing pairs, whose float prefilter can
-    miss a pair of plain skinning within rounding of touching, reads one more than plain skinning's on Idle, Rear,
-    Run and Walk, every such pair crossing in plain skinning too), creases added at most one per 300 edges, and
-    roughness against the largest offset. Keep Skin Apart never leaves a frame out: by a rule that gave up past
-    one triangle in 20 crossing anew, lay_to_idle had 56 crossing pairs more than plain skinning on 5 frames.
-    Measured on 3.4: creases 0-17 of 17 allowed (lay_to_idle); roughness 0.26-0.52 of the largest offset, above
-    the quarter QUALITY.md asks (issue 46), bounded here so that it does not grow."""
+    """The horse's surface, every frame of every action, by the measures of ../shared/QUALITY.md against plain
+    skinning at the same frame: creases added at most one per 300 edges, and roughness against the largest
+    offset; with what renders have (Keep Skin Apart on), no pair of triangles crossing that does not cross in
+    plain skinning (by the exact test: the count of crossing pairs, whose float prefilter can miss a pair of plain
+    skinning within rounding of touching, reads one more than plain skinning's on Idle, Rear, Run and Walk, every
+    such pair crossing in plain skinning too). Keep Skin Apart never leaves a frame out: by a rule that gave up past
+    one triangle in 20 crossing anew, lay_to_idle had 56 crossing pairs more than plain skinning on 5 frames."""
 
-    def test_every_frame_of_every_action_with_keep_skin_apart(self):
-        obj, rig = horse_scene()
-        obj.lvp.keep_apart = True
+    def surface_of_every_action(self, obj, rig):
+        """{action name: (largest new crossing pairs, largest creases added, largest roughness over the largest
+        offset)} over every frame of each action, each frame's status checked."""
         mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
-        creases_allowed = len(mesh.interior_edges()) / 300.0
+        self.creases_allowed = len(mesh.interior_edges()) / 300.0
         scene = bpy.context.scene
+        result = {}
         for action in sorted(bpy.data.actions, key=lambda action: action.name):
             rig.animation_data.action = action
             first, last = (int(round(frame)) for frame in action.frame_range)
@@ -139,10 +138,33 @@ class TestHorseSurface(helpers.AddonTestCase):
                 if shown["largest_offset"] > 0.0:
                     rough = max(rough, shown["roughness"] / shown["largest_offset"])
             print("    %-22s crossing pairs plain skinning has not %d, creases added %d (%.1f allowed), roughness "
-                  "%.2f of the largest offset" % (action.name, new_crossings, creases, creases_allowed, rough))
-            self.assertEqual(new_crossings, 0, "%s: pairs crossing that plain skinning has not" % action.name)
-            self.assertLessEqual(creases, creases_allowed, "%s: creases added" % action.name)
-            self.assertSmallerThan(rough, 0.6, "%s: roughness against the largest offset" % action.name)
+                  "%.2f of the largest offset" % (action.name, new_crossings, creases, self.creases_allowed, rough))
+            result[action.name] = (new_crossings, creases, rough)
+        return result
+
+    def test_every_frame_of_every_action(self):
+        """With the add-on's defaults (the viewport's), roughness at most a quarter of the largest offset, as
+        QUALITY.md asks, on every frame. On this coarse mesh (flesh an edge or two thick) it read 0.26-0.46: the
+        volume the smoothing took came back through the map (where it peaks: a vertex whose weights differ from
+        its neighbours'), the bulge was as narrow as the weights' band, and a vertex whose strongest bones all
+        moved together stayed still inside moving skin. Measured on 3.4: 0.15-0.24."""
+        obj, rig = horse_scene()
+        for name, (_crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
+            self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
+            self.assertLessEqual(rough, 0.25, "%s: roughness against the largest offset" % name)
+
+    def test_every_frame_of_every_action_with_keep_skin_apart(self):
+        """Keeping skin apart shortens the offsets of the skin that would cross, and where the tail lies on the
+        rump (lay_to_idle) or a leg folds against the belly, a shortened vertex sits beside skin that is not:
+        roughness 0.19-0.47 of the largest offset on 3.4, above the quarter QUALITY.md asks (issue 46: the
+        correction should fade as skin approaches skin, before the volume step), bounded here so that it does
+        not grow."""
+        obj, rig = horse_scene()
+        obj.lvp.keep_apart = True
+        for name, (crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
+            self.assertEqual(crossings, 0, "%s: pairs crossing that plain skinning has not" % name)
+            self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
+            self.assertSmallerThan(rough, 0.5, "%s: roughness against the largest offset" % name)
 
 
 class TestHorseBake(test_bake.CommandTestCase):

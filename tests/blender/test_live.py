@@ -118,7 +118,9 @@ class TestCylinder(CylinderTestCase):
 
     def test_default_bulge_width(self):
         # The add-on's Bulge Width spreads the bulge over the flesh: lower, and reaching into the ends
-        # a little (the paper's band of 2.6 leaves rigid ends 0.7 long on a radius of 0.5).
+        # a little (the paper's band of 2.6 leaves rigid ends 0.7 long on a radius of 0.5), tapering over
+        # about one flesh thickness past the band (6 passes of smoothing: 0.029 at z = 0.80, 0.012 at
+        # 0.53, 0 at 0.27; with 2 passes the ring at 0.53 moved 0.005), and nothing beyond.
         self.scene.frame_set(10)
         band = max(helpers.vertex_distances(helpers.evaluated_positions(self.obj),
                                             helpers.uncorrected_positions(self.obj)))
@@ -132,7 +134,9 @@ class TestCylinder(CylinderTestCase):
         print("\n    cylinder at 90 degrees, largest offset: Bulge Width 0 %.4f, 1 %.4f; rigid ends moved %.5f"
               % (band, max(distances), max(distances[index] for index in rigid)))
         self.assertLess(max(distances), band)
-        self.assertSmallerThan(max(distances[index] for index in rigid), 0.01 * 0.5, "rigid ends, 1 % of the radius")
+        self.assertSmallerThan(max(distances[index] for index in rigid), 0.03 * 0.5, "rigid ends, 3 % of the radius")
+        beyond = [vertex.index for vertex in self.obj.data.vertices if vertex.co.z < 0.2 or vertex.co.z > 3.8]
+        self.assertSmallerThan(max(distances[index] for index in beyond), 1e-5, "a radius past the band")
 
     def test_posing_a_bone_without_changing_frame(self):
         self.scene.frame_set(10)

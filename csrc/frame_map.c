@@ -279,22 +279,41 @@ static bool lvp__find_holes(lvp_binding *binding)
 	return count != before || memcmp(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)count);
 }
 
-/* A hole's map: the mean of its neighbours' maps, a neighbour that is still or another hole
- * counting with none (all read before any is written), so that it moves with the skin around it
- * and its map tapers where the moving skin ends. */
+/* Whether dynamic vertex k is still by this frame's map while most of its neighbours move: a hole
+ * (lvp__is_hole), or a vertex whose bones fall into several classes that carry it alike to float
+ * noise (the joints of a B-Bone that bends as one), so its a_k is zero. Read before any is filled. */
+static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
+{
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	const float *gamma = binding->frame_map.gamma;
+	if (!binding->frame_map.vertex_dynamic[k] || gamma[k] > 0.0f ||
+	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+		return false;
+	int32_t moving = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
+	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+		moving += gamma[smoothing->neighbours[e]] > 0.0f;
+	return 2 * moving > count;
+}
+
+/* The map of each vertex still in moving skin (lvp__still_in_moving_skin): the mean of its
+ * neighbours' maps, one that is still counting with none (all read before any is written), so
+ * that it moves with the skin around it and its map tapers where the moving skin ends. */
 static void lvp__fill_holes(lvp_binding *binding)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	lvp__frame_map *frame_map = &binding->frame_map;
-	for (int32_t i = 0; i < frame_map->filled_count; ++i) {
-		int32_t k = frame_map->filled[i];
+	int32_t count = 0;
+	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		if (!lvp__still_in_moving_skin(binding, k))
+			continue;
 		double sum = 0.0;
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
 			sum += frame_map->gamma[smoothing->neighbours[e]];
-		frame_map->filled_gamma[i] = (float)(sum / (double)(smoothing->offsets[k + 1] - smoothing->offsets[k]));
+		frame_map->fill[count] = k;
+		frame_map->fill_gamma[count++] = (float)(sum / (double)(smoothing->offsets[k + 1] - smoothing->offsets[k]));
 	}
-	for (int32_t i = 0; i < frame_map->filled_count; ++i)
-		frame_map->gamma[frame_map->filled[i]] = frame_map->filled_gamma[i];
+	for (int32_t i = 0; i < count; ++i)
+		frame_map->gamma[frame_map->fill[i]] = frame_map->fill_gamma[i];
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
@@ -379,7 +398,8 @@ bool lvp__frame_map_alloc(lvp_binding *binding)
 	frame_map->chunk_changed = lvp__calloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
 	frame_map->filled = lvp__calloc(n + 1, sizeof(int32_t), &ok);
 	frame_map->filled_before = lvp__calloc(n + 1, sizeof(int32_t), &ok);
-	frame_map->filled_gamma = lvp__calloc(n + 1, sizeof(float), &ok);
+	frame_map->fill = lvp__calloc(n + 1, sizeof(int32_t), &ok);
+	frame_map->fill_gamma = lvp__calloc(n + 1, sizeof(float), &ok);
 	return ok;
 }
 
@@ -393,5 +413,6 @@ void lvp__frame_map_free(lvp__frame_map *frame_map)
 	free(frame_map->chunk_changed);
 	free(frame_map->filled);
 	free(frame_map->filled_before);
-	free(frame_map->filled_gamma);
+	free(frame_map->fill);
+	free(frame_map->fill_gamma);
 }

@@ -123,11 +123,12 @@
  *   and is continuous across region borders. Vertices that follow one bone rigidly (w_k = 1)
  *   never move. With deformation weighting (default in local mode) the map is multiplied each
  *   frame by how far the vertex's bones disagree about where it goes: zero where they move
- *   together, so nothing moves where the skin moved rigidly. A vertex whose bones move together
- *   while most of its neighbours' do not (a hole or a bay in the moving skin: painted weights that
- *   name one bone inside a blend, or a bending bone that is the ninth of its row and the eighth of
- *   its neighbours') takes the mean of its neighbours' map instead, so no vertex is held back from
- *   the skin that moves around it. Every map is as smooth over the surface as the weights are.
+ *   together, so nothing moves where the skin moved rigidly. A vertex whose a_k is zero while most
+ *   of its neighbours move (a hole or a bay in the moving skin: painted weights that name one bone
+ *   inside a blend, a bending bone that is the ninth of its row and the eighth of its neighbours',
+ *   the joints of a B-Bone that carry it alike to float noise) takes the mean of its neighbours'
+ *   map instead, so no vertex is held back from the skin that moves around it. Every map is as
+ *   smooth over the surface as the weights are.
  *
  * GROUPS (one multiplier for several bones)
  *

@@ -17,7 +17,9 @@
 
 #define PI 3.14159265358979323846
 #define POSES 3
+#ifndef ADDON_SMOOTHING_PASSES
 #define ADDON_SMOOTHING_PASSES 6 /* the add-on's Smoothing (addon/properties.py) */
+#endif
 
 static double now(void)
 {

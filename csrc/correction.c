@@ -755,7 +755,8 @@ static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *s
  * skin answered the one before) removes what is left of the part's change, holes capped: the whole
  * of LVP_RESTORE_WHOLE_MESH, and the second phase of the fallback of lvp__correct_volumes() once
  * every region is within tolerance of its rest volume. The steps read the parts' volumes only; the
- * regions' changes are measured once, after the last. */
+ * regions' changes are measured once, after the last. along_offsets: each part's multiplier scales
+ * its vertices' smoothed offsets (step.smoothing_offsets) instead (lvp__restore_smoothed). */
 static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *options, int32_t budget,
                                  const float *rest_positions, const lvp__region_sums *totals, bool along_offsets)
 {
@@ -802,7 +803,9 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		binding->step.uniform_step = one_part && !along_offsets;
 		binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
 		binding->step.along_offsets = along_offsets;
-		lvp__apply_multipliers(binding, binding->step.active, touched);
+		/* Along the offsets no region's multiplier is applied (nor counted in moved_by: the
+		 * steps that made the offsets were). */
+		lvp__apply_multipliers(binding, binding->step.active, along_offsets ? 0 : touched);
 		binding->step.uniform_step = binding->step.along_offsets = false;
 		++steps;
 		lvp__remeasure_sums(binding);
@@ -1053,9 +1056,9 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &first_active, smoothing);
 	stats->active_regions = first_active;
 	if (smoothing) {
-		/* Offsets along normals that turn fast (folds) open creases: smoothed, then the volume the
-		 * smoothing took is restored by the same steps (a few percent of the offsets, along the
-		 * normals again). */
+		/* Offsets along normals that turn fast (folds) open creases, and a coarse mesh's map changes
+		 * much from one vertex to the next: smoothed, then the volume the smoothing took restored
+		 * along the smoothed offsets (lvp__restore_smoothed). */
 		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
 		lvp__measure_positions(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);

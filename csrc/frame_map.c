@@ -279,15 +279,35 @@ static bool lvp__find_holes(lvp_binding *binding)
 	return count != before || memcmp(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)count);
 }
 
+/* Whether the bones that reach vertex k move alike, to float rounding of their matrices, though
+ * they fall into several classes (the joints of a B-Bone that turns as one): their skin matrices
+ * agree everywhere, not only at the vertex (as two bones do on the axis of the joint they bend
+ * about, which is left still). */
+static bool lvp__bones_alike(const lvp_binding *binding, int32_t k)
+{
+	int32_t first = binding->reach.offsets[k], last = binding->reach.offsets[k + 1];
+	if (last - first < 2)
+		return true;
+	const float *a = binding->frame_map.skin_displacement + 12 * binding->reach.regions[first];
+	double tolerance = 1e-5, reach = binding->rig.reach;
+	for (int32_t e = first + 1; e < last; ++e) {
+		const float *b = binding->frame_map.skin_displacement + 12 * binding->reach.regions[e];
+		for (int c = 0; c < 12; ++c) /* rows of 3x4: the translations, c % 4 == 3, in lengths */
+			if (fabs((double)a[c] - b[c]) > (c % 4 == 3 ? tolerance * reach : tolerance))
+				return false;
+	}
+	return true;
+}
+
 /* Whether dynamic vertex k is still by this frame's map while most of its neighbours move: a hole
  * (lvp__is_hole), or a vertex whose bones fall into several classes that carry it alike to float
- * noise (the joints of a B-Bone that bends as one), so its a_k is zero. Read before any is filled. */
+ * noise (lvp__bones_alike), so its a_k is zero. Read before any is filled. */
 static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	const float *gamma = binding->frame_map.gamma;
 	if (!binding->frame_map.vertex_dynamic[k] || gamma[k] > 0.0f ||
-	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f) || !lvp__bones_alike(binding, k))
 		return false;
 	int32_t moving = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
 	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)

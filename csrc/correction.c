@@ -659,30 +659,58 @@ static void lvp__touched_phi_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
-/* Chunks [begin, end) of LVP__GRAIN dynamic vertices: sum gamma_k g_k^2 touched_phi_k over each into
- * step.chunk_gain (one part). */
-static void lvp__gain_loop(void *context, int32_t begin, int32_t end)
+/* A vertex's share of what one multiplier does to the whole mesh's volume (one part), by its place v
+ * in the dynamic set. */
+typedef double (*lvp__gain_term)(const lvp_binding *binding, int32_t v);
+
+typedef struct lvp__gain_sum {
+	lvp_binding *binding;
+	lvp__gain_term term;
+} lvp__gain_sum;
+
+/* Chunks [begin, end) of LVP__GRAIN dynamic vertices: the sum of the term over each into
+ * step.chunk_gain. */
+static void lvp__gain_chunks(void *context, int32_t begin, int32_t end)
 {
-	lvp_binding *binding = context;
+	const lvp__gain_sum *gain = context;
+	lvp_binding *binding = gain->binding;
 	for (int32_t chunk = begin; chunk < end; ++chunk) {
 		int32_t first = chunk * LVP__GRAIN, last = first + LVP__GRAIN;
 		last = last < binding->dynamic.vertex_count ? last : binding->dynamic.vertex_count;
 		double sum = 0.0;
-		for (int32_t v = first; v < last; ++v) {
-			float phi = binding->step.touched_phi[v];
-			if (!(phi > 0.0f)) /* g is of the vertices that can move only */
-				continue;
-			int32_t k = binding->dynamic.vertices[v];
-			double g = binding->measure.vertex_g[k];
-			sum += (double)binding->frame_map.gamma[k] * g * g * phi;
-		}
+		for (int32_t v = first; v < last; ++v)
+			sum += gain->term(binding, v);
 		binding->step.chunk_gain[chunk] = sum;
 	}
 }
 
+/* The term summed over the dynamic vertices: by chunks in parallel, then the chunks in order, so
+ * the same for any threads. */
+static double lvp__gain_over_dynamic(lvp_binding *binding, lvp__gain_term term)
+{
+	lvp__gain_sum gain = {binding, term};
+	int32_t chunks = (binding->dynamic.vertex_count + LVP__GRAIN - 1) / LVP__GRAIN;
+	lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__gain_chunks, &gain, chunks, 1);
+	double sum = 0.0;
+	for (int32_t chunk = 0; chunk < chunks; ++chunk)
+		sum += binding->step.chunk_gain[chunk];
+	return sum;
+}
+
+/* gamma_k g_k^2 touched_phi_k of dynamic vertex v (eq. 5's denominator, one part). */
+static double lvp__map_gain(const lvp_binding *binding, int32_t v)
+{
+	float phi = binding->step.touched_phi[v];
+	if (!(phi > 0.0f)) /* g is of the vertices that can move only */
+		return 0.0;
+	int32_t k = binding->dynamic.vertices[v];
+	double g = binding->measure.vertex_g[k];
+	return (double)binding->frame_map.gamma[k] * g * g * phi;
+}
+
 /* g_k <n_k, o_k> of dynamic vertex v (its volume gradient against its smoothed offset), or 0 for
  * one that cannot move. */
-static inline double lvp__offset_gain(const lvp_binding *binding, int32_t v)
+static double lvp__offset_gain(const lvp_binding *binding, int32_t v)
 {
 	int32_t k = binding->dynamic.vertices[v];
 	if (!lvp__can_move(binding, k))
@@ -691,32 +719,13 @@ static inline double lvp__offset_gain(const lvp_binding *binding, int32_t v)
 	return (double)binding->measure.vertex_g[k] * ((double)n[0] * o[0] + (double)n[1] * o[1] + (double)n[2] * o[2]);
 }
 
-/* Chunks [begin, end) of LVP__GRAIN dynamic vertices: their sums of lvp__offset_gain into
- * step.chunk_gain (one part). */
-static void lvp__offset_gain_loop(void *context, int32_t begin, int32_t end)
-{
-	lvp_binding *binding = context;
-	for (int32_t chunk = begin; chunk < end; ++chunk) {
-		int32_t first = chunk * LVP__GRAIN, last = first + LVP__GRAIN;
-		last = last < binding->dynamic.vertex_count ? last : binding->dynamic.vertex_count;
-		double sum = 0.0;
-		for (int32_t v = first; v < last; ++v)
-			sum += lvp__offset_gain(binding, v);
-		binding->step.chunk_gain[chunk] = sum;
-	}
-}
-
 /* What one multiplier of every vertex's smoothed offset does to each part's volume (sum over its
- * vertices of g_k <n_k, o_k>), into system; summed as lvp__whole_mesh_gains does. */
+ * vertices of g_k <n_k, o_k>), into system. */
 static void lvp__offset_gains(lvp_binding *binding, bool one_part, double *system)
 {
 	memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
 	if (one_part) {
-		int32_t chunks = (binding->dynamic.vertex_count + LVP__GRAIN - 1) / LVP__GRAIN;
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__offset_gain_loop, binding,
-		                  chunks, 1);
-		for (int32_t chunk = 0; chunk < chunks; ++chunk)
-			system[0] += binding->step.chunk_gain[chunk];
+		system[0] = lvp__gain_over_dynamic(binding, lvp__offset_gain);
 		return;
 	}
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
@@ -730,10 +739,7 @@ static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *s
 {
 	memset(system, 0, sizeof(double) * (size_t)binding->parts.count);
 	if (one_part) {
-		int32_t chunks = (binding->dynamic.vertex_count + LVP__GRAIN - 1) / LVP__GRAIN;
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__gain_loop, binding, chunks, 1);
-		for (int32_t chunk = 0; chunk < chunks; ++chunk)
-			system[0] += binding->step.chunk_gain[chunk];
+		system[0] = lvp__gain_over_dynamic(binding, lvp__map_gain);
 		return;
 	}
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {

@@ -181,6 +181,38 @@ static void drop_influence(test_rig *rig, int32_t k, int32_t bone)
 		--rig->weight_offsets[j];
 }
 
+/* The length of vertex k's offset. */
+static double offset_length(const float *offsets, int32_t k)
+{
+	const float *o = offsets + 3 * k;
+	return sqrt((double)o[0] * o[0] + (double)o[1] * o[1] + (double)o[2] * o[2]);
+}
+
+/* The mean length of the offsets of vertex k's edge neighbours. */
+static double neighbours_offset(const test_rig *rig, const float *offsets, int32_t k)
+{
+	double sum = 0.0;
+	int32_t count = 0;
+	for (int32_t t = 0; t < rig->triangle_count; ++t)
+		for (int i = 0; i < 3; ++i)
+			if (rig->triangles[3 * t + i] == k)
+				for (int j = 1; j < 3; ++j) {
+					sum += offset_length(offsets, rig->triangles[3 * t + (i + j) % 3]);
+					++count;
+				}
+	return count > 0 ? sum / count : 0.0;
+}
+
+/* A vertex on the outside of the paper's cylinder, on the ring at z = 28/15, in the middle of the band
+ * where its weights blend (its neighbours blend the two bones); -1 if none. */
+static int32_t vertex_in_the_band(const test_rig *rig)
+{
+	for (int32_t k = 0; k < rig->vertex_count; ++k)
+		if (fabsf(rig->positions[3 * k + 2] - 4.0f * 7.0f / 15.0f) < 1e-4f && rig->positions[3 * k + 1] > 0.45f)
+			return k;
+	return -1;
+}
+
 /* A vertex whose weights name one bone, in the middle of the band where its neighbours blend two
  * (a game character's painted weights; or where many bones overlap, a bone that bends left out of
  * one vertex's strongest few and kept in its neighbours'): the deformation weighting takes it as
@@ -189,10 +221,7 @@ static void drop_influence(test_rig *rig, int32_t k, int32_t bone)
 static void test_hole_in_the_moving_skin_moves_with_it(void)
 {
 	posed_cylinder c = make_bent_cylinder(90);
-	int32_t hole = -1;
-	for (int32_t k = 0; k < c.rig.vertex_count && hole < 0; ++k)
-		if (fabsf(c.rig.positions[3 * k + 2] - 4.0f * 7.0f / 15.0f) < 1e-4f && c.rig.positions[3 * k + 1] > 0.45f)
-			hole = k;
+	int32_t hole = vertex_in_the_band(&c.rig);
 	CHECK(hole >= 0);
 	if (hole < 0) {
 		free_cylinder(&c);
@@ -210,19 +239,7 @@ static void test_hole_in_the_moving_skin_moves_with_it(void)
 	lvp_frame_stats stats;
 	lvp_diagnostic diag;
 	CHECK_OK(lvp_correct(NULL, offsets, binding, c.skinned, c.posed, NULL, NULL, &stats, &diag), diag);
-	double around = 0.0, own = sqrt((double)offsets[3 * hole] * offsets[3 * hole] +
-	                                (double)offsets[3 * hole + 1] * offsets[3 * hole + 1] +
-	                                (double)offsets[3 * hole + 2] * offsets[3 * hole + 2]);
-	int32_t neighbours = 0;
-	for (int32_t t = 0; t < c.rig.triangle_count; ++t)
-		for (int i = 0; i < 3; ++i)
-			if (c.rig.triangles[3 * t + i] == hole)
-				for (int j = 1; j < 3; ++j) {
-					const float *o = offsets + 3 * c.rig.triangles[3 * t + (i + j) % 3];
-					around += sqrt((double)o[0] * o[0] + (double)o[1] * o[1] + (double)o[2] * o[2]);
-					++neighbours;
-				}
-	around /= neighbours;
+	double own = offset_length(offsets, hole), around = neighbours_offset(&c.rig, offsets, hole);
 	printf("  the vertex of one bone moved %.4f, the skin around it %.4f (radius 0.5); volume %+.5f%%\n", own,
 	       around, 100.0 * (stats.volume_after / stats.volume_rest - 1.0));
 	CHECK(around > 0.005);
@@ -233,32 +250,13 @@ static void test_hole_in_the_moving_skin_moves_with_it(void)
 	free_cylinder(&c);
 }
 
-/* The mean length of the offsets of vertex k's edge neighbours. */
-static double neighbours_offset(const test_rig *rig, const float *offsets, int32_t k)
-{
-	double sum = 0.0;
-	int32_t count = 0;
-	for (int32_t t = 0; t < rig->triangle_count; ++t)
-		for (int i = 0; i < 3; ++i)
-			if (rig->triangles[3 * t + i] == k)
-				for (int j = 1; j < 3; ++j) {
-					const float *o = offsets + 3 * rig->triangles[3 * t + (i + j) % 3];
-					sum += sqrt((double)o[0] * o[0] + (double)o[1] * o[1] + (double)o[2] * o[2]);
-					++count;
-				}
-	return count > 0 ? sum / count : 0.0;
-}
-
 /* Two bones that carry a vertex alike to float noise, in two skin classes (the joints of a B-Bone
  * that bends as one: their transforms differ by rounding): its deformation weighting is zero while
  * the skin around it blends the bones that bend. It moves with that skin (frame_map.c). */
 static void test_vertex_its_bones_carry_alike_moves_with_the_skin_around(void)
 {
 	test_rig rig = test_make_cylinder(16, 16, 0.5f, 4.0f, 2.6f);
-	int32_t hole = -1, b = rig.bone_count;
-	for (int32_t k = 0; k < rig.vertex_count && hole < 0; ++k)
-		if (fabsf(rig.positions[3 * k + 2] - 4.0f * 7.0f / 15.0f) < 1e-4f && rig.positions[3 * k + 1] > 0.45f)
-			hole = k;
+	int32_t hole = vertex_in_the_band(&rig), b = rig.bone_count;
 	CHECK(hole >= 0);
 	/* Bone b: a copy of bone 0. */
 	rig.rest_matrices = realloc(rig.rest_matrices, sizeof(float) * 16 * (size_t)(b + 1));
@@ -296,9 +294,7 @@ static void test_vertex_its_bones_carry_alike_moves_with_the_skin_around(void)
 	lvp_frame_stats stats;
 	lvp_diagnostic diag;
 	CHECK_OK(lvp_correct(NULL, offsets, binding, skinned, posed, NULL, &frame_options, &stats, &diag), diag);
-	double own = sqrt((double)offsets[3 * hole] * offsets[3 * hole] + (double)offsets[3 * hole + 1] * offsets[3 * hole + 1] +
-	                  (double)offsets[3 * hole + 2] * offsets[3 * hole + 2]),
-	       around = neighbours_offset(&rig, offsets, hole);
+	double own = offset_length(offsets, hole), around = neighbours_offset(&rig, offsets, hole);
 	printf("  the vertex its two bones carry alike moved %.4f, the skin around it %.4f; volume %+.5f%%\n", own,
 	       around, 100.0 * (stats.volume_after / stats.volume_rest - 1.0));
 	CHECK(around > 0.005);

@@ -156,7 +156,7 @@ class TestHorseSurface(helpers.AddonTestCase):
     def test_every_frame_of_every_action_with_keep_skin_apart(self):
         """Keeping skin apart shortens the offsets of the skin that would cross, and where the tail lies on the
         rump (lay_to_idle) or a leg folds against the belly, a shortened vertex sits beside skin that is not:
-        roughness 0.19-0.47 of the largest offset on 3.4, above the quarter QUALITY.md asks (issue 46: the
+        roughness 0.16-0.46 of the largest offset on 3.4, above the quarter QUALITY.md asks (issue 46: the
         correction should fade as skin approaches skin, before the volume step), bounded here so that it does
         not grow."""
         obj, rig = horse_scene()

@@ -187,10 +187,7 @@ typedef struct lvp__frame_map {
 	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map (by the classes alone:
 	                             frame_map.c), or moved by fold-over */
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
-	int32_t *filled;          /* the vertices of holes in the moving skin made dynamic (frame_map.c) */
-	int32_t *filled_before;   /* scratch: the frame before's, to tell whether they changed */
-	int32_t filled_count;
-	int32_t *fill;            /* scratch: the vertices still in moving skin this frame, */
+	int32_t *fill;            /* scratch: the holes in the moving skin this frame (frame_map.c), */
 	float *fill_gamma;        /* and the maps they take */
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
 	 * lvp__frame_map_stale clears it when something else changes one of them. */

@@ -263,20 +263,20 @@ static bool lvp__is_hole(const lvp_binding *binding, int32_t k)
 	return 2 * dynamic > count;
 }
 
-/* Finds the holes of the moving skin (lvp__is_hole), in vertex order, and makes them dynamic.
- * Returns whether that differs from the frame before's holes. */
+/* Finds the holes of the moving skin (lvp__is_hole), all decided before any is made dynamic, and
+ * makes them dynamic. Returns whether there are any: the classes' loop compared each vertex's flag
+ * by its classes alone, so a hole made dynamic is a change it did not see (and one that was a hole
+ * the frame before, and is still, one it did). */
 static bool lvp__find_holes(lvp_binding *binding)
 {
 	lvp__frame_map *frame_map = &binding->frame_map;
-	int32_t before = frame_map->filled_count, count = 0;
-	memcpy(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)before);
+	int32_t count = 0;
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
 		if (lvp__is_hole(binding, k))
-			frame_map->filled[count++] = k;
+			frame_map->fill[count++] = k;
 	for (int32_t i = 0; i < count; ++i)
-		frame_map->vertex_dynamic[frame_map->filled[i]] = 1;
-	frame_map->filled_count = count;
-	return count != before || memcmp(frame_map->filled_before, frame_map->filled, sizeof(int32_t) * (size_t)count);
+		frame_map->vertex_dynamic[frame_map->fill[i]] = 1;
+	return count > 0;
 }
 
 /* Whether the bones that reach vertex k move alike, to float rounding of their matrices, though
@@ -315,15 +315,18 @@ static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 	return 2 * moving > count;
 }
 
-/* The map of each vertex still in moving skin (lvp__still_in_moving_skin): the mean of its
- * neighbours' maps, one that is still counting with none (all read before any is written), so
- * that it moves with the skin around it and its map tapers where the moving skin ends. */
-static void lvp__fill_holes(lvp_binding *binding)
+/* The map of each vertex still in moving skin (lvp__still_in_moving_skin) among `vertices` (NULL:
+ * all `count` vertices): the mean of its neighbours' maps, one that is still counting with none (all
+ * read before any is written), so that it moves with the skin around it and its map tapers where
+ * the moving skin ends. Only dynamic vertices can be such: when the dynamic set is current, it is
+ * all that is walked. */
+static void lvp__fill_holes(lvp_binding *binding, const int32_t *vertices, int32_t vertex_count)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	lvp__frame_map *frame_map = &binding->frame_map;
 	int32_t count = 0;
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+	for (int32_t v = 0; v < vertex_count; ++v) {
+		int32_t k = vertices ? vertices[v] : v;
 		if (!lvp__still_in_moving_skin(binding, k))
 			continue;
 		double sum = 0.0;
@@ -362,19 +365,17 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 		 * and the walk over all vertices is skipped. */
 		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__frame_map_dynamic_loop,
 		                  &context, binding->dynamic.vertex_count, LVP__GRAIN);
-		lvp__fill_holes(binding);
+		lvp__fill_holes(binding, binding->dynamic.vertices, binding->dynamic.vertex_count);
 		return;
 	}
 	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
 	memset(binding->frame_map.chunk_changed, 0, (size_t)chunks);
 	lvp__parallel_for(LVP__POOL_FOR(binding, n), lvp__frame_map_loop, &context, n, LVP__GRAIN);
-	bool holes_changed = lvp__find_holes(binding);
+	bool any_hole = lvp__find_holes(binding);
 	for (int32_t i = 0; i < chunks; ++i)
-		if (binding->frame_map.chunk_changed[i])
+		if (binding->frame_map.chunk_changed[i] || any_hole)
 			lvp__dynamic_set_stale(binding);
-	if (holes_changed)
-		lvp__dynamic_set_stale(binding);
-	lvp__fill_holes(binding);
+	lvp__fill_holes(binding, NULL, n);
 	binding->frame_map.current = true;
 }
 
@@ -416,8 +417,6 @@ bool lvp__frame_map_alloc(lvp_binding *binding)
 	frame_map->vertex_class = lvp__calloc(n, sizeof(int32_t), &ok);
 	frame_map->vertex_dynamic = lvp__calloc(n, sizeof(uint8_t), &ok);
 	frame_map->chunk_changed = lvp__calloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
-	frame_map->filled = lvp__calloc(n + 1, sizeof(int32_t), &ok);
-	frame_map->filled_before = lvp__calloc(n + 1, sizeof(int32_t), &ok);
 	frame_map->fill = lvp__calloc(n + 1, sizeof(int32_t), &ok);
 	frame_map->fill_gamma = lvp__calloc(n + 1, sizeof(float), &ok);
 	return ok;
@@ -431,8 +430,6 @@ void lvp__frame_map_free(lvp__frame_map *frame_map)
 	free(frame_map->vertex_class);
 	free(frame_map->vertex_dynamic);
 	free(frame_map->chunk_changed);
-	free(frame_map->filled);
-	free(frame_map->filled_before);
 	free(frame_map->fill);
 	free(frame_map->fill_gamma);
 }

@@ -357,6 +357,9 @@ typedef struct lvp__contact {
 	                              (lvp__pin_held); its offset is never shortened */
 	int32_t crossed;           /* the last lvp__keep_skin_apart: triangles its first round found crossing
 	                              anew (each kept apart since) */
+	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
+	                              skinning (clearance.c; INFINITY: none near) */
+	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
 } lvp__contact;
 
 /* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
@@ -814,5 +817,18 @@ void lvp__fade_map_where_shortened(lvp_binding *binding);
 /* The dynamic vertices shortened by any lvp__keep_skin_apart of this frame. */
 int32_t lvp__shortened_count(const lvp_binding *binding);
 void lvp__contact_free(lvp__contact *contact);
+
+/* clearance.c */
+/* contact.clearance of the dynamic vertices, ahead of their offsets (step.positions less
+ * `positions`) in the skinning at `positions` (refits contact.bvh to it). */
+void lvp__measure_clearance(lvp_binding *binding, const float *positions);
+/* Scales the offsets (step.positions and step.smoothing_offsets) and frame_map.gamma of the dynamic
+ * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,
+ * changing nothing, when every offset is within its clearance. */
+bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
+/* Shares of offsets (per vertex, at most 1) smoothed over a few rings of the dynamic vertices
+ * without any rising above its own: eroded, then averaged as often. Vertices marked in `kept` (may
+ * be NULL) are neither read nor changed. `scratch`: per vertex. */
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept);
 
 #endif /* LVP_BINDING_H */

@@ -1,7 +1,8 @@
 /*
  * bvh.h - a bounding volume hierarchy over the triangles of a mesh (internal, not part of the API), for the
  * exact visibility test of the automatic weights (paper 5.1: does a straight segment cross the surface?)
- * and for keeping skin apart (contact.c: which triangles may touch which, refitted to each pose).
+ * and for keeping skin apart (contact.c: which triangles may touch which, refitted to each pose;
+ * clearance.c: what skin lies in front of a vertex).
  *
  * ALGORITHM: top-down binned SAH (16 bins on each axis) over axis-aligned boxes, leaves of at most 8
  * triangles; below depth 40, or when the centroids coincide, splits at the object median instead, which

@@ -16,8 +16,6 @@
 #define LVP__CONTACT_ROUNDS 8
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
-/* Passes of lvp__smoothed_scale after the rounds (4 rings of the mesh). */
-#define LVP__CONTACT_SMOOTHING 4
 
 static inline float lvp__min3(float a, float b, float c)
 {
@@ -261,26 +259,14 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->clearance = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	if (ok)
 		return lvp_success;
 	lvp__contact_free(contact);
 	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "could not allocate the contact test of %d triangles.",
 	                 (int)binding->triangle_count);
-}
-
-/* The mean of the scales around vertex k (over the corners of its triangles), or its own when
- * smaller: where an offset is shortened, its neighbours' are shortened a little too, so that the
- * shortened patch has no rim. */
-static float lvp__smoothed_scale(const lvp_binding *binding, const float *scale, int32_t k)
-{
-	const lvp__mesh *mesh = &binding->mesh;
-	double sum = 0.0;
-	int32_t count = 0;
-	for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
-		for (int i = 0; i < 3; ++i, ++count)
-			sum += scale[mesh->triangles[3 * (int64_t)mesh->vertex_triangles[c] + i]];
-	float mean = count > 0 ? (float)(sum / count) : scale[k];
-	return mean < scale[k] ? mean : scale[k];
 }
 
 /* step.positions: each dynamic vertex at its share (contact.scale) of its offset in `corrected`. */
@@ -446,14 +432,12 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 	}
 	lvp__contact_pass pass = {binding, positions};
 	if (lvp__shorten_rounds(binding, &pass, corrected, true)) {
-		/* The rim: as many smoothing passes whatever the number of rounds, so that a frame that needs
-		 * one round more does not spread the shortening further than the frame before. Shortening one
-		 * side of a pair more than the other can make it cross, so the smoothed patch is tested again. */
-		for (int pass_index = 0; pass_index < LVP__CONTACT_SMOOTHING; ++pass_index) {
-			for (int32_t v = 0; v < dynamic_count; ++v)
-				next[dynamic[v]] = pinned[dynamic[v]] ? 1.0f : lvp__smoothed_scale(binding, scale, dynamic[v]);
-			memcpy(scale, next, sizeof(float) * (size_t)n);
-		}
+		/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
+		 * its pairs allowed: a patch shortened as a smooth dip, not single vertices held back from
+		 * their neighbours' surface. Shortening one side of a pair more than the other can make it
+		 * cross, so the smoothed patch is tested again. */
+		lvp__smooth_shares(binding, scale, next, pinned);
+		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
 		for (int32_t v = 0; v < dynamic_count; ++v)
 			contact->moved[dynamic[v]] = scale[dynamic[v]] < 1.0f;
@@ -496,5 +480,8 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->pinned);
 	free(contact->scale);
 	free(contact->next_scale);
+	free(contact->clearance);
+	free(contact->fade);
+	free(contact->fade_scratch);
 	memset(contact, 0, sizeof(*contact));
 }

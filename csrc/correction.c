@@ -25,6 +25,10 @@
 #define LVP__FOLD_ROUNDS 4
 /* Volume corrections again after shortening offsets to keep skin apart, at most. */
 #define LVP__CONTACT_CYCLES 4
+/* Rounds of fading the offsets that near other skin and restoring the volume elsewhere, at most:
+ * each round's restoring grows the offsets a little, the last's by less than the crossing test
+ * after it shortens (clearance.c). */
+#define LVP__CLEARANCE_CYCLES 3
 
 static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp_diagnostic *r_diag)
 {
@@ -952,6 +956,25 @@ static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_optio
 	return steps;
 }
 
+/* Keeping skin apart: the offsets that near other skin in front of them fade (clearance.c), and
+ * the volume they no longer carry is restored along the others (lvp__restore_smoothed), a few
+ * rounds, as restoring grows the faded offsets too. */
+static int32_t lvp__restore_short_of_contact(lvp_binding *binding, const lvp_frame_options *options,
+                                             const float *positions, const float *rest_positions,
+                                             const lvp__region_sums *totals)
+{
+	lvp__measure_clearance(binding, positions);
+	int32_t steps = 0;
+	for (int cycle = 0; cycle < LVP__CLEARANCE_CYCLES; ++cycle) {
+		if (!lvp__fade_at_clearance(binding, positions))
+			break;
+		lvp__movable_regions(binding);
+		lvp__measure_positions(binding, rest_positions, totals);
+		steps += lvp__restore_smoothed(binding, options, rest_positions, totals);
+	}
+	return steps;
+}
+
 /* A group's change against the change its bones' scales give it, relative to its reference. */
 static double lvp__relative_change(const lvp__group_state *group)
 {
@@ -1069,6 +1092,8 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		lvp__measure_positions(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}
+	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL)
+		stats->iterations += lvp__restore_short_of_contact(binding, options, positions, rest_positions, totals);
 	stats->folded_vertices = 0;
 	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
 		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
@@ -1101,18 +1126,19 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	stats->shortened_vertices = 0;
 	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {
-		/* Offsets that would push skin through skin are shortened (contact.c). What they could not
-		 * carry is restored again through the map faded as much as they were shortened (those that
-		 * fold-over put on a contact surface still held), and that correction is checked in turn,
-		 * until one shortens nothing (a bent tail: twice). */
+		/* Offsets that would still push skin through skin are shortened (contact.c). What they could
+		 * not carry is restored again along the offsets as they are now (the shortened ones grow as
+		 * little as they were shortened; the map, for the steps that fall back to it, faded as much;
+		 * those that fold-over put on a contact surface still held), and that correction is checked
+		 * in turn, until one shortens nothing (a bent tail: twice). */
 		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
 		stats->crossing_triangles = binding->contact.crossed;
 		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0; ++cycle) {
-			int32_t ignored;
 			lvp__fade_map_where_shortened(binding);
 			lvp__movable_regions(binding);
+			lvp__smooth_offsets(binding, positions, 0); /* no pass: the offsets as they are */
 			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+			stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);

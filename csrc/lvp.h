@@ -246,33 +246,36 @@
  * CONTACT (lvp_frame_options.keep_apart, local mode)
  *
  *   Where skinning brings two sheets of skin close (the inside of a bent finger, a thumb's web, a
- *   fingertip on the palm), the offsets, each along its own side's normal, point the sheets at
- *   each other, and a fraction of a millimetre can push one through the other: more crossing
- *   triangles than plain skinning. With keep_apart, every pair of triangles (sharing no corner)
- *   that crosses after the correction but not in `positions` is found (a bounding volume
- *   hierarchy over the triangles, built at the first such frame and refitted every round), and
- *   the offsets of its corners are shortened to the square of the share of them at which the
- *   pair stops crossing (bisection; so a pair that barely crosses is barely shortened, and the
- *   result follows the pose), over a few rounds, the last of which takes the offsets of a pair
- *   still crossing away; the shortening is smoothed over 4 rings around (never lengthening an
- *   offset). The volume they could not carry is then restored again through the map faded by
- *   as much as each vertex was shortened, and that correction is checked in turn, at most 4
- *   times. Vertices fold-over put on a contact surface keep their place in each patch of them
- *   where the skinned triangles cross skin (fold-over undid that crossing; moving them back would
- *   bring it back); the other patches are shortened as any (a finger half closed, crossing nothing
- *   yet, whose skin held on the contact plane meets skin from the other side). It never gives up:
- *   a pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every
- *   joint, where 16,000 pairs of triangles cross anew: seconds, not milliseconds), and
- *   stats.crossing_triangles says how many triangles the first check found. Result: no pair crosses
- *   that did not cross in plain skinning (to the bisection's precision; a pair that plain
- *   skinning leaves touching can still flip), the volume is restored as before (within the
- *   tolerance on every case measured: the giraffe's 28 single-joint poses, a hand closing into a
- *   fist, a Rigify human bent hard); stats.shortened_vertices counts the vertices shortened.
- *   Limits: only what the correction adds is undone, never skinning's own crossings (that is
- *   fold-over's); a pair that plain skinning leaves touching is shortened all at once when the
- *   pose makes it cross by the correction, a jump of its offsets (at a fist's last frame, 0.4 mm
- *   on a 20 cm hand). Cost: one traversal of the hierarchy against itself per check, several
- *   times a frame's correction (PERFORMANCE, BENCHMARKS.md).
+ *   fingertip on the palm, a thigh on the buttock), the offsets, each along its own side's normal,
+ *   point the sheets at each other, and a fraction of a millimetre can push one through the other:
+ *   more crossing triangles than plain skinning. With keep_apart, the correction first fades as skin
+ *   approaches skin: after the volume steps (and the smoothing), each moving vertex's clearance is
+ *   measured in `positions`, the diameter of the largest ball tangent to its offset at it that no
+ *   other skin enters (skin straight ahead counts at its distance, skin at angle phi to the side at
+ *   its distance over cos phi, skin beside or behind not at all: it changes continuously with the
+ *   pose). An offset up to a quarter of its clearance is kept; a longer one m is cut to h - h^2 / 4m,
+ *   h half the clearance (the skin opposite may come as far), which joins it smoothly and never
+ *   reaches h. The shares kept are smoothed over the rings around (none more than 0.2 above a
+ *   neighbour's, then averaged), the map faded by them, and the volume they no longer carry restored
+ *   along the other offsets, up to 3 rounds. Then every pair of triangles (sharing no corner) that
+ *   still crosses after the correction but not in `positions` is found (a bounding volume hierarchy
+ *   over the triangles, built at the first such frame and refitted every round), and the offsets of
+ *   its corners are shortened to the square of the share of them at which the pair stops crossing
+ *   (bisection), over a few rounds, the last of which takes the offsets of a pair still crossing
+ *   away; those shares are smoothed the same way, and the volume restored along the offsets again,
+ *   checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their place in
+ *   each patch of them where the skinned triangles cross skin (fold-over undid that crossing; moving
+ *   them back would bring it back); the other patches are shortened as any. It never gives up: a
+ *   pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every joint:
+ *   seconds, not milliseconds), and stats.crossing_triangles says how many triangles the crossing
+ *   test found after the fade. Result: no pair crosses that did not cross in plain skinning (to the
+ *   bisection's precision; a pair that plain skinning leaves touching can still flip), the volume is
+ *   restored as before (within the tolerance on every case measured: the giraffe's 28 single-joint
+ *   poses, a hand closing into a fist, a Rigify human bent hard, every frame of a game horse's 14
+ *   actions), and the offsets stay as smooth as without it; stats.shortened_vertices counts the
+ *   vertices the crossing test shortened. Limits: only what the correction adds is undone, never
+ *   skinning's own crossings (that is fold-over's). Cost: a ball query per moving vertex, plus one
+ *   traversal of the hierarchy against itself per check (PERFORMANCE, BENCHMARKS.md).
  *
  * DEGRADING (lvp_frame_options.displacement_limit > 0, local mode)
  *
@@ -298,7 +301,7 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 150 bytes a triangle; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
+ *   hierarchy, about 150 bytes a triangle, and 12 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the
  *   workers watch for the next one for about a tenth of a millisecond before they sleep.
@@ -608,8 +611,9 @@ typedef struct lvp_frame_options {
 	                           in the mesh's units */
 	int32_t restore;        /* lvp_restore: what each frame brings back (RESTORE below); default
 	                           LVP_RESTORE_EACH_REGION */
-	int32_t keep_apart;     /* nonzero: no offset makes two triangles cross that do not cross in
-	                           `positions` (CONTACT below), local mode only; default 0 */
+	int32_t keep_apart;     /* nonzero: the offsets fade as skin approaches skin, and none makes two
+	                           triangles cross that do not cross in `positions` (CONTACT below), local
+	                           mode only; default 0 */
 	int32_t smoothing_passes; /* passes smoothing the offsets over the surface before fold-over
 	                           (OFFSET SMOOTHING below), 0..LVP_MAX_SMOOTHING_PASSES, local mode only;
 	                           default 0, the paper's offsets */
@@ -646,11 +650,11 @@ typedef struct lvp_frame_stats {
 	                              the positions are not the skinning of the rest by these bones and
 	                              the bound weights (see lvp_correct), and the frame was measured
 	                              from the positions alone, without the closed form for rigid parts */
-	int32_t shortened_vertices; /* options.keep_apart: vertices whose offset was shortened to keep
-	                             skin from crossing skin (CONTACT), 0 without it */
+	int32_t shortened_vertices; /* options.keep_apart: vertices whose offset the crossing test
+	                             shortened to keep skin from crossing skin (CONTACT), 0 without it */
 	int32_t crossing_triangles; /* options.keep_apart: the triangles the correction made cross skin
-	                             at the frame's first check, each kept apart since (CONTACT), 0
-	                             without it */
+	                             at the frame's first check, after the fade, each kept apart since
+	                             (CONTACT), 0 without it */
 	int32_t bones_scale;      /* 1: bones scale this frame beyond the tolerance (squash and stretch,
 	                             ALGORITHM 3): each region keeps the volume its bones' scales give
 	                             it, and volume_after is not meant to be volume_rest */

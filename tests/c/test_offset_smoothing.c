@@ -37,36 +37,6 @@ static double length3(const float *v)
 	return sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
 }
 
-/* The largest |offset - the mean of its edge neighbours' offsets| over the largest offset. */
-static double roughness(const test_rig *rig, const float *offsets)
-{
-	int32_t n = rig->vertex_count;
-	double *sum = calloc((size_t)n * 3, sizeof(double)), largest = 0.0, worst = 0.0;
-	int32_t *count = calloc((size_t)n, sizeof(int32_t));
-	for (int32_t t = 0; t < rig->triangle_count; ++t)
-		for (int e = 0; e < 3; ++e) {
-			int32_t a = rig->triangles[3 * t + e], b = rig->triangles[3 * t + (e + 1) % 3];
-			for (int c = 0; c < 3; ++c) {
-				sum[3 * a + c] += offsets[3 * b + c];
-				sum[3 * b + c] += offsets[3 * a + c];
-			}
-			++count[a];
-			++count[b];
-		}
-	for (int32_t k = 0; k < n; ++k) {
-		largest = fmax(largest, length3(offsets + 3 * k));
-		if (count[k] == 0)
-			continue;
-		float difference[3];
-		for (int c = 0; c < 3; ++c)
-			difference[c] = (float)(offsets[3 * k + c] - sum[3 * k + c] / count[k]);
-		worst = fmax(worst, length3(difference));
-	}
-	free(sum);
-	free(count);
-	return largest > 0.0 ? worst / largest : 0.0;
-}
-
 static void test_smoother_finger(void)
 {
 	test_rig rig = test_make_finger();
@@ -79,7 +49,7 @@ static void test_smoother_finger(void)
 	if (binding && posed && skinned) {
 		lvp_frame_stats without = correct(binding, posed, skinned, 0, plain);
 		lvp_frame_stats with = correct(binding, posed, skinned, 2, smoothed);
-		double rough_without = roughness(&rig, plain), rough_with = roughness(&rig, smoothed);
+		double rough_without = test_roughness(&rig, plain), rough_with = test_roughness(&rig, smoothed);
 		double error_without = without.volume_after / without.volume_rest - 1.0;
 		double error_with = with.volume_after / with.volume_rest - 1.0;
 		printf("  finger at 100/100 degrees: roughness %.3f -> %.3f of the largest offset; volume %+.4f%% -> "
@@ -119,7 +89,7 @@ static void test_more_passes_smoother(void)
 		double before = INFINITY;
 		for (size_t i = 0; i < sizeof(passes) / sizeof(passes[0]); ++i) {
 			lvp_frame_stats stats = correct(binding, posed, skinned, passes[i], offsets);
-			double rough = roughness(&rig, offsets), error = stats.volume_after / stats.volume_rest - 1.0;
+			double rough = test_roughness(&rig, offsets), error = stats.volume_after / stats.volume_rest - 1.0;
 			printf("  %2d passes: roughness %.3f of the largest offset, volume %+.4f%%\n", passes[i], rough,
 			       100 * error);
 			CHECK(passes[i] <= 6 ? rough < 0.9 * before : rough < before + 0.01);

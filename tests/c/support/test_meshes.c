@@ -599,3 +599,37 @@ test_rig test_split_at_seams(const test_rig *rig, int32_t **r_original)
 	*r_original = original;
 	return split;
 }
+
+static double test_length3(const float *v)
+{
+	return sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
+}
+
+double test_roughness(const test_rig *rig, const float *offsets)
+{
+	int32_t n = rig->vertex_count;
+	double *sum = calloc((size_t)n * 3, sizeof(double)), largest = 0.0, worst = 0.0;
+	int32_t *count = calloc((size_t)n, sizeof(int32_t));
+	for (int32_t t = 0; t < rig->triangle_count; ++t)
+		for (int e = 0; e < 3; ++e) {
+			int32_t a = rig->triangles[3 * t + e], b = rig->triangles[3 * t + (e + 1) % 3];
+			for (int c = 0; c < 3; ++c) {
+				sum[3 * a + c] += offsets[3 * b + c];
+				sum[3 * b + c] += offsets[3 * a + c];
+			}
+			++count[a];
+			++count[b];
+		}
+	for (int32_t k = 0; k < n; ++k) {
+		largest = fmax(largest, test_length3(offsets + 3 * k));
+		if (count[k] == 0)
+			continue;
+		float difference[3];
+		for (int c = 0; c < 3; ++c)
+			difference[c] = (float)(offsets[3 * k + c] - sum[3 * k + c] / count[k]);
+		worst = fmax(worst, test_length3(difference));
+	}
+	free(sum);
+	free(count);
+	return largest > 0.0 ? worst / largest : 0.0;
+}

@@ -1,0 +1,298 @@
+/*
+ * clearance.c - the correction fades where skin approaches other skin (lvp.h, CONTACT; docs/method.md,
+ * Keeping skin apart), before any pair of triangles is tested. Each vertex's offset points along its
+ * (smoothed) normal; where plain skinning brings other skin in front of it (the inside of a bent
+ * finger, a fingertip over the palm, a thigh against the buttock) the room in front of it, its
+ * clearance, bounds how far it may go: half of it, as the skin opposite may come the same way.
+ * Offsets well inside that bound are kept whole, longer ones approach it smoothly and never reach
+ * it, and the shares kept are smoothed over the rings around so that no vertex is held back from its
+ * neighbours' surface (a shard): the volume they do not carry goes elsewhere (correction.c), and the
+ * crossing test of contact.c is left with little to do.
+ *
+ * The clearance of a vertex at p moving along the unit direction d is the diameter of the largest
+ * ball tangent to d at p that no other skin enters: min over the other skin's points q in front of p
+ * of |q - p|^2 / <q - p, d>. Skin straight ahead counts at its distance, skin off to the side at
+ * angle phi at its distance over cos phi, skin beside or behind not at all; unlike the distance
+ * along a ray, it changes continuously with the pose (a ray leaving the other skin's silhouette
+ * would drop it at once), so the fade has no jump.
+ */
+#include "binding.h"
+
+/* Clearances are looked for up to this many times a vertex's offset: a vertex whose clearance is more
+ * than four times its offset keeps all of it, and offsets may grow twice over while the volume is put
+ * back elsewhere. */
+#define LVP__CLEARANCE_REACH 8.0
+/* How much a share may rise from one ring of the mesh to the next, at most: a vertex left no offset
+ * holds its neighbours down over 1 / LVP__SHARE_SLOPE rings, one that keeps most of it only its own
+ * ring. The roughness of the offsets it adds is at most this share of their size. */
+#define LVP__SHARE_SLOPE 0.2f
+/* Passes that bring every share within the slope of its neighbours' (1 / LVP__SHARE_SLOPE), and passes
+ * of averaging after them, which round the cones they leave. */
+#define LVP__SLOPE_PASSES 5
+#define LVP__AVERAGE_PASSES 3
+
+typedef struct lvp__clearance_pass {
+	lvp_binding *binding;
+	const float *positions; /* the frame's input points (the skinning) */
+	const float *from;      /* the shares a smoothing pass reads */
+	float *to;              /* and writes */
+	const uint8_t *kept;    /* per vertex, or NULL: shares a smoothing pass neither reads nor changes */
+} lvp__clearance_pass;
+
+/* The offset of dynamic vertex k: where the steps put it, less where the skinning did. */
+static inline lvp__vec3 lvp__offset_of(const lvp_binding *binding, const float *positions, int32_t k)
+{
+	return lvp__sub(lvp__load(binding->step.positions + 3 * k), lvp__load(positions + 3 * k));
+}
+
+/* |x|^2 / <x, d> for a point x (relative to the vertex) in front of it, else INFINITY. */
+static inline double lvp__ball_diameter(lvp__vec3 x, lvp__vec3 d)
+{
+	double ahead = lvp__dot(x, d);
+	return ahead > 0.0 ? lvp__dot(x, x) / ahead : INFINITY;
+}
+
+/* The least |x|^2 / <x, d> over the segment a + s (b - a), s in [0, 1] (relative to the vertex): at
+ * an end, or where its derivative vanishes, C E s^2 + 2 C D s + 2 B D - E A = 0 with A = |a|^2,
+ * B = <a, e>, C = |e|^2, D = <a, d>, E = <e, d>, e = b - a. */
+static double lvp__segment_diameter(lvp__vec3 a, lvp__vec3 b, lvp__vec3 d)
+{
+	lvp__vec3 e = lvp__sub(b, a);
+	double least = fmin(lvp__ball_diameter(a, d), lvp__ball_diameter(b, d));
+	double A = lvp__dot(a, a), B = lvp__dot(a, e), C = lvp__dot(e, e), D = lvp__dot(a, d), E = lvp__dot(e, d);
+	double qa = C * E, qb = 2.0 * C * D, qc = 2.0 * B * D - E * A;
+	double roots[2];
+	int count = 0;
+	if (fabs(qa) > 1e-30 * (fabs(qb) + fabs(qc))) {
+		double discriminant = qb * qb - 4.0 * qa * qc;
+		if (discriminant >= 0.0) {
+			double root = sqrt(discriminant);
+			roots[count++] = (-qb + root) / (2.0 * qa);
+			roots[count++] = (-qb - root) / (2.0 * qa);
+		}
+	} else if (qb != 0.0) {
+		roots[count++] = -qc / qb;
+	}
+	for (int i = 0; i < count; ++i)
+		if (roots[i] > 0.0 && roots[i] < 1.0)
+			least = fmin(least, lvp__ball_diameter(lvp__add(a, lvp__scale(e, roots[i])), d));
+	return least;
+}
+
+/* The least |x|^2 / <x, d> over the triangle (corners relative to the vertex): the function is convex
+ * where <x, d> > 0 and grows without bound toward <x, d> = 0, so its least is at a corner, on an edge,
+ * or where a ball tangent to d at the vertex touches the triangle's plane inside it. */
+static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
+{
+	double least = INFINITY;
+	for (int i = 0; i < 3; ++i)
+		least = fmin(least, lvp__segment_diameter(x[i], x[(i + 1) % 3], d));
+	lvp__vec3 normal = lvp__cross(lvp__sub(x[1], x[0]), lvp__sub(x[2], x[0]));
+	double area2 = lvp__length(normal);
+	if (!(area2 > 0.0))
+		return least;
+	normal = lvp__scale(normal, 1.0 / area2);
+	double h = lvp__dot(normal, x[0]);
+	if (h < 0.0) {
+		normal = lvp__scale(normal, -1.0);
+		h = -h;
+	}
+	double tilt = 1.0 + lvp__dot(normal, d);
+	if (!(h > 0.0) || !(tilt > 0.0))
+		return least;
+	/* The ball of diameter L centred at (L / 2) d touches the plane <n, x> = h where L = 2 h / (1 +
+	 * <n, d>), at (L / 2)(d + n); that point counts when it lies in the triangle. */
+	double diameter = 2.0 * h / tilt;
+	lvp__vec3 touch = lvp__scale(lvp__add(d, normal), 0.5 * diameter);
+	for (int i = 0; i < 3; ++i) {
+		lvp__vec3 edge = lvp__sub(x[(i + 1) % 3], x[i]);
+		if (lvp__dot(lvp__cross(edge, lvp__sub(touch, x[i])), normal) < 0.0)
+			return least;
+	}
+	return fmin(least, diameter);
+}
+
+/* One vertex's search: where it is, which way its offset points, and the least diameter so far. */
+typedef struct lvp__clearance_search {
+	const float *positions;
+	lvp__vec3 from, direction;
+	int32_t vertex;
+	double least;
+} lvp__clearance_search;
+
+static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
+{
+	lvp__clearance_search *search = context;
+	lvp__vec3 x[3];
+	for (int i = 0; i < 3; ++i) {
+		if (triangle->vertices[i] == search->vertex) /* its own triangles meet it, which is no contact */
+			return false;
+		x[i] = lvp__sub(lvp__load(triangle->corners[i]), search->from);
+	}
+	search->least = fmin(search->least, lvp__triangle_diameter(x, search->direction));
+	return false;
+}
+
+/* contact.clearance of the dynamic vertices in [begin, end), up to LVP__CLEARANCE_REACH times their
+ * offset (INFINITY: none so near, or no offset). The balls that reach no further lie in the box
+ * around the one of that diameter. */
+static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
+{
+	const lvp__clearance_pass *pass = context;
+	lvp_binding *binding = pass->binding;
+	lvp__contact *contact = &binding->contact;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		lvp__vec3 offset = lvp__offset_of(binding, pass->positions, k);
+		double length = lvp__length(offset);
+		contact->clearance[k] = INFINITY;
+		if (!(length > 0.0))
+			continue;
+		lvp__clearance_search search = {pass->positions, lvp__load(pass->positions + 3 * k),
+		                                lvp__scale(offset, 1.0 / length), k, INFINITY};
+		double reach = LVP__CLEARANCE_REACH * length;
+		lvp__vec3 centre = lvp__add(search.from, lvp__scale(search.direction, 0.5 * reach));
+		float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
+		float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
+		lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__visit_clearance, &search);
+		if (search.least < reach)
+			contact->clearance[k] = (float)search.least;
+	}
+}
+
+void lvp__measure_clearance(lvp_binding *binding, const float *positions)
+{
+	lvp__bvh_refit(&binding->contact.bvh, positions);
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL};
+	int32_t count = binding->dynamic.vertex_count;
+	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__clearance_range, &pass, count, LVP__GRAIN);
+}
+
+/* The share of an offset of length m that a vertex keeps with clearance c: all of it up to a
+ * quarter of c; beyond, a length that rises with m, joins the first smoothly (value and slope) and
+ * never reaches half of c, h - h^2 / (4 m) with h = c / 2. */
+static float lvp__share_kept(double m, double c)
+{
+	double h = 0.5 * c;
+	if (!(m > 0.5 * h))
+		return 1.0f;
+	return (float)((h - h * h / (4.0 * m)) / m);
+}
+
+/* contact.fade of the dynamic vertices in [begin, end): each one's share at its clearance. */
+static void lvp__share_range(void *context, int32_t begin, int32_t end)
+{
+	const lvp__clearance_pass *pass = context;
+	lvp_binding *binding = pass->binding;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		double m = lvp__length(lvp__offset_of(binding, pass->positions, k));
+		binding->contact.fade[k] = lvp__share_kept(m, binding->contact.clearance[k]);
+	}
+}
+
+/* Whether neighbour j's share counts in a smoothing pass: it has an offset this frame, and is not
+ * kept out. */
+static inline bool lvp__share_counts(const lvp__clearance_pass *pass, const uint8_t *dynamic, int32_t j)
+{
+	return dynamic[j] && !(pass->kept && pass->kept[j]);
+}
+
+/* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the vertex's share, or
+ * its least neighbour's and LVP__SHARE_SLOPE more when that is less. */
+static void lvp__slope_range(void *context, int32_t begin, int32_t end)
+{
+	const lvp__clearance_pass *pass = context;
+	const lvp_binding *binding = pass->binding;
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		float least = pass->from[k];
+		if (!(pass->kept && pass->kept[k])) {
+			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+				int32_t j = smoothing->neighbours[e];
+				if (lvp__share_counts(pass, dynamic, j) && pass->from[j] + LVP__SHARE_SLOPE < least)
+					least = pass->from[j] + LVP__SHARE_SLOPE;
+			}
+		}
+		pass->to[k] = least;
+	}
+}
+
+/* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the mean of the share
+ * of the vertex and those of its dynamic neighbours. */
+static void lvp__average_range(void *context, int32_t begin, int32_t end)
+{
+	const lvp__clearance_pass *pass = context;
+	const lvp_binding *binding = pass->binding;
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		double sum = 0.0, count = 0.0;
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1] && !(pass->kept && pass->kept[k]); ++e) {
+			int32_t j = smoothing->neighbours[e];
+			if (!lvp__share_counts(pass, dynamic, j))
+				continue;
+			sum += smoothing->shares[e] * (double)pass->from[j];
+			count += smoothing->shares[e];
+		}
+		/* The vertex weighs as one edge neighbour (two triangles' shares). */
+		pass->to[k] = (float)((2.0 * pass->from[k] + sum) / (2.0 + count));
+	}
+}
+
+/* The offsets (step.positions, step.smoothing_offsets) and the map of the dynamic vertices in
+ * [begin, end) scaled by their smoothed shares. */
+static void lvp__apply_range(void *context, int32_t begin, int32_t end)
+{
+	const lvp__clearance_pass *pass = context;
+	lvp_binding *binding = pass->binding;
+	for (int32_t v = begin; v < end; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		float share = binding->contact.fade[k];
+		lvp__vec3 offset = lvp__scale(lvp__offset_of(binding, pass->positions, k), share);
+		float *p = binding->step.positions + 3 * k, *o = binding->step.smoothing_offsets + 3 * k;
+		const float *skinned = pass->positions + 3 * k;
+		o[0] = (float)offset.x;
+		o[1] = (float)offset.y;
+		o[2] = (float)offset.z;
+		for (int c = 0; c < 3; ++c)
+			p[c] = skinned[c] + o[c];
+		binding->frame_map.gamma[k] *= share;
+	}
+}
+
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept)
+{
+	int32_t count = binding->dynamic.vertex_count;
+	lvp__pool *pool = LVP__POOL_FOR(binding, count);
+	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept};
+	/* First no share more than the slope above a neighbour's (each pass reaches one ring further;
+	 * none rises), then averaged. An even number of passes leaves the result in `shares`. */
+	for (int i = 0; i < LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++i) {
+		lvp__parallel_for(pool, i < LVP__SLOPE_PASSES ? lvp__slope_range : lvp__average_range, &pass, count,
+		                  LVP__GRAIN);
+		float *read = pass.to;
+		pass.to = (float *)pass.from;
+		pass.from = read;
+	}
+}
+_Static_assert((LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES) % 2 == 0, "the smoothed shares end where they began");
+
+bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
+{
+	int32_t count = binding->dynamic.vertex_count;
+	lvp__pool *pool = LVP__POOL_FOR(binding, count);
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL};
+	lvp__parallel_for(pool, lvp__share_range, &pass, count, LVP__GRAIN);
+	bool any = false;
+	for (int32_t v = 0; v < count && !any; ++v)
+		any = binding->contact.fade[binding->dynamic.vertices[v]] < 1.0f;
+	if (!any)
+		return false;
+	lvp__smooth_shares(binding, binding->contact.fade, binding->contact.fade_scratch, NULL);
+	lvp__parallel_for(pool, lvp__apply_range, &pass, count, LVP__GRAIN);
+	return true;
+}

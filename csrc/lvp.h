@@ -247,28 +247,30 @@
  *
  *   Where skinning brings two sheets of skin close (the inside of a bent finger, a thumb's web, a
  *   fingertip on the palm, a thigh on the buttock), the offsets, each along its own side's normal,
- *   point the sheets at each other, and a fraction of a millimetre can push one through the other:
- *   more crossing triangles than plain skinning. With keep_apart, the correction first fades as skin
- *   approaches skin: after the volume steps (and the smoothing), each moving vertex's clearance is
- *   measured in `positions`, the diameter of the largest ball tangent to its offset at it that no
- *   other skin enters (skin straight ahead counts at its distance, skin at angle phi to the side at
- *   its distance over cos phi, skin beside or behind not at all: it changes continuously with the
- *   pose). An offset up to a quarter of its clearance is kept; a longer one m is cut to h - h^2 / 4m,
- *   h half the clearance (the skin opposite may come as far), which joins it smoothly and never
- *   reaches h. The shares kept are smoothed over the rings around (none more than 0.2 above a
- *   neighbour's, then averaged), the map faded by them, and the volume they no longer carry restored
- *   along the other offsets, up to 3 rounds. Then every pair of triangles (sharing no corner) that
- *   still crosses after the correction but not in `positions` is found (a bounding volume hierarchy
- *   over the triangles, built at the first such frame and refitted every round), and the offsets of
- *   its corners are shortened to the square of the share of them at which the pair stops crossing
- *   (bisection), over a few rounds, the last of which takes the offsets of a pair still crossing
- *   away; those shares are smoothed the same way, and the volume restored along the offsets again,
- *   checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their place in
- *   each patch of them where the skinned triangles cross skin (fold-over undid that crossing; moving
- *   them back would bring it back); the other patches are shortened as any. It never gives up: a
+ *   point the sheets at each other, and a fraction of a millimetre can push one through the other: more
+ *   crossing triangles than plain skinning. With keep_apart, the correction first fades as skin
+ *   approaches skin (without fold_over: with it, skin near other skin is where fold-over's contacts
+ *   moved it out of the skinning's own crossings, and fading it would bring them back): after the
+ *   volume steps (and the smoothing), each moving vertex's clearance is measured in `positions`, the
+ *   diameter of the largest ball tangent to its offset at it that no other skin enters (skin straight
+ *   ahead counts at its distance, skin at angle phi to the side at its distance over cos phi, skin
+ *   beside or behind not at all: it changes continuously with the pose). An offset up to a quarter of
+ *   its clearance is kept; a longer one m is cut to h - h^2 / 4m, h half the clearance (the skin
+ *   opposite may come as far), which joins it smoothly and never reaches h. The shares kept are
+ *   smoothed over the rings around (none more than 0.2 above a neighbour's, then averaged), the map
+ *   faded by them, and the volume they no longer carry restored along the other offsets, up to 3
+ *   rounds. Then every pair of triangles (sharing no corner) that still crosses after the correction
+ *   but not in `positions` is found (a bounding volume hierarchy over the triangles, built at the first
+ *   such frame and refitted every round), and the offsets of its corners are shortened to the square of
+ *   the share of them at which the pair stops crossing (bisection), over a few rounds, the last of
+ *   which takes the offsets of a pair still crossing away; those shares are smoothed the same way, and
+ *   the volume restored along the offsets again (with fold-over through the map, which its contacts
+ *   faded), checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their
+ *   place in each patch of them where the skinned triangles cross skin (fold-over undid that crossing;
+ *   moving them back would bring it back); the other patches are shortened as any. It never gives up: a
  *   pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every joint:
- *   seconds, not milliseconds), and stats.crossing_triangles says how many triangles the crossing
- *   test found after the fade. Result: no pair crosses that did not cross in plain skinning (to the
+ *   seconds, not milliseconds), and stats.crossing_triangles says how many triangles the crossing test
+ *   found after the fade. Result: no pair crosses that did not cross in plain skinning (to the
  *   bisection's precision; a pair that plain skinning leaves touching can still flip), the volume is
  *   restored as before (within the tolerance on every case measured: the giraffe's 28 single-joint
  *   poses, a hand closing into a fist, a Rigify human bent hard, every frame of a game horse's 14

@@ -800,6 +800,9 @@ void lvp__smoothing_free(lvp__smoothing *smoothing);
  * neighbours'. The volume is not restored here; step.smoothing_offsets is left holding the smoothed
  * offsets. */
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes);
+/* step.smoothing_offsets of the dynamic vertices: their offsets as they are (step.positions less
+ * positions), for steps along them (lvp__restore_smoothed) without smoothing. */
+void lvp__take_offsets(lvp_binding *binding, const float *positions);
 
 /* contact.c */
 /* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */

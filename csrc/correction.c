@@ -25,9 +25,9 @@
 #define LVP__FOLD_ROUNDS 4
 /* Volume corrections again after shortening offsets to keep skin apart, at most. */
 #define LVP__CONTACT_CYCLES 4
-/* Rounds of fading the offsets that near other skin and restoring the volume elsewhere, at most:
- * each round's restoring grows the offsets a little, the last's by less than the crossing test
- * after it shortens (clearance.c). */
+/* Rounds of fading the offsets that near other skin and restoring the volume elsewhere, at most
+ * (clearance.c): restoring grows the faded offsets too, a little less each round; what the last
+ * leaves beyond their room, the crossing test after them takes. */
 #define LVP__CLEARANCE_CYCLES 3
 
 static lvp_result lvp__check_frame_options(const lvp_frame_options *options, lvp_diagnostic *r_diag)
@@ -971,7 +971,7 @@ static int32_t lvp__restore_after_fade(lvp_binding *binding, const lvp_frame_opt
 		int32_t ignored;
 		return lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
 	}
-	lvp__smooth_offsets(binding, positions, 0); /* no pass: the offsets as they are */
+	lvp__take_offsets(binding, positions);
 	return lvp__restore_smoothed(binding, options, rest_positions, totals);
 }
 

@@ -63,7 +63,7 @@ typedef struct lvp__smoothing_pass {
 
 /* step.smoothing_offsets of the dynamic vertices in [begin, end): where the steps put them, less
  * where the skinning did. */
-static void lvp__take_offsets(void *context, int32_t begin, int32_t end)
+static void lvp__take_offsets_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
 	lvp_binding *binding = pass->binding;
@@ -125,11 +125,18 @@ static void lvp__put_offsets(void *context, int32_t begin, int32_t end)
 	}
 }
 
+void lvp__take_offsets(lvp_binding *binding, const float *positions)
+{
+	int32_t count = binding->dynamic.vertex_count;
+	lvp__smoothing_pass pass = {binding, positions, NULL, NULL};
+	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
+}
+
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__smoothing_pass pass = {binding, positions, binding->step.smoothing_offsets, binding->step.smoothing_scratch};
-	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets, &pass, count, LVP__GRAIN);
+	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
 	for (int32_t i = 0; i < passes; ++i) {
 		lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__smooth_range, &pass, count, LVP__GRAIN);
 		float *read = pass.to;

@@ -45,6 +45,11 @@ static inline lvp__vec3 lvp__offset_of(const lvp_binding *binding, const float *
 	return lvp__sub(lvp__load(binding->step.positions + 3 * k), lvp__load(positions + 3 * k));
 }
 
+static inline double lvp__axis(lvp__vec3 v, int axis)
+{
+	return axis == 0 ? v.x : (axis == 1 ? v.y : v.z);
+}
+
 /* |x|^2 / <x, d> for a point x (relative to the vertex) in front of it, else INFINITY. */
 static inline double lvp__ball_diameter(lvp__vec3 x, lvp__vec3 d)
 {
@@ -112,7 +117,8 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
 	return fmin(least, diameter);
 }
 
-/* One vertex's search: where it is, which way its offset points, and the least diameter so far. */
+/* One vertex's search: where it is, which way its offset points, and the least diameter so far
+ * (starting at the reach: beyond it, none is wanted). */
 typedef struct lvp__clearance_search {
 	const float *positions;
 	lvp__vec3 from, direction;
@@ -124,11 +130,24 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 {
 	lvp__clearance_search *search = context;
 	lvp__vec3 x[3];
+	double ahead = 0.0, gap2 = 0.0;
 	for (int i = 0; i < 3; ++i) {
 		if (triangle->vertices[i] == search->vertex) /* its own triangles meet it, which is no contact */
 			return false;
 		x[i] = lvp__sub(lvp__load(triangle->corners[i]), search->from);
+		ahead = fmax(ahead, lvp__dot(x[i], search->direction));
 	}
+	/* Over the triangle |x|^2 is at least the squared distance to its box and <x, d> at most its
+	 * corners' largest: a triangle beside or behind the vertex (most of what the box query finds, the
+	 * vertex's own skin around it) cannot make the least smaller, and is passed over. */
+	for (int axis = 0; axis < 3; ++axis) {
+		double lo = fmin(fmin(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
+		double hi = fmax(fmax(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
+		double gap = lo > 0.0 ? lo : (hi < 0.0 ? -hi : 0.0);
+		gap2 += gap * gap;
+	}
+	if (!(ahead > 0.0) || gap2 >= search->least * ahead)
+		return false;
 	search->least = fmin(search->least, lvp__triangle_diameter(x, search->direction));
 	return false;
 }
@@ -148,9 +167,9 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 		contact->clearance[k] = INFINITY;
 		if (!(length > 0.0))
 			continue;
-		lvp__clearance_search search = {pass->positions, lvp__load(pass->positions + 3 * k),
-		                                lvp__scale(offset, 1.0 / length), k, INFINITY};
 		double reach = LVP__CLEARANCE_REACH * length;
+		lvp__clearance_search search = {pass->positions, lvp__load(pass->positions + 3 * k),
+		                                lvp__scale(offset, 1.0 / length), k, reach};
 		lvp__vec3 centre = lvp__add(search.from, lvp__scale(search.direction, 0.5 * reach));
 		float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
 		float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};

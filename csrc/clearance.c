@@ -6,8 +6,9 @@
  * clearance, bounds how far it may go: half of it, as the skin opposite may come the same way.
  * Offsets well inside that bound are kept whole, longer ones approach it smoothly and never reach
  * it, and the shares kept are smoothed over the rings around so that no vertex is held back from its
- * neighbours' surface (a shard): the volume they do not carry goes elsewhere (correction.c), and the
- * crossing test of contact.c is left with little to do.
+ * neighbours' surface (a shard): the volume they do not carry goes elsewhere (correction.c). The
+ * crossing test of contact.c takes what the fade cannot see: skin that plain skinning leaves touching,
+ * whose corners all have room ahead.
  *
  * The clearance of a vertex at p moving along the unit direction d is the diameter of the largest
  * ball tangent to d at p that no other skin enters: min over the other skin's points q in front of p
@@ -24,7 +25,7 @@
 #define LVP__CLEARANCE_REACH 8.0
 /* How much a share may rise from one ring of the mesh to the next, at most: a vertex left no offset
  * holds its neighbours down over 1 / LVP__SHARE_SLOPE rings, one that keeps most of it only its own
- * ring. The roughness of the offsets it adds is at most this share of their size. */
+ * ring: the roughness it adds to the offsets is about this share of their size. */
 #define LVP__SHARE_SLOPE 0.2f
 /* Passes that bring every share within the slope of its neighbours' (1 / LVP__SHARE_SLOPE), and passes
  * of averaging after them, which round the cones they leave. */
@@ -120,7 +121,6 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
 /* One vertex's search: where it is, which way its offset points, and the least diameter so far
  * (starting at the reach: beyond it, none is wanted). */
 typedef struct lvp__clearance_search {
-	const float *positions;
 	lvp__vec3 from, direction;
 	int32_t vertex;
 	double least;
@@ -168,8 +168,8 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 		if (!(length > 0.0))
 			continue;
 		double reach = LVP__CLEARANCE_REACH * length;
-		lvp__clearance_search search = {pass->positions, lvp__load(pass->positions + 3 * k),
-		                                lvp__scale(offset, 1.0 / length), k, reach};
+		lvp__clearance_search search = {lvp__load(pass->positions + 3 * k), lvp__scale(offset, 1.0 / length), k,
+		                                reach};
 		lvp__vec3 centre = lvp__add(search.from, lvp__scale(search.direction, 0.5 * reach));
 		float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
 		float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
@@ -250,12 +250,14 @@ static void lvp__average_range(void *context, int32_t begin, int32_t end)
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
 		double sum = 0.0, count = 0.0;
-		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1] && !(pass->kept && pass->kept[k]); ++e) {
-			int32_t j = smoothing->neighbours[e];
-			if (!lvp__share_counts(pass, dynamic, j))
-				continue;
-			sum += smoothing->shares[e] * (double)pass->from[j];
-			count += smoothing->shares[e];
+		if (!(pass->kept && pass->kept[k])) {
+			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+				int32_t j = smoothing->neighbours[e];
+				if (lvp__share_counts(pass, dynamic, j)) {
+					sum += smoothing->shares[e] * (double)pass->from[j];
+					count += smoothing->shares[e];
+				}
+			}
 		}
 		/* The vertex weighs as one edge neighbour (two triangles' shares). */
 		pass->to[k] = (float)((2.0 * pass->from[k] + sum) / (2.0 + count));

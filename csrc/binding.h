@@ -829,9 +829,9 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions);
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,
  * changing nothing, when every offset is within its clearance. */
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
-/* Shares of offsets (per vertex, at most 1) smoothed over a few rings of the dynamic vertices
- * without any rising above its own: eroded, then averaged as often. Vertices marked in `kept` (may
- * be NULL) are neither read nor changed. `scratch`: per vertex. */
+/* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
+ * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, none rising, then averaged.
+ * Vertices marked in `kept` (may be NULL) are neither read nor changed. `scratch`: per vertex. */
 void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept);
 
 #endif /* LVP_BINDING_H */

@@ -136,7 +136,7 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__smoothing_pass pass = {binding, positions, binding->step.smoothing_offsets, binding->step.smoothing_scratch};
-	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
+	lvp__take_offsets(binding, positions);
 	for (int32_t i = 0; i < passes; ++i) {
 		lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__smooth_range, &pass, count, LVP__GRAIN);
 		float *read = pass.to;

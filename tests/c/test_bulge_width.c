@@ -69,28 +69,7 @@ static bulge measure(const test_posed_rig *c, const float *corrected, const floa
 	}
 	moment /= moved;
 	m.extent = 4.0 * sqrt(fmax(spread / moved - moment * moment, 0.0));
-	double *sum = calloc((size_t)(n > 0 ? n : 1) * 3, sizeof(double));
-	int32_t *count = calloc((size_t)(n > 0 ? n : 1), sizeof(int32_t));
-	for (int32_t t = 0; t < rig->triangle_count; ++t)
-		for (int c3 = 0; c3 < 3; ++c3) {
-			int32_t a = rig->triangles[3 * t + c3], b = rig->triangles[3 * t + (c3 + 1) % 3];
-			for (int i = 0; i < 3; ++i) {
-				sum[3 * a + i] += offsets[3 * b + i];
-				sum[3 * b + i] += offsets[3 * a + i];
-			}
-			count[a]++;
-			count[b]++;
-		}
-	for (int32_t k = 0; k < n; ++k) {
-		if (count[k] == 0)
-			continue;
-		float off[3];
-		for (int i = 0; i < 3; ++i)
-			off[i] = (float)(offsets[3 * k + i] - sum[3 * k + i] / count[k]);
-		m.roughness = fmax(m.roughness, length3(off) / m.largest);
-	}
-	free(sum);
-	free(count);
+	m.roughness = test_roughness(rig, offsets);
 	return m;
 }
 

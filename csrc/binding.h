@@ -830,8 +830,9 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions);
  * changing nothing, when every offset is within its clearance. */
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
 /* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
- * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, none rising, then averaged.
+ * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, then averaged; with
+ * keep_floors the averaging only lowers (it rounds the rims of the dips and keeps their floors).
  * Vertices marked in `kept` (may be NULL) are neither read nor changed. `scratch`: per vertex. */
-void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept);
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors);
 
 #endif /* LVP_BINDING_H */

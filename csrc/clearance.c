@@ -38,6 +38,7 @@ typedef struct lvp__clearance_pass {
 	const float *from;      /* the shares a smoothing pass reads */
 	float *to;              /* and writes */
 	const uint8_t *kept;    /* per vertex, or NULL: shares a smoothing pass neither reads nor changes */
+	bool keep_floors;       /* averaging lowers shares, never raises one */
 } lvp__clearance_pass;
 
 /* The offset of dynamic vertex k: where the steps put it, less where the skinning did. */
@@ -182,7 +183,7 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 void lvp__measure_clearance(lvp_binding *binding, const float *positions)
 {
 	lvp__bvh_refit(&binding->contact.bvh, positions);
-	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL};
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__clearance_range, &pass, count, LVP__GRAIN);
 }
@@ -240,7 +241,8 @@ static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 }
 
 /* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the mean of the share
- * of the vertex and those of its dynamic neighbours. */
+ * of the vertex and those of its dynamic neighbours (with keep_floors, where that is less than its
+ * own). */
 static void lvp__average_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__clearance_pass *pass = context;
@@ -260,7 +262,8 @@ static void lvp__average_range(void *context, int32_t begin, int32_t end)
 			}
 		}
 		/* The vertex weighs as one edge neighbour (two triangles' shares). */
-		pass->to[k] = (float)((2.0 * pass->from[k] + sum) / (2.0 + count));
+		float mean = (float)((2.0 * pass->from[k] + sum) / (2.0 + count));
+		pass->to[k] = pass->keep_floors ? fminf(mean, pass->from[k]) : mean;
 	}
 }
 
@@ -285,11 +288,11 @@ static void lvp__apply_range(void *context, int32_t begin, int32_t end)
 	}
 }
 
-void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept)
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__pool *pool = LVP__POOL_FOR(binding, count);
-	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept};
+	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors};
 	/* First no share more than the slope above a neighbour's (each pass reaches one ring further;
 	 * none rises), then averaged. An even number of passes leaves the result in `shares`. */
 	for (int i = 0; i < LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++i) {
@@ -306,14 +309,16 @@ bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__pool *pool = LVP__POOL_FOR(binding, count);
-	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL};
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	lvp__parallel_for(pool, lvp__share_range, &pass, count, LVP__GRAIN);
 	bool any = false;
 	for (int32_t v = 0; v < count && !any; ++v)
 		any = binding->contact.fade[binding->dynamic.vertices[v]] < 1.0f;
 	if (!any)
 		return false;
-	lvp__smooth_shares(binding, binding->contact.fade, binding->contact.fade_scratch, NULL);
+	/* Clearances differ from vertex to vertex with the triangles around them: the averaging raises
+	 * the single low ones to their neighbours' (the floors of the dips). */
+	lvp__smooth_shares(binding, binding->contact.fade, binding->contact.fade_scratch, NULL, false);
 	lvp__parallel_for(pool, lvp__apply_range, &pass, count, LVP__GRAIN);
 	return true;
 }

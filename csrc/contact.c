@@ -14,6 +14,8 @@
 
 /* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
 #define LVP__CONTACT_ROUNDS 8
+/* Times a smoothed shortening is tested again (each test's shortening smoothed before the next). */
+#define LVP__CONTACT_RETESTS 3
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
 
@@ -431,17 +433,19 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
 	lvp__contact_pass pass = {binding, positions};
-	if (lvp__shorten_rounds(binding, &pass, corrected, true)) {
-		/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
-		 * its pairs allowed: a patch shortened as a smooth dip, not single vertices held back from
-		 * their neighbours' surface. Shortening one side of a pair more than the other can make it
-		 * cross, so the smoothed patch is tested again. */
-		lvp__smooth_shares(binding, scale, next, pinned);
+	/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
+	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
+	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices
+	 * held back from their neighbours' surface. Shortening one side of a pair more than the other can
+	 * make it cross, so the smoothed patch is tested again, and what that shortens smoothed in turn. */
+	bool shortening = lvp__shorten_rounds(binding, &pass, corrected, true);
+	for (int retest = 0; shortening && retest < LVP__CONTACT_RETESTS; ++retest) {
+		lvp__smooth_shares(binding, scale, next, pinned, true);
 		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
 		for (int32_t v = 0; v < dynamic_count; ++v)
 			contact->moved[dynamic[v]] = scale[dynamic[v]] < 1.0f;
-		lvp__shorten_rounds(binding, &pass, corrected, false);
+		shortening = lvp__shorten_rounds(binding, &pass, corrected, false);
 	}
 	int32_t shortened = 0;
 	for (int32_t v = 0; v < dynamic_count; ++v) {

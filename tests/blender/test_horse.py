@@ -156,15 +156,18 @@ class TestHorseSurface(helpers.AddonTestCase):
     def test_every_frame_of_every_action_with_keep_skin_apart(self):
         """Keeping skin apart, the correction fades where the skin comes near other skin (the tail on the rump in
         lay_to_idle, a leg folding against the belly), over the rings around, and the crossing test shortens what
-        the fade leaves, smoothed the same way. When it shortened offsets vertex by vertex and put the volume back
-        through the map, a shortened vertex sat beside skin that was not: roughness 0.16-0.46 of the largest
-        offset on 3.4. Measured on 3.4 now: 0.16-0.27, creases at most 4, no new crossing pair."""
+        the fade leaves, smoothed the same way, as QUALITY.md asks: roughness at most a quarter of the largest
+        offset. Where plain skinning already pushes one skin into another (a front leg into the ribcage in
+        Turn_Left), any offset pushes it further, the crossing test leaves a vertex none, and its neighbours may
+        keep only a little more: when the smoothing raised that vertex again (and the test held it back once
+        more, alone), it read 0.27 there. Measured on 3.4 now: 0.16-0.22, creases at most 2, no new crossing
+        pair."""
         obj, rig = horse_scene()
         obj.lvp.keep_apart = True
         for name, (crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
             self.assertEqual(crossings, 0, "%s: pairs crossing that plain skinning has not" % name)
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
-            self.assertSmallerThan(rough, 0.3, "%s: roughness against the largest offset" % name)
+            self.assertLessEqual(rough, 0.25, "%s: roughness against the largest offset" % name)
 
 
 class TestHorseBake(test_bake.CommandTestCase):

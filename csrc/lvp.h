@@ -263,8 +263,9 @@
  *   but not in `positions` is found (a bounding volume hierarchy over the triangles, built at the first
  *   such frame and refitted every round), and the offsets of its corners are shortened to the square of
  *   the share of them at which the pair stops crossing (bisection), over a few rounds, the last of
- *   which takes the offsets of a pair still crossing away; those shares are smoothed the same way, and
- *   the volume restored along the offsets again (with fold-over through the map, which its contacts
+ *   which takes the offsets of a pair still crossing away; those shares are smoothed the same way but
+ *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
+ *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
  *   faded), checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their
  *   place in each patch of them where the skinned triangles cross skin (fold-over undid that crossing;
  *   moving them back would bring it back); the other patches are shortened as any. It never gives up: a
@@ -274,7 +275,7 @@
  *   bisection's precision; a pair that plain skinning leaves touching can still flip), the volume is
  *   restored as before (within the tolerance on every case measured: the giraffe's 28 single-joint
  *   poses, a hand closing into a fist, a Rigify human bent hard, every frame of a game horse's 14
- *   actions), and smooth (roughness at most 0.27 of the largest offset on those cases);
+ *   actions), and smooth (roughness at most 0.22 of the largest offset on those cases);
  *   stats.shortened_vertices counts the vertices the crossing test shortened. Limits: only what the
  *   correction adds is undone, never skinning's own crossings (that is fold-over's); skin that plain
  *   skinning leaves touching has room ahead of every corner, so the crossing test, not the fade, keeps

@@ -300,23 +300,44 @@ def _digit_joints(knuckle, lengths, direction):
     return points
 
 
-def _hand_spheres():
+class HandShape:
+    """A hand: its fingers (FINGERS' layout), its thumb (THUMB's) and the direction the thumb leaves the palm,
+    the fist's joint angles for the fingers and the thumb."""
+
+    def __init__(self, fingers=FINGERS, thumb=THUMB, thumb_direction=THUMB_DIRECTION, fist=FIST,
+                 thumb_fist=THUMB_FIST):
+        self.fingers, self.thumb, self.thumb_direction = fingers, thumb, Vector(thumb_direction).normalized()
+        self.fist, self.thumb_fist = fist, thumb_fist
+
+    def scaled(self, length=1.0, thickness=1.0):
+        """The same hand with phalanges `length` times as long and `thickness` times as thick (knuckles where
+        they were)."""
+        def digit(name, knuckle, lengths, radii):
+            return (name, knuckle, tuple(length * x for x in lengths), tuple(thickness * r for r in radii))
+        return HandShape(tuple(digit(*finger) for finger in self.fingers), digit(*self.thumb),
+                         self.thumb_direction, self.fist, self.thumb_fist)
+
+
+HAND = HandShape()
+
+
+def _hand_spheres(shape=HAND):
     spheres = []
-    # The palm: a thick plate made of four flattened ellipsoids along the metacarpals and one at the wrist.
-    for _name, knuckle, _lengths, _radii in FINGERS:
+    # The palm: a thick plate made of flattened ellipsoids along the metacarpals and one at the wrist.
+    for _name, knuckle, _lengths, _radii in shape.fingers:
         x = knuckle[0]
         for t in (0.25, 0.5, 0.75, 0.92):
             spheres.append(((x * (0.75 + 0.25 * t), knuckle[1] * t, -0.002), (0.016, 0.022, 0.0135)))
     spheres.append(((0.0, 0.012, -0.002), (0.03, 0.02, 0.015)))
-    for _name, knuckle, lengths, radii in FINGERS:
+    for _name, knuckle, lengths, radii in shape.fingers:
         spheres += _chain(_digit_joints((knuckle[0], knuckle[1] - 0.008, knuckle[2]), (0.008,) + lengths,
                                         Vector((0.0, 1.0, 0.0))), (radii[0],) + radii)
-    _name, base, lengths, radii = THUMB
-    spheres += _chain(_digit_joints(base, lengths, THUMB_DIRECTION), radii)
+    _name, base, lengths, radii = shape.thumb
+    spheres += _chain(_digit_joints(base, lengths, shape.thumb_direction), radii)
     return spheres
 
 
-def hand_armature(name="HandRig"):
+def hand_armature(name="HandRig", shape=HAND):
     """The palm bone (wrist to the middle knuckle) and 3 bones per digit, rolled so that each finger bone's local
     X is the axis its joint bends about."""
     armature = bpy.data.armatures.new(name)
@@ -326,8 +347,8 @@ def hand_armature(name="HandRig"):
     bpy.ops.object.mode_set(mode='EDIT')
     palm = armature.edit_bones.new("palm")
     palm.head, palm.tail = (0.0, 0.0, 0.0), (0.0, 0.09, 0.0)
-    digits = [(n, k, lengths, Vector((0.0, 1.0, 0.0))) for n, k, lengths, _radii in FINGERS]
-    digits.append((THUMB[0], THUMB[1], THUMB[2], THUMB_DIRECTION))
+    digits = [(n, k, lengths, Vector((0.0, 1.0, 0.0))) for n, k, lengths, _radii in shape.fingers]
+    digits.append((shape.thumb[0], shape.thumb[1], shape.thumb[2], shape.thumb_direction))
     for digit, knuckle, lengths, direction in digits:
         points = _digit_joints(knuckle, lengths, direction)
         parent = palm
@@ -343,21 +364,21 @@ def hand_armature(name="HandRig"):
     return rig
 
 
-def hand_joint_rotations(amount):
+def hand_joint_rotations(amount, shape=HAND):
     """{bone: degrees about its local X} of the hand `amount` of the way to the fist; positive curls towards the
     palm (-Z)."""
     rotations = {}
-    for digit, _knuckle, _lengths, _radii in FINGERS:
-        for index, degrees in enumerate(FIST):
+    for digit, _knuckle, _lengths, _radii in shape.fingers:
+        for index, degrees in enumerate(shape.fist):
             rotations["%s.%02d" % (digit, index + 1)] = degrees * amount
-    for index, degrees in enumerate(THUMB_FIST):
-        rotations["thumb.%02d" % (index + 1)] = degrees * amount
+    for index, degrees in enumerate(shape.thumb_fist):
+        rotations["%s.%02d" % (shape.thumb[0], index + 1)] = degrees * amount
     return rotations
 
 
-def pose_hand(rig, amount):
+def pose_hand(rig, amount, shape=HAND):
     """Poses the hand `amount` of the way from open (0) to the fist (1), without keys."""
-    for name, degrees in hand_joint_rotations(amount).items():
+    for name, degrees in hand_joint_rotations(amount, shape).items():
         pose_bone = rig.pose.bones[name]
         pose_bone.rotation_mode = 'XYZ'
         # A right-handed rotation about local X takes +Y (along the bone) to +Z (the back of the hand): curling
@@ -366,12 +387,45 @@ def pose_hand(rig, amount):
     bpy.context.view_layer.update()
 
 
-def hand(voxel_size=HAND_VOXEL):
-    """(hand, rig): the closed hand parented With Automatic Weights to its armature, animated from open at frame
-    HAND_FRAMES[0] to the fist at HAND_FRAMES[1] (two keys, Blender's default ease in and out), the scene's frame
-    range set to it."""
-    rig = hand_armature()
-    obj = closed_surface("Hand", _hand_spheres(), voxel_size)
+# Hands the suite's own was not tuned on (issue 46): {name: (voxel size, shape, decimated to this ratio or None)}.
+# Stubby and long phalanges, three fingers and a thumb, a thumb that closes over the fingers and one that closes
+# under them, 1,800 to 4,000 vertices from the voxel remesh, and two decimated to irregular triangles as most
+# game and scanned meshes have.
+HAND_FAMILY = {
+    "coarse": (0.006, HAND, None),
+    "stubby": (0.004, HAND.scaled(length=0.75, thickness=1.25), None),
+    "long and slender": (0.004, HAND.scaled(length=1.25, thickness=0.85), None),
+    "three fingers": (0.004, HandShape(fingers=FINGERS[:1] + FINGERS[2:]), None),
+    "thumb over the fingers": (0.004, HandShape(thumb_direction=(0.8, 0.55, 0.0), thumb_fist=(60.0, 40.0, 40.0)),
+                               None),
+    "thumb under the fingers": (0.004, HandShape(thumb_direction=(0.6, 0.6, -0.6), thumb_fist=(45.0, 55.0, 60.0)),
+                                None),
+    "decimated": (0.003, HAND, 0.3),
+    "decimated, thumb over": (0.003, HandShape(thumb_direction=(0.8, 0.55, 0.0), thumb_fist=(60.0, 40.0, 40.0)),
+                              0.3),
+}
+
+
+def decimate(obj, ratio):
+    """Collapses the mesh of obj (which has no other modifier) to `ratio` of its faces with Blender's Decimate
+    modifier: irregular triangles, long and thin beside small ones."""
+    modifier = obj.modifiers.new("Decimate", 'DECIMATE')
+    modifier.ratio = ratio
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
+    obj.modifiers.remove(modifier)
+    old, obj.data = obj.data, mesh
+    bpy.data.meshes.remove(old)
+
+
+def hand(voxel_size=HAND_VOXEL, shape=HAND, name="Hand", decimated=None):
+    """(hand, rig): the closed hand (decimated to that ratio of its faces when given) parented With Automatic
+    Weights to its armature, animated from open at frame HAND_FRAMES[0] to the fist at HAND_FRAMES[1] (two keys,
+    Blender's default ease in and out), the scene's frame range set to it."""
+    rig = hand_armature(name + "Rig", shape)
+    obj = closed_surface(name, _hand_spheres(shape), voxel_size)
+    if decimated is not None:
+        decimate(obj, decimated)
     if parent_with_automatic_weights(obj, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the hand")
     empty = empty_vertex_groups(obj)
@@ -380,9 +434,9 @@ def hand(voxel_size=HAND_VOXEL):
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = HAND_FRAMES
     for frame, amount in zip(HAND_FRAMES, (0.0, 1.0)):
-        pose_hand(rig, amount)
-        for name in hand_joint_rotations(amount):
-            rig.pose.bones[name].keyframe_insert("rotation_euler", frame=frame)
+        pose_hand(rig, amount, shape)
+        for bone_name in hand_joint_rotations(amount, shape):
+            rig.pose.bones[bone_name].keyframe_insert("rotation_euler", frame=frame)
     scene.frame_set(HAND_FRAMES[0])
     return obj, rig
 

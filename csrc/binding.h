@@ -424,7 +424,8 @@ typedef struct lvp__step {
 typedef struct lvp__smoothing {
 	int32_t *offsets;         /* vertex_count+1 */
 	int32_t *neighbours;
-	float *shares;            /* per neighbour: its triangles around the vertex */
+	float *shares;            /* per neighbour: the weight its triangles around the vertex give it
+	                             (offset_smoothing.c: 1 + the cotangent opposite, per triangle) */
 } lvp__smoothing;
 
 struct lvp_binding {

@@ -261,7 +261,7 @@ static void lvp__average_range(void *context, int32_t begin, int32_t end)
 				}
 			}
 		}
-		/* The vertex weighs as one edge neighbour (two triangles' shares). */
+		/* The vertex weighs as a neighbour whose two triangles have right angles opposite it. */
 		float mean = (float)((2.0 * pass->from[k] + sum) / (2.0 + count));
 		pass->to[k] = pass->keep_floors ? fminf(mean, pass->from[k]) : mean;
 	}

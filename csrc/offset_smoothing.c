@@ -3,13 +3,37 @@
  * docs/method.md, Smoothing the offsets). Each vertex moves along its own normal, and where the
  * skin folds (the inside of a finger closing, a palm under bent fingers) neighbouring normals
  * differ by tens of degrees: offsets of the same size along them open creases between the
- * vertices. A pass gives each vertex that can move half its own offset and half the mean of its
- * neighbours' (a vertex that cannot move counts with no offset), a vector mean, so directions
+ * vertices. A pass gives each vertex that can move half its own offset and half the weighted mean
+ * of its neighbours' (a vertex that cannot move counts with no offset), a vector mean, so directions
  * blend as sizes do; the correction then restores the volume the smoothing took.
+ *
+ * The weights are the mesh's, fixed at bind: each triangle a neighbour shares with the vertex weighs
+ * it 1 + cot of the triangle's angle opposite their edge (0 when that angle is right or obtuse). The
+ * cotangents are those of the surface's Dirichlet energy: across the small angles of a long thin
+ * triangle they tie its corners' offsets to the straight line between them, which is what keeps
+ * the triangle from tilting (with equal weights, the irregular triangles of decimated and game
+ * meshes tilted into creases under offsets smooth over the rings). The 1 keeps every neighbour in
+ * the mean where the angles are right or obtuse, as on the triangulated quads of a remesh, whose
+ * diagonals the cotangents alone would leave out.
  */
 #include "binding.h"
 
 #include <stdlib.h>
+
+/* The weight a triangle gives neighbour j of vertex k (both its corners) at rest: 1 + the cotangent of
+ * its third corner's angle, that part 0 where the angle is right or obtuse. A triangle of no area
+ * has no angle and weighs 1; the bound keeps a near-degenerate one's weight a float. */
+static float lvp__share_in_triangle(const float *rest, const int32_t triangle[3], int32_t k, int32_t j)
+{
+	int32_t l = triangle[0] != k && triangle[0] != j ? triangle[0]
+	          : (triangle[1] != k && triangle[1] != j ? triangle[1] : triangle[2]);
+	lvp__vec3 corner = lvp__load(rest + 3 * (int64_t)l);
+	lvp__vec3 a = lvp__sub(lvp__load(rest + 3 * (int64_t)k), corner);
+	lvp__vec3 b = lvp__sub(lvp__load(rest + 3 * (int64_t)j), corner);
+	double sine = lvp__length(lvp__cross(a, b)), cosine = lvp__dot(a, b);
+	double cotangent = sine > 0.0 ? cosine / sine : 0.0;
+	return (float)(1.0 + fmin(fmax(cotangent, 0.0), 1e6));
+}
 
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
@@ -26,7 +50,7 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t written = 0;
 	for (int32_t k = 0; k < n; ++k) {
 		int32_t first = written;
-		/* The other corners of k's triangles; a vertex named again adds a share to its entry. */
+		/* The other corners of k's triangles; a vertex named again adds its share to its entry. */
 		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
 			const int32_t *triangle = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
 			for (int i = 0; i < 3; ++i) {
@@ -39,7 +63,7 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 					smoothing->neighbours[written] = j;
 					smoothing->shares[written++] = 0.0f;
 				}
-				smoothing->shares[e] += 1.0f;
+				smoothing->shares[e] += lvp__share_in_triangle(binding->rest_positions, triangle, k, j);
 			}
 		}
 		smoothing->offsets[k + 1] = written;
@@ -76,9 +100,9 @@ static void lvp__take_offsets_range(void *context, int32_t begin, int32_t end)
 }
 
 /* One pass over the dynamic vertices in [begin, end), from the offsets `from` into `to`: each that
- * can move takes half its own and half the mean of its neighbours'; one that cannot keeps its own
- * (none). Each reads `from` only and writes its own entry of `to`, so the result does not depend
- * on threads. */
+ * can move takes half its own and half the weighted mean of its neighbours'; one that cannot keeps
+ * its own (none). Each reads `from` only and writes its own entry of `to`, so the result does not
+ * depend on threads. */
 static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
@@ -90,9 +114,9 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 		int32_t k = binding->dynamic.vertices[v];
 		const float *own = from + 3 * k;
 		float *out = pass->to + 3 * k;
-		/* A neighbour counts once per triangle it shares with k (smoothing.shares): twice inside
-		 * the surface, as the edge's two triangles weigh it; one that cannot move counts with no
-		 * offset (a vertex outside the dynamic set has none, whatever its entry holds). */
+		/* A neighbour weighs what the triangles it shares with k give it (smoothing.shares): two
+		 * inside the surface; one that cannot move counts with no offset (a vertex outside the
+		 * dynamic set has none, whatever its entry holds). */
 		double sum[3] = {0.0, 0.0, 0.0}, count = 0.0;
 		if (lvp__can_move(binding, k)) {
 			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {

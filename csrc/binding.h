@@ -796,6 +796,10 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 /* The neighbour lists of the smoothing passes (binding.smoothing), from the sorted triangles. */
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
+/* smoothing_ties.c */
+/* Gives the vertices that one neighbour dominates in binding.smoothing the neighbours of the cluster
+ * they form with it, so that a pass averages them as one point. */
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
  * neighbours'. The volume is not restored here; step.smoothing_offsets is left holding the smoothed

@@ -235,7 +235,10 @@
  *   move counts with none): each triangle a neighbour shares with the vertex weighs it 1 + the
  *   cotangent of its angle opposite their edge (0 past a right angle), so that the corners of a long
  *   thin triangle (decimated and game meshes) stay near the line between them instead of tilting
- *   it into a crease. The volume the passes took is then restored along the smoothed offsets
+ *   it into a crease. Vertices so tied that they move as one point (the ends of the very short edges
+ *   that metaballs and marching cubes leave: a cluster giving more than half of its weight to one
+ *   neighbouring cluster is joined with it, at bind) are averaged as one, over the cluster's
+ *   neighbours outside it, so they follow their ring at the pace of any vertex. The volume the passes took is then restored along the smoothed offsets
  *   themselves, each part's growing by one factor (what they cannot restore goes through the map),
  *   so the shape the passes gave is kept: more passes, smoother offsets. Restoring each region
  *   (LVP_RESTORE_EACH_REGION, or a frame whose bones scale), steps 1-3 restore it. On a hand

@@ -14,7 +14,8 @@
  * the triangle from tilting (with equal weights, the irregular triangles of decimated and game
  * meshes tilted into creases under offsets smooth over the rings). The 1 keeps every neighbour in
  * the mean where the angles are right or obtuse, as on the triangulated quads of a remesh, whose
- * diagonals the cotangents alone would leave out.
+ * diagonals the cotangents alone would leave out. Vertices so tied that they move as one point are
+ * then averaged as one (smoothing_ties.c).
  */
 #include "binding.h"
 
@@ -68,7 +69,7 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 		}
 		smoothing->offsets[k + 1] = written;
 	}
-	return lvp_success;
+	return lvp__tie_smoothing(binding, r_diag);
 }
 
 void lvp__smoothing_free(lvp__smoothing *smoothing)

@@ -189,9 +189,36 @@ def _body_spheres(rig):
     return spheres
 
 
-def rigify_human(voxel_size=BODY_VOXEL):
+def metaball_surface(name, spheres, resolution, threshold=0.6):
+    """A closed mesh object `name` of the ellipsoids `spheres` ((centre, radii) pairs) as metaballs of that
+    resolution, converted to a mesh (Blender's marching cubes: where the surface passes near a corner of its
+    grid it leaves edges a few hundredths of the mean long, and needle triangles around them)."""
+    balls = bpy.data.metaballs.new(name + "Balls")
+    balls.resolution = balls.render_resolution = resolution
+    balls.threshold = threshold
+    for centre, radii in spheres:
+        element = balls.elements.new(type='ELLIPSOID')
+        element.co = centre
+        element.radius = max(radii)
+        element.size_x, element.size_y, element.size_z = (radius / element.radius for radius in radii)
+    holder = bpy.data.objects.new(name + "Balls", balls)
+    bpy.context.scene.collection.objects.link(holder)
+    bpy.context.view_layer.update()
+    mesh = bpy.data.meshes.new_from_object(holder.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    bpy.data.objects.remove(holder)
+    bpy.data.metaballs.remove(balls)
+    mesh.name = name
+    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
+    mesh.update()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None):
     """(body, rig): Rigify's human generated, a closed body around its DEF bones parented to it With Automatic
-    Weights. Raises RuntimeError when this Blender has no Rigify or heat weighting leaves the body unweighted."""
+    Weights: a voxel remesh, or with metaball_resolution, the same ellipsoids as metaballs. Raises RuntimeError
+    when this Blender has no Rigify or heat weighting leaves the body unweighted."""
     if not enable_rigify():
         raise RuntimeError("this Blender has no Rigify add-on")
     bpy.ops.object.armature_human_metarig_add()
@@ -199,7 +226,10 @@ def rigify_human(voxel_size=BODY_VOXEL):
     bpy.ops.pose.rigify_generate()
     rig = next(obj for obj in bpy.data.objects if obj.type == 'ARMATURE' and obj != metarig)
     bpy.data.objects.remove(metarig)
-    body = closed_surface("Body", _body_spheres(rig), voxel_size)
+    if metaball_resolution is None:
+        body = closed_surface("Body", _body_spheres(rig), voxel_size)
+    else:
+        body = metaball_surface("Body", _body_spheres(rig), metaball_resolution)
     if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the body")
     limbs = [name for name in ("DEF-thigh.L", "DEF-shin.L", "DEF-forearm.L", "DEF-spine.002")

@@ -238,6 +238,37 @@ test_rig test_make_cylinder(int around, int along, float radius, float length, f
 	return rig;
 }
 
+test_rig test_make_cylinder_twinned(int around, int along, float radius, float length, float band, float gap)
+{
+	test_rig rig;
+	memset(&rig, 0, sizeof(rig));
+	if (around < 3 || along < 3 || !(gap > 0.0f && gap < 1.0f))
+		return rig;
+	int twins = (along - 1) / 2, count = along + twins, written = 0;
+	double *ring_z = test__alloc((size_t)count, sizeof(double));
+	double *ring_radius = test__alloc((size_t)count, sizeof(double));
+	double spacing = (double)length / (along - 1);
+	for (int i = 0; i < along; ++i) {
+		ring_z[written++] = spacing * i;
+		if (i % 2 == 1 && i < along - 1)
+			ring_z[written++] = spacing * (i + (double)gap);
+	}
+	for (int i = 0; i < count; ++i)
+		ring_radius[i] = radius;
+	test__build_tube(&rig, around, count, ring_z, ring_radius, 0.0, length);
+	rig.bone_count = 2;
+	double joints[3] = {0.0, 0.5 * length, length};
+	test__chain_skeleton_z(&rig, joints);
+	double *axial = test__alloc((size_t)rig.vertex_count, sizeof(double));
+	for (int32_t k = 0; k < rig.vertex_count; ++k)
+		axial[k] = rig.positions[3 * k + 2];
+	test__chain_weights(&rig, axial, joints, band);
+	free(axial);
+	free(ring_z);
+	free(ring_radius);
+	return rig;
+}
+
 test_rig test_make_chain(int bone_count, float bone_length, float radius, int around, int rings_per_bone,
                          float band)
 {

@@ -38,6 +38,10 @@ int32_t test_find_bone(const test_rig *rig, const char *name); /* -1 when absent
  * w1 = clamp((z - (length - band)/2) / band, 0, 1), w0 = 1 - w1; zero weights are not stored.
  * test_make_cylinder(16, 16, 0.5f, 4.0f, 2.6f) is the paper's. */
 test_rig test_make_cylinder(int around, int along, float radius, float length, float band);
+/* test_make_cylinder, with every odd ring but the last given a twin `gap` of the ring spacing above it
+ * (0 < gap < 1): a strip of needle triangles around it, whose short edges are what marching cubes
+ * (metaballs, voxel tools) leave where the surface passes near a corner of their grid. */
+test_rig test_make_cylinder_twinned(int around, int along, float radius, float length, float band, float gap);
 
 /* A chain of `bone_count` equal bones along +Z, each `bone_length` long, skinned as a tube of
  * `around` x `rings_per_bone*bone_count + 1` vertices with caps; weights blend linearly over

@@ -1,0 +1,220 @@
+/*
+ * smoothing_ties.c - vertices the smoothing's weights tie into one point are averaged as one (lvp.h,
+ * OFFSET SMOOTHING; docs/method.md, Smoothing the offsets).
+ *
+ * A very short edge (metaball and marching-cubes meshes leave edges a few hundredths of the mean edge
+ * long) has cotangents in the tens across it, which hold its ends together, as they should: offsets
+ * differing between them would tilt its thin triangles steeply. But a pass moves each vertex halfway to
+ * the weighted mean of its neighbours, and for two vertices tied that strongly the mean is mostly the
+ * other: the pair moves toward the ring around it only by the ring's small share of its weight, and
+ * after the passes it still stands out from the surface around it.
+ *
+ * So, at bind, a cluster (at first each vertex alone) that gives more than half of its weight to one
+ * neighbouring cluster is joined with it, round after round until none does; then every member of a
+ * cluster averages over the cluster's neighbours outside it, each weighted by the shares of all the
+ * members summed. The cluster follows its ring at the pace of any vertex, and its members keep one
+ * offset between them. Where no vertex gives one neighbour more than half of its weight (fair
+ * triangles, however irregular), nothing changes.
+ */
+#include "binding.h"
+
+#include <stdlib.h>
+
+/* Union-find over the vertices (path halving). */
+static int32_t lvp__cluster_of(int32_t *parent, int32_t k)
+{
+	while (parent[k] != k) {
+		parent[k] = parent[parent[k]];
+		k = parent[k];
+	}
+	return k;
+}
+
+typedef struct lvp__clusters {
+	int32_t count;    /* vertices */
+	int32_t *parent;  /* union-find: the vertex's cluster is lvp__cluster_of(parent, vertex) */
+	int32_t *first;   /* per cluster (its root): where its members start in `members`; count+1 */
+	int32_t *members; /* the vertices by cluster, in vertex order */
+	int32_t *joins;   /* per cluster: the cluster it is tied to this round, or -1 */
+	int32_t *keys;    /* scratch: what one cluster neighbours outside it (vertices or clusters) */
+	double *sums;     /* scratch: and the shares of its members summed per key */
+	int64_t capacity; /* of keys and sums */
+} lvp__clusters;
+
+static int32_t lvp__size_of(const lvp__clusters *clusters, int32_t root)
+{
+	return clusters->first[root + 1] - clusters->first[root];
+}
+
+/* The members of every cluster, and scratch enough for the largest cluster's neighbours. */
+static bool lvp__list_members(lvp__clusters *clusters, const lvp__smoothing *smoothing)
+{
+	int32_t n = clusters->count, *first = clusters->first;
+	for (int32_t k = 0; k <= n; ++k)
+		first[k] = 0;
+	for (int32_t k = 0; k < n; ++k)
+		++first[lvp__cluster_of(clusters->parent, k) + 1];
+	for (int32_t k = 0; k < n; ++k)
+		first[k + 1] += first[k];
+	/* first[root] walks along its members as they are placed, then everything shifts back by one */
+	for (int32_t k = 0; k < n; ++k)
+		clusters->members[first[lvp__cluster_of(clusters->parent, k)]++] = k;
+	for (int32_t k = n; k > 0; --k)
+		first[k] = first[k - 1];
+	first[0] = 0;
+	int64_t need = 1;
+	for (int32_t root = 0; root < n; ++root) {
+		int64_t entries = 0;
+		for (int32_t m = first[root]; m < first[root + 1]; ++m)
+			entries += smoothing->offsets[clusters->members[m] + 1] - smoothing->offsets[clusters->members[m]];
+		need = entries > need ? entries : need;
+	}
+	if (need <= clusters->capacity)
+		return true;
+	int32_t *keys = realloc(clusters->keys, (size_t)need * sizeof(int32_t));
+	if (keys)
+		clusters->keys = keys;
+	double *sums = realloc(clusters->sums, (size_t)need * sizeof(double));
+	if (sums)
+		clusters->sums = sums;
+	if (!keys || !sums)
+		return false;
+	clusters->capacity = need;
+	return true;
+}
+
+/* The shares of the members of cluster `root` to what is outside it, summed per neighbouring vertex,
+ * or per neighbouring cluster when by_cluster, into clusters->keys and clusters->sums, in the order the
+ * members' lists name them; returns how many. */
+static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *smoothing, int32_t root,
+                                bool by_cluster)
+{
+	int32_t count = 0;
+	for (int32_t m = clusters->first[root]; m < clusters->first[root + 1]; ++m) {
+		int32_t k = clusters->members[m];
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+			int32_t j = smoothing->neighbours[e], cluster = lvp__cluster_of(clusters->parent, j);
+			if (cluster == root)
+				continue;
+			int32_t key = by_cluster ? cluster : j, i = 0;
+			while (i < count && clusters->keys[i] != key)
+				++i;
+			if (i == count) {
+				clusters->keys[count] = key;
+				clusters->sums[count++] = 0.0;
+			}
+			clusters->sums[i] += smoothing->shares[e];
+		}
+	}
+	return count;
+}
+
+/* One round, decided on the clusters as the round found them: each that gives more than half of its
+ * shares to one neighbouring cluster (and has another neighbour) is joined with it, the lower root
+ * staying. Returns how many clusters were joined to another. */
+static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smoothing)
+{
+	int32_t n = clusters->count;
+	for (int32_t root = 0; root < n; ++root) {
+		clusters->joins[root] = -1;
+		if (lvp__size_of(clusters, root) == 0)
+			continue;
+		int32_t count = lvp__sum_outside(clusters, smoothing, root, true), heaviest = 0;
+		const int32_t *keys = clusters->keys;
+		const double *sums = clusters->sums;
+		double total = 0.0;
+		for (int32_t i = 0; i < count; ++i) {
+			total += sums[i];
+			if (sums[i] > sums[heaviest] || (sums[i] == sums[heaviest] && keys[i] < keys[heaviest]))
+				heaviest = i;
+		}
+		if (count >= 2 && sums[heaviest] > total - sums[heaviest])
+			clusters->joins[root] = keys[heaviest];
+	}
+	int32_t joined = 0;
+	for (int32_t root = 0; root < n; ++root) {
+		if (clusters->joins[root] < 0)
+			continue;
+		int32_t a = lvp__cluster_of(clusters->parent, root), b = lvp__cluster_of(clusters->parent, clusters->joins[root]);
+		if (a != b) {
+			clusters->parent[a > b ? a : b] = a < b ? a : b;
+			++joined;
+		}
+	}
+	return joined;
+}
+
+/* The length of vertex k's new neighbour list, or with `neighbours`, the list written there. */
+static int32_t lvp__list_of(lvp__clusters *clusters, const lvp__smoothing *smoothing, int32_t k, int32_t *neighbours,
+                            float *shares)
+{
+	int32_t root = lvp__cluster_of(clusters->parent, k);
+	if (lvp__size_of(clusters, root) == 1) {
+		int32_t count = smoothing->offsets[k + 1] - smoothing->offsets[k];
+		for (int32_t i = 0; neighbours && i < count; ++i) {
+			neighbours[i] = smoothing->neighbours[smoothing->offsets[k] + i];
+			shares[i] = smoothing->shares[smoothing->offsets[k] + i];
+		}
+		return count;
+	}
+	int32_t count = lvp__sum_outside(clusters, smoothing, root, false);
+	for (int32_t i = 0; neighbours && i < count; ++i) {
+		neighbours[i] = clusters->keys[i];
+		shares[i] = (float)clusters->sums[i];
+	}
+	return count;
+}
+
+/* binding.smoothing's lists again, each member of a cluster given the cluster's. */
+static bool lvp__relist(lvp__smoothing *smoothing, lvp__clusters *clusters)
+{
+	int32_t n = clusters->count;
+	int64_t total = 0;
+	for (int32_t k = 0; k < n; ++k)
+		total += lvp__list_of(clusters, smoothing, k, NULL, NULL);
+	bool ok = true;
+	int32_t *offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
+	int32_t *neighbours = lvp__calloc((size_t)total + 1, sizeof(int32_t), &ok);
+	float *shares = lvp__calloc((size_t)total + 1, sizeof(float), &ok);
+	if (ok) {
+		for (int32_t k = 0; k < n; ++k)
+			offsets[k + 1] = offsets[k] + lvp__list_of(clusters, smoothing, k, neighbours + offsets[k], shares + offsets[k]);
+		lvp__smoothing_free(smoothing);
+		*smoothing = (lvp__smoothing){offsets, neighbours, shares};
+		return true;
+	}
+	free(offsets);
+	free(neighbours);
+	free(shares);
+	return false;
+}
+
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	int32_t n = binding->vertex_count;
+	bool ok = true;
+	lvp__clusters clusters = {.count = n,
+	                          .parent = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
+	                          .first = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
+	                          .members = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
+	                          .joins = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok)};
+	for (int32_t k = 0; ok && k < n; ++k)
+		clusters.parent[k] = k;
+	int32_t joined = 0, round_joined = 1;
+	while (ok && round_joined > 0) {
+		ok = lvp__list_members(&clusters, &binding->smoothing);
+		round_joined = ok ? lvp__tie_round(&clusters, &binding->smoothing) : 0;
+		joined += round_joined;
+	}
+	if (ok && joined > 0)
+		ok = lvp__list_members(&clusters, &binding->smoothing) && lvp__relist(&binding->smoothing, &clusters);
+	free(clusters.parent);
+	free(clusters.first);
+	free(clusters.members);
+	free(clusters.joins);
+	free(clusters.keys);
+	free(clusters.sums);
+	if (!ok)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	return lvp_success;
+}

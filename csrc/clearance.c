@@ -182,7 +182,6 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 
 void lvp__measure_clearance(lvp_binding *binding, const float *positions)
 {
-	lvp__bvh_refit(&binding->contact.bvh, positions);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__clearance_range, &pass, count, LVP__GRAIN);

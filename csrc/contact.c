@@ -244,6 +244,56 @@ static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* contact.leaf_of: the leaf that holds each triangle (-1 for those of no area, left out). */
+static void lvp__find_leaves(lvp__contact *contact, int32_t triangle_count)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	for (int32_t t = 0; t < triangle_count; ++t)
+		contact->leaf_of[t] = -1;
+	for (int32_t index = 0; index < bvh->node_count; ++index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		for (int32_t i = node->index; node->count > 0 && i < node->index + node->count; ++i)
+			contact->leaf_of[bvh->triangles[i].source] = index;
+	}
+}
+
+/* contact.dynamic_nodes: the leaves holding a triangle with a dynamic corner and every node above
+ * them, the last first. Only dynamic vertices move between the skinning and the correction (every
+ * other vertex is its input), so refitting these nodes alone refits the whole tree. */
+static void lvp__list_dynamic_nodes(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__mesh *mesh = &binding->mesh;
+	const lvp__bvh *bvh = &contact->bvh;
+	uint8_t *marks = contact->node_marks;
+	memset(marks, 0, (size_t)bvh->node_count);
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+			for (int32_t node = contact->leaf_of[mesh->vertex_triangles[c]]; node >= 0 && !marks[node];
+			     node = bvh->parents[node])
+				marks[node] = 1;
+	}
+	int32_t count = 0;
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
+		if (marks[index])
+			contact->dynamic_nodes[count++] = index;
+	contact->dynamic_node_count = count;
+}
+
+void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
+{
+	lvp__bvh_refit(&binding->contact.bvh, positions);
+	lvp__list_dynamic_nodes(binding);
+}
+
+/* The hierarchy fitted to `to` (the skinning, or the correction), from either. */
+static void lvp__refit_dynamic(lvp_binding *binding, const float *to)
+{
+	lvp__contact *contact = &binding->contact;
+	lvp__bvh_refit_nodes(&contact->bvh, to, contact->dynamic_nodes, contact->dynamic_node_count);
+}
+
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	lvp__contact *contact = &binding->contact;
@@ -255,6 +305,9 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 		return result;
 	bool ok = true;
 	contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+	contact->node_marks = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+	contact->dynamic_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
+	contact->leaf_of = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -264,8 +317,10 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->clearance = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
-	if (ok)
+	if (ok) {
+		lvp__find_leaves(contact, binding->triangle_count);
 		return lvp_success;
+	}
 	lvp__contact_free(contact);
 	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "could not allocate the contact test of %d triangles.",
 	                 (int)binding->triangle_count);
@@ -297,7 +352,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	float *scale = contact->scale, *next = contact->next_scale;
 	bool shortened = false;
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
-		lvp__bvh_refit(&contact->bvh, binding->step.positions);
+		lvp__refit_dynamic(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
@@ -375,7 +430,7 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		any = held[binding->dynamic.vertices[v]];
 	if (!any)
 		return;
-	lvp__bvh_refit(&contact->bvh, positions);
+	lvp__refit_dynamic(binding, positions);
 	lvp__contact_pass pass = {binding, positions};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
@@ -479,6 +534,9 @@ void lvp__contact_free(lvp__contact *contact)
 	lvp__bvh_free(&contact->bvh);
 	free(contact->limit);
 	free(contact->moved_nodes);
+	free(contact->node_marks);
+	free(contact->dynamic_nodes);
+	free(contact->leaf_of);
 	free(contact->moved);
 	free(contact->shortened);
 	free(contact->pinned);

@@ -74,7 +74,8 @@ void lvp__bvh_refit(lvp__bvh *bvh, const float *positions);
 void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count);
 
 /* Calls visit(context, triangle) for every triangle whose box may overlap [lo, hi] (a superset:
- * padded boxes), until visit returns true. */
+ * padded boxes), until visit returns true. The box is read at every node: a visit may narrow it
+ * (lo and hi pointing into its context), and the rest of the search looks only there. */
 typedef bool (*lvp__bvh_visit)(void *context, const lvp__bvh_triangle *triangle);
 void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
                           void *context);

@@ -591,7 +591,22 @@ static inline bool lvp__nodes_overlap(const lvp__bvh_node *a, const lvp__bvh_nod
 	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
 }
 
-/* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes may overlap. */
+static inline bool lvp__triangles_overlap(const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
+{
+	return !(a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
+	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
+}
+
+/* visit(context, a, b) when the two triangles' boxes overlap: most pairs of two leaves' triangles do
+ * not, and are passed over here rather than through a call. */
+static inline void lvp__visit_if_overlapping(const lvp__bvh_triangle *a, const lvp__bvh_triangle *b,
+                                             lvp__bvh_visit_pair visit, void *context)
+{
+	if (lvp__triangles_overlap(a, b))
+		visit(context, a, b);
+}
+
+/* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes overlap. */
 static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32_t first_a, int32_t first_b,
                                lvp__bvh_visit_pair visit, void *context)
 {
@@ -610,7 +625,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 			if (na->count > 0) {
 				for (int32_t i = na->index; i < na->index + na->count; ++i)
 					for (int32_t j = i + 1; j < na->index + na->count; ++j)
-						visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+						lvp__visit_if_overlapping(&bvh->triangles[i], &bvh->triangles[j], visit, context);
 				continue;
 			}
 			int32_t left = na->index, right = left + 1;
@@ -624,7 +639,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 		if (na->count > 0 && nb->count > 0) {
 			for (int32_t i = na->index; i < na->index + na->count; ++i)
 				for (int32_t j = nb->index; j < nb->index + nb->count; ++j)
-					visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+					lvp__visit_if_overlapping(&bvh->triangles[i], &bvh->triangles[j], visit, context);
 			continue;
 		}
 		/* Split the inner node (the larger one when both are). */

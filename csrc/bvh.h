@@ -80,10 +80,10 @@ typedef bool (*lvp__bvh_visit)(void *context, const lvp__bvh_triangle *triangle)
 void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
                           void *context);
 
-/* Calls visit(context, a, b) once for every pair of different triangles whose boxes may overlap (a
- * superset: padded boxes), one of them under a marked node when `marked` is not NULL, by a traversal of the tree against itself, on the pool's threads (NULL:
- * this one) in phases whose concurrent calls never share a triangle: a visit may write what belongs
- * to either of its two triangles, nothing else. */
+/* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap, one of
+ * them under a marked node when `marked` is not NULL, by a traversal of the tree against itself, on
+ * the pool's threads (NULL: this one) in phases whose concurrent calls never share a triangle: a
+ * visit may write what belongs to either of its two triangles, nothing else. */
 typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b);
 void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__pool *pool, lvp__bvh_visit_pair visit,
                             void *context);

@@ -166,15 +166,22 @@ static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const 
 	return search;
 }
 
+/* Whether two triangles (their vertices) share a corner. */
+static inline bool lvp__share_corner(const int32_t *a, const int32_t *b)
+{
+	for (int i = 0; i < 3; ++i)
+		if (b[i] == a[0] || b[i] == a[1] || b[i] == a[2])
+			return true;
+	return false;
+}
+
 /* Whether the searched triangle and `other` may cross: they share no corner (neighbours meet at
  * their shared corners, which is no crossing) and their boxes overlap (a leaf's box holds several
  * triangles). */
 static bool lvp__may_cross(const lvp__triangle_search *search, const lvp__bvh_triangle *other)
 {
-	const int32_t *t = search->corners;
-	for (int i = 0; i < 3; ++i)
-		if (other->vertices[i] == t[0] || other->vertices[i] == t[1] || other->vertices[i] == t[2])
-			return false;
+	if (lvp__share_corner(search->corners, other->vertices))
+		return false;
 	for (int axis = 0; axis < 3; ++axis)
 		if (other->lo[axis] > search->hi[axis] || other->hi[axis] < search->lo[axis])
 			return false;
@@ -205,17 +212,17 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	return false;
 }
 
-/* The first round: every pair of triangles, one of them moved, whose boxes overlap. */
+/* The first round: every pair of triangles, one of them moved, whose boxes overlap (the traversal
+ * calls only those). */
 static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
 {
 	const lvp__contact_pass *pass = context;
 	lvp__contact *contact = &pass->binding->contact;
 	const uint8_t *moved = contact->moved;
-	if (a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
-	    a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2])
-		return;
 	if (!lvp__any_marked(moved, a->vertices) && !lvp__any_marked(moved, b->vertices))
 		return;
+	if (lvp__share_corner(a->vertices, b->vertices))
+		return; /* neighbours, passed over before the search is set up (lvp__may_cross) */
 	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
 	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
 	lvp__visit_candidate(&search, b);

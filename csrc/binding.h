@@ -351,6 +351,11 @@ typedef struct lvp__contact {
 	                              from every triangle it crosses and did not cross skinned (1: none) */
 	uint8_t *moved;            /* per vertex: its triangles are tested this round */
 	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is (lvp__bvh_mark) */
+	int32_t *leaf_of;          /* per triangle: the leaf of the hierarchy that holds it (-1: none, no area) */
+	int32_t *dynamic_nodes;    /* this attempt: the nodes with a triangle around a dynamic vertex, the
+	                              last first (what a refit between the skinning and the correction visits) */
+	int32_t dynamic_node_count;
+	uint8_t *node_marks;       /* per node: scratch of the lists above */
 	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
@@ -812,6 +817,10 @@ void lvp__take_offsets(lvp_binding *binding, const float *positions);
 /* contact.c */
 /* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* The hierarchy fitted to `positions` (the frame's input points), every triangle, and the nodes
+ * that later fits visit listed (contact.dynamic_nodes): first of each attempt that keeps skin apart,
+ * after the dynamic set is found. */
+void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions);
 /* Shortens the offsets (step.positions against `positions`, the input points) of the corners of
  * every pair of triangles that crosses after the correction but not in the input, to what keeps the
  * pair apart, over a few rounds (the last takes them away), smoothed around them; the patches of
@@ -828,7 +837,7 @@ void lvp__contact_free(lvp__contact *contact);
 
 /* clearance.c */
 /* contact.clearance of the dynamic vertices, ahead of their offsets (step.positions less
- * `positions`) in the skinning at `positions` (refits contact.bvh to it). */
+ * `positions`) in the skinning at `positions` (contact.bvh fitted to it: lvp__contact_fit_skinning). */
 void lvp__measure_clearance(lvp_binding *binding, const float *positions);
 /* Scales the offsets (step.positions and step.smoothing_offsets) and frame_map.gamma of the dynamic
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,

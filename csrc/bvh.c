@@ -332,45 +332,64 @@ lvp_result lvp__bvh_build(lvp__bvh *r_bvh, const float *positions, const int32_t
 	return lvp_success;
 }
 
+/* A triangle's corners and box moved to `positions`. */
+static void lvp__refit_triangle(lvp__bvh_triangle *tri, const float *positions)
+{
+	for (int c = 0; c < 3; ++c)
+		memcpy(tri->corners[c], positions + 3 * (int64_t)tri->vertices[c], sizeof(float) * 3);
+	for (int axis = 0; axis < 3; ++axis) {
+		tri->lo[axis] = lvp__minf(lvp__minf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
+		tri->hi[axis] = lvp__maxf(lvp__maxf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
+	}
+}
+
+/* A node's box from what is below it: a leaf's from its triangles' boxes, padded (the padding is
+ * recomputed from the unpadded boxes of the triangles only at the leaves); an inner node's, the
+ * merge of its children's padded boxes, which stays at least as wide as a box must be. Children
+ * come after their parent (lvp__bvh_build appends them), so visiting nodes from the last to the
+ * first sees both children of a node before the node. */
+static void lvp__refit_node(lvp__bvh *bvh, int32_t index)
+{
+	lvp__bvh_node *node = &bvh->nodes[index];
+	lvp__box box;
+	lvp__box_empty(&box);
+	if (node->count > 0) {
+		for (int32_t i = node->index; i < node->index + node->count; ++i)
+			for (int axis = 0; axis < 3; ++axis) {
+				box.lo[axis] = lvp__minf(box.lo[axis], bvh->triangles[i].lo[axis]);
+				box.hi[axis] = lvp__maxf(box.hi[axis], bvh->triangles[i].hi[axis]);
+			}
+		lvp__store_box(node, &box);
+		return;
+	}
+	for (int child = 0; child < 2; ++child) {
+		const lvp__bvh_node *c = &bvh->nodes[node->index + child];
+		for (int axis = 0; axis < 3; ++axis) {
+			box.lo[axis] = lvp__minf(box.lo[axis], c->lo[axis]);
+			box.hi[axis] = lvp__maxf(box.hi[axis], c->hi[axis]);
+		}
+	}
+	memcpy(node->lo, box.lo, sizeof(box.lo));
+	memcpy(node->hi, box.hi, sizeof(box.hi));
+}
+
 void lvp__bvh_refit(lvp__bvh *bvh, const float *positions)
 {
 	if (bvh->triangle_count == 0)
 		return;
-	for (int32_t i = 0; i < bvh->triangle_count; ++i) {
-		lvp__bvh_triangle *tri = &bvh->triangles[i];
-		for (int c = 0; c < 3; ++c)
-			memcpy(tri->corners[c], positions + 3 * (int64_t)tri->vertices[c], sizeof(float) * 3);
-		for (int axis = 0; axis < 3; ++axis) {
-			tri->lo[axis] = lvp__minf(lvp__minf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
-			tri->hi[axis] = lvp__maxf(lvp__maxf(tri->corners[0][axis], tri->corners[1][axis]), tri->corners[2][axis]);
-		}
-	}
-	/* Children come after their parent (lvp__bvh_build appends them), so one backward pass sees
-	 * both children of a node before the node. The padding is recomputed from the unpadded boxes
-	 * of the children's triangles only at the leaves; above them the children's padded boxes are
-	 * merged, which stays at least as wide as a box must be. */
-	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
-		lvp__bvh_node *node = &bvh->nodes[index];
-		lvp__box box;
-		lvp__box_empty(&box);
-		if (node->count > 0) {
-			for (int32_t i = node->index; i < node->index + node->count; ++i)
-				for (int axis = 0; axis < 3; ++axis) {
-					box.lo[axis] = lvp__minf(box.lo[axis], bvh->triangles[i].lo[axis]);
-					box.hi[axis] = lvp__maxf(box.hi[axis], bvh->triangles[i].hi[axis]);
-				}
-			lvp__store_box(node, &box);
-			continue;
-		}
-		for (int child = 0; child < 2; ++child) {
-			const lvp__bvh_node *c = &bvh->nodes[node->index + child];
-			for (int axis = 0; axis < 3; ++axis) {
-				box.lo[axis] = lvp__minf(box.lo[axis], c->lo[axis]);
-				box.hi[axis] = lvp__maxf(box.hi[axis], c->hi[axis]);
-			}
-		}
-		memcpy(node->lo, box.lo, sizeof(box.lo));
-		memcpy(node->hi, box.hi, sizeof(box.hi));
+	for (int32_t i = 0; i < bvh->triangle_count; ++i)
+		lvp__refit_triangle(&bvh->triangles[i], positions);
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
+		lvp__refit_node(bvh, index);
+}
+
+void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count)
+{
+	for (int32_t i = 0; i < count; ++i) {
+		const lvp__bvh_node *node = &bvh->nodes[nodes[i]];
+		for (int32_t t = node->index; t < node->index + node->count; ++t)
+			lvp__refit_triangle(&bvh->triangles[t], positions);
+		lvp__refit_node(bvh, nodes[i]);
 	}
 }
 
@@ -572,7 +591,22 @@ static inline bool lvp__nodes_overlap(const lvp__bvh_node *a, const lvp__bvh_nod
 	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
 }
 
-/* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes may overlap. */
+static inline bool lvp__triangles_overlap(const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
+{
+	return !(a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
+	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
+}
+
+/* visit(context, a, b) when the two triangles' boxes overlap: most pairs of two leaves' triangles do
+ * not, and are passed over here rather than through a call. */
+static inline void lvp__visit_if_overlapping(const lvp__bvh_triangle *a, const lvp__bvh_triangle *b,
+                                             lvp__bvh_visit_pair visit, void *context)
+{
+	if (lvp__triangles_overlap(a, b))
+		visit(context, a, b);
+}
+
+/* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes overlap. */
 static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32_t first_a, int32_t first_b,
                                lvp__bvh_visit_pair visit, void *context)
 {
@@ -591,7 +625,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 			if (na->count > 0) {
 				for (int32_t i = na->index; i < na->index + na->count; ++i)
 					for (int32_t j = i + 1; j < na->index + na->count; ++j)
-						visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+						lvp__visit_if_overlapping(&bvh->triangles[i], &bvh->triangles[j], visit, context);
 				continue;
 			}
 			int32_t left = na->index, right = left + 1;
@@ -605,7 +639,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 		if (na->count > 0 && nb->count > 0) {
 			for (int32_t i = na->index; i < na->index + na->count; ++i)
 				for (int32_t j = nb->index; j < nb->index + nb->count; ++j)
-					visit(context, &bvh->triangles[i], &bvh->triangles[j]);
+					lvp__visit_if_overlapping(&bvh->triangles[i], &bvh->triangles[j], visit, context);
 			continue;
 		}
 		/* Split the inner node (the larger one when both are). */

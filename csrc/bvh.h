@@ -67,16 +67,23 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
  * queries stay exact; O(F). */
 void lvp__bvh_refit(lvp__bvh *bvh, const float *positions);
 
+/* The refit of the listed nodes alone (`nodes`: indices from the last to the first, each listed
+ * node's parent listed too): their leaves' triangles moved to `positions`, then their boxes. Gives
+ * what lvp__bvh_refit gives when no triangle outside the listed leaves has a corner that moved
+ * since the tree was last fitted; O(count). */
+void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count);
+
 /* Calls visit(context, triangle) for every triangle whose box may overlap [lo, hi] (a superset:
- * padded boxes), until visit returns true. */
+ * padded boxes), until visit returns true. The box is read at every node: a visit may narrow it
+ * (lo and hi pointing into its context), and the rest of the search looks only there. */
 typedef bool (*lvp__bvh_visit)(void *context, const lvp__bvh_triangle *triangle);
 void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
                           void *context);
 
-/* Calls visit(context, a, b) once for every pair of different triangles whose boxes may overlap (a
- * superset: padded boxes), one of them under a marked node when `marked` is not NULL, by a traversal of the tree against itself, on the pool's threads (NULL:
- * this one) in phases whose concurrent calls never share a triangle: a visit may write what belongs
- * to either of its two triangles, nothing else. */
+/* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap, one of
+ * them under a marked node when `marked` is not NULL, by a traversal of the tree against itself, on
+ * the pool's threads (NULL: this one) in phases whose concurrent calls never share a triangle: a
+ * visit may write what belongs to either of its two triangles, nothing else. */
 typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b);
 void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__pool *pool, lvp__bvh_visit_pair visit,
                             void *context);

@@ -119,37 +119,85 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
 	return fmin(least, diameter);
 }
 
-/* One vertex's search: where it is, which way its offset points, and the least diameter so far
- * (starting at the reach: beyond it, none is wanted). */
+/* One vertex's search: where it is, which way its offset points, the least diameter so far
+ * (starting at the reach: beyond it, none is wanted), and the box searched: around the ball of that
+ * diameter, narrowed as it drops. */
 typedef struct lvp__clearance_search {
 	lvp__vec3 from, direction;
 	int32_t vertex;
 	double least;
+	float lo[3], hi[3];
 } lvp__clearance_search;
+
+/* Comparisons rather than fmin/fmax, which compilers call out of line to honour NaN rules (nothing
+ * here is NaN: positions are validated; a zero's sign changes no test below). */
+static inline double lvp__min_d(double a, double b)
+{
+	return a < b ? a : b;
+}
+static inline double lvp__max_d(double a, double b)
+{
+	return a > b ? a : b;
+}
+
+/* The box of the search narrowed to the ball of the least diameter found, a millionth wider (and a
+ * rounding of the coordinates more), never wider than it was: skin outside it is outside that
+ * ball, so its diameter is above the least by far more than rounding, and the search's answer is
+ * what the whole box gives. Every ball narrower than the least, tangent at the vertex, lies inside
+ * the ball of the least. */
+static void lvp__narrow_search(lvp__clearance_search *search)
+{
+	double half = 0.5 * search->least * (1.0 + 1e-6);
+	double centre[3] = {search->from.x + search->direction.x * half, search->from.y + search->direction.y * half,
+	                    search->from.z + search->direction.z * half};
+	for (int axis = 0; axis < 3; ++axis) {
+		double slack = half + 1e-12 * (fabs(centre[axis]) + half);
+		float lo = (float)(centre[axis] - slack), hi = (float)(centre[axis] + slack);
+		if ((double)lo > centre[axis] - slack)
+			lo = nextafterf(lo, -INFINITY);
+		if ((double)hi < centre[axis] + slack)
+			hi = nextafterf(hi, INFINITY);
+		search->lo[axis] = lo > search->lo[axis] ? lo : search->lo[axis];
+		search->hi[axis] = hi < search->hi[axis] ? hi : search->hi[axis];
+	}
+}
+
+/* Whether the triangle's box lies outside the box searched. */
+static inline bool lvp__outside_search(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
+{
+	return triangle->lo[0] > search->hi[0] || triangle->hi[0] < search->lo[0] || triangle->lo[1] > search->hi[1] ||
+	       triangle->hi[1] < search->lo[1] || triangle->lo[2] > search->hi[2] || triangle->hi[2] < search->lo[2];
+}
 
 static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
 {
 	lvp__clearance_search *search = context;
+	if (lvp__outside_search(search, triangle))
+		return false;
 	lvp__vec3 x[3];
 	double ahead = 0.0, gap2 = 0.0;
 	for (int i = 0; i < 3; ++i) {
 		if (triangle->vertices[i] == search->vertex) /* its own triangles meet it, which is no contact */
 			return false;
 		x[i] = lvp__sub(lvp__load(triangle->corners[i]), search->from);
-		ahead = fmax(ahead, lvp__dot(x[i], search->direction));
+		ahead = lvp__max_d(ahead, lvp__dot(x[i], search->direction));
 	}
 	/* Over the triangle |x|^2 is at least the squared distance to its box and <x, d> at most its
 	 * corners' largest: a triangle beside or behind the vertex (most of what the box query finds, the
 	 * vertex's own skin around it) cannot make the least smaller, and is passed over. */
 	for (int axis = 0; axis < 3; ++axis) {
-		double lo = fmin(fmin(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
-		double hi = fmax(fmax(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
+		double lo = lvp__min_d(lvp__min_d(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
+		double hi = lvp__max_d(lvp__max_d(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
 		double gap = lo > 0.0 ? lo : (hi < 0.0 ? -hi : 0.0);
 		gap2 += gap * gap;
 	}
 	if (!(ahead > 0.0) || gap2 >= search->least * ahead)
 		return false;
-	search->least = fmin(search->least, lvp__triangle_diameter(x, search->direction));
+	double diameter = lvp__triangle_diameter(x, search->direction);
+	if (diameter < search->least) {
+		search->least = diameter;
+		lvp__narrow_search(search);
+	}
 	return false;
 }
 
@@ -170,11 +218,13 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 			continue;
 		double reach = LVP__CLEARANCE_REACH * length;
 		lvp__clearance_search search = {lvp__load(pass->positions + 3 * k), lvp__scale(offset, 1.0 / length), k,
-		                                reach};
+		                                reach, {0}, {0}};
 		lvp__vec3 centre = lvp__add(search.from, lvp__scale(search.direction, 0.5 * reach));
 		float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
 		float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
-		lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__visit_clearance, &search);
+		memcpy(search.lo, lo, sizeof(lo));
+		memcpy(search.hi, hi, sizeof(hi));
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_clearance, &search);
 		if (search.least < reach)
 			contact->clearance[k] = (float)search.least;
 	}
@@ -182,7 +232,6 @@ static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
 
 void lvp__measure_clearance(lvp_binding *binding, const float *positions)
 {
-	lvp__bvh_refit(&binding->contact.bvh, positions);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__clearance_range, &pass, count, LVP__GRAIN);

@@ -166,15 +166,22 @@ static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const 
 	return search;
 }
 
+/* Whether two triangles (their vertices) share a corner. */
+static inline bool lvp__share_corner(const int32_t *a, const int32_t *b)
+{
+	for (int i = 0; i < 3; ++i)
+		if (b[i] == a[0] || b[i] == a[1] || b[i] == a[2])
+			return true;
+	return false;
+}
+
 /* Whether the searched triangle and `other` may cross: they share no corner (neighbours meet at
  * their shared corners, which is no crossing) and their boxes overlap (a leaf's box holds several
  * triangles). */
 static bool lvp__may_cross(const lvp__triangle_search *search, const lvp__bvh_triangle *other)
 {
-	const int32_t *t = search->corners;
-	for (int i = 0; i < 3; ++i)
-		if (other->vertices[i] == t[0] || other->vertices[i] == t[1] || other->vertices[i] == t[2])
-			return false;
+	if (lvp__share_corner(search->corners, other->vertices))
+		return false;
 	for (int axis = 0; axis < 3; ++axis)
 		if (other->lo[axis] > search->hi[axis] || other->hi[axis] < search->lo[axis])
 			return false;
@@ -205,17 +212,17 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	return false;
 }
 
-/* The first round: every pair of triangles, one of them moved, whose boxes overlap. */
+/* The first round: every pair of triangles, one of them moved, whose boxes overlap (the traversal
+ * calls only those). */
 static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
 {
 	const lvp__contact_pass *pass = context;
 	lvp__contact *contact = &pass->binding->contact;
 	const uint8_t *moved = contact->moved;
-	if (a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
-	    a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2])
-		return;
 	if (!lvp__any_marked(moved, a->vertices) && !lvp__any_marked(moved, b->vertices))
 		return;
+	if (lvp__share_corner(a->vertices, b->vertices))
+		return; /* neighbours, passed over before the search is set up (lvp__may_cross) */
 	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
 	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
 	lvp__visit_candidate(&search, b);
@@ -244,6 +251,56 @@ static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* contact.leaf_of: the leaf that holds each triangle (-1 for those of no area, left out). */
+static void lvp__find_leaves(lvp__contact *contact, int32_t triangle_count)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	for (int32_t t = 0; t < triangle_count; ++t)
+		contact->leaf_of[t] = -1;
+	for (int32_t index = 0; index < bvh->node_count; ++index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		for (int32_t i = node->index; node->count > 0 && i < node->index + node->count; ++i)
+			contact->leaf_of[bvh->triangles[i].source] = index;
+	}
+}
+
+/* contact.dynamic_nodes: the leaves holding a triangle with a dynamic corner and every node above
+ * them, the last first. Only dynamic vertices move between the skinning and the correction (every
+ * other vertex is its input), so refitting these nodes alone refits the whole tree. */
+static void lvp__list_dynamic_nodes(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__mesh *mesh = &binding->mesh;
+	const lvp__bvh *bvh = &contact->bvh;
+	uint8_t *marks = contact->node_marks;
+	memset(marks, 0, (size_t)bvh->node_count);
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+			for (int32_t node = contact->leaf_of[mesh->vertex_triangles[c]]; node >= 0 && !marks[node];
+			     node = bvh->parents[node])
+				marks[node] = 1;
+	}
+	int32_t count = 0;
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
+		if (marks[index])
+			contact->dynamic_nodes[count++] = index;
+	contact->dynamic_node_count = count;
+}
+
+void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
+{
+	lvp__bvh_refit(&binding->contact.bvh, positions);
+	lvp__list_dynamic_nodes(binding);
+}
+
+/* The hierarchy fitted to `to` (the skinning, or the correction), from either. */
+static void lvp__refit_dynamic(lvp_binding *binding, const float *to)
+{
+	lvp__contact *contact = &binding->contact;
+	lvp__bvh_refit_nodes(&contact->bvh, to, contact->dynamic_nodes, contact->dynamic_node_count);
+}
+
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	lvp__contact *contact = &binding->contact;
@@ -255,6 +312,9 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 		return result;
 	bool ok = true;
 	contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+	contact->node_marks = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+	contact->dynamic_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
+	contact->leaf_of = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -264,8 +324,10 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->clearance = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
-	if (ok)
+	if (ok) {
+		lvp__find_leaves(contact, binding->triangle_count);
 		return lvp_success;
+	}
 	lvp__contact_free(contact);
 	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "could not allocate the contact test of %d triangles.",
 	                 (int)binding->triangle_count);
@@ -297,7 +359,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	float *scale = contact->scale, *next = contact->next_scale;
 	bool shortened = false;
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
-		lvp__bvh_refit(&contact->bvh, binding->step.positions);
+		lvp__refit_dynamic(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
@@ -375,7 +437,7 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		any = held[binding->dynamic.vertices[v]];
 	if (!any)
 		return;
-	lvp__bvh_refit(&contact->bvh, positions);
+	lvp__refit_dynamic(binding, positions);
 	lvp__contact_pass pass = {binding, positions};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
@@ -479,6 +541,9 @@ void lvp__contact_free(lvp__contact *contact)
 	lvp__bvh_free(&contact->bvh);
 	free(contact->limit);
 	free(contact->moved_nodes);
+	free(contact->node_marks);
+	free(contact->dynamic_nodes);
+	free(contact->leaf_of);
 	free(contact->moved);
 	free(contact->shortened);
 	free(contact->pinned);

@@ -1141,6 +1141,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 	stats->shortened_vertices = 0;
 	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {
+		lvp__contact_fit_skinning(binding, positions);
 		/* The fade is for skin that fold-over leaves alone: with fold-over, skin near other skin is
 		 * where its contacts moved it out of the skinning's own crossings, and fading it would bring
 		 * them back (the hand at the fist: 25 pairs where fold-over alone leaves none). */

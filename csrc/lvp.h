@@ -268,9 +268,10 @@
  *   faded by them, and the volume they no longer carry restored along the other offsets, up to 3
  *   rounds. Then every pair of triangles (sharing no corner) that still crosses after the correction
  *   but not in `positions` is found (a bounding volume hierarchy over the triangles, built at the first
- *   such frame and refitted every round), and the offsets of its corners are shortened to the square of
- *   the share of them at which the pair stops crossing (bisection), over a few rounds, the last of
- *   which takes the offsets of a pair still crossing away; those shares are smoothed the same way but
+ *   such frame, fitted to `positions` once a frame and after that only where skin moves), and the
+ *   offsets of its corners are shortened to the square of the share of them at which the pair stops
+ *   crossing (bisection), over a few rounds, the last of which takes the offsets of a pair still
+ *   crossing away; those shares are smoothed the same way but
  *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
  *   faded), checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their
@@ -286,8 +287,11 @@
  *   stats.shortened_vertices counts the vertices the crossing test shortened. Limits: only what the
  *   correction adds is undone, never skinning's own crossings (that is fold-over's); skin that plain
  *   skinning leaves touching has room ahead of every corner, so the crossing test, not the fade, keeps
- *   it apart. Cost: a ball query per moving vertex, plus one traversal of the hierarchy against itself
- *   per check (PERFORMANCE, BENCHMARKS.md).
+ *   it apart. Cost: one pass over every triangle a frame (the hierarchy fitted to `positions`), a ball
+ *   query per moving vertex (searching no further than the nearest skin found so far), a traversal of
+ *   the hierarchy against itself per check, and the volume restored again after each fade and
+ *   check; refits in between visit the triangles around moving vertices only (PERFORMANCE,
+ *   BENCHMARKS.md).
  *
  * DEGRADING (lvp_frame_options.displacement_limit > 0, local mode)
  *
@@ -313,7 +317,7 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 150 bytes a triangle, and 12 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
+ *   hierarchy, about 165 bytes a triangle, and 12 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the
  *   workers watch for the next one for about a tenth of a millisecond before they sleep.

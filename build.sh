@@ -198,6 +198,11 @@ cmd_bench() {
 	"$CC" "${CFLAGS_COMMON[@]}" -O3 -march=x86-64-v2 -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
 		"$ROOT/tests/bench/bench_core.c" $(support_sources) "$BUILD/liblvp.a" -o "$BUILD/bench/bench_core" -lm -lgmp
 	(cd "$ROOT/tests" && "$BUILD/bench/bench_core")
+	# Keep Skin Apart's cost, and hashes of what it gives (the same bits across thread counts)
+	"$CC" "${CFLAGS_COMMON[@]}" -O3 -march=x86-64-v2 -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+		"$ROOT/tests/bench/bench_keep_apart.c" $(support_sources) "$BUILD/liblvp.a" -o "$BUILD/bench/bench_keep_apart" \
+		-lm -lgmp
+	(cd "$ROOT/tests" && "$BUILD/bench/bench_keep_apart" --quick)
 	if [ -x "$ROOT/tests/blender/bench.sh" ]; then
 		cmd_build
 		"$ROOT/tests/blender/bench.sh"

@@ -212,47 +212,15 @@ static void test__chain_skeleton_z(test_rig *rig, const double *joints)
 	}
 }
 
-test_rig test_make_cylinder(int around, int along, float radius, float length, float band)
+/* A cylinder of radius `radius` along +Z from 0 to `length`, its rings at ring_z (count of them, the
+ * first at 0, the last at length), two bones meeting at length/2 blended over `band` (test_make_cylinder).
+ * Frees ring_z. */
+static test_rig test__cylinder_of_rings(int around, double *ring_z, int count, float radius, float length,
+                                        float band)
 {
 	test_rig rig;
 	memset(&rig, 0, sizeof(rig));
-	if (around < 3 || along < 2)
-		return rig;
-	double *ring_z = test__alloc((size_t)along, sizeof(double));
-	double *ring_radius = test__alloc((size_t)along, sizeof(double));
-	for (int i = 0; i < along; ++i) {
-		ring_z[i] = (double)length * i / (along - 1);
-		ring_radius[i] = radius;
-	}
-	test__build_tube(&rig, around, along, ring_z, ring_radius, 0.0, length);
-	rig.bone_count = 2;
-	double joints[3] = {0.0, 0.5 * length, length};
-	test__chain_skeleton_z(&rig, joints);
-	double *axial = test__alloc((size_t)rig.vertex_count, sizeof(double));
-	for (int32_t k = 0; k < rig.vertex_count; ++k)
-		axial[k] = rig.positions[3 * k + 2];
-	test__chain_weights(&rig, axial, joints, band);
-	free(axial);
-	free(ring_z);
-	free(ring_radius);
-	return rig;
-}
-
-test_rig test_make_cylinder_twinned(int around, int along, float radius, float length, float band, float gap)
-{
-	test_rig rig;
-	memset(&rig, 0, sizeof(rig));
-	if (around < 3 || along < 3 || !(gap > 0.0f && gap < 1.0f))
-		return rig;
-	int twins = (along - 1) / 2, count = along + twins, written = 0;
-	double *ring_z = test__alloc((size_t)count, sizeof(double));
 	double *ring_radius = test__alloc((size_t)count, sizeof(double));
-	double spacing = (double)length / (along - 1);
-	for (int i = 0; i < along; ++i) {
-		ring_z[written++] = spacing * i;
-		if (i % 2 == 1 && i < along - 1)
-			ring_z[written++] = spacing * (i + (double)gap);
-	}
 	for (int i = 0; i < count; ++i)
 		ring_radius[i] = radius;
 	test__build_tube(&rig, around, count, ring_z, ring_radius, 0.0, length);
@@ -267,6 +235,35 @@ test_rig test_make_cylinder_twinned(int around, int along, float radius, float l
 	free(ring_z);
 	free(ring_radius);
 	return rig;
+}
+
+test_rig test_make_cylinder(int around, int along, float radius, float length, float band)
+{
+	test_rig rig;
+	memset(&rig, 0, sizeof(rig));
+	if (around < 3 || along < 2)
+		return rig;
+	double *ring_z = test__alloc((size_t)along, sizeof(double));
+	for (int i = 0; i < along; ++i)
+		ring_z[i] = (double)length * i / (along - 1);
+	return test__cylinder_of_rings(around, ring_z, along, radius, length, band);
+}
+
+test_rig test_make_cylinder_twinned(int around, int along, float radius, float length, float band, float gap)
+{
+	test_rig rig;
+	memset(&rig, 0, sizeof(rig));
+	if (around < 3 || along < 3 || !(gap > 0.0f && gap < 1.0f))
+		return rig;
+	int count = along + (along - 1) / 2, written = 0;
+	double *ring_z = test__alloc((size_t)count, sizeof(double));
+	double spacing = (double)length / (along - 1);
+	for (int i = 0; i < along; ++i) {
+		ring_z[written++] = spacing * i;
+		if (i % 2 == 1 && i < along - 1)
+			ring_z[written++] = spacing * (i + (double)gap);
+	}
+	return test__cylinder_of_rings(around, ring_z, written, radius, length, band);
 }
 
 test_rig test_make_chain(int bone_count, float bone_length, float radius, int around, int rings_per_bone,

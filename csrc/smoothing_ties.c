@@ -20,6 +20,11 @@
 
 #include <stdlib.h>
 
+/* Members a cluster takes at most. The clusters found on real meshes have 2 to 5; the bound keeps a
+ * degenerate mesh (a long strip of needles each tied to the next) from joining into one cluster whose
+ * lists would cost the bind quadratic time, and a cluster that large would not be one point. */
+#define LVP__CLUSTER_MOST 16
+
 /* Union-find over the vertices (path halving). */
 static int32_t lvp__cluster_of(int32_t *parent, int32_t k)
 {
@@ -36,6 +41,7 @@ typedef struct lvp__clusters {
 	int32_t *first;   /* per cluster (its root): where its members start in `members`; count+1 */
 	int32_t *members; /* the vertices by cluster, in vertex order */
 	int32_t *joins;   /* per cluster: the cluster it is tied to this round, or -1 */
+	int32_t *sizes;   /* per cluster (its root): its members, as joined so far */
 	int32_t *keys;    /* scratch: what one cluster neighbours outside it (vertices or clusters) */
 	double *sums;     /* scratch: and the shares of its members summed per key */
 	int64_t capacity; /* of keys and sums */
@@ -111,7 +117,8 @@ static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *s
 
 /* One round, decided on the clusters as the round found them: each that gives more than half of its
  * shares to one neighbouring cluster (and has another neighbour) is joined with it, the lower root
- * staying. Returns how many clusters were joined to another. */
+ * staying, unless together they would have more than LVP__CLUSTER_MOST members. Returns how many
+ * clusters were joined to another. */
 static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smoothing)
 {
 	int32_t n = clusters->count;
@@ -136,8 +143,10 @@ static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smo
 		if (clusters->joins[root] < 0)
 			continue;
 		int32_t a = lvp__cluster_of(clusters->parent, root), b = lvp__cluster_of(clusters->parent, clusters->joins[root]);
-		if (a != b) {
-			clusters->parent[a > b ? a : b] = a < b ? a : b;
+		if (a != b && clusters->sizes[a] + clusters->sizes[b] <= LVP__CLUSTER_MOST) {
+			int32_t kept = a < b ? a : b;
+			clusters->parent[a > b ? a : b] = kept;
+			clusters->sizes[kept] = clusters->sizes[a] + clusters->sizes[b];
 			++joined;
 		}
 	}
@@ -197,9 +206,12 @@ lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 	                          .parent = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
 	                          .first = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
 	                          .members = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
-	                          .joins = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok)};
-	for (int32_t k = 0; ok && k < n; ++k)
+	                          .joins = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok),
+	                          .sizes = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok)};
+	for (int32_t k = 0; ok && k < n; ++k) {
 		clusters.parent[k] = k;
+		clusters.sizes[k] = 1;
+	}
 	int32_t joined = 0, round_joined = 1;
 	while (ok && round_joined > 0) {
 		ok = lvp__list_members(&clusters, &binding->smoothing);
@@ -212,6 +224,7 @@ lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 	free(clusters.first);
 	free(clusters.members);
 	free(clusters.joins);
+	free(clusters.sizes);
 	free(clusters.keys);
 	free(clusters.sums);
 	if (!ok)

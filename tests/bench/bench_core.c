@@ -7,6 +7,7 @@
  */
 #include "lvp.h"
 #include "support/test_meshes.h"
+#include "bench_common.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -15,30 +16,9 @@
 #include <time.h>
 #include <unistd.h>
 
-#define PI 3.14159265358979323846
-#define POSES 3
 #ifndef ADDON_SMOOTHING_PASSES
 #define ADDON_SMOOTHING_PASSES 6 /* the add-on's Smoothing (addon/properties.py) */
 #endif
-
-static double now(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int compare_doubles(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return (x > y) - (x < y);
-}
-
-static double median(double *values, int count)
-{
-	qsort(values, (size_t)count, sizeof(double), compare_doubles);
-	return count % 2 ? values[count / 2] : 0.5 * (values[count / 2 - 1] + values[count / 2]);
-}
 
 typedef struct bench_case {
 	const char *name;
@@ -153,20 +133,7 @@ static void run_case(bench_case *c, int32_t cores)
 	test_rig *rig = &c->rig;
 	int32_t n = rig->vertex_count, b = rig->bone_count;
 	float *posed[POSES], *skinned[POSES];
-	float *skin = malloc(sizeof(float) * 16 * (size_t)b), *rotations = malloc(sizeof(float) * 4 * (size_t)b);
-	lvp_weights weights = test_rig_weights(rig);
-	for (int pose = 0; pose < POSES; ++pose) {
-		memcpy(rotations, c->rotations, sizeof(float) * 4 * (size_t)b);
-		for (int32_t i = 0; i < b; ++i)
-			rotations[4 * i + 3] *= 1.0f - 0.05f * (float)pose;
-		posed[pose] = malloc(sizeof(float) * 16 * (size_t)b);
-		skinned[pose] = malloc(sizeof(float) * 3 * (size_t)n);
-		test_pose(posed[pose], rig, rotations);
-		for (int32_t i = 1; i < b && c->stretch != 1.0f; i += 2)
-			test_scale_bone(posed[pose] + 16 * i, c->stretch, c->stretch, c->stretch);
-		test_skin_matrices(skin, rig, posed[pose]);
-		lvp_skin_linear(skinned[pose], rig->positions, n, &weights, skin, b, NULL);
-	}
+	pose_animation(rig, c->rotations, c->stretch, posed, skinned);
 	lvp_frame_stats stats;
 	double bind1, bind_all;
 	double one = frame_time(c, 1, skinned, posed, &stats, &bind1);
@@ -187,36 +154,6 @@ static void run_case(bench_case *c, int32_t cores)
 		free(posed[pose]);
 		free(skinned[pose]);
 	}
-	free(skin);
-	free(rotations);
-}
-
-static float *chain_pose(int32_t bone_count, int bend_all, double degrees)
-{
-	float *rotations = calloc((size_t)bone_count * 4, sizeof(float));
-	for (int32_t i = 1; i < bone_count; ++i) {
-		if (!bend_all && i != bone_count / 2)
-			continue;
-		rotations[4 * i] = 1.0f;
-		rotations[4 * i + 3] = (float)(degrees * PI / 180.0);
-	}
-	return rotations;
-}
-
-static float *giraffe_pose(const test_rig *rig)
-{
-	float *rotations = calloc((size_t)rig->bone_count * 4, sizeof(float));
-	const char *bent[] = {"gi_neckC7", "gi_neckC4", "gi_neckC2", "gi_L_elbow", "gi_R_knee"};
-	for (int i = 0; i < 5; ++i) {
-		int32_t bone = test_find_bone(rig, bent[i]);
-		if (bone < 0)
-			continue;
-		const float *m = rig->rest_matrices + 16 * bone;
-		for (int c = 0; c < 3; ++c)
-			rotations[4 * bone + c] = m[4 * c]; /* world +X in the joint's frame */
-		rotations[4 * bone + 3] = (float)(45.0 * PI / 180.0);
-	}
-	return rotations;
 }
 
 int main(int argc, char **argv)

@@ -13,6 +13,7 @@
  */
 #include "lvp.h"
 #include "support/test_meshes.h"
+#include "bench_common.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -20,8 +21,6 @@
 #include <string.h>
 #include <time.h>
 
-#define PI 3.14159265358979323846
-#define POSES 3
 #define MAX_REPEATS 301
 
 typedef struct ksa_case {
@@ -31,19 +30,6 @@ typedef struct ksa_case {
 	int32_t keep_apart, smoothing, fold_over;
 	int repeats;
 } ksa_case;
-
-static double now(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static int compare_doubles(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return (x > y) - (x < y);
-}
 
 static uint64_t fnv1a(uint64_t hash, const void *data, size_t size)
 {
@@ -58,20 +44,10 @@ static uint64_t fnv1a(uint64_t hash, const void *data, size_t size)
 static double run(const ksa_case *c, int32_t threads, uint64_t *r_hash, lvp_frame_stats *r_stats)
 {
 	const test_rig *rig = c->rig;
-	int32_t n = rig->vertex_count, b = rig->bone_count;
+	int32_t n = rig->vertex_count;
 	float *posed[POSES], *skinned[POSES];
-	float *rotations = malloc(sizeof(float) * 4 * (size_t)b), *skin = malloc(sizeof(float) * 16 * (size_t)b);
+	pose_animation(rig, c->rotations, 1.0f, posed, skinned);
 	lvp_weights weights = test_rig_weights(rig);
-	for (int pose = 0; pose < POSES; ++pose) {
-		memcpy(rotations, c->rotations, sizeof(float) * 4 * (size_t)b);
-		for (int32_t i = 0; i < b; ++i)
-			rotations[4 * i + 3] *= 1.0f - 0.05f * (float)pose;
-		posed[pose] = malloc(sizeof(float) * 16 * (size_t)b);
-		skinned[pose] = malloc(sizeof(float) * 3 * (size_t)n);
-		test_pose(posed[pose], rig, rotations);
-		test_skin_matrices(skin, rig, posed[pose]);
-		lvp_skin_linear(skinned[pose], rig->positions, n, &weights, skin, b, NULL);
-	}
 	lvp_skeleton skeleton = test_rig_skeleton(rig);
 	lvp_bind_options bind_options = lvp_bind_default_options();
 	bind_options.thread_count = threads;
@@ -114,16 +90,13 @@ static double run(const ksa_case *c, int32_t threads, uint64_t *r_hash, lvp_fram
 	*r_hash = 1469598103934665603ull;
 	for (int pose = 0; pose < POSES; ++pose)
 		*r_hash = fnv1a(*r_hash, &hashes[pose], sizeof(hashes[pose]));
-	qsort(times, (size_t)repeats, sizeof(double), compare_doubles);
 	free(out);
 	lvp_free(binding);
 	for (int pose = 0; pose < POSES; ++pose) {
 		free(posed[pose]);
 		free(skinned[pose]);
 	}
-	free(rotations);
-	free(skin);
-	return 1e3 * times[repeats / 2];
+	return 1e3 * median(times, repeats);
 }
 
 static const char *only;
@@ -139,34 +112,6 @@ static void report(const ksa_case *c)
 	printf("| %s | %.2f | %.2f | %d | %d | %016llx%s |\n", c->name, one, two, (int)stats.shortened_vertices,
 	       (int)stats.crossing_triangles, (unsigned long long)hash1, hash1 == hash2 ? "" : " (2 threads differ!)");
 	fflush(stdout);
-}
-
-static float *chain_pose(int32_t bone_count, int bend_all, double degrees)
-{
-	float *rotations = calloc((size_t)bone_count * 4, sizeof(float));
-	for (int32_t i = 1; i < bone_count; ++i) {
-		if (!bend_all && i != bone_count / 2)
-			continue;
-		rotations[4 * i] = 1.0f;
-		rotations[4 * i + 3] = (float)(degrees * PI / 180.0);
-	}
-	return rotations;
-}
-
-static float *giraffe_pose(const test_rig *rig)
-{
-	float *rotations = calloc((size_t)rig->bone_count * 4, sizeof(float));
-	const char *bent[] = {"gi_neckC7", "gi_neckC4", "gi_neckC2", "gi_L_elbow", "gi_R_knee"};
-	for (int i = 0; i < 5; ++i) {
-		int32_t bone = test_find_bone(rig, bent[i]);
-		if (bone < 0)
-			continue;
-		const float *m = rig->rest_matrices + 16 * bone;
-		for (int c = 0; c < 3; ++c)
-			rotations[4 * bone + c] = m[4 * c];
-		rotations[4 * bone + 3] = (float)(45.0 * PI / 180.0);
-	}
-	return rotations;
 }
 
 /* The case with and without keep_apart, and with the add-on's smoothing, and fold-over. */

@@ -155,6 +155,30 @@ def enable_rigify():
     return hasattr(bpy.ops.pose, "rigify_generate")
 
 
+def _limbs(rig, side):
+    """{limb: (points, radii)} of one side of a body that fits Rigify's human: the leg from the hip to the ankle,
+    the foot from the ankle to the toe, the arm from the shoulder joint to the hand, the shoulder."""
+    bones = rig.data.bones
+
+    def head(name):
+        return tuple(bones[name].head_local)
+
+    def tail(name):
+        return tuple(bones[name].tail_local)
+
+    return {
+        "leg": ([head("DEF-thigh." + side), tail("DEF-thigh." + side), tail("DEF-thigh.%s.001" % side),
+                 tail("DEF-shin." + side), tail("DEF-shin.%s.001" % side)], [0.085, 0.075, 0.058, 0.052, 0.04]),
+        "foot": ([tail("DEF-shin.%s.001" % side), tail("DEF-foot." + side), tail("DEF-toe." + side)],
+                 [0.04, 0.035, 0.03]),
+        "arm": ([head("DEF-upper_arm." + side), tail("DEF-upper_arm." + side),
+                 tail("DEF-upper_arm.%s.001" % side), tail("DEF-forearm." + side),
+                 tail("DEF-forearm.%s.001" % side), tail("DEF-hand." + side)],
+                [0.052, 0.048, 0.042, 0.04, 0.03, 0.028]),
+        "shoulder": ([head("DEF-shoulder." + side), head("DEF-upper_arm." + side)], [0.055, 0.055]),
+    }
+
+
 def _body_spheres(rig):
     """Ellipsoids of a body that fits Rigify's human metarig (1.98 m, facing -Y), from the rig's DEF bones."""
     bones = rig.data.bones
@@ -167,16 +191,8 @@ def _body_spheres(rig):
 
     spheres = []
     for side in ("L", "R"):
-        leg = [head("DEF-thigh." + side), tail("DEF-thigh." + side), tail("DEF-thigh.%s.001" % side),
-               tail("DEF-shin." + side), tail("DEF-shin.%s.001" % side)]
-        spheres += _chain(leg, [0.085, 0.075, 0.058, 0.052, 0.04])
-        foot = [tail("DEF-shin.%s.001" % side), tail("DEF-foot." + side), tail("DEF-toe." + side)]
-        spheres += _chain(foot, [0.04, 0.035, 0.03])
-        arm = [head("DEF-upper_arm." + side), tail("DEF-upper_arm." + side), tail("DEF-upper_arm.%s.001" % side),
-               tail("DEF-forearm." + side), tail("DEF-forearm.%s.001" % side), tail("DEF-hand." + side)]
-        spheres += _chain(arm, [0.052, 0.048, 0.042, 0.04, 0.03, 0.028])
-        shoulder = [head("DEF-shoulder." + side), head("DEF-upper_arm." + side)]
-        spheres += _chain(shoulder, [0.055, 0.055])
+        for points, radii in _limbs(rig, side).values():
+            spheres += _chain(points, radii)
     # The trunk: flattened ellipsoids along the spine, from the pelvis to the head.
     trunk = [("DEF-spine", 0.0, (0.15, 0.11, 0.12)), ("DEF-spine", 1.0, (0.14, 0.10, 0.10)),
              ("DEF-spine.001", 1.0, (0.135, 0.095, 0.10)), ("DEF-spine.002", 0.5, (0.15, 0.10, 0.11)),
@@ -215,10 +231,68 @@ def metaball_surface(name, spheres, resolution, threshold=0.6):
     return obj
 
 
-def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None):
+def _skin_skeleton(rig):
+    """(points, radii, edges) of a body along Rigify's DEF bones for the Skin modifier: the spine from the pelvis
+    to the head, from its base the legs and feet, from the chest the arms (the radii of _limbs)."""
+    bones = rig.data.bones
+    points, radii, edges = [], [], []
+
+    def add(point, radius, previous):
+        points.append(tuple(point))
+        radii.append(radius)
+        if previous is not None:
+            edges.append((previous, len(points) - 1))
+        return len(points) - 1
+
+    spine = [(bones["DEF-spine"].head_local, (0.15, 0.11))] + [
+        (bones[name].tail_local, radius) for name, radius in (
+            ("DEF-spine", (0.14, 0.10)), ("DEF-spine.001", (0.135, 0.095)), ("DEF-spine.002", (0.15, 0.10)),
+            ("DEF-spine.003", (0.15, 0.095)), ("DEF-spine.004", (0.05, 0.05)), ("DEF-spine.005", (0.05, 0.05)),
+            ("DEF-spine.006", (0.085, 0.1)))]
+    previous, along_spine = None, []
+    for point, radius in spine:
+        previous = add(point, radius, previous)
+        along_spine.append(previous)
+    for side in ("L", "R"):
+        limbs = _limbs(rig, side)
+        leg, foot, arm = limbs["leg"], limbs["foot"], limbs["arm"]
+        for previous, (limb_points, limb_radii) in ((along_spine[0], (leg[0] + foot[0][1:], leg[1] + foot[1][1:])),
+                                                     (along_spine[3], arm)):
+            for point, radius in zip(limb_points, limb_radii):
+                previous = add(point, (radius, radius), previous)
+    return points, radii, edges
+
+
+def skin_modifier_surface(name, rig, subdivisions):
+    """A closed mesh object `name` grown along the rig's DEF bones by the Skin modifier (its quads, the branch
+    junctions at the pelvis and chest) and subdivided `subdivisions` times, converted to a mesh."""
+    points, radii, edges = _skin_skeleton(rig)
+    mesh = bpy.data.meshes.new(name + "Skeleton")
+    mesh.from_pydata(points, edges, [])
+    holder = bpy.data.objects.new(name + "Skeleton", mesh)
+    bpy.context.scene.collection.objects.link(holder)
+    holder.modifiers.new("Skin", 'SKIN')
+    for skin_vertex, radius in zip(mesh.skin_vertices[0].data, radii):
+        skin_vertex.radius = radius
+    mesh.skin_vertices[0].data[0].use_root = True
+    holder.modifiers.new("Subdivision", 'SUBSURF').levels = subdivisions
+    bpy.context.view_layer.update()
+    surface = bpy.data.meshes.new_from_object(holder.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    bpy.data.objects.remove(holder)
+    bpy.data.meshes.remove(mesh)
+    surface.name = name
+    surface.polygons.foreach_set("use_smooth", [True] * len(surface.polygons))
+    surface.update()
+    obj = bpy.data.objects.new(name, surface)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisions=None):
     """(body, rig): Rigify's human generated, a closed body around its DEF bones parented to it With Automatic
-    Weights: a voxel remesh, or with metaball_resolution, the same ellipsoids as metaballs. Raises RuntimeError
-    when this Blender has no Rigify or heat weighting leaves the body unweighted."""
+    Weights: a voxel remesh; with metaball_resolution, the same ellipsoids as metaballs; with skin_subdivisions,
+    the Skin modifier's body subdivided that many times. Raises RuntimeError when this Blender has no Rigify or
+    heat weighting leaves the body unweighted."""
     if not enable_rigify():
         raise RuntimeError("this Blender has no Rigify add-on")
     bpy.ops.object.armature_human_metarig_add()
@@ -226,10 +300,12 @@ def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None):
     bpy.ops.pose.rigify_generate()
     rig = next(obj for obj in bpy.data.objects if obj.type == 'ARMATURE' and obj != metarig)
     bpy.data.objects.remove(metarig)
-    if metaball_resolution is None:
-        body = closed_surface("Body", _body_spheres(rig), voxel_size)
-    else:
+    if metaball_resolution is not None:
         body = metaball_surface("Body", _body_spheres(rig), metaball_resolution)
+    elif skin_subdivisions is not None:
+        body = skin_modifier_surface("Body", rig, skin_subdivisions)
+    else:
+        body = closed_surface("Body", _body_spheres(rig), voxel_size)
     if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the body")
     limbs = [name for name in ("DEF-thigh.L", "DEF-shin.L", "DEF-forearm.L", "DEF-spine.002")

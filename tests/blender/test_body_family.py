@@ -1,0 +1,96 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A family of bodies the way many are first made in Blender (issue 46), none of them the suite's voxel body:
+Rigify's human generated, its body grown along the DEF bones from metaballs (real_cases.metaball_surface: the
+suite's body ellipsoids as metaballs) or by the Skin modifier and a subdivision (real_cases.skin_modifier_surface:
+quads, and the irregular branch junctions at the pelvis and the chest), heat weights, and the hard poses of
+real_cases.pose_rigify_human (hips raised, knees and elbows past 90 degrees) half and all the way. Marching cubes
+leave edges a few hundredths of the mean edge long and needle triangles around them, most at the hip where the
+thigh's ellipsoid meets the pelvis's. With the add-on's defaults (the viewport) and with Keep Skin Apart (renders
+and bakes), the measures of QUALITY.md (surface_quality.py):
+
+- the volume within 0.5 % of the rest; with Keep Skin Apart, no crossing pair that plain skinning does not have;
+- roughness at most a quarter of the largest offset;
+- at most one crease added per 300 edges.
+
+The coarse bodies (about 1,000 and 2,000 vertices) are held with Smoothing 10, what README tells users of such
+meshes: the normals turn by tens of degrees from one vertex to the next there, and with the default 6 passes their
+roughness reaches 0.25-0.26 of the largest offset (10 passes: 0.18-0.22). Measured on 3.4 with the defaults'
+passes on the finer ones: roughness 0.12-0.21, at most 9 creases. Before the smoothing averaged tied vertices as
+one point (smoothing_ties.c), the metaball body's very short edges lagged their rings: 0.26 at the back of the hip.
+"""
+
+import unittest
+
+import bpy
+
+import lvp_helpers as helpers
+import real_cases
+import surface_quality as quality
+
+EDGES_PER_CREASE = 300
+ROUGHNESS_OF_LARGEST = 0.25
+AMOUNTS = (0.5, 1.0)
+COARSE_SMOOTHING = 10
+# name: (real_cases.rigify_human's keyword arguments, Smoothing, or None for the add-on's default)
+BODY_FAMILY = {
+    "metaballs, 0.02": ({"metaball_resolution": 0.02}, None),
+    "metaballs, 0.015": ({"metaball_resolution": 0.015}, None),
+    "Skin modifier, subdivided twice": ({"skin_subdivisions": 2}, None),
+    "metaballs, 0.03 (coarse)": ({"metaball_resolution": 0.03}, COARSE_SMOOTHING),
+    "Skin modifier, subdivided once (coarse)": ({"skin_subdivisions": 1}, COARSE_SMOOTHING),
+}
+
+
+class TestBodyFamily(unittest.TestCase):
+
+    @classmethod
+    def setUpClass(cls):
+        cls.addon = helpers.enable_addon()
+        if not real_cases.enable_rigify():
+            raise unittest.SkipTest("this Blender has no Rigify add-on")
+
+    def measure(self, body):
+        """Plain skinning, the defaults and Keep Skin Apart at the rig's current pose."""
+        corrected = {}
+        for label, keep_apart in (("defaults", False), ("kept apart", True)):
+            body.lvp.keep_apart = keep_apart
+            bpy.context.view_layer.update()
+            status = self.addon.session.SESSION.status(body)
+            self.assertIn("Correcting", status[1] if status else "", "%s: %r" % (label, status))
+            corrected[label] = helpers.evaluated_positions(body)
+        return helpers.uncorrected_positions(body), corrected
+
+    def test_smooth_at_hard_poses(self):
+        for name, (built_by, smoothing) in BODY_FAMILY.items():
+            with self.subTest(body=name):
+                helpers.reset_scene()
+                body, rig = real_cases.rigify_human(**built_by)
+                self.assertEqual(real_cases.open_edge_count(body.data), 0)
+                mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
+                edges = len(mesh.interior_edges())
+                helpers.select_only(body)
+                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+                if smoothing is not None:
+                    body.lvp.smoothing = smoothing
+                for amount in AMOUNTS:
+                    real_cases.pose_rigify_human(rig, amount)
+                    plain, corrected = self.measure(body)
+                    measured = quality.measure_pose(mesh, plain, corrected)
+                    for label in corrected:
+                        got = measured[label]
+                        case = "%s, bent %.0f %%, %s" % (name, 100 * amount, label)
+                        print("\n    %-62s %5d vertices: volume %+.4f %% (plain %+.2f %%), crossing pairs %d "
+                              "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f"
+                              % (case, len(body.data.vertices), 100 * got["volume"],
+                                 100 * measured["plain"]["volume"], got["crossings"],
+                                 measured["plain"]["crossings"], got["new crossings"], got["creases"],
+                                 edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"]))
+                        self.assertLess(abs(got["volume"]), 0.005, case)
+                        if label == "kept apart":
+                            self.assertEqual(got["new crossings"], 0, case)
+                        self.assertLessEqual(got["roughness"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
+                        self.assertLessEqual(got["creases"], edges / EDGES_PER_CREASE, case)
+
+
+if __name__ == "__main__":
+    unittest.main()

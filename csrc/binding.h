@@ -182,13 +182,15 @@ typedef struct lvp__reach {
 typedef struct lvp__frame_map {
 	float *gamma;             /* per vertex: the bind map times map.area_weight and the deformation weighting */
 	int32_t *skin_class;      /* per bone: bones with equal skin matrices this frame share a class */
+	bool classes_alone;       /* every bone is alone in its class this frame */
 	float *skin_displacement; /* bone_count*12: skin - identity, rows of 3x4, float (lvp__spread) */
 	int32_t *vertex_class;    /* per vertex: the skin class all its bones share this frame, or -1 */
 	uint8_t *vertex_dynamic;  /* per vertex: not rigid, movable by the map (by the classes alone:
 	                             frame_map.c), or moved by fold-over */
 	uint8_t *chunk_changed;   /* per LVP__GRAIN vertices: the frame map changed their class or flag */
-	int32_t *fill;            /* scratch: the holes in the moving skin this frame (frame_map.c), */
-	float *fill_gamma;        /* and the maps they take */
+	int32_t *fill;            /* scratch: the holes in the moving skin this frame (frame_map.c) */
+	float *fill_gamma;        /* scratch: per vertex walked, the map it takes when still in moving
+	                             skin, else -1 (lvp__fill_holes) */
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
 	 * lvp__frame_map_stale clears it when something else changes one of them. */
 	bool current;
@@ -431,6 +433,8 @@ typedef struct lvp__smoothing {
 	int32_t *neighbours;
 	float *shares;            /* per neighbour: the weight its triangles around the vertex give it
 	                             (offset_smoothing.c: 1 + the cotangent opposite, per triangle) */
+	float *halves;            /* per neighbour: half its share of the vertex's shares, what a pass
+	                             multiplies its offset by (the other half is the vertex's own) */
 } lvp__smoothing;
 
 struct lvp_binding {

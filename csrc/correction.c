@@ -539,11 +539,19 @@ static void lvp__movable_regions(lvp_binding *binding)
 	binding->step.movable_entries = entries;
 }
 
-/* Measures step.positions (mesh pass and region changes). */
-static void lvp__measure_positions(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
+/* Measures step.positions: the mesh pass, enough for the whole mesh's and the parts' volumes; the
+ * regions' changes are left to lvp__measure_changes, for steps that read them. */
+static void lvp__measure_sums(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
 {
 	lvp__find_dynamic_set(binding, rest_positions, totals, false);
 	lvp__mesh_pass(binding, binding->step.positions);
+	binding->step.change_stale = true;
+}
+
+/* Measures step.positions (mesh pass and region changes). */
+static void lvp__measure_positions(lvp_binding *binding, const float *rest_positions, const lvp__region_sums *totals)
+{
+	lvp__measure_sums(binding, rest_positions, totals);
 	lvp__region_changes(binding, binding->step.positions, totals, binding->step.change);
 	binding->step.change_stale = false;
 }
@@ -779,13 +787,13 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 	for (int32_t p = 0; p < binding->parts.count; ++p)
 		response[p] = 1.0;
 	bool one_part = binding->parts.count == 1, regions_measured = !binding->step.change_stale;
-	if (one_part && touched > 0 && !along_offsets)
-		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__touched_phi_loop, binding,
-		                  binding->dynamic.vertex_count, LVP__GRAIN);
 	while (steps < budget && touched > 0) {
 		lvp__part_changes(binding);
 		if (!lvp__parts_off(binding, options->tolerance))
 			break;
+		if (steps == 0 && one_part && !along_offsets) /* what the steps through the map apply */
+			lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__touched_phi_loop, binding,
+			                  binding->dynamic.vertex_count, LVP__GRAIN);
 		memcpy(change_before, binding->parts.change, sizeof(double) * (size_t)binding->parts.count);
 		double before = lvp__parts_error(binding);
 		lvp__vertex_normals(binding);
@@ -948,8 +956,10 @@ static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_optio
                                      const float *rest_positions, const lvp__region_sums *totals)
 {
 	int32_t ignored;
-	if (!lvp__restores_whole_mesh(binding, options))
+	if (!lvp__restores_whole_mesh(binding, options)) {
+		lvp__measure_changes(binding, totals);
 		return lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+	}
 	int32_t steps = lvp__global_steps(binding, options, options->max_iterations, rest_positions, totals, true);
 	steps += lvp__global_steps(binding, options, options->max_iterations - steps, rest_positions, totals, false);
 	lvp__measure_changes(binding, totals);
@@ -1042,8 +1052,9 @@ static double lvp__write_output(const lvp_binding *binding, float *r_positions, 
 		int32_t p = binding->dynamic.vertices[v];
 		const float *in = positions + 3 * p, *out = binding->step.positions + 3 * p;
 		float offset[3] = {out[0] - in[0], out[1] - in[1], out[2] - in[2]};
-		largest = fmax(largest, (double)offset[0] * offset[0] + (double)offset[1] * offset[1] +
-		                            (double)offset[2] * offset[2]);
+		double length2 = (double)offset[0] * offset[0] + (double)offset[1] * offset[1] + (double)offset[2] * offset[2];
+		if (length2 > largest) /* not fmax: a call per vertex where libm's is not inlined */
+			largest = length2;
 		/* The point's vertices, its first (whose input it is, exactly) first; a point is its vertex
 		 * when nothing is welded. Another copy keeps its own input, moved by the point's offset. */
 		int32_t first = weld->copies ? weld->copy_offsets[p] : 0, last = weld->copies ? weld->copy_offsets[p + 1] : 1;
@@ -1106,7 +1117,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		 * much from one vertex to the next: smoothed, then the volume the smoothing took restored
 		 * along the smoothed offsets (lvp__restore_smoothed). */
 		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
-		lvp__measure_positions(binding, rest_positions, totals);
+		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}
 	stats->folded_vertices = 0;

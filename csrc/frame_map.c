@@ -46,6 +46,10 @@ static void lvp__skin_classes(lvp_binding *binding)
 	/* A copy of a caller's bone for a separate part (binding.h) is in its bone's class. */
 	for (int32_t i = b; i < binding->bone_count; ++i)
 		binding->frame_map.skin_class[i] = binding->frame_map.skin_class[lvp__caller_bone(binding, i)];
+	bool alone = true;
+	for (int32_t i = 0; i < binding->bone_count && alone; ++i)
+		alone = binding->frame_map.skin_class[i] == i;
+	binding->frame_map.classes_alone = alone;
 }
 
 /* The skin class that all bones of vertex k (with weight) share, or -1. */
@@ -82,6 +86,8 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 	float kept[LVP__SPREAD_KEPT][3]; /* the first bones' displacements, for the second loop */
 	float blend[3] = {0.0f, 0.0f, 0.0f};
 	for (int32_t e = 0; e < count; ++e) {
+		if (!(weights[e] > 0.0f))
+			continue; /* a bone of no weight moves the point by nothing here */
 		float d[3];
 		lvp__displacement(d, binding, bones[e], p);
 		if (e < LVP__SPREAD_KEPT)
@@ -91,6 +97,8 @@ static float lvp__spread(const lvp_binding *binding, const float *p, const int32
 	}
 	float spread = 0.0f;
 	for (int32_t e = 0; e < count; ++e) {
+		if (!(weights[e] > 0.0f))
+			continue;
 		float d[3];
 		if (e < LVP__SPREAD_KEPT)
 			memcpy(d, kept[e], sizeof(d));
@@ -134,12 +142,13 @@ static int32_t lvp__vertex_classes(const lvp_binding *binding, int32_t k, int32_
 	return count;
 }
 
-/* a_k of vertex k: one displacement per class of the bones that reach it. */
+/* a_k of vertex k: one displacement per class of the bones that reach it (bone by bone when every
+ * bone is a class of its own, as on rigs past LVP__CLASS_BONES). */
 static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int32_t k)
 {
 	int32_t classes[LVP__SPREAD_KEPT];
 	float class_weight[LVP__SPREAD_KEPT];
-	int32_t class_count = lvp__vertex_classes(binding, k, classes, class_weight);
+	int32_t class_count = binding->frame_map.classes_alone ? -1 : lvp__vertex_classes(binding, k, classes, class_weight);
 	if (class_count >= 0)
 		return lvp__spread(binding, p, classes, class_weight, class_count);
 	int32_t first = binding->reach.offsets[k];
@@ -307,36 +316,54 @@ static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	const float *gamma = binding->frame_map.gamma;
 	if (!binding->frame_map.vertex_dynamic[k] || gamma[k] > 0.0f ||
-	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f) || !lvp__bones_alike(binding, k))
+	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
 		return false;
 	int32_t moving = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
 	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
 		moving += gamma[smoothing->neighbours[e]] > 0.0f;
-	return 2 * moving > count;
+	return 2 * moving > count && lvp__bones_alike(binding, k); /* the costlier test last */
 }
 
-/* The map of each vertex still in moving skin (lvp__still_in_moving_skin) among `vertices` (NULL:
- * all `count` vertices): the mean of its neighbours' maps, one that is still counting with none (all
- * read before any is written), so that it moves with the skin around it and its map tapers where
- * the moving skin ends. Only dynamic vertices can be such: when the dynamic set is current, it is
- * all that is walked. */
-static void lvp__fill_holes(lvp_binding *binding, const int32_t *vertices, int32_t vertex_count)
+/* The vertices lvp__fill_holes walks: the dynamic ones, or with vertices NULL, all. */
+typedef struct lvp__hole_walk {
+	lvp_binding *binding;
+	const int32_t *vertices;
+} lvp__hole_walk;
+
+/* fill_gamma of the vertices [begin, end) of the walk: the map a vertex still in moving skin takes,
+ * the mean of its neighbours' maps (one that is still counting with none), or -1 for any other.
+ * Reads the maps only, so the walk can be split over threads. */
+
+static void lvp__hole_map_loop(void *context, int32_t begin, int32_t end)
 {
+	lvp_binding *binding = ((lvp__hole_walk *)context)->binding;
+	const int32_t *vertices = ((lvp__hole_walk *)context)->vertices;
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	lvp__frame_map *frame_map = &binding->frame_map;
-	int32_t count = 0;
-	for (int32_t v = 0; v < vertex_count; ++v) {
+	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = vertices ? vertices[v] : v;
+		frame_map->fill_gamma[v] = -1.0f;
 		if (!lvp__still_in_moving_skin(binding, k))
 			continue;
 		double sum = 0.0;
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
 			sum += frame_map->gamma[smoothing->neighbours[e]];
-		frame_map->fill[count] = k;
-		frame_map->fill_gamma[count++] = (float)(sum / (double)(smoothing->offsets[k + 1] - smoothing->offsets[k]));
+		frame_map->fill_gamma[v] = (float)(sum / (double)(smoothing->offsets[k + 1] - smoothing->offsets[k]));
 	}
-	for (int32_t i = 0; i < count; ++i)
-		frame_map->gamma[frame_map->fill[i]] = frame_map->fill_gamma[i];
+}
+
+/* The map of each vertex still in moving skin (lvp__still_in_moving_skin) among `vertices` (NULL:
+ * all `count` vertices): the mean of its neighbours' maps, all read before any is written, so that
+ * it moves with the skin around it and its map tapers where the moving skin ends. Only dynamic
+ * vertices can be such: when the dynamic set is current, it is all that is walked. */
+static void lvp__fill_holes(lvp_binding *binding, const int32_t *vertices, int32_t vertex_count)
+{
+	lvp__frame_map *frame_map = &binding->frame_map;
+	lvp__hole_walk walk = {binding, vertices};
+	lvp__parallel_for(LVP__POOL_FOR(binding, vertex_count), lvp__hole_map_loop, &walk, vertex_count, LVP__GRAIN);
+	for (int32_t v = 0; v < vertex_count; ++v)
+		if (frame_map->fill_gamma[v] >= 0.0f)
+			frame_map->gamma[vertices ? vertices[v] : v] = frame_map->fill_gamma[v];
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which

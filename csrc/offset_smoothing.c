@@ -20,6 +20,7 @@
 #include "binding.h"
 
 #include <stdlib.h>
+#include <string.h>
 
 /* The weight a triangle gives neighbour j of vertex k (both its corners) at rest: 1 + the cotangent of
  * its third corner's angle, that part 0 where the angle is right or obtuse. A triangle of no area
@@ -34,6 +35,25 @@ static float lvp__share_in_triangle(const float *rest, const int32_t triangle[3]
 	double sine = lvp__length(lvp__cross(a, b)), cosine = lvp__dot(a, b);
 	double cotangent = sine > 0.0 ? cosine / sine : 0.0;
 	return (float)(1.0 + fmin(fmax(cotangent, 0.0), 1e6));
+}
+
+/* smoothing.halves from the final lists' shares: fixed at bind, so a pass only multiplies and adds. */
+static lvp_result lvp__normalize_shares(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	lvp__smoothing *smoothing = &binding->smoothing;
+	int32_t n = binding->vertex_count;
+	bool ok = true;
+	smoothing->halves = lvp__calloc((size_t)smoothing->offsets[n] + 1, sizeof(float), &ok);
+	if (!ok)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
+	for (int32_t k = 0; k < n; ++k) {
+		double total = 0.0;
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+			total += smoothing->shares[e];
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+			smoothing->halves[e] = total > 0.0 ? (float)(0.5 * smoothing->shares[e] / total) : 0.0f;
+	}
+	return lvp_success;
 }
 
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
@@ -69,7 +89,8 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 		}
 		smoothing->offsets[k + 1] = written;
 	}
-	return lvp__tie_smoothing(binding, r_diag);
+	lvp_result result = lvp__tie_smoothing(binding, r_diag);
+	return result ? result : lvp__normalize_shares(binding, r_diag);
 }
 
 void lvp__smoothing_free(lvp__smoothing *smoothing)
@@ -77,6 +98,7 @@ void lvp__smoothing_free(lvp__smoothing *smoothing)
 	free(smoothing->offsets);
 	free(smoothing->neighbours);
 	free(smoothing->shares);
+	free(smoothing->halves);
 }
 
 typedef struct lvp__smoothing_pass {
@@ -115,22 +137,26 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 		int32_t k = binding->dynamic.vertices[v];
 		const float *own = from + 3 * k;
 		float *out = pass->to + 3 * k;
-		/* A neighbour weighs what the triangles it shares with k give it (smoothing.shares): two
+		/* A neighbour weighs what the triangles it shares with k give it (smoothing.halves): two
 		 * inside the surface; one that cannot move counts with no offset (a vertex outside the
 		 * dynamic set has none, whatever its entry holds). */
-		double sum[3] = {0.0, 0.0, 0.0}, count = 0.0;
-		if (lvp__can_move(binding, k)) {
-			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
-				int32_t j = smoothing->neighbours[e];
-				double share = smoothing->shares[e];
-				count += share;
-				if (dynamic[j])
-					for (int a = 0; a < 3; ++a)
-						sum[a] += share * from[3 * j + a];
-			}
+		if (!lvp__can_move(binding, k) || smoothing->offsets[k + 1] == smoothing->offsets[k]) {
+			memcpy(out, own, 3 * sizeof(float));
+			continue;
 		}
-		for (int a = 0; a < 3; ++a)
-			out[a] = count > 0.0 ? (float)(0.5 * own[a] + 0.5 * sum[a] / count) : own[a];
+		float x = 0.5f * own[0], y = 0.5f * own[1], z = 0.5f * own[2];
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+			int32_t j = smoothing->neighbours[e];
+			if (!dynamic[j])
+				continue;
+			float half = smoothing->halves[e];
+			x += half * from[3 * j];
+			y += half * from[3 * j + 1];
+			z += half * from[3 * j + 2];
+		}
+		out[0] = x;
+		out[1] = y;
+		out[2] = z;
 	}
 }
 

@@ -7,7 +7,10 @@ checks look for the feature, not the version number, so a build between two know
 whichever path it has.
 """
 
+import operator
+import struct
 from array import array
+from itertools import chain
 
 import bpy
 from mathutils import Matrix
@@ -171,31 +174,35 @@ def bbone_mapping_modes(bones):
 
 
 # ---- matrices in bulk ------------------------------------------------------------------------
-# Blender 5.2's mathutils Matrix exposes its floats through the buffer protocol, row by row: bytes(matrix)
-# reads all 16 at C speed. 3.4's and 4.3's do not; their rows are read one by one. The check looks at
+# Blender keeps a 4x4 matrix column by column. Blender 5.2's mathutils Matrix exposes that memory through
+# the buffer protocol, so joining matrices copies their floats at C speed. 3.4's and 4.3's do not; there
+# each matrix is transposed (mathutils, in C) and its rows, the columns, read as tuples. The check looks at
 # what this Blender's Matrix does, layout included.
 
 
-def _matrix_bytes_are_rows():
+def _matrix_memory_is_columns():
     probe = Matrix(((1.0, 2.0, 3.0, 4.0), (5.0, 6.0, 7.0, 8.0), (9.0, 10.0, 11.0, 12.0), (13.0, 14.0, 15.0, 16.0)))
     try:
-        data = bytes(probe)
+        data = b"".join((probe,))
     except TypeError:
         return False
-    return len(data) == 64 and array('f', data).tolist() == [float(value) for value in range(1, 17)]
+    return len(data) == 64 and array('f', data).tolist() == [float(1 + row * 4 + column)
+                                                              for column in range(4) for row in range(4)]
 
 
-_MATRIX_BYTES = None
+_MATRIX_MEMORY = None
+_ROW = operator.itemgetter(slice(None))
 
 
-def matrices_row_major(matrices):
-    """array('f'): the 4x4 matrices' floats, each row by row, in order."""
-    global _MATRIX_BYTES
-    if _MATRIX_BYTES is None:
-        _MATRIX_BYTES = _matrix_bytes_are_rows()
-    if _MATRIX_BYTES:
-        return array('f', b"".join(map(bytes, matrices)))
-    return array('f', [value for matrix in matrices for row in matrix for value in row.to_tuple()])
+def matrices_column_major(matrices):
+    """A float32 buffer of the 4x4 matrices' floats, each column by column as Blender stores them, in order."""
+    global _MATRIX_MEMORY
+    if _MATRIX_MEMORY is None:
+        _MATRIX_MEMORY = _matrix_memory_is_columns()
+    if _MATRIX_MEMORY:
+        return memoryview(b"".join(matrices)).cast('f')
+    values = list(chain.from_iterable(map(_ROW, chain.from_iterable(map(Matrix.transposed, matrices)))))
+    return memoryview(struct.pack("%df" % len(values), *values)).cast('f')
 
 
 def bone_selected(armature_object, name):

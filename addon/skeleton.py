@@ -43,8 +43,9 @@ part in the organic map's distances (every region's distance term is restricted 
 import math
 from array import array
 
-from mathutils import Matrix, Vector
+from mathutils import Vector
 
+from . import _lvp
 from . import blender_api
 from . import mesh_data
 
@@ -118,7 +119,6 @@ def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
 
 
 _IDENTITY = array('f', (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0))
-_IDENTITY_MATRIX = Matrix.Identity(4)
 
 
 def _segments(bone):
@@ -196,6 +196,13 @@ class CoreSkeleton:
                 self.bones.append((name, joint))
                 self._rest_armature.append(bone.matrix_local @ _segment_matrix(pose_bones[name], joint, True))
         self._rest_armature_inverse = [matrix.inverted_safe() for matrix in self._rest_armature]
+        # Per bound bone, the joints read each frame (None for a whole bone), and their counts for
+        # _lvp.compose_frames (0 for a whole bone).
+        self._joints = [(name, None if self.segments[name] == 1 else range(self.segments[name] + 1))
+                        for name in bone_names]
+        self._joint_counts = mesh_data.int_array(len(bone_names))
+        for index, (_name, joints) in enumerate(self._joints):
+            self._joint_counts[index] = 0 if joints is None else len(joints)
         # Rest frames in mesh space at bind (see the top of this file).
         self.rest_frames = [premat @ matrix for matrix in self._rest_armature]
         self.still_bone = None
@@ -424,42 +431,48 @@ class CoreSkeleton:
         mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
         corrected (their matrices and pose are those of the frame being evaluated), after changed()
         found nothing. Returns None, or why the frames cannot be given.
+
+        Blender gives a B-Bone's joint matrices one call each (bbone_segment_matrix); everything else is
+        read as whole matrices and composed in C (_lvp.compose_frames), with Python's mathutils arithmetic,
+        so the frames are the same bits as premat @ pose_bone.matrix @ bbone_segment_matrix(joint) (@ the
+        correction of _posed_to_bind_frames).
         """
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
-        to_bind = self._posed_to_bind_frames(premat)
+        corrections = self._posed_to_bind_frames(premat)
         pose_bones = armature_object.pose.bones
-        frames = []
-        for name in self.bone_names:
-            pose_bone = pose_bones.get(name)
-            if pose_bone is None:
-                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
-            posed_bone = premat @ pose_bone.matrix
-            segments = self.segments[name]
-            if segments == 1:
-                frames.append(posed_bone)
-                continue
-            segment_matrix = pose_bone.bbone_segment_matrix
+        bone_matrices = []
+        joint_matrices = []
+        for name, joints in self._joints:
             try:
-                frames.extend([posed_bone @ segment_matrix(joint) for joint in range(segments + 1)])
-            except RuntimeError:
-                return "the B-Bone segments of %r are not evaluated" % name
-        if to_bind is not None:
-            frames = [frame @ correction for frame, correction in zip(frames, to_bind)]
+                pose_bone = pose_bones[name]
+            except KeyError:
+                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
+            bone_matrices.append(pose_bone.matrix)
+            if joints is not None:
+                try:
+                    joint_matrices.extend(map(pose_bone.bbone_segment_matrix, joints))
+                except RuntimeError:
+                    return "the B-Bone segments of %r are not evaluated" % name
+        real_count = len(self.bones)
         if self.still_bone is not None:
-            frames.append(_IDENTITY_MATRIX)
-        out[:] = blender_api.matrices_row_major(frames)
+            out[16 * self.still_bone:] = _IDENTITY
+            real_count = self.still_bone
+        with memoryview(out) as frames:
+            _lvp.compose_frames(frames[:16 * real_count], blender_api.matrices_column_major((premat,)),
+                                blender_api.matrices_column_major(bone_matrices), self._joint_counts,
+                                blender_api.matrices_column_major(joint_matrices), corrections)
         return None
 
     def _posed_to_bind_frames(self, premat):
         """Per real core bone, F^-1 @ premat^-1 @ rest_frame_at_bind, with F its rest frame in armature
         space: premat @ posed @ this is the posed frame S @ rest_frame_at_bind (the top of this file).
-        None while the object has not moved against its armature since the bind (the identity); cached
-        per premat."""
+        None while the object has not moved against its armature since the bind (the identity); else
+        float32, each matrix column by column (_lvp.compose_frames); cached per premat."""
         if self._to_bind_premat != premat:
             premat_inverse = premat.inverted_safe()
             self._rigid_space = mesh_data.float_array(16)
             mesh_data.flatten_matrix(premat_inverse, self._rigid_space, 0)
-            self._to_bind = None if premat == self._bound_premat else [
-                inverse @ premat_inverse @ rest for inverse, rest in zip(self._rest_armature_inverse, self.rest_frames)]
+            self._to_bind = None if premat == self._bound_premat else blender_api.matrices_column_major(
+                [inverse @ premat_inverse @ rest for inverse, rest in zip(self._rest_armature_inverse, self.rest_frames)])
             self._to_bind_premat = premat.copy()
         return self._to_bind

@@ -164,11 +164,17 @@ def bbone_mapping_mode(bone):
     return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
 
 
-def bbone_mapping_modes(bones):
-    """bytes: every bone's B-Bone mapping as a number, read in bulk (empty before 3.5, which has none)."""
-    if "bbone_mapping_mode" not in bpy.types.Bone.bl_rna.properties:
+_HAS_BBONE_MAPPING = None
+
+
+def bbone_mapping_modes(bones, count):
+    """bytes: the count bones' B-Bone mappings as numbers, read in bulk (empty before 3.5, which has none)."""
+    global _HAS_BBONE_MAPPING
+    if _HAS_BBONE_MAPPING is None:
+        _HAS_BBONE_MAPPING = "bbone_mapping_mode" in bpy.types.Bone.bl_rna.properties
+    if not _HAS_BBONE_MAPPING:
         return b""
-    modes = array('i', bytes(4 * len(bones)))
+    modes = array('i', bytes(4 * count))
     bones.foreach_get("bbone_mapping_mode", modes)
     return modes.tobytes()
 

@@ -7,7 +7,10 @@ checks look for the feature, not the version number, so a build between two know
 whichever path it has.
 """
 
+import operator
+import struct
 from array import array
+from itertools import chain
 
 import bpy
 from mathutils import Matrix
@@ -161,41 +164,51 @@ def bbone_mapping_mode(bone):
     return getattr(bone, "bbone_mapping_mode", 'STRAIGHT')
 
 
-def bbone_mapping_modes(bones):
-    """bytes: every bone's B-Bone mapping as a number, read in bulk (empty before 3.5, which has none)."""
-    if "bbone_mapping_mode" not in bpy.types.Bone.bl_rna.properties:
+_HAS_BBONE_MAPPING = None
+
+
+def bbone_mapping_modes(bones, count):
+    """bytes: the count bones' B-Bone mappings as numbers, read in bulk (empty before 3.5, which has none)."""
+    global _HAS_BBONE_MAPPING
+    if _HAS_BBONE_MAPPING is None:
+        _HAS_BBONE_MAPPING = "bbone_mapping_mode" in bpy.types.Bone.bl_rna.properties
+    if not _HAS_BBONE_MAPPING:
         return b""
-    modes = array('i', bytes(4 * len(bones)))
+    modes = array('i', bytes(4 * count))
     bones.foreach_get("bbone_mapping_mode", modes)
     return modes.tobytes()
 
 
 # ---- matrices in bulk ------------------------------------------------------------------------
-# Blender 5.2's mathutils Matrix exposes its floats through the buffer protocol, row by row: bytes(matrix)
-# reads all 16 at C speed. 3.4's and 4.3's do not; their rows are read one by one. The check looks at
+# Blender keeps a 4x4 matrix column by column. Blender 5.2's mathutils Matrix exposes that memory through
+# the buffer protocol, so joining matrices copies their floats at C speed. 3.4's and 4.3's do not; there
+# each matrix is transposed (mathutils, in C) and its rows, the columns, read as tuples. The check looks at
 # what this Blender's Matrix does, layout included.
 
 
-def _matrix_bytes_are_rows():
+def _matrix_memory_is_columns():
     probe = Matrix(((1.0, 2.0, 3.0, 4.0), (5.0, 6.0, 7.0, 8.0), (9.0, 10.0, 11.0, 12.0), (13.0, 14.0, 15.0, 16.0)))
     try:
-        data = bytes(probe)
+        data = b"".join((probe,))
     except TypeError:
         return False
-    return len(data) == 64 and array('f', data).tolist() == [float(value) for value in range(1, 17)]
+    return len(data) == 64 and array('f', data).tolist() == [float(1 + row * 4 + column)
+                                                              for column in range(4) for row in range(4)]
 
 
-_MATRIX_BYTES = None
+_MATRIX_MEMORY = None
+_ROW = operator.itemgetter(slice(None))
 
 
-def matrices_row_major(matrices):
-    """array('f'): the 4x4 matrices' floats, each row by row, in order."""
-    global _MATRIX_BYTES
-    if _MATRIX_BYTES is None:
-        _MATRIX_BYTES = _matrix_bytes_are_rows()
-    if _MATRIX_BYTES:
-        return array('f', b"".join(map(bytes, matrices)))
-    return array('f', [value for matrix in matrices for row in matrix for value in row.to_tuple()])
+def matrices_column_major(matrices):
+    """A float32 buffer of the 4x4 matrices' floats, each column by column as Blender stores them, in order."""
+    global _MATRIX_MEMORY
+    if _MATRIX_MEMORY is None:
+        _MATRIX_MEMORY = _matrix_memory_is_columns()
+    if _MATRIX_MEMORY:
+        return memoryview(b"".join(matrices)).cast('f')
+    values = list(chain.from_iterable(map(_ROW, chain.from_iterable(map(Matrix.transposed, matrices)))))
+    return memoryview(struct.pack("%df" % len(values), *values)).cast('f')
 
 
 def bone_selected(armature_object, name):

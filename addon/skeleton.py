@@ -43,8 +43,9 @@ part in the organic map's distances (every region's distance term is restricted 
 import math
 from array import array
 
-from mathutils import Matrix, Vector
+from mathutils import Vector
 
+from . import _lvp
 from . import blender_api
 from . import mesh_data
 
@@ -84,22 +85,33 @@ def deforming_bone_names(mesh_object, armature_object):
     return [name for name, deforms in zip(bones.keys(), deform) if deforms and name in group_names]
 
 
-def _rest_state(mesh_object, armature_object):
-    """What binding reads of the rest skeleton, read in bulk (a few calls, not a walk over the bones):
-    the bones' names, rest matrices, tails, B-Bone segments, mappings and deform flags, and the
-    object's vertex group names. Equal states bind alike."""
-    bones = armature_object.data.bones
-    count = len(bones)
-    matrices = mesh_data.float_array(16 * count)
-    tails = mesh_data.float_array(3 * count)
-    segments = mesh_data.int_array(count)
-    deform = array('b', bytes(count))
-    bones.foreach_get("matrix_local", matrices)
-    bones.foreach_get("tail_local", tails)
-    bones.foreach_get("bbone_segments", segments)
-    bones.foreach_get("use_deform", deform)
-    return (tuple(bones.keys()), matrices.tobytes(), tails.tobytes(), segments.tobytes(),
-            blender_api.bbone_mapping_modes(bones), deform.tobytes(), tuple(mesh_object.vertex_groups.keys()))
+class _RestState:
+    """What binding reads of the rest skeleton, read in bulk (a few calls, not a walk over the bones): the
+    bones' names, rest matrices, tails, B-Bone segments, mappings and deform flags, and the object's vertex
+    group names. Equal states bind alike.
+
+    Read every frame, since a script can change any of it without an update Blender reports (foreach_set);
+    each read walks all the armature's bones, so there are as few as binding needs, into buffers kept
+    between frames."""
+
+    def __init__(self):
+        self._buffers = None
+
+    def read(self, mesh_object, armature_object):
+        bones = armature_object.data.bones
+        names = tuple(bones.keys())  # also the count: len(bones) would walk the bones once more
+        count = len(names)
+        if self._buffers is None or len(self._buffers[3]) != count:
+            self._buffers = (mesh_data.float_array(16 * count), mesh_data.float_array(3 * count),
+                             mesh_data.int_array(count), array('b', bytes(count)))
+        matrices, tails, segments, deform = self._buffers
+        bones.foreach_get("matrix_local", matrices)
+        bones.foreach_get("tail_local", tails)
+        bones.foreach_get("bbone_segments", segments)
+        bones.foreach_get("use_deform", deform)
+        return (names, matrices.tobytes(), tails.tobytes(), segments.tobytes(),
+                blender_api.bbone_mapping_modes(bones, count), deform.tobytes(),
+                tuple(mesh_object.vertex_groups.keys()))
 
 
 def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
@@ -118,7 +130,6 @@ def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
 
 
 _IDENTITY = array('f', (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0))
-_IDENTITY_MATRIX = Matrix.Identity(4)
 
 
 def _segments(bone):
@@ -179,7 +190,8 @@ class CoreSkeleton:
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         self.segments = {name: _segments(data_bones[name]) for name in bone_names}
         self.mappings = {name: _mapping(data_bones[name]) for name in bone_names}
-        self._rest_state = _rest_state(mesh_object, armature_object)
+        self._rest_reader = _RestState()
+        self._rest_state = self._rest_reader.read(mesh_object, armature_object)
         self.bones = []
         self.first_core_bone = {}
         # Per core bone: the rest frame in armature space (R, or R @ joint rest) and its inverse.
@@ -196,6 +208,13 @@ class CoreSkeleton:
                 self.bones.append((name, joint))
                 self._rest_armature.append(bone.matrix_local @ _segment_matrix(pose_bones[name], joint, True))
         self._rest_armature_inverse = [matrix.inverted_safe() for matrix in self._rest_armature]
+        # Per bound bone, the joints read each frame (None for a whole bone), and their counts for
+        # _lvp.compose_frames (0 for a whole bone).
+        self._joints = [(name, None if self.segments[name] == 1 else range(self.segments[name] + 1))
+                        for name in bone_names]
+        self._joint_counts = mesh_data.int_array(len(bone_names))
+        for index, (_name, joints) in enumerate(self._joints):
+            self._joint_counts[index] = 0 if joints is None else len(joints)
         # Rest frames in mesh space at bind (see the top of this file).
         self.rest_frames = [premat @ matrix for matrix in self._rest_armature]
         self.still_bone = None
@@ -381,13 +400,13 @@ class CoreSkeleton:
     def changed(self, mesh_object, armature_object, mask):
         """Why mesh_object's Armature modifier, following armature_object with mask (armature_mask()),
         no longer deforms with this skeleton, or None. Cheap enough for every frame: the armature, the
-        mask group and the rest state (_rest_state) compared with the bind's, bone by bone only when
+        mask group and the rest state (_RestState) compared with the bind's, bone by bone only when
         that differs."""
         if armature_object.name_full != self.armature_name:
             return "the Armature modifier follows %s instead of %s" % (armature_object.name, self.armature_name)
         if mask != self.mask:
             return "the vertex group of the Armature modifier changed"
-        state = _rest_state(mesh_object, armature_object)
+        state = self._rest_reader.read(mesh_object, armature_object)
         if state != self._rest_state:
             reason = self._rest_changed(mesh_object, armature_object)
             if reason is not None:
@@ -424,42 +443,48 @@ class CoreSkeleton:
         mesh_object and armature_object should be the EVALUATED objects of the depsgraph being
         corrected (their matrices and pose are those of the frame being evaluated), after changed()
         found nothing. Returns None, or why the frames cannot be given.
+
+        Blender gives a B-Bone's joint matrices one call each (bbone_segment_matrix); everything else is
+        read as whole matrices and composed in C (_lvp.compose_frames), with Python's mathutils arithmetic,
+        so the frames are the same bits as premat @ pose_bone.matrix @ bbone_segment_matrix(joint) (@ the
+        correction of _posed_to_bind_frames).
         """
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
-        to_bind = self._posed_to_bind_frames(premat)
+        corrections = self._posed_to_bind_frames(premat)
         pose_bones = armature_object.pose.bones
-        frames = []
-        for name in self.bone_names:
-            pose_bone = pose_bones.get(name)
-            if pose_bone is None:
-                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
-            posed_bone = premat @ pose_bone.matrix
-            segments = self.segments[name]
-            if segments == 1:
-                frames.append(posed_bone)
-                continue
-            segment_matrix = pose_bone.bbone_segment_matrix
+        bone_matrices = []
+        joint_matrices = []
+        for name, joints in self._joints:
             try:
-                frames.extend([posed_bone @ segment_matrix(joint) for joint in range(segments + 1)])
-            except RuntimeError:
-                return "the B-Bone segments of %r are not evaluated" % name
-        if to_bind is not None:
-            frames = [frame @ correction for frame, correction in zip(frames, to_bind)]
+                pose_bone = pose_bones[name]
+            except KeyError:
+                return "the bound bone %r has no pose in %s" % (name, armature_object.name)
+            bone_matrices.append(pose_bone.matrix)
+            if joints is not None:
+                try:
+                    joint_matrices.extend(map(pose_bone.bbone_segment_matrix, joints))
+                except RuntimeError:
+                    return "the B-Bone segments of %r are not evaluated" % name
+        real_count = len(self.bones)
         if self.still_bone is not None:
-            frames.append(_IDENTITY_MATRIX)
-        out[:] = blender_api.matrices_row_major(frames)
+            out[16 * self.still_bone:] = _IDENTITY
+            real_count = self.still_bone
+        with memoryview(out) as frames:
+            _lvp.compose_frames(frames[:16 * real_count], blender_api.matrices_column_major((premat,)),
+                                blender_api.matrices_column_major(bone_matrices), self._joint_counts,
+                                blender_api.matrices_column_major(joint_matrices), corrections)
         return None
 
     def _posed_to_bind_frames(self, premat):
         """Per real core bone, F^-1 @ premat^-1 @ rest_frame_at_bind, with F its rest frame in armature
         space: premat @ posed @ this is the posed frame S @ rest_frame_at_bind (the top of this file).
-        None while the object has not moved against its armature since the bind (the identity); cached
-        per premat."""
+        None while the object has not moved against its armature since the bind (the identity); else
+        float32, each matrix column by column (_lvp.compose_frames); cached per premat."""
         if self._to_bind_premat != premat:
             premat_inverse = premat.inverted_safe()
             self._rigid_space = mesh_data.float_array(16)
             mesh_data.flatten_matrix(premat_inverse, self._rigid_space, 0)
-            self._to_bind = None if premat == self._bound_premat else [
-                inverse @ premat_inverse @ rest for inverse, rest in zip(self._rest_armature_inverse, self.rest_frames)]
+            self._to_bind = None if premat == self._bound_premat else blender_api.matrices_column_major(
+                [inverse @ premat_inverse @ rest for inverse, rest in zip(self._rest_armature_inverse, self.rest_frames)])
             self._to_bind_premat = premat.copy()
         return self._to_bind

@@ -714,6 +714,112 @@ static PyObject *lvp_py__skin_dual_quaternion(PyObject *module, PyObject *args, 
 	return lvp_py__skin_call(module, args, kwargs, "OOOOOO:skin_dual_quaternion", lvp_skin_dual_quaternion);
 }
 
+/* ---- posed frames from Blender's matrices ------------------------------------------------------------- */
+
+/* A 4x4 matrix stored column by column (as Blender keeps it) -> row by row (as the core reads it). */
+static void lvp_py__rows_of_columns(float r_rows[16], const float *columns)
+{
+	for (int row = 0; row < 4; ++row)
+		for (int column = 0; column < 4; ++column)
+			r_rows[4 * row + column] = columns[4 * column + row];
+}
+
+/* r = a @ b, all row by row, computed as Blender's mathutils computes Matrix @ Matrix: each product in
+ * float, summed in double from 0 in order, rounded once to float. The frames composed here are then bit for
+ * bit the ones the add-on composed in Python before (and a frame's -0.0 stays what mathutils makes of it). */
+static void lvp_py__multiply(float r[16], const float a[16], const float b[16])
+{
+	for (int row = 0; row < 4; ++row)
+		for (int column = 0; column < 4; ++column) {
+			double dot = 0.0;
+			for (int item = 0; item < 4; ++item)
+				dot += (double)(a[4 * row + item] * b[4 * item + column]);
+			r[4 * row + column] = (float)dot;
+		}
+}
+
+/* The frames: per bone, premat @ bone, or premat @ bone @ joint for each of its joints, then @ correction
+ * when corrections are given; inputs column by column, r_frames row by row. */
+static void lvp_py__compose(float *r_frames, const float *premat_columns, const float *bone_columns,
+                            const int32_t *joint_counts, int32_t bone_count, const float *joint_columns,
+                            const float *correction_columns)
+{
+	float premat[16], bone[16], joint[16], correction[16], posed_bone[16], frame[16];
+	lvp_py__rows_of_columns(premat, premat_columns);
+	for (int32_t b = 0; b < bone_count; ++b) {
+		lvp_py__rows_of_columns(bone, bone_columns + 16 * (size_t)b);
+		lvp_py__multiply(posed_bone, premat, bone);
+		int32_t frames = joint_counts[b] == 0 ? 1 : joint_counts[b];
+		for (int32_t j = 0; j < frames; ++j) {
+			if (joint_counts[b] == 0) {
+				memcpy(frame, posed_bone, sizeof(frame));
+			} else {
+				lvp_py__rows_of_columns(joint, joint_columns);
+				joint_columns += 16;
+				lvp_py__multiply(frame, posed_bone, joint);
+			}
+			if (correction_columns) {
+				lvp_py__rows_of_columns(correction, correction_columns);
+				correction_columns += 16;
+				lvp_py__multiply(r_frames, frame, correction);
+			} else {
+				memcpy(r_frames, frame, sizeof(frame));
+			}
+			r_frames += 16;
+		}
+	}
+}
+
+static PyObject *lvp_py__compose_frames(PyObject *module, PyObject *args, PyObject *kwargs)
+{
+	static char *keywords[] = {"out", "premat", "bone_matrices", "joint_counts", "joint_matrices", "corrections",
+	                           NULL};
+	PyObject *objects[6] = {NULL, NULL, NULL, NULL, NULL, NULL};
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOO|O:compose_frames", keywords, &objects[0], &objects[1],
+	                                 &objects[2], &objects[3], &objects[4], &objects[5]))
+		return NULL;
+	lvp_py__call call;
+	lvp_py__array out, premat, bones, counts, joints, corrections;
+	const lvp_py__array *inputs[] = {&premat, &bones, &counts, &joints, &corrections};
+	int32_t bone_count = 0;
+	if (lvp_py__begin(&call, module, NULL) != 0 ||
+	    lvp_py__take(&call, &premat, objects[1], "premat", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &bones, objects[2], "bone_matrices", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &counts, objects[3], "joint_counts", LVP_PY__INT32, false, false) != 0 ||
+	    lvp_py__take(&call, &joints, objects[4], "joint_matrices", LVP_PY__FLOAT32, false, false) != 0 ||
+	    lvp_py__take(&call, &corrections, objects[5], "corrections", LVP_PY__FLOAT32, false, true) != 0 ||
+	    lvp_py__take(&call, &out, objects[0], "out", LVP_PY__FLOAT32, true, false) != 0 ||
+	    lvp_py__expect_count(&call, &premat, 16, "one 4x4 matrix") != 0 ||
+	    (bones.count > 0 && lvp_py__expect_groups(&call, &bones, 16, LVP_MAX_BONES, "bone", &bone_count) != 0) ||
+	    lvp_py__expect_count(&call, &counts, bone_count, "one per bone of bone_matrices") != 0)
+		return lvp_py__abandon(&call);
+	/* Frames and joints are counted in 64 bits: the counts come from the caller. */
+	const int32_t *joint_counts = counts.data;
+	int64_t frame_total = 0, joint_total = 0;
+	for (int32_t b = 0; b < bone_count; ++b) {
+		if (joint_counts[b] < 0 || joint_counts[b] > LVP_MAX_BONES) {
+			lvp_py__argument_error(&call, LVP_PY__INVALID_SIZE, "joint_counts",
+			                       "joint_counts[%d] is %d; expected 0 (a whole bone) or its number of joints, at most "
+			                       "%d.",
+			                       (int)b, (int)joint_counts[b], LVP_MAX_BONES);
+			return lvp_py__abandon(&call);
+		}
+		frame_total += joint_counts[b] == 0 ? 1 : joint_counts[b];
+		joint_total += joint_counts[b];
+	}
+	if (lvp_py__expect_count(&call, &joints, (Py_ssize_t)(16 * joint_total), "16 per joint that joint_counts count") !=
+	        0 ||
+	    lvp_py__expect_count(&call, &out, (Py_ssize_t)(16 * frame_total),
+	                         "16 per frame: one per whole bone and one per joint") != 0 ||
+	    lvp_py__expect_count(&call, &corrections, (Py_ssize_t)(16 * frame_total), "16 per frame, as out") != 0 ||
+	    lvp_py__expect_apart_from_all(&call, &out, inputs, sizeof(inputs) / sizeof(inputs[0])) != 0)
+		return lvp_py__abandon(&call);
+	lvp_py__compose(out.data, premat.data, bones.data, joint_counts, bone_count, joints.data,
+	                corrections.given ? corrections.data : NULL);
+	lvp_py__release(&call);
+	Py_RETURN_NONE;
+}
+
 /* Takes the skeleton arrays: rest_matrices gives the bone count, heads and tails follow it. All three may
  * be None together when `optional` (a prop without bones), and then r_skeleton is left NULL-filled. */
 static int lvp_py__take_skeleton(lvp_py__call *call, lvp_skeleton *r_skeleton, PyObject *matrices_object,
@@ -1385,6 +1491,10 @@ static PyMethodDef lvp_py__functions[] = {
     {"skin_dual_quaternion", LVP_PY__KEYWORDS(lvp_py__skin_dual_quaternion), METH_VARARGS | METH_KEYWORDS,
      "skin_dual_quaternion(out, rest_positions, weight_offsets, weight_bones, weight_values, skin_matrices)\n"
      "Dual quaternion skinning (Blender's Preserve Volume)."},
+    {"compose_frames", LVP_PY__KEYWORDS(lvp_py__compose_frames), METH_VARARGS | METH_KEYWORDS,
+     "compose_frames(out, premat, bone_matrices, joint_counts, joint_matrices, corrections=None)\n"
+     "Posed frames from Blender's matrices (column by column): per bone premat @ bone, or premat @ bone @ joint "
+     "per joint, then @ correction; written row by row, bit for bit as mathutils composes them."},
     {"auto_weights", LVP_PY__KEYWORDS(lvp_py__auto_weights), METH_VARARGS | METH_KEYWORDS,
      "auto_weights(positions, triangles, rest_matrices, heads, tails, *, alpha=2.0, visibility='NORMAL', "
      "normal_cos_max=0.0, max_influences=4, min_weight=0.01, smoothing_iterations=0, smoothing_length=0.0) "

@@ -67,6 +67,11 @@ class TestArmatureMask(MaskTestCase):
     def test_masked_vertices_stay_still(self):
         self.check_masked_bend()
 
+    def test_posed_frames_are_blenders(self):
+        self.scene.frame_set(10)
+        self.assertIsNotNone(self.bound().skeleton.still_bone)
+        self.assertPosedFramesAreBlenders()
+
     def test_mask_changed_after_bind(self):
         self.scene.frame_set(10)
         self.obj.modifiers["Armature"].vertex_group = ""

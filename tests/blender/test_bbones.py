@@ -92,6 +92,13 @@ class TestBBones(BBoneTestCase):
     def test_core_skinning_is_blenders(self):
         self.assertCoreSkinningIsBlenders()
 
+    def test_posed_frames_are_blenders(self):
+        self.scene.frame_set(10)
+        self.assertFalse(self.assertPosedFramesAreBlenders())
+        self.obj.location.x += 0.25  # moved against its armature after the bind
+        self.scene.frame_set(9)
+        self.assertTrue(self.assertPosedFramesAreBlenders())
+
     def test_bent_bbones_keep_their_volume(self):
         self.scene.frame_set(10)
         corrected, plain = self.errors_at_current_frame()

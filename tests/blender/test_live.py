@@ -59,6 +59,35 @@ class CylinderTestCase(helpers.AddonTestCase):
         self.assertIsNotNone(bound)
         return bound
 
+    def assertPosedFramesAreBlenders(self):
+        """The posed frames handed to the core (read in bulk, composed in C) are, bit for bit, Blender's own
+        premat @ pose_bone.matrix (@ bbone_segment_matrix(joint) for a B-Bone's joint) composed with
+        mathutils, then @ the correction to the bind's frames once the object moved against its armature,
+        and the identity for the still bone."""
+        bound = self.bound()
+        skeleton = self.addon.skeleton
+        core_skeleton = bound.skeleton
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        rig = self.rig.evaluated_get(depsgraph)
+        premat = self.obj.evaluated_get(depsgraph).matrix_world.inverted_safe() @ rig.matrix_world
+        moved = premat != core_skeleton._bound_premat
+        frames = []
+        for index, (name, joint) in enumerate(core_skeleton.bones):
+            if joint == skeleton.STILL:
+                frames.append(Matrix.Identity(4))
+                continue
+            pose_bone = rig.pose.bones[name]
+            frame = premat @ pose_bone.matrix
+            if joint != skeleton.PLAIN:
+                frame = frame @ pose_bone.bbone_segment_matrix(joint)
+            if moved:
+                frame = frame @ (core_skeleton._rest_armature_inverse[index] @ premat.inverted_safe()
+                                 @ core_skeleton.rest_frames[index])
+            frames.append(frame)
+        expected = array('f', [value for frame in frames for row in frame for value in row])
+        self.assertEqual(bound.bone_matrices.tobytes(), expected.tobytes())
+        return moved
+
     def assertSkinningMatchesBlender(self, message="core skinning vs the Armature modifier"):
         """lvp_correct()'s contract (lvp.h): what the Armature modifier made at the current frame is
         plain skinning of the rest mesh by the binding's bones and weights (B-Bone joints, the still
@@ -81,6 +110,13 @@ class CylinderTestCase(helpers.AddonTestCase):
 
 
 class TestCylinder(CylinderTestCase):
+
+    def test_posed_frames_are_blenders(self):
+        self.scene.frame_set(10)
+        self.assertFalse(self.assertPosedFramesAreBlenders())
+        self.obj.location.x += 0.25  # moved against its armature after the bind
+        self.scene.frame_set(9)
+        self.assertTrue(self.assertPosedFramesAreBlenders())
 
     def test_modifier_directly_after_armature(self):
         types = [(modifier.type, modifier.name) for modifier in self.obj.modifiers]

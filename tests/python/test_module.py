@@ -10,6 +10,8 @@ Meshes are built here with the array module only: the module must work without n
 import array
 import ctypes
 import math
+import random
+import struct
 import subprocess
 import sys
 import threading
@@ -300,6 +302,86 @@ class TestGeometry(unittest.TestCase):
 
 
 # ---- Binding -------------------------------------------------------------------------------------------------------
+
+
+def float32(value):
+    return struct.unpack('f', struct.pack('f', value))[0]
+
+
+def mathutils_product(left, right):
+    """left @ right (row-major lists) as Blender's mathutils computes it: each product in float32, summed in
+    double from 0 in order, rounded once to float32."""
+    result = []
+    for row in range(4):
+        for column in range(4):
+            dot = 0.0
+            for item in range(4):
+                dot += float32(left[4 * row + item] * right[4 * item + column])
+            result.append(float32(dot))
+    return result
+
+
+def columns_of(rows):
+    """A row-major matrix stored column by column, as Blender keeps it."""
+    return [rows[4 * row + column] for column in range(4) for row in range(4)]
+
+
+def random_matrix(generator):
+    return [float32(generator.uniform(-2.0, 2.0)) for _ in range(12)] + [0.0, 0.0, 0.0, 1.0]
+
+
+class TestComposeFrames(unittest.TestCase):
+    """compose_frames: posed frames from Blender's matrices, bit for bit as mathutils composes them."""
+
+    def compose(self, premat, bones, joint_counts, joints, corrections=None):
+        frame_count = sum(count or 1 for count in joint_counts)
+        out = zeros('f', 16 * frame_count)
+        columns = (lambda matrices: array.array('f', [value for matrix in matrices for value in columns_of(matrix)]))
+        _lvp.compose_frames(out, columns([premat]), columns(bones), array.array('i', joint_counts), columns(joints),
+                            None if corrections is None else columns(corrections))
+        return out
+
+    def expected(self, premat, bones, joint_counts, joints, corrections=None):
+        frames, next_joint = [], 0
+        for bone, count in zip(bones, joint_counts):
+            posed_bone = mathutils_product(premat, bone)
+            if count == 0:
+                frames.append(posed_bone)
+            for _joint in range(count):
+                frames.append(mathutils_product(posed_bone, joints[next_joint]))
+                next_joint += 1
+        if corrections is not None:
+            frames = [mathutils_product(frame, correction) for frame, correction in zip(frames, corrections)]
+        return array.array('f', [value for frame in frames for value in frame])
+
+    def test_whole_bones_and_joints_bit_for_bit(self):
+        generator = random.Random(47)
+        premat = random_matrix(generator)
+        joint_counts = [0, 4, 0, 2]
+        bones = [random_matrix(generator) for _ in joint_counts]
+        joints = [random_matrix(generator) for _ in range(sum(joint_counts))]
+        corrections = [random_matrix(generator) for _ in range(8)]
+        for given in (None, corrections):
+            with self.subTest(corrections=given is not None):
+                out = self.compose(premat, bones, joint_counts, joints, given)
+                self.assertEqual(out.tobytes(), self.expected(premat, bones, joint_counts, joints, given).tobytes())
+
+    def test_reads_columns_and_writes_rows(self):
+        bone = [float(value) for value in range(1, 17)]
+        out = self.compose(identity_matrix(), [bone], [0], [])
+        self.assertEqual(list(out), bone)
+
+    def test_negative_zero_as_mathutils(self):
+        # 0.0 + -0.0 is 0.0: a -0.0 in a bone's matrix comes out as 0.0 through the identity, as in mathutils.
+        bone = identity_matrix()
+        bone[1] = -0.0
+        out = self.compose(identity_matrix(), [bone], [0], [])
+        self.assertEqual(math.copysign(1.0, out[1]), 1.0)
+
+    def test_no_bones(self):
+        out = zeros('f', 0)
+        _lvp.compose_frames(out, array.array('f', identity_matrix()), zeros('f', 0), zeros('i', 0), zeros('f', 0))
+        self.assertEqual(len(out), 0)
 
 
 class TestBinding(unittest.TestCase):
@@ -737,6 +819,18 @@ class TestErrors(unittest.TestCase):
             matrices = tube.skin_matrices(0.5)
             matrices[20] = math.nan
             self.assertValueErrorNames('skin_matrices', function, **dict(arguments, skin_matrices=matrices))
+
+    def test_compose_frames(self):
+        identity = array.array('f', identity_matrix())
+        arguments = {'out': zeros('f', 16 * 4), 'premat': identity, 'bone_matrices': identity * 2,
+                     'joint_counts': array.array('i', [0, 3]), 'joint_matrices': identity * 3,
+                     'corrections': identity * 4}
+        self.check_every_buffer(_lvp.compose_frames, arguments, outputs=('out',), optional=('corrections',))
+        self.assertValueErrorNames('joint_counts', _lvp.compose_frames,
+                                   **dict(arguments, joint_counts=array.array('i', [0, -3])))
+        self.assertValueErrorNames('joint_matrices', _lvp.compose_frames,
+                                   **dict(arguments, joint_counts=array.array('i', [1, 3])))
+        self.assertValueErrorNames('out', _lvp.compose_frames, **dict(arguments, out=arguments['corrections']))
 
     def test_errors_carry_their_code(self):
         """A bad argument says what went wrong for code too, not only for people: .code (the core's result

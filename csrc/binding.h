@@ -435,6 +435,8 @@ typedef struct lvp__smoothing {
 	                             (offset_smoothing.c: 1 + the cotangent opposite, per triangle) */
 	float *halves;            /* per neighbour: half its share of the vertex's shares, what a pass
 	                             multiplies its offset by (the other half is the vertex's own) */
+	int32_t *movable;         /* scratch, vertex_count: the dynamic vertices that can move, which the
+	                             passes walk (lvp__smooth_offsets) */
 } lvp__smoothing;
 
 struct lvp_binding {

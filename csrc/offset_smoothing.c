@@ -44,6 +44,7 @@ static lvp_result lvp__normalize_shares(lvp_binding *binding, lvp_diagnostic *r_
 	int32_t n = binding->vertex_count;
 	bool ok = true;
 	smoothing->halves = lvp__calloc((size_t)smoothing->offsets[n] + 1, sizeof(float), &ok);
+	smoothing->movable = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
 	if (!ok)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "out of memory while binding.");
 	for (int32_t k = 0; k < n; ++k) {
@@ -99,6 +100,7 @@ void lvp__smoothing_free(lvp__smoothing *smoothing)
 	free(smoothing->neighbours);
 	free(smoothing->shares);
 	free(smoothing->halves);
+	free(smoothing->movable);
 }
 
 typedef struct lvp__smoothing_pass {
@@ -122,10 +124,9 @@ static void lvp__take_offsets_range(void *context, int32_t begin, int32_t end)
 	}
 }
 
-/* One pass over the dynamic vertices in [begin, end), from the offsets `from` into `to`: each that
- * can move takes half its own and half the weighted mean of its neighbours'; one that cannot keeps
- * its own (none). Each reads `from` only and writes its own entry of `to`, so the result does not
- * depend on threads. */
+/* One pass over the vertices that can move in [begin, end) of smoothing.movable, from the offsets
+ * `from` into `to`: each takes half its own and half the weighted mean of its neighbours'. Each
+ * reads `from` only and writes its own entry of `to`, so the result does not depend on threads. */
 static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
@@ -134,13 +135,13 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 	const float *from = pass->from;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic.vertices[v];
+		int32_t k = smoothing->movable[v];
 		const float *own = from + 3 * k;
 		float *out = pass->to + 3 * k;
 		/* A neighbour weighs what the triangles it shares with k give it (smoothing.halves): two
-		 * inside the surface; one that cannot move counts with no offset (a vertex outside the
-		 * dynamic set has none, whatever its entry holds). */
-		if (!lvp__can_move(binding, k) || smoothing->offsets[k + 1] == smoothing->offsets[k]) {
+		 * inside the surface; one that cannot move counts with its offset, none when it is outside
+		 * the dynamic set, whatever its entry holds. */
+		if (smoothing->offsets[k + 1] == smoothing->offsets[k]) {
 			memcpy(out, own, 3 * sizeof(float));
 			continue;
 		}
@@ -183,13 +184,29 @@ void lvp__take_offsets(lvp_binding *binding, const float *positions)
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
 }
 
+/* Lists the dynamic vertices that can move in smoothing.movable, their number returned; every other
+ * dynamic vertex keeps its offset through the passes, so it is copied into `to` once. */
+static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float *to)
+{
+	int32_t count = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		if (lvp__can_move(binding, k))
+			binding->smoothing.movable[count++] = k;
+		else
+			memcpy(to + 3 * k, from + 3 * k, 3 * sizeof(float));
+	}
+	return count;
+}
+
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__smoothing_pass pass = {binding, positions, binding->step.smoothing_offsets, binding->step.smoothing_scratch};
 	lvp__take_offsets(binding, positions);
+	int32_t movable = lvp__list_movable(binding, pass.from, pass.to);
 	for (int32_t i = 0; i < passes; ++i) {
-		lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__smooth_range, &pass, count, LVP__GRAIN);
+		lvp__parallel_for(LVP__POOL_FOR(binding, movable), lvp__smooth_range, &pass, movable, LVP__GRAIN);
 		float *read = pass.to;
 		pass.to = (float *)pass.from;
 		pass.from = read;

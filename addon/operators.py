@@ -12,7 +12,7 @@ it reports an ERROR that says what is wrong and how to fix it.
 """
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from . import _lvp
 from . import bindings
@@ -314,10 +314,17 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     )
     alpha: FloatProperty(
         name="Falloff",
-        description="Weight = (bone length / distance) ^ falloff, before normalization and smoothing: high keeps "
-        "each bone to its own flesh (the paper's 2 spreads a bone over its neighbours' skin, which loses volume "
+        description="Weight = (1 / distance) ^ falloff (with Reach by Length, (bone length / distance) ^ falloff), "
+        "before normalization and smoothing: high keeps each bone to its own flesh (the paper's 2 spreads a bone over its neighbours' skin, which loses volume "
         "at every bend)",
         default=16.0, min=0.1, soft_max=32.0,
+    )
+    by_length: BoolProperty(
+        name="Reach by Length",
+        description="Longer bones reach farther, as in the paper (weight = (bone length / distance) ^ falloff): "
+        "where a long bone meets short ones it takes their skin (a thigh the buttock and the belly, an upper arm "
+        "the shoulder). Off: each vertex goes first to its nearest bone, as with Blender's heat weights",
+        default=False,
     )
     max_influences: IntProperty(
         name="Max Influences",
@@ -381,8 +388,9 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         try:
             weights = _lvp.auto_weights(
                 positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
-                alpha=self.alpha, visibility=self.visibility, max_influences=self.max_influences,
-                min_weight=self.min_weight, smoothing_length=self.blend_width * _diagonal(positions))
+                alpha=self.alpha, by_length=self.by_length, visibility=self.visibility,
+                max_influences=self.max_influences, min_weight=self.min_weight,
+                smoothing_length=self.blend_width * _diagonal(positions))
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

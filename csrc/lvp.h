@@ -464,7 +464,13 @@ typedef enum lvp_visibility {
 } lvp_visibility;
 
 typedef struct lvp_auto_weights_options {
-	float alpha;            /* omega_ki = (l_i / d_ki)^alpha; > 0, default 2 */
+	float alpha;            /* omega_ki = (l_i / d_ki)^alpha (by_length) or (1 / d_ki)^alpha; > 0,
+	                           default 2 */
+	int32_t by_length;      /* nonzero (default): the paper's l_i, a bone reaching as far as it is
+	                           long, so that where a long bone meets short ones (a thigh the pelvis,
+	                           an upper arm the shoulder) the border between them lies l_long / l_short
+	                           times farther from the long bone; 0: each vertex's strongest bone is its
+	                           nearest, borders halfway, as with heat weights */
 	lvp_visibility visibility;
 	float normal_cos_max;   /* NORMAL test: bone i is hidden from vertex k when the unit path
 	                           from k to its closest point on bone i has cos(path, outward
@@ -511,8 +517,8 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * given back to the vertices and smoothed over a cluster's width): about the same blend (on a body
  * of 101,336 vertices, a vertex's weights differ from the steps' by 0.03 in all in the median, 0.16
  * at the 99th percentile), at the cost of a few steps however many are asked.
- * With a high alpha (nearest bone first, e.g. 16) this gives weights close to Blender's heat
- * weights on a closed body (README). */
+ * With a high alpha (nearest bone first, e.g. 16) and by_length 0 this gives weights close to
+ * Blender's heat weights on a closed body (README). */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,

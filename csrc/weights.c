@@ -1,6 +1,7 @@
 /*
  * weights.c - automatic skinning weights of Rohmer, Hahmann, Cani 2008, section 5.1:
- * omega_ki = (l_i / d_ki)^alpha with d_ki the distance from vertex k to the SEGMENT of bone i, a bone
+ * omega_ki = (l_i / d_ki)^alpha with d_ki the distance from vertex k to the SEGMENT of bone i (or, without
+ * options.by_length, (1 / d_ki)^alpha: lvp.h), a bone
  * ignored when the straight path from the vertex to its closest point on the bone leaves the body (the
  * paper's normal-angle test, or an exact test of the path against the mesh through a BVH), the rigid
  * fallback for vertices that see no bone, then normalization, pruning and renormalization.
@@ -36,6 +37,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 {
 	lvp_auto_weights_options options;
 	options.alpha = 2.0f;
+	options.by_length = 1;
 	options.visibility = LVP_VISIBILITY_NORMAL;
 	options.normal_cos_max = 0.0f;
 	options.max_influences = 4;
@@ -116,7 +118,7 @@ static inline lvp__vec3 lvp__closest_on_bone(const lvp__bone_segment *bone, lvp_
 	return lvp__add(bone->head, lvp__scale(bone->axis, t));
 }
 
-/* A bone that may weigh on the current vertex. key = (l / d)^2 orders the bones exactly as their weights
+/* A bone that may weigh on the current vertex. key = (l / d)^2 (without by_length, (1 / d)^2) orders the bones exactly as their weights
  * do, whatever alpha; weight is (key / key of the strongest visible bone)^(alpha/2), set once that bone is
  * known, so it never overflows and the strongest visible bone weighs 1. */
 typedef struct lvp__candidate {
@@ -171,6 +173,7 @@ typedef struct lvp__weights_context {
 	const lvp__bvh *bvh; /* EXACT test only */
 	lvp_visibility visibility;
 	double alpha, normal_cos_max, min_weight;
+	bool by_length;         /* options.by_length */
 	int32_t max_influences; /* 0 = all */
 	lvp__candidate *heap;   /* bone_count scratch */
 	lvp__candidate *visible; /* bone_count scratch */
@@ -331,7 +334,7 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
 			if (along > ctx->normal_cos_max * sqrt(d2))
 				continue;
 		}
-		candidates[count].key = bone->length2 / (d2 > bone->floor2 ? d2 : bone->floor2);
+		candidates[count].key = (ctx->by_length ? bone->length2 : 1.0) / (d2 > bone->floor2 ? d2 : bone->floor2);
 		candidates[count].bone = i;
 		candidates[count].weight = 0.0;
 		++count;
@@ -507,6 +510,7 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .bvh = &bvh,
 	    .visibility = options->visibility,
 	    .alpha = options->alpha,
+	    .by_length = options->by_length != 0,
 	    .normal_cos_max = options->normal_cos_max,
 	    .min_weight = options->min_weight,
 	    .max_influences = options->max_influences,

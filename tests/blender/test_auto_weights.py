@@ -10,15 +10,21 @@ operator's defaults (falloff 16, blend width 0.025):
 
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
-- plain skinning at the hard pose loses at most 1.5 times the volume it loses with heat weights, and
-  crosses itself at most 1.5 times as much;
+- plain skinning at the hard pose loses at most 1.2 times the volume it loses with heat weights, and
+  crosses itself at most 1.1 times as much;
+- the skin of a thigh crosses itself (triangles whose corners mostly follow the thigh) no more often than
+  with heat weights: where the thigh's weights reach up into the buttock and the belly, raising the leg
+  folds that skin through itself;
 - the face's bones, inside the head, take no weight below the neck.
 
 Falloff 2 fails the first two; falloff 16 without smoothing keeps the volume but crosses itself too much
-(8 without smoothing: 458 crossing pairs against 240).
+(8 without smoothing: 458 crossing pairs against 240). With Reach by Length (the paper's l_i: a long bone
+reaches farther than the short ones beside it) the thighs took the pelvis's skin, and each thigh's skin
+crossed itself in 17 pairs of triangles where heat weights' crossed in none.
 """
 
 import math
+import re
 import unittest
 
 import bpy
@@ -39,6 +45,32 @@ def normalized_rows(obj, bone_names):
         total = sum(row.values())
         rows.append({name: weight / total for name, weight in row.items()} if total > 0.0 else {})
     return rows
+
+
+def dominant_bones(rows):
+    """Each vertex's strongest bone (None without weights)."""
+    return [max(row, key=row.get) if row else None for row in rows]
+
+
+def limb(name):
+    """A bone's name without the number Rigify gives the parts it splits a bone into (DEF-thigh.L.001)."""
+    return re.sub(r"\.\d{3}$", "", name)
+
+
+def crossings_within_one_bone(pairs, mesh, rows):
+    """{limb: the crossing pairs whose two triangles each have most corners following that limb's bones}."""
+    strongest = [None if name is None else limb(name) for name in dominant_bones(rows)]
+
+    def bone_of(triangle):
+        corners = [strongest[vertex] for vertex in mesh.welded_triangles[triangle]]
+        return max(set(corners), key=corners.count)
+
+    within = {}
+    for first, second in pairs:
+        bone = bone_of(first)
+        if bone is not None and bone == bone_of(second):
+            within[bone] = within.get(bone, 0) + 1
+    return within
 
 
 def edge_jumps(mesh, rows):
@@ -75,9 +107,10 @@ class TestRigifyHuman(unittest.TestCase):
         real_cases.pose_rigify_human(cls.rig, 1.0)
         posed = helpers.evaluated_positions(cls.body)
         real_cases.pose_rigify_human(cls.rig, 0.0)
+        pairs = quality.crossing_pairs(posed, cls.mesh)
         return {"rows": rows, "largest jump": jumps[-1], "jump p99": jumps[int(0.99 * (len(jumps) - 1))],
                 "volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
-                "crossings": quality.count_crossing_pairs(posed, cls.mesh)}
+                "crossings": len(pairs), "within one bone": crossings_within_one_bone(pairs, cls.mesh, rows)}
 
     def summary(self):
         return {name: {key: value for key, value in measured.items() if key != "rows"}
@@ -89,17 +122,31 @@ class TestRigifyHuman(unittest.TestCase):
 
     def test_weights_are_continuous(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
+        for name, measured in (("heat weights", heat), ("Auto Weights", auto)):
+            print("\n    %s: plain skinning at the hard pose %+.2f %% of the volume, %d crossing pairs; largest "
+                  "change across an edge %.2f (99th percentile %.2f)" % (name, 100.0 * measured["volume"],
+                                                                          measured["crossings"],
+                                                                          measured["largest jump"],
+                                                                          measured["jump p99"]))
         self.assertLessEqual(auto["largest jump"], heat["largest jump"], self.summary())
         self.assertLessEqual(auto["jump p99"], heat["jump p99"], self.summary())
 
     def test_plain_skinning_keeps_volume_as_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
         self.assertLess(heat["volume"], -0.01, "the pose is hard enough to lose volume")
-        self.assertGreater(auto["volume"], 1.5 * heat["volume"], self.summary())
+        self.assertGreater(auto["volume"], 1.2 * heat["volume"], self.summary())
 
     def test_crosses_itself_no_more_than_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
-        self.assertLessEqual(auto["crossings"], 1.5 * heat["crossings"], self.summary())
+        self.assertLessEqual(auto["crossings"], 1.1 * heat["crossings"], self.summary())
+
+    def test_a_thigh_crosses_itself_no_more_than_with_heat_weights(self):
+        heat, auto = self.measured["heat"], self.measured["auto"]
+        thighs = sorted({limb(name) for name in self.bone_names if "thigh" in name})
+        self.assertTrue(thighs, "Rigify's thigh bones")
+        for thigh in thighs:
+            self.assertLessEqual(auto["within one bone"].get(thigh, 0), heat["within one bone"].get(thigh, 0),
+                                 "%s: %s" % (thigh, self.summary()))
 
     def test_volume_preservation_on_these_weights(self):
         # At the hard pose, Volume Preservation on top of these weights, Keep Skin Apart on, meets the measures of

@@ -335,7 +335,7 @@ static int32_t reference_row(int32_t *r_bones, double *r_values, const builder *
 		if (d < closest_d)
 			closest_d = d, closest = i;
 		if (visible[v * b->bone_count + i])
-			weight[i] = pow(length / fmax(d, 1e-6 * length), o->alpha), sum += weight[i];
+			weight[i] = pow((o->by_length ? length : 1.0) / fmax(d, 1e-6 * length), o->alpha), sum += weight[i];
 	}
 	if (sum == 0.0) {
 		r_bones[0] = closest, r_values[0] = 1.0;
@@ -408,11 +408,12 @@ static void compare_with_brute_force(const builder *b, int *r_hidden)
 	for (int vis = 0; vis < 2; ++vis) {
 		lvp_auto_weights_options brute = options_with(vis ? LVP_VISIBILITY_EXACT : LVP_VISIBILITY_NORMAL);
 		brute_force_visibility(visible, b, normals, &brute);
-		for (int a = 0; a < 2; ++a)
+		for (int a = 0; a < 4; ++a) /* each alpha with and without the bones' lengths */
 			for (int mw = 0; mw < 4; ++mw)
 				for (int mi = 0; mi < 4; ++mi) {
 					lvp_auto_weights_options o = brute;
-					o.alpha = alphas[a], o.min_weight = min_weights[mw], o.max_influences = max_influences[mi];
+					o.alpha = alphas[a / 2], o.by_length = a % 2 == 0, o.min_weight = min_weights[mw];
+					o.max_influences = max_influences[mi];
 					result r = compute(b, &o);
 					check_rows(b, &r, &o);
 					int mismatches = 0;
@@ -426,8 +427,9 @@ static void compare_with_brute_force(const builder *b, int *r_hidden)
 							       fabs(values[j] - r.values[r.offsets[v] + j]) < 1e-6;
 						mismatches += !same;
 						if (!same && mismatches <= 3)
-							fprintf(stderr, "    vertex %d (visibility %d, alpha %g, min_weight %g, max %d)\n", (int)v,
-							        (int)o.visibility, (double)o.alpha, (double)o.min_weight, (int)o.max_influences);
+							fprintf(stderr, "    vertex %d (visibility %d, alpha %g, by length %d, min_weight %g, max %d)\n",
+							        (int)v, (int)o.visibility, (double)o.alpha, (int)o.by_length, (double)o.min_weight,
+							        (int)o.max_influences);
 						if (o.min_weight == 0.0f && o.max_influences == 0)
 							hidden_somewhere += count < b->bone_count;
 					}

@@ -286,6 +286,23 @@ class TestGeometry(unittest.TestCase):
         self.assertEqual(list(offsets), list(range(tube.vertex_count + 1)))
         self.assertTrue(all(value == 1.0 for value in values))
 
+    def test_auto_weights_by_length(self):
+        # Bone 1 shortened to a quarter: by its length it reaches a quarter as far, so the vertices of the
+        # joint's ring lean to bone 0; by distance alone they are shared evenly.
+        tube = Tube()
+        tails = array.array('f', tube.tails)
+        tails[3] = tube.heads[3] + 0.25 * (tube.tails[3] - tube.heads[3])
+        arguments = (tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tails)
+        joint_ring = [(tube.rings // 2) * tube.around + index for index in range(tube.around)]
+        for by_length, least_on_bone_0 in ((True, 0.99), (False, 0.49)):
+            offsets, bones, values = _lvp.auto_weights(*arguments, alpha=4.0, visibility='NONE', by_length=by_length,
+                                                       min_weight=0.0)
+            for vertex in joint_ring:
+                row = dict(zip(bones[offsets[vertex]:offsets[vertex + 1]], values[offsets[vertex]:offsets[vertex + 1]]))
+                self.assertGreater(row.get(0, 0.0), least_on_bone_0, f'by_length {by_length}, vertex {vertex}')
+                if not by_length:
+                    self.assertAlmostEqual(row.get(0, 0.0), 0.5, places=4)
+
     def test_auto_weights_smoothing(self):
         tube = Tube()
         arguments = (tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tube.tails)

@@ -93,11 +93,7 @@ class TestBBones(BBoneTestCase):
         self.assertCoreSkinningIsBlenders()
 
     def test_posed_frames_are_blenders(self):
-        self.scene.frame_set(10)
-        self.assertFalse(self.assertPosedFramesAreBlenders())
-        self.obj.location.x += 0.25  # moved against its armature after the bind
-        self.scene.frame_set(9)
-        self.assertTrue(self.assertPosedFramesAreBlenders())
+        self.assertPosedFramesAreBlendersBeforeAndAfterAMove()
 
     def test_bent_bbones_keep_their_volume(self):
         self.scene.frame_set(10)

@@ -88,6 +88,15 @@ class CylinderTestCase(helpers.AddonTestCase):
         self.assertEqual(bound.bone_matrices.tobytes(), expected.tobytes())
         return moved
 
+    def assertPosedFramesAreBlendersBeforeAndAfterAMove(self):
+        """assertPosedFramesAreBlenders at a frame of the animation, then again once the object moved
+        against its armature after the bind (the frames then carry the correction to the bind's)."""
+        self.scene.frame_set(10)
+        self.assertFalse(self.assertPosedFramesAreBlenders())
+        self.obj.location.x += 0.25
+        self.scene.frame_set(9)
+        self.assertTrue(self.assertPosedFramesAreBlenders())
+
     def assertSkinningMatchesBlender(self, message="core skinning vs the Armature modifier"):
         """lvp_correct()'s contract (lvp.h): what the Armature modifier made at the current frame is
         plain skinning of the rest mesh by the binding's bones and weights (B-Bone joints, the still
@@ -112,11 +121,7 @@ class CylinderTestCase(helpers.AddonTestCase):
 class TestCylinder(CylinderTestCase):
 
     def test_posed_frames_are_blenders(self):
-        self.scene.frame_set(10)
-        self.assertFalse(self.assertPosedFramesAreBlenders())
-        self.obj.location.x += 0.25  # moved against its armature after the bind
-        self.scene.frame_set(9)
-        self.assertTrue(self.assertPosedFramesAreBlenders())
+        self.assertPosedFramesAreBlendersBeforeAndAfterAMove()
 
     def test_modifier_directly_after_armature(self):
         types = [(modifier.type, modifier.name) for modifier in self.obj.modifiers]

@@ -37,8 +37,9 @@ static float lvp__share_in_triangle(const float *rest, const int32_t triangle[3]
 	return (float)(1.0 + fmin(fmax(cotangent, 0.0), 1e6));
 }
 
-/* smoothing.halves from the final lists' shares: fixed at bind, so a pass only multiplies and adds. */
-static lvp_result lvp__normalize_shares(lvp_binding *binding, lvp_diagnostic *r_diag)
+/* What the passes read besides the final lists: smoothing.halves from their shares, fixed at bind so that
+ * a pass only multiplies and adds, and room for the list of the vertices they walk (smoothing.movable). */
+static lvp_result lvp__prepare_passes(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	lvp__smoothing *smoothing = &binding->smoothing;
 	int32_t n = binding->vertex_count;
@@ -91,7 +92,7 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 		smoothing->offsets[k + 1] = written;
 	}
 	lvp_result result = lvp__tie_smoothing(binding, r_diag);
-	return result ? result : lvp__normalize_shares(binding, r_diag);
+	return result ? result : lvp__prepare_passes(binding, r_diag);
 }
 
 void lvp__smoothing_free(lvp__smoothing *smoothing)

@@ -90,11 +90,18 @@ def closed_surface(name, spheres, voxel_size, smoothing=6):
         smooth = source.modifiers.new("Smooth", 'SMOOTH')
         smooth.factor = 0.5
         smooth.iterations = smoothing
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    mesh = bpy.data.meshes.new_from_object(source.evaluated_get(depsgraph))
-    mesh.name = name
-    bpy.data.objects.remove(source)
+    obj = _as_mesh_object(source, name)
     bpy.data.meshes.remove(pieces)
+    return obj
+
+
+def _as_mesh_object(source, name):
+    """A new object `name` in the scene holding source's evaluated mesh (its modifiers, or a metaball's
+    polygonization, applied), shaded smooth. source is removed; its data is left to the caller."""
+    bpy.context.view_layer.update()
+    mesh = bpy.data.meshes.new_from_object(source.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    bpy.data.objects.remove(source)
+    mesh.name = name
     mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
     mesh.update()
     obj = bpy.data.objects.new(name, mesh)
@@ -219,15 +226,8 @@ def metaball_surface(name, spheres, resolution, threshold=0.6):
         element.size_x, element.size_y, element.size_z = (radius / element.radius for radius in radii)
     holder = bpy.data.objects.new(name + "Balls", balls)
     bpy.context.scene.collection.objects.link(holder)
-    bpy.context.view_layer.update()
-    mesh = bpy.data.meshes.new_from_object(holder.evaluated_get(bpy.context.evaluated_depsgraph_get()))
-    bpy.data.objects.remove(holder)
+    obj = _as_mesh_object(holder, name)
     bpy.data.metaballs.remove(balls)
-    mesh.name = name
-    mesh.polygons.foreach_set("use_smooth", [True] * len(mesh.polygons))
-    mesh.update()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
     return obj
 
 
@@ -276,15 +276,8 @@ def skin_modifier_surface(name, rig, subdivisions):
         skin_vertex.radius = radius
     mesh.skin_vertices[0].data[0].use_root = True
     holder.modifiers.new("Subdivision", 'SUBSURF').levels = subdivisions
-    bpy.context.view_layer.update()
-    surface = bpy.data.meshes.new_from_object(holder.evaluated_get(bpy.context.evaluated_depsgraph_get()))
-    bpy.data.objects.remove(holder)
+    obj = _as_mesh_object(holder, name)
     bpy.data.meshes.remove(mesh)
-    surface.name = name
-    surface.polygons.foreach_set("use_smooth", [True] * len(surface.polygons))
-    surface.update()
-    obj = bpy.data.objects.new(name, surface)
-    bpy.context.scene.collection.objects.link(obj)
     return obj
 
 

@@ -189,7 +189,7 @@ static bool lvp__relist(lvp__smoothing *smoothing, lvp__clusters *clusters)
 		for (int32_t k = 0; k < n; ++k)
 			offsets[k + 1] = offsets[k] + lvp__list_of(clusters, smoothing, k, neighbours + offsets[k], shares + offsets[k]);
 		lvp__smoothing_free(smoothing);
-		*smoothing = (lvp__smoothing){offsets, neighbours, shares, NULL, NULL};
+		*smoothing = (lvp__smoothing){.offsets = offsets, .neighbours = neighbours, .shares = shares};
 		return true;
 	}
 	free(offsets);

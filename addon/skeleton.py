@@ -85,33 +85,25 @@ def deforming_bone_names(mesh_object, armature_object):
     return [name for name, deforms in zip(bones.keys(), deform) if deforms and name in group_names]
 
 
-class _RestState:
+def _rest_state(mesh_object, armature_object):
     """What binding reads of the rest skeleton, read in bulk (a few calls, not a walk over the bones): the
     bones' names, rest matrices, tails, B-Bone segments, mappings and deform flags, and the object's vertex
-    group names. Equal states bind alike.
-
-    Read every frame, since a script can change any of it without an update Blender reports (foreach_set);
-    each read walks all the armature's bones, so there are as few as binding needs, into buffers kept
-    between frames."""
-
-    def __init__(self):
-        self._buffers = None
-
-    def read(self, mesh_object, armature_object):
-        bones = armature_object.data.bones
-        names = tuple(bones.keys())  # also the count: len(bones) would walk the bones once more
-        count = len(names)
-        if self._buffers is None or len(self._buffers[3]) != count:
-            self._buffers = (mesh_data.float_array(16 * count), mesh_data.float_array(3 * count),
-                             mesh_data.int_array(count), array('b', bytes(count)))
-        matrices, tails, segments, deform = self._buffers
-        bones.foreach_get("matrix_local", matrices)
-        bones.foreach_get("tail_local", tails)
-        bones.foreach_get("bbone_segments", segments)
-        bones.foreach_get("use_deform", deform)
-        return (names, matrices.tobytes(), tails.tobytes(), segments.tobytes(),
-                blender_api.bbone_mapping_modes(bones, count), deform.tobytes(),
-                tuple(mesh_object.vertex_groups.keys()))
+    group names. Equal states bind alike. Read every frame, since a script can change any of it without an
+    update Blender reports (foreach_set); each read walks all the armature's bones, so there are as few as
+    binding needs."""
+    bones = armature_object.data.bones
+    names = tuple(bones.keys())  # also the count: len(bones) would walk the bones once more
+    count = len(names)
+    matrices = mesh_data.float_array(16 * count)
+    tails = mesh_data.float_array(3 * count)
+    segments = mesh_data.int_array(count)
+    deform = array('b', bytes(count))
+    bones.foreach_get("matrix_local", matrices)
+    bones.foreach_get("tail_local", tails)
+    bones.foreach_get("bbone_segments", segments)
+    bones.foreach_get("use_deform", deform)
+    return (names, matrices.tobytes(), tails.tobytes(), segments.tobytes(),
+            blender_api.bbone_mapping_modes(bones, count), deform.tobytes(), tuple(mesh_object.vertex_groups.keys()))
 
 
 def rest_skeleton_arrays(mesh_object, armature_object, bone_names):
@@ -190,8 +182,7 @@ class CoreSkeleton:
         premat = armature_space_to_mesh_space(mesh_object, armature_object)
         self.segments = {name: _segments(data_bones[name]) for name in bone_names}
         self.mappings = {name: _mapping(data_bones[name]) for name in bone_names}
-        self._rest_reader = _RestState()
-        self._rest_state = self._rest_reader.read(mesh_object, armature_object)
+        self._rest_state = _rest_state(mesh_object, armature_object)
         self.bones = []
         self.first_core_bone = {}
         # Per core bone: the rest frame in armature space (R, or R @ joint rest) and its inverse.
@@ -400,13 +391,13 @@ class CoreSkeleton:
     def changed(self, mesh_object, armature_object, mask):
         """Why mesh_object's Armature modifier, following armature_object with mask (armature_mask()),
         no longer deforms with this skeleton, or None. Cheap enough for every frame: the armature, the
-        mask group and the rest state (_RestState) compared with the bind's, bone by bone only when
+        mask group and the rest state (_rest_state) compared with the bind's, bone by bone only when
         that differs."""
         if armature_object.name_full != self.armature_name:
             return "the Armature modifier follows %s instead of %s" % (armature_object.name, self.armature_name)
         if mask != self.mask:
             return "the vertex group of the Armature modifier changed"
-        state = self._rest_reader.read(mesh_object, armature_object)
+        state = _rest_state(mesh_object, armature_object)
         if state != self._rest_state:
             reason = self._rest_changed(mesh_object, armature_object)
             if reason is not None:

@@ -9,6 +9,8 @@ and the same at every run:
 - hand(): a palm, four fingers side by side and a thumb, phalanges of different lengths and thicknesses, one
   closed surface the same way, an armature of a palm bone and 3 bones per digit, heat weights, and an animation
   from open (frame 1) to a fist (frame 21: finger joints at 90, 100 and 70 degrees, fingertips at the palm);
+- mocap_character(): a motion capture clip of Debian's assimp-testmodels imported as a BVH file, a closed body
+  grown around its skeleton, heat weights: a character as game and previs pipelines have them;
 - gltf_round_trip(): a mesh through Blender's own glTF exporter and importer, which split it at its UV seams
   as files from other packages are split, then skinned to the same armature with the same weights.
 
@@ -652,3 +654,109 @@ def split_vertex_count(obj, relative_tolerance=1e-6):
     positions = [tuple(vertex.co) for vertex in obj.data.vertices]
     return len(positions) - len(set(surface_quality.weld_map(positions, relative_tolerance)))
 
+
+
+# ---- motion capture on a body grown around its skeleton ---------------------------------------------------
+
+BVH_MODELS = os.environ.get("LVP_ASSIMP_MODELS", "/usr/share/assimp/models")
+
+# Per bone, the flesh's radius at its head and at its tail, in shares of the skeleton's height. BVH files name a
+# bone after the joint at its head, and skeletons differ in which joints they have and what they call them:
+# the CMU database's conversion (a bone from the hip joint to the knee is LeftUpLeg, a clavicle LeftShoulder)
+# and the older one of Boxing_Toes.bvh (that thigh is LeftHip, the upper arm LeftShoulder). Bones left out
+# (the importer's stubs at the hips, the chest and the wrists, a tenth of a unit long) get no flesh of their own.
+_CMU_FLESH = {
+    "LHipJoint": (0.075, 0.055), "LeftUpLeg": (0.055, 0.036), "LeftLeg": (0.036, 0.024), "LeftFoot": (0.024, 0.02),
+    "LeftToeBase": (0.02, 0.014), "LowerBack": (0.075, 0.07), "Spine": (0.07, 0.075), "Neck": (0.075, 0.03),
+    "Neck1": (0.03, 0.038), "Head": (0.045, 0.035), "LeftShoulder": (0.055, 0.034), "LeftArm": (0.034, 0.026),
+    "LeftForeArm": (0.026, 0.018), "LeftFingerBase": (0.018, 0.014), "LFingers": (0.014, 0.01),
+    "LThumb": (0.011, 0.008),
+}
+_BOXING_FLESH = {
+    "Hips": (0.075, 0.075), "Ab": (0.072, 0.07), "Chest": (0.07, 0.072), "Neck": (0.04, 0.03),
+    "Head": (0.045, 0.035), "LeftCollar": (0.055, 0.034), "LeftShoulder": (0.034, 0.026),
+    "LeftElbow": (0.026, 0.018), "LeftWrist": (0.018, 0.012), "LeftHip": (0.055, 0.036), "LeftKnee": (0.036, 0.024),
+    "LeftAnkle": (0.024, 0.02), "LeftToes": (0.02, 0.014),
+}
+
+
+def _both_sides(flesh):
+    """flesh with each Left / L bone's radii given to its Right / R twin too."""
+    both = dict(flesh)
+    for name, radii in flesh.items():
+        for left, right in (("Left", "Right"), ("LHip", "RHip"), ("LFingers", "RFingers"), ("LThumb", "RThumb")):
+            if name.startswith(left):
+                both[right + name[len(left):]] = radii
+    return both
+
+
+# name: (file under BVH_MODELS, the flesh of its skeleton, what it does)
+MOCAP_CLIPS = {
+    "jumps": ("BVH/01_01.bvh", _both_sides(_CMU_FLESH), "CMU subject 1: forward jumps, turning round"),
+    "climbing": ("BVH/01_03.bvh", _both_sides(_CMU_FLESH), "CMU subject 1: climbing, hanging, stepping down"),
+    "boxing": ("BVH/Boxing_Toes.bvh", _both_sides(_BOXING_FLESH), "a boxer's punches and footwork"),
+}
+
+
+def _skeleton_spheres(rig, flesh):
+    """Spheres along each bone of `flesh` from its head's radius to its tail's (shares of the rest skeleton's
+    height), and where a bone starts away from its parent's ends (Boxing_Toes.bvh's hips sit 12 cm either side of
+    its root) from the nearer end to its head."""
+    bones = rig.data.bones
+    heights = [point.z for bone in bones for point in (bone.head_local, bone.tail_local)]
+    height = max(heights) - min(heights)
+    spheres = []
+    for bone in bones:
+        if bone.name not in flesh:
+            continue
+        head_radius, tail_radius = (height * share for share in flesh[bone.name])
+        spheres += _chain([bone.head_local, bone.tail_local], [head_radius, tail_radius])
+        parent = bone.parent
+        if parent is None or parent.name not in flesh:
+            continue
+        ends = ((parent.head_local, flesh[parent.name][0]), (parent.tail_local, flesh[parent.name][1]))
+        end, share = min(ends, key=lambda end_share: (end_share[0] - bone.head_local).length)
+        if (end - bone.head_local).length > 1e-3 * height:
+            spheres += _chain([end, bone.head_local], [height * share, head_radius])
+    return spheres, height
+
+
+def mocap_character(clip="jumps", voxel_share=0.015, decimated=None):
+    """(body, rig, first, last): the clip of MOCAP_CLIPS imported as a user does (File > Import > Motion Capture,
+    its defaults: an armature in the file's units with the whole clip as its action), a closed body grown around
+    the rest skeleton (spheres along its bones, a voxel remesh of voxel_share of its height, decimated to that
+    ratio of its faces when given), parented With Automatic Weights; the scene's frame range set to the clip's.
+    Raises unittest.SkipTest where the file is missing or this Blender cannot import BVH files, RuntimeError when
+    the body is not closed or heat weighting leaves it unweighted."""
+    import unittest
+    relative, flesh, _what = MOCAP_CLIPS[clip]
+    path = os.path.join(BVH_MODELS, relative)
+    if not os.path.isfile(path):
+        raise unittest.SkipTest("%s is missing: apt-get install assimp-testmodels" % path)
+    try:
+        bpy.ops.import_anim.bvh(filepath=path)
+    except RuntimeError as error:
+        if "invalid mode: 'rU'" in str(error):  # Blender 3.4's importer on Python 3.11, as Debian builds it
+            raise unittest.SkipTest("this Blender's BVH importer opens files in mode 'rU', which its Python "
+                                    "removed") from None
+        raise
+    rig = next(obj for obj in bpy.data.objects if obj.type == 'ARMATURE')
+    first, last = (int(round(frame)) for frame in rig.animation_data.action.frame_range)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = first, last
+    scene.frame_set(first)
+    rig.data.pose_position = 'REST'  # the body is grown around the rest skeleton and weighted there
+    spheres, height = _skeleton_spheres(rig, flesh)
+    body = closed_surface("Body", spheres, voxel_share * height)
+    if decimated is not None:
+        decimate(body, decimated)
+    if open_edge_count(body.data):
+        raise RuntimeError("the body around %s is not closed" % relative)
+    if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
+        raise RuntimeError("With Automatic Weights failed on the body around %s" % relative)
+    rig.data.pose_position = 'POSE'
+    bpy.context.view_layer.update()
+    limbs = [name for name in empty_vertex_groups(body) if rig.data.bones[name].length > 0.1 * height]
+    if limbs:
+        raise RuntimeError("heat weighting left %s empty" % limbs)
+    return body, rig, first, last

@@ -213,6 +213,28 @@ class Demo:
             camera = render.add_camera(tuple(target + view_from), tuple(target), (0.0, 0.0, 1.0), size)
             self.before_after(name, (plain, corrected), camera, lines)
 
+    def auto_weights(self):
+        """The hip's weights as weight paint shows them, on Rigify's human at rest from behind: the left
+        thigh's (both its B-Bone parts), Blender's heat weights beside the add-on's Auto Weights."""
+        self.new_scene(420, 420)
+        heat, auto, rig = scenes.auto_weights_pair()
+        thigh = ("DEF-thigh.L", "DEF-thigh.L.001")
+        material = render.attribute_material("lvp_demo_thigh_weight")
+        for obj in (heat, auto):
+            scenes.paint_weights(obj, thigh, "lvp_demo_thigh_weight")
+            render.set_material(obj, material)
+        hip = rig.matrix_world @ rig.data.bones["DEF-thigh.L"].head_local
+        target = hip + Vector((0.0, 0.0, -0.12))
+        # The body faces -Y: the buttock from behind and to its left, the groin from in front.
+        for name, side in (("auto_weights_back", 1.6), ("auto_weights_front", -1.6)):
+            camera = render.add_camera(tuple(target + Vector((0.9, side, 0.35))), tuple(target), (0.0, 0.0, 1.0), 0.8)
+            panels = []
+            for number, (obj, title) in enumerate(((heat, "With Automatic Weights (heat)"), (auto, "Auto Weights"))):
+                captions = self.captions(camera, [title, "the left thigh's weight: blue 0, red 1"])
+                panels.append(render.render_still(self.path("%s_%d.png" % (name, number)), [obj] + captions,
+                                                  [other for other in (heat, auto) if other is not obj]))
+            self.images.append(render.side_by_side(self.path(name + ".png"), panels))
+
     def volume_plot(self):
         helpers.reset_scene()
         changes = self.sweep_changes
@@ -265,7 +287,8 @@ def main():
     print("Local Volume Preservation demo: Blender %s, add-on from %s"
           % (bpy.app.version_string, os.path.dirname(addon.__file__)))
     demo = Demo(os.path.abspath(args.out), args.quick)
-    for step in (demo.sweep, demo.cylinder, demo.giraffe, demo.finger, demo.rigify, demo.volume_plot):
+    for step in (demo.sweep, demo.cylinder, demo.giraffe, demo.finger, demo.rigify, demo.auto_weights,
+                 demo.volume_plot):
         step_start = time.monotonic()
         step()
         print("[demo] %s: %.1f s" % (step.__name__, time.monotonic() - step_start))

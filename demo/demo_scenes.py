@@ -282,3 +282,43 @@ def rigify_trio():
     real_cases.pose_rigify_human(rig, 1.0)
     bpy.context.view_layer.update()
     return copies[0], copies[1], corrected, rig
+
+
+def auto_weights_pair():
+    """(heat, auto, rig): the Rigify human of tests/blender/real_cases.py at rest twice, weighted With Automatic
+    Weights (Blender's heat weights) and by the add-on's Auto Weights with its defaults. Raises RuntimeError
+    when this Blender has no Rigify or a weighting fails."""
+    heat, rig = real_cases.rigify_human()
+    heat.name = "BodyHeatWeights"
+    auto = heat.copy()
+    auto.data = heat.data.copy()
+    auto.name = "BodyAutoWeights"
+    bpy.context.scene.collection.objects.link(auto)
+    helpers.select_only(auto)
+    if bpy.ops.object.lvp_auto_weights() != {'FINISHED'}:
+        raise RuntimeError("Auto Weights failed on the Rigify human")
+    return heat, auto, rig
+
+
+def weight_colour(weight):
+    """Weight paint's colour for a weight in [0, 1]: blue at 0, through cyan, green and yellow, to red at 1."""
+    import colorsys
+    weight = min(max(weight, 0.0), 1.0)
+    return colorsys.hsv_to_rgb((1.0 - weight) * 2.0 / 3.0, 1.0, 1.0) + (1.0,)
+
+
+def paint_weights(obj, bone_names, attribute_name):
+    """A point colour attribute of obj showing, as weight paint does, the weight the Armature modifier gives
+    bone_names together: their groups' weights over the sum of every deforming bone's."""
+    deforming = {obj.vertex_groups[bone.name].index for bone in obj.parent.data.bones
+                 if bone.use_deform and bone.name in obj.vertex_groups}
+    shown = {obj.vertex_groups[name].index for name in bone_names}
+    colours = []
+    for vertex in obj.data.vertices:
+        total = sum(element.weight for element in vertex.groups if element.group in deforming)
+        part = sum(element.weight for element in vertex.groups if element.group in shown)
+        colours.extend(weight_colour(part / total if total > 0.0 else 0.0))
+    attribute = obj.data.attributes.get(attribute_name) or obj.data.attributes.new(attribute_name, 'FLOAT_COLOR',
+                                                                                     'POINT')
+    attribute.data.foreach_set("color", colours)
+    obj.data.update()

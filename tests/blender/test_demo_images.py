@@ -32,7 +32,8 @@ import demo_render  # noqa: E402
 import demo_scenes  # noqa: E402
 
 DEMO_IMAGES = ("cylinder_90.png", "cylinder_maps.png", "giraffe.png", "giraffe_maps.png", "finger_fold.png",
-               "rigify_leg.png", "rigify_elbow.png", "volume_error_plot.png")
+               "rigify_leg.png", "rigify_elbow.png", "auto_weights_back.png", "auto_weights_front.png",
+               "volume_error_plot.png")
 README_IMAGES = os.path.join(helpers.REPO, "docs", "images")
 WIDTH, HEIGHT = 200, 150
 

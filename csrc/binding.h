@@ -357,7 +357,7 @@ typedef struct lvp__contact {
 	int32_t *dynamic_nodes;    /* this attempt: the nodes with a triangle around a dynamic vertex, the
 	                              last first (what a refit between the skinning and the correction visits) */
 	int32_t dynamic_node_count;
-	uint8_t *node_marks;       /* per node: scratch of the lists above */
+	uint8_t *node_dynamic;     /* per node: listed in dynamic_nodes */
 	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
@@ -367,6 +367,13 @@ typedef struct lvp__contact {
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
 	                              skinning (clearance.c; INFINITY: none near) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
+	uint8_t *connected;        /* per node of the hierarchy: its triangles are one patch (flat_patches.c) */
+	float *cones;              /* per node: the cone of its triangles' normals at the last fit */
+	uint8_t *flat;             /* per node: connected, and its cone under 90 degrees: none of its
+	                              triangles can cross another of them */
+	int32_t *group_offsets;    /* clearance.c: vertices near each other, searched together (CSR over */
+	int32_t *group_vertices;   /* group_count groups; a vertex in no triangle of the hierarchy in none) */
+	int32_t group_count;
 } lvp__contact;
 
 /* Separate parts of the mesh (parts.c): the whole-mesh step of lvp.h (ALGORITHM, 3) restores each
@@ -841,7 +848,17 @@ void lvp__fade_map_where_shortened(lvp_binding *binding);
 int32_t lvp__shortened_count(const lvp_binding *binding);
 void lvp__contact_free(lvp__contact *contact);
 
+/* flat_patches.c */
+/* contact.connected, and room for the cones (after the hierarchy and contact.leaf_of are built). */
+lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* contact.cones and contact.flat of the nodes of contact.dynamic_nodes, from the hierarchy's corners as
+ * last fitted (a node with a child not listed is not flat: only listed nodes are searched for crossings,
+ * and the others' cones are not fitted). */
+void lvp__fit_flat_patches(lvp__contact *contact);
+
 /* clearance.c */
+/* contact.group_offsets and group_vertices (after the hierarchy and contact.leaf_of are built). */
+lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* contact.clearance of the dynamic vertices, ahead of their offsets (step.positions less
  * `positions`) in the skinning at `positions` (contact.bvh fitted to it: lvp__contact_fit_skinning). */
 void lvp__measure_clearance(lvp_binding *binding, const float *positions);

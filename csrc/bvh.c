@@ -607,8 +607,8 @@ static inline void lvp__visit_if_overlapping(const lvp__bvh_triangle *a, const l
 }
 
 /* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes overlap. */
-static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32_t first_a, int32_t first_b,
-                               lvp__bvh_visit_pair visit, void *context)
+static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, int32_t first_a,
+                               int32_t first_b, lvp__bvh_visit_pair visit, void *context)
 {
 	/* Pairs of nodes to visit, (a, a) standing for the pairs within a. A pop pushes at most three
 	 * pairs, each one level deeper on one side; a pair's two depths sum to less than 2 * 72. */
@@ -622,6 +622,8 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 		if (marked && !marked[a] && !marked[b])
 			continue;
 		if (a == b) {
+			if (skipped && skipped[a])
+				continue;
 			if (na->count > 0) {
 				for (int32_t i = na->index; i < na->index + na->count; ++i)
 					for (int32_t j = i + 1; j < na->index + na->count; ++j)
@@ -656,7 +658,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, int32
 
 typedef struct lvp__overlap_tasks {
 	const lvp__bvh *bvh;
-	const uint8_t *marked;
+	const uint8_t *marked, *skipped;
 	lvp__bvh_visit_pair visit;
 	void *context;
 	const int32_t *first, *second; /* the pairs of nodes of the phase running */
@@ -666,11 +668,12 @@ static void lvp__overlap_task(void *context, int32_t begin, int32_t end)
 {
 	const lvp__overlap_tasks *tasks = context;
 	for (int32_t i = begin; i < end; ++i)
-		lvp__overlaps_from(tasks->bvh, tasks->marked, tasks->first[i], tasks->second[i], tasks->visit, tasks->context);
+		lvp__overlaps_from(tasks->bvh, tasks->marked, tasks->skipped, tasks->first[i], tasks->second[i], tasks->visit,
+		                   tasks->context);
 }
 
-void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__pool *pool, lvp__bvh_visit_pair visit,
-                            void *context)
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, lvp__pool *pool,
+                            lvp__bvh_visit_pair visit, void *context)
 {
 	if (bvh->triangle_count == 0)
 		return;
@@ -688,6 +691,8 @@ void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__poo
 	while (top > 0) {
 		int32_t depth = stack[--top], node = stack[--top];
 		const lvp__bvh_node *n = &bvh->nodes[node];
+		if (skipped && skipped[node])
+			continue; /* neither its own pairs nor those between its children */
 		if (n->count > 0 || depth == LVP__BVH_TASK_DEPTH) {
 			subtrees[subtree_count++] = node;
 			continue;
@@ -697,7 +702,7 @@ void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__poo
 		stack[top++] = n->index + 1, stack[top++] = depth + 1;
 		stack[top++] = n->index, stack[top++] = depth + 1;
 	}
-	lvp__overlap_tasks tasks = {bvh, marked, visit, context, subtrees, subtrees};
+	lvp__overlap_tasks tasks = {bvh, marked, skipped, visit, context, subtrees, subtrees};
 	lvp__parallel_for(pool, lvp__overlap_task, &tasks, subtree_count, 1);
 	for (int depth = LVP__BVH_TASK_DEPTH - 1; depth >= 0; --depth) {
 		tasks.first = lefts[depth];

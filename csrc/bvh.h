@@ -81,12 +81,13 @@ void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi
                           void *context);
 
 /* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap, one of
- * them under a marked node when `marked` is not NULL, by a traversal of the tree against itself, on
- * the pool's threads (NULL: this one) in phases whose concurrent calls never share a triangle: a
- * visit may write what belongs to either of its two triangles, nothing else. */
+ * them under a marked node when `marked` is not NULL, and not both under one node marked in `skipped`
+ * (when not NULL: subtrees whose triangles the caller knows cannot meet each other), by a traversal of
+ * the tree against itself, on the pool's threads (NULL: this one) in phases whose concurrent calls never
+ * share a triangle: a visit may write what belongs to either of its two triangles, nothing else. */
 typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b);
-void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, lvp__pool *pool, lvp__bvh_visit_pair visit,
-                            void *context);
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, lvp__pool *pool,
+                            lvp__bvh_visit_pair visit, void *context);
 
 /* r_marked (node_count): per node, whether a triangle under it has a corner marked in vertex_marked;
  * passed to lvp__bvh_self_overlaps, pairs of nodes neither of which is marked are skipped. */

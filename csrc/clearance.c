@@ -19,6 +19,8 @@
  */
 #include "binding.h"
 
+#include <stdlib.h>
+
 /* Clearances are looked for up to this many times a vertex's offset: a vertex whose clearance is more
  * than four times its offset keeps all of it, and offsets may grow twice over while the volume is put
  * back elsewhere. */
@@ -86,14 +88,31 @@ static double lvp__segment_diameter(lvp__vec3 a, lvp__vec3 b, lvp__vec3 d)
 	return least;
 }
 
-/* The least |x|^2 / <x, d> over the triangle (corners relative to the vertex): the function is convex
- * where <x, d> > 0 and grows without bound toward <x, d> = 0, so its least is at a corner, on an edge,
- * or where a ball tangent to d at the vertex touches the triangle's plane inside it. */
-static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
+/* Whether no point of the segment ab (relative to the vertex) can give less than `bound`: |x|^2 is at
+ * least the segment's squared distance and <x, d> at most its ends' larger (by a margin past rounding). */
+static bool lvp__segment_beyond(lvp__vec3 a, lvp__vec3 b, lvp__vec3 d, double bound)
+{
+	double ahead = lvp__dot(a, d), ahead_b = lvp__dot(b, d);
+	ahead = ahead > ahead_b ? ahead : ahead_b;
+	if (!(ahead > 0.0))
+		return true;
+	lvp__vec3 e = lvp__sub(b, a);
+	double length2 = lvp__dot(e, e), s = length2 > 0.0 ? -lvp__dot(a, e) / length2 : 0.0;
+	s = s < 0.0 ? 0.0 : (s > 1.0 ? 1.0 : s);
+	lvp__vec3 nearest = lvp__add(a, lvp__scale(e, s));
+	return lvp__dot(nearest, nearest) >= bound * ahead * (1.0 + 1e-6);
+}
+
+/* The least |x|^2 / <x, d> over the triangle (corners relative to the vertex) when it is below `bound`
+ * (else some value at least `bound`): the function is convex where <x, d> > 0 and grows without bound
+ * toward <x, d> = 0, so its least is at a corner, on an edge, or where a ball tangent to d at the vertex
+ * touches the triangle's plane inside it. Edges that cannot go below the bound are not searched. */
+static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d, double bound)
 {
 	double least = INFINITY;
 	for (int i = 0; i < 3; ++i)
-		least = fmin(least, lvp__segment_diameter(x[i], x[(i + 1) % 3], d));
+		if (!lvp__segment_beyond(x[i], x[(i + 1) % 3], d, bound))
+			least = fmin(least, lvp__segment_diameter(x[i], x[(i + 1) % 3], d));
 	lvp__vec3 normal = lvp__cross(lvp__sub(x[1], x[0]), lvp__sub(x[2], x[0]));
 	double area2 = lvp__length(normal);
 	if (!(area2 > 0.0))
@@ -110,6 +129,8 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
 	/* The ball of diameter L centred at (L / 2) d touches the plane <n, x> = h where L = 2 h / (1 +
 	 * <n, d>), at (L / 2)(d + n); that point counts when it lies in the triangle. */
 	double diameter = 2.0 * h / tilt;
+	if (!(diameter < least && diameter < bound))
+		return least;
 	lvp__vec3 touch = lvp__scale(lvp__add(d, normal), 0.5 * diameter);
 	for (int i = 0; i < 3; ++i) {
 		lvp__vec3 edge = lvp__sub(x[(i + 1) % 3], x[i]);
@@ -117,6 +138,43 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d)
 			return least;
 	}
 	return fmin(least, diameter);
+}
+
+/* The squared distance from the origin (the vertex) to the triangle, through the closest point by the
+ * triangle's regions: a corner, an edge, or the inside (Ericson, Real-Time Collision Detection, 5.1.5). */
+static double lvp__distance2_to_triangle(const lvp__vec3 x[3])
+{
+	lvp__vec3 a = x[0], b = x[1], c = x[2];
+	lvp__vec3 ab = lvp__sub(b, a), ac = lvp__sub(c, a);
+	double d1 = -lvp__dot(ab, a), d2 = -lvp__dot(ac, a);
+	if (d1 <= 0.0 && d2 <= 0.0)
+		return lvp__dot(a, a);
+	double d3 = -lvp__dot(ab, b), d4 = -lvp__dot(ac, b);
+	if (d3 >= 0.0 && d4 <= d3)
+		return lvp__dot(b, b);
+	double vc = d1 * d4 - d3 * d2;
+	if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+		lvp__vec3 q = lvp__add(a, lvp__scale(ab, d1 / (d1 - d3)));
+		return lvp__dot(q, q);
+	}
+	double d5 = -lvp__dot(ab, c), d6 = -lvp__dot(ac, c);
+	if (d6 >= 0.0 && d5 <= d6)
+		return lvp__dot(c, c);
+	double vb = d5 * d2 - d1 * d6;
+	if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+		lvp__vec3 q = lvp__add(a, lvp__scale(ac, d2 / (d2 - d6)));
+		return lvp__dot(q, q);
+	}
+	double va = d3 * d6 - d5 * d4;
+	if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
+		lvp__vec3 q = lvp__add(b, lvp__scale(lvp__sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6))));
+		return lvp__dot(q, q);
+	}
+	double sum = va + vb + vc;
+	if (!(sum > 0.0))
+		return 0.0; /* no area: no bound */
+	lvp__vec3 q = lvp__add(a, lvp__add(lvp__scale(ab, vb / sum), lvp__scale(ac, vc / sum)));
+	return lvp__dot(q, q);
 }
 
 /* One vertex's search: where it is, which way its offset points, the least diameter so far
@@ -169,10 +227,25 @@ static inline bool lvp__outside_search(const lvp__clearance_search *search, cons
 	       triangle->hi[1] < search->lo[1] || triangle->lo[2] > search->hi[2] || triangle->hi[2] < search->lo[2];
 }
 
+/* Whether the triangle's box lies outside the ball of the least diameter found (by a margin past
+ * rounding): every point outside that ball gives more than the least. */
+static inline bool lvp__outside_ball(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
+{
+	double radius = 0.5 * search->least, distance2 = 0.0;
+	double centre[3] = {search->from.x + radius * search->direction.x, search->from.y + radius * search->direction.y,
+	                    search->from.z + radius * search->direction.z};
+	for (int axis = 0; axis < 3; ++axis) {
+		double below = (double)triangle->lo[axis] - centre[axis], above = centre[axis] - (double)triangle->hi[axis];
+		double gap = below > 0.0 ? below : (above > 0.0 ? above : 0.0);
+		distance2 += gap * gap;
+	}
+	return distance2 > radius * radius * (1.0 + 1e-6);
+}
+
 static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
 {
 	lvp__clearance_search *search = context;
-	if (lvp__outside_search(search, triangle))
+	if (lvp__outside_search(search, triangle) || lvp__outside_ball(search, triangle))
 		return false;
 	lvp__vec3 x[3];
 	double ahead = 0.0, gap2 = 0.0;
@@ -193,7 +266,13 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 	}
 	if (!(ahead > 0.0) || gap2 >= search->least * ahead)
 		return false;
-	double diameter = lvp__triangle_diameter(x, search->direction);
+	/* The same bound with the triangle's own distance, which the box's can fall far short of (a
+	 * triangle of the skin around the vertex, tilted against the axes): most of those that pass above
+	 * stop here, before the dearer search over the corners, edges and inside. Passed over only by a
+	 * margin well past rounding, so that what remains gives the least it would have given. */
+	if (lvp__distance2_to_triangle(x) >= search->least * ahead * (1.0 + 1e-6))
+		return false;
+	double diameter = lvp__triangle_diameter(x, search->direction, search->least);
 	if (diameter < search->least) {
 		search->least = diameter;
 		lvp__narrow_search(search);
@@ -201,40 +280,187 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 	return false;
 }
 
-/* contact.clearance of the dynamic vertices in [begin, end), up to LVP__CLEARANCE_REACH times their
- * offset (INFINITY: none so near, or no offset). The balls that reach no further lie in the box
- * around the one of that diameter. */
-static void lvp__clearance_range(void *context, int32_t begin, int32_t end)
+/* Vertices near each other are searched together: the triangles near any of them are found by one
+ * descent of the hierarchy, then each vertex looks through those. A group is the vertices whose first
+ * triangle lies under one subtree of at most this many triangles. */
+#define LVP__GROUP_TRIANGLES 32
+/* Triangles a group's descent may gather (on the stack of the thread searching it); past that, its
+ * vertices descend one by one. */
+#define LVP__GROUP_CANDIDATES 1024
+/* Vertices of a group searched together at most (the corners of its triangles). */
+#define LVP__GROUP_SEARCHES (3 * LVP__GROUP_TRIANGLES)
+/* Groups a task takes at a time. */
+#define LVP__GROUP_GRAIN 16
+
+/* The search of dynamic vertex k, up to LVP__CLEARANCE_REACH times its offset, and false when it has no
+ * offset (its clearance is INFINITY). The balls that reach no further lie in the box around the one of
+ * that diameter. */
+static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__clearance_search *search)
+{
+	lvp__vec3 offset = lvp__offset_of(pass->binding, pass->positions, k);
+	double length = lvp__length(offset);
+	if (!(length > 0.0))
+		return false;
+	double reach = LVP__CLEARANCE_REACH * length;
+	search->from = lvp__load(pass->positions + 3 * k);
+	search->direction = lvp__scale(offset, 1.0 / length);
+	search->vertex = k;
+	search->least = reach;
+	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * reach));
+	float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
+	float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
+	memcpy(search->lo, lo, sizeof(lo));
+	memcpy(search->hi, hi, sizeof(hi));
+	return true;
+}
+
+/* The triangles a group's descent gathers. */
+typedef struct lvp__candidates {
+	const lvp__bvh_triangle *triangles[LVP__GROUP_CANDIDATES];
+	int32_t count;
+	bool overflow;
+} lvp__candidates;
+
+static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triangle)
+{
+	lvp__candidates *candidates = context;
+	if (candidates->count == LVP__GROUP_CANDIDATES) {
+		candidates->overflow = true;
+		return true;
+	}
+	candidates->triangles[candidates->count++] = triangle;
+	return false;
+}
+
+/* A search through the hierarchy on its own, and contact.clearance of its vertex. */
+static void lvp__search_alone(lvp__contact *contact, lvp__clearance_search *search)
+{
+	double reach = search->least;
+	lvp__bvh_overlapping(&contact->bvh, search->lo, search->hi, lvp__visit_clearance, search);
+	if (search->least < reach)
+		contact->clearance[search->vertex] = (float)search->least;
+}
+
+/* contact.clearance of the dynamic vertices of groups [begin, end) (INFINITY: no skin so near, or no
+ * offset). A vertex's search narrows as it finds skin (lvp__visit_clearance), and its answer is the
+ * least over every triangle its box meets, whichever way the triangles come to it: the group's
+ * gathering holds each of them. */
+static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 {
 	const lvp__clearance_pass *pass = context;
 	lvp_binding *binding = pass->binding;
 	lvp__contact *contact = &binding->contact;
-	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic.vertices[v];
-		lvp__vec3 offset = lvp__offset_of(binding, pass->positions, k);
-		double length = lvp__length(offset);
-		contact->clearance[k] = INFINITY;
-		if (!(length > 0.0))
+	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
+	lvp__candidates gathered, *candidates = &gathered;
+	lvp__clearance_search searches[LVP__GROUP_SEARCHES];
+	for (int32_t g = begin; g < end; ++g) {
+		int32_t count = 0;
+		float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+		for (int32_t i = contact->group_offsets[g]; i < contact->group_offsets[g + 1]; ++i) {
+			int32_t k = contact->group_vertices[i];
+			if (!dynamic[k])
+				continue;
+			contact->clearance[k] = INFINITY;
+			if (!lvp__start_search(pass, k, &searches[count]))
+				continue;
+			if (count == LVP__GROUP_SEARCHES - 1) { /* a group of a larger leaf than the hierarchy makes: */
+				lvp__search_alone(contact, &searches[count]); /* this one alone */
+				continue;
+			}
+			for (int axis = 0; axis < 3; ++axis) {
+				lo[axis] = fminf(lo[axis], searches[count].lo[axis]);
+				hi[axis] = fmaxf(hi[axis], searches[count].hi[axis]);
+			}
+			++count;
+		}
+		if (count == 0)
 			continue;
-		double reach = LVP__CLEARANCE_REACH * length;
-		lvp__clearance_search search = {lvp__load(pass->positions + 3 * k), lvp__scale(offset, 1.0 / length), k,
-		                                reach, {0}, {0}};
-		lvp__vec3 centre = lvp__add(search.from, lvp__scale(search.direction, 0.5 * reach));
-		float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
-		float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
-		memcpy(search.lo, lo, sizeof(lo));
-		memcpy(search.hi, hi, sizeof(hi));
-		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_clearance, &search);
-		if (search.least < reach)
-			contact->clearance[k] = (float)search.least;
+		candidates->count = 0;
+		candidates->overflow = false;
+		lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__gather_candidate, candidates);
+		for (int32_t s = 0; s < count; ++s) {
+			lvp__clearance_search *search = &searches[s];
+			if (candidates->overflow) {
+				lvp__search_alone(contact, search);
+				continue;
+			}
+			double reach = search->least;
+			for (int32_t c = 0; c < candidates->count; ++c)
+				lvp__visit_clearance(search, candidates->triangles[c]);
+			if (search->least < reach)
+				contact->clearance[search->vertex] = (float)search->least;
+		}
 	}
+}
+
+lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__bvh *bvh = &contact->bvh;
+	const lvp__mesh *mesh = &binding->mesh;
+	int32_t nodes = bvh->node_count, n = binding->vertex_count;
+	bool ok = true;
+	int32_t *size = lvp__calloc((size_t)nodes, sizeof(int32_t), &ok);     /* triangles under each node */
+	int32_t *group_of = lvp__calloc((size_t)nodes, sizeof(int32_t), &ok); /* each node's group, or -1 */
+	int32_t *vertex_group = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
+	contact->group_offsets = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
+	contact->group_vertices = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
+	if (!ok) {
+		free(size);
+		free(group_of);
+		free(vertex_group);
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+		                 "could not allocate the clearance search of %d vertices.", (int)n);
+	}
+	for (int32_t index = nodes - 1; index >= 0; --index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		size[index] = node->count > 0 ? node->count : size[node->index] + size[node->index + 1];
+	}
+	/* Groups: the highest subtrees of at most LVP__GROUP_TRIANGLES triangles (parents come first). */
+	int32_t groups = 0;
+	for (int32_t index = 0; index < nodes; ++index) {
+		int32_t parent = bvh->parents[index];
+		if (parent >= 0 && group_of[parent] >= 0)
+			group_of[index] = group_of[parent];
+		else
+			group_of[index] = size[index] <= LVP__GROUP_TRIANGLES || bvh->nodes[index].count > 0 ? groups++ : -1;
+	}
+	for (int32_t k = 0; k < n; ++k) {
+		vertex_group[k] = -1;
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+			int32_t leaf = contact->leaf_of[mesh->vertex_triangles[c]];
+			if (leaf >= 0) {
+				vertex_group[k] = group_of[leaf];
+				break;
+			}
+		}
+		if (vertex_group[k] >= 0)
+			++contact->group_offsets[vertex_group[k] + 1];
+	}
+	for (int32_t g = 0; g < groups; ++g)
+		contact->group_offsets[g + 1] += contact->group_offsets[g];
+	int32_t *fill = size; /* reused: the next free slot of each group */
+	for (int32_t g = 0; g < groups; ++g)
+		fill[g] = contact->group_offsets[g];
+	for (int32_t k = 0; k < n; ++k)
+		if (vertex_group[k] >= 0)
+			contact->group_vertices[fill[vertex_group[k]]++] = k;
+	contact->group_count = groups;
+	free(size);
+	free(group_of);
+	free(vertex_group);
+	return lvp_success;
 }
 
 void lvp__measure_clearance(lvp_binding *binding, const float *positions)
 {
+	lvp__contact *contact = &binding->contact;
+	lvp__pool *pool = LVP__POOL_FOR(binding, binding->dynamic.vertex_count);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
-	int32_t count = binding->dynamic.vertex_count;
-	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__clearance_range, &pass, count, LVP__GRAIN);
+	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+		contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
+	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }
 
 /* The share of an offset of length m that a vertex keeps with clearance c: all of it up to a

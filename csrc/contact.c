@@ -272,7 +272,7 @@ static void lvp__list_dynamic_nodes(lvp_binding *binding)
 	lvp__contact *contact = &binding->contact;
 	const lvp__mesh *mesh = &binding->mesh;
 	const lvp__bvh *bvh = &contact->bvh;
-	uint8_t *marks = contact->node_marks;
+	uint8_t *marks = contact->node_dynamic;
 	memset(marks, 0, (size_t)bvh->node_count);
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
@@ -312,7 +312,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 		return result;
 	bool ok = true;
 	contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
-	contact->node_marks = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
+	contact->node_dynamic = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
 	contact->dynamic_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
 	contact->leaf_of = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
@@ -326,7 +326,11 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	if (ok) {
 		lvp__find_leaves(contact, binding->triangle_count);
-		return lvp_success;
+		if ((result = lvp__flat_patches_begin(binding, r_diag)) == lvp_success &&
+		    (result = lvp__clearance_begin(binding, r_diag)) == lvp_success)
+			return lvp_success;
+		lvp__contact_free(contact);
+		return result;
 	}
 	lvp__contact_free(contact);
 	return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1, "could not allocate the contact test of %d triangles.",
@@ -364,8 +368,10 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
-			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, LVP__POOL_FOR(binding, f), lvp__visit_pair,
-			                       (void *)pass);
+			/* The flat patches where the correction moved skin (elsewhere they are the skinning's). */
+			lvp__fit_flat_patches(contact);
+			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
+			                       lvp__visit_pair, (void *)pass);
 		} else {
 			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, (void *)pass, f, LVP__GRAIN);
 		}
@@ -541,7 +547,7 @@ void lvp__contact_free(lvp__contact *contact)
 	lvp__bvh_free(&contact->bvh);
 	free(contact->limit);
 	free(contact->moved_nodes);
-	free(contact->node_marks);
+	free(contact->node_dynamic);
 	free(contact->dynamic_nodes);
 	free(contact->leaf_of);
 	free(contact->moved);
@@ -552,5 +558,10 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->clearance);
 	free(contact->fade);
 	free(contact->fade_scratch);
+	free(contact->connected);
+	free(contact->cones);
+	free(contact->flat);
+	free(contact->group_offsets);
+	free(contact->group_vertices);
 	memset(contact, 0, sizeof(*contact));
 }

@@ -579,6 +579,28 @@ void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi
 	}
 }
 
+void lvp__bvh_search(const lvp__bvh *bvh, lvp__bvh_box_test may_hold, lvp__bvh_visit visit, void *context)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	int32_t stack[LVP__BVH_STACK];
+	int top = 0;
+	stack[top++] = 0;
+	while (top > 0) {
+		const lvp__bvh_node *node = &bvh->nodes[stack[--top]];
+		if (!may_hold(context, node->lo, node->hi))
+			continue;
+		if (node->count == 0) {
+			stack[top++] = node->index + 1;
+			stack[top++] = node->index;
+			continue;
+		}
+		for (int32_t i = node->index; i < node->index + node->count; ++i)
+			if (visit(context, &bvh->triangles[i]))
+				return;
+	}
+}
+
 static float lvp__node_half_area(const lvp__bvh_node *node)
 {
 	float dx = node->hi[0] - node->lo[0], dy = node->hi[1] - node->lo[1], dz = node->hi[2] - node->lo[2];

@@ -80,6 +80,12 @@ typedef bool (*lvp__bvh_visit)(void *context, const lvp__bvh_triangle *triangle)
 void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
                           void *context);
 
+/* Calls visit(context, triangle) for every triangle under the nodes whose (padded) boxes may_hold
+ * accepts, until visit returns true: a search by any shape the caller can test a box against (a ball,
+ * which a visit may shrink), going down only where it may find something. */
+typedef bool (*lvp__bvh_box_test)(void *context, const float lo[3], const float hi[3]);
+void lvp__bvh_search(const lvp__bvh *bvh, lvp__bvh_box_test may_hold, lvp__bvh_visit visit, void *context);
+
 /* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap, one of
  * them under a marked node when `marked` is not NULL, and not both under one node marked in `skipped`
  * (when not NULL: subtrees whose triangles the caller knows cannot meet each other), by a traversal of

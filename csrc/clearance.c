@@ -220,32 +220,39 @@ static void lvp__narrow_search(lvp__clearance_search *search)
 	}
 }
 
-/* Whether the triangle's box lies outside the box searched. */
-static inline bool lvp__outside_search(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
+/* Whether the box [lo, hi] lies outside the box searched. */
+static inline bool lvp__outside_search(const lvp__clearance_search *search, const float lo[3], const float hi[3])
 {
-	return triangle->lo[0] > search->hi[0] || triangle->hi[0] < search->lo[0] || triangle->lo[1] > search->hi[1] ||
-	       triangle->hi[1] < search->lo[1] || triangle->lo[2] > search->hi[2] || triangle->hi[2] < search->lo[2];
+	return lo[0] > search->hi[0] || hi[0] < search->lo[0] || lo[1] > search->hi[1] || hi[1] < search->lo[1] ||
+	       lo[2] > search->hi[2] || hi[2] < search->lo[2];
 }
 
-/* Whether the triangle's box lies outside the ball of the least diameter found (by a margin past
- * rounding): every point outside that ball gives more than the least. */
-static inline bool lvp__outside_ball(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
+/* Whether the box [lo, hi] lies outside the ball of the least diameter found (by a margin past
+ * rounding): every point outside that ball gives more than the least (|x|^2 > least <x, d> there). */
+static inline bool lvp__outside_ball(const lvp__clearance_search *search, const float lo[3], const float hi[3])
 {
 	double radius = 0.5 * search->least, distance2 = 0.0;
 	double centre[3] = {search->from.x + radius * search->direction.x, search->from.y + radius * search->direction.y,
 	                    search->from.z + radius * search->direction.z};
 	for (int axis = 0; axis < 3; ++axis) {
-		double below = (double)triangle->lo[axis] - centre[axis], above = centre[axis] - (double)triangle->hi[axis];
+		double below = (double)lo[axis] - centre[axis], above = centre[axis] - (double)hi[axis];
 		double gap = below > 0.0 ? below : (above > 0.0 ? above : 0.0);
 		distance2 += gap * gap;
 	}
 	return distance2 > radius * radius * (1.0 + 1e-6);
 }
 
+/* Whether skin in the box [lo, hi] may come nearer than the least found (lvp__bvh_search's test). */
+static bool lvp__box_may_hold(void *context, const float lo[3], const float hi[3])
+{
+	const lvp__clearance_search *search = context;
+	return !lvp__outside_search(search, lo, hi) && !lvp__outside_ball(search, lo, hi);
+}
+
 static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
 {
 	lvp__clearance_search *search = context;
-	if (lvp__outside_search(search, triangle) || lvp__outside_ball(search, triangle))
+	if (!lvp__box_may_hold(search, triangle->lo, triangle->hi))
 		return false;
 	lvp__vec3 x[3];
 	double ahead = 0.0, gap2 = 0.0;
@@ -256,7 +263,7 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 		ahead = lvp__max_d(ahead, lvp__dot(x[i], search->direction));
 	}
 	/* Over the triangle |x|^2 is at least the squared distance to its box and <x, d> at most its
-	 * corners' largest: a triangle beside or behind the vertex (most of what the box query finds, the
+	 * corners' largest: a triangle beside or behind the vertex (most of what the search finds, the
 	 * vertex's own skin around it) cannot make the least smaller, and is passed over. */
 	for (int axis = 0; axis < 3; ++axis) {
 		double lo = lvp__min_d(lvp__min_d(lvp__axis(x[0], axis), lvp__axis(x[1], axis)), lvp__axis(x[2], axis));
@@ -332,11 +339,12 @@ static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triang
 	return false;
 }
 
-/* A search through the hierarchy on its own, and contact.clearance of its vertex. */
+/* A search through the hierarchy on its own (going down only into boxes that meet its ball), and
+ * contact.clearance of its vertex. */
 static void lvp__search_alone(lvp__contact *contact, lvp__clearance_search *search)
 {
 	double reach = search->least;
-	lvp__bvh_overlapping(&contact->bvh, search->lo, search->hi, lvp__visit_clearance, search);
+	lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);
 	if (search->least < reach)
 		contact->clearance[search->vertex] = (float)search->least;
 }

@@ -289,8 +289,9 @@
  *   skinning leaves touching has room ahead of every corner, so the crossing test, not the fade, keeps
  *   it apart. Cost: one pass over every triangle a frame (the hierarchy fitted to `positions`), a ball
  *   query per moving vertex (vertices near each other gather the skin near any of them by one descent
- *   of the hierarchy; each passes over what lies outside the ball of the nearest skin found so far, and
- *   searches a triangle's edges and inside only where their distance could bring it nearer), a
+ *   of the hierarchy, or each descends only into boxes that meet its ball when that gathers too much;
+ *   each passes over what lies outside the ball of the nearest skin found so far, and searches a
+ *   triangle's edges and inside only where their distance could bring it nearer), a
  *   traversal of the hierarchy against itself per check (passing over each subtree whose triangles form
  *   one connected patch with every normal within 90 degrees of one axis: such a height field cannot
  *   cross itself), and the volume restored again after each fade and check; refits in between visit

@@ -555,8 +555,11 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 	return true;
 }
 
-void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
-                          void *context)
+/* The walk both searches below take: down into the nodes whose boxes may_hold accepts (test_context),
+ * visit(context, triangle) for the triangles of the leaves reached, until a visit returns true. Inlined
+ * into each, where may_hold is known. */
+static inline void lvp__descend(const lvp__bvh *bvh, lvp__bvh_box_test may_hold, void *test_context,
+                                lvp__bvh_visit visit, void *context)
 {
 	if (bvh->triangle_count == 0)
 		return;
@@ -565,8 +568,7 @@ void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi
 	stack[top++] = 0;
 	while (top > 0) {
 		const lvp__bvh_node *node = &bvh->nodes[stack[--top]];
-		if (node->lo[0] > hi[0] || node->hi[0] < lo[0] || node->lo[1] > hi[1] || node->hi[1] < lo[1] ||
-		    node->lo[2] > hi[2] || node->hi[2] < lo[2])
+		if (!may_hold(test_context, node->lo, node->hi))
 			continue;
 		if (node->count == 0) {
 			stack[top++] = node->index + 1;
@@ -579,26 +581,28 @@ void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi
 	}
 }
 
+/* The box of lvp__bvh_overlapping, read at every node (a visit may narrow it). */
+typedef struct lvp__query_box {
+	const float *lo, *hi;
+} lvp__query_box;
+
+static bool lvp__overlaps_query_box(void *context, const float lo[3], const float hi[3])
+{
+	const lvp__query_box *box = context;
+	return !(lo[0] > box->hi[0] || hi[0] < box->lo[0] || lo[1] > box->hi[1] || hi[1] < box->lo[1] ||
+	         lo[2] > box->hi[2] || hi[2] < box->lo[2]);
+}
+
+void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi[3], lvp__bvh_visit visit,
+                          void *context)
+{
+	lvp__query_box box = {lo, hi};
+	lvp__descend(bvh, lvp__overlaps_query_box, &box, visit, context);
+}
+
 void lvp__bvh_search(const lvp__bvh *bvh, lvp__bvh_box_test may_hold, lvp__bvh_visit visit, void *context)
 {
-	if (bvh->triangle_count == 0)
-		return;
-	int32_t stack[LVP__BVH_STACK];
-	int top = 0;
-	stack[top++] = 0;
-	while (top > 0) {
-		const lvp__bvh_node *node = &bvh->nodes[stack[--top]];
-		if (!may_hold(context, node->lo, node->hi))
-			continue;
-		if (node->count == 0) {
-			stack[top++] = node->index + 1;
-			stack[top++] = node->index;
-			continue;
-		}
-		for (int32_t i = node->index; i < node->index + node->count; ++i)
-			if (visit(context, &bvh->triangles[i]))
-				return;
-	}
+	lvp__descend(bvh, may_hold, context, visit, context);
 }
 
 static float lvp__node_half_area(const lvp__bvh_node *node)

@@ -368,7 +368,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
-			/* The flat patches where the correction moved skin (elsewhere they are the skinning's). */
+			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
 			lvp__fit_flat_patches(contact);
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_pair, (void *)pass);

@@ -6,8 +6,9 @@
  * normals all lie within less than 90 degrees of one axis is a height field over the plane across that axis
  * (no triangle turns its back to it): two of its triangles cannot cross, so a subtree whose triangles form
  * such a patch is skipped as a whole (self-collision culling by normal cones, Volino and Magnenat-Thalmann,
- * 1994). Which subtrees are connected depends on the mesh alone and is found once; their normals' cones are
- * fitted with the hierarchy's boxes, to the positions the test sees.
+ * 1994). Which subtrees are connected (through shared edges) depends on the mesh alone and is found once;
+ * their normals' cones are fitted before each search, to the positions it sees, for the subtrees the
+ * correction moves (the only ones searched).
  *
  * The cones bound: a leaf's axis is the mean of its triangles' unit normals and its half angle the widest
  * of them from it; an inner node's axis is the mean of its children's and its half angle the widest of

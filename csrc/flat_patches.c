@@ -23,6 +23,9 @@
  * can move it: its cosine above this. */
 #define LVP__FLAT_COSINE 1e-3f
 
+/* Triangles around a vertex, at most, whose pairs are looked at for shared edges. */
+#define LVP__FAN_TRIANGLES 32
+
 /* Per node, 5 floats: the cone's unit axis, and the cosine and sine of its half angle. */
 enum { LVP__CONE_FLOATS = 5 };
 
@@ -55,12 +58,12 @@ static bool lvp__share_edge(const int32_t *a, const int32_t *b)
 static bool lvp__leaf_connected(const lvp__bvh *bvh, const lvp__bvh_node *leaf)
 {
 	int32_t group[64];
-	int32_t count = leaf->count < 64 ? leaf->count : 64;
 	if (leaf->count > 64)
 		return false; /* leaves hold a handful of triangles; a larger one is simply not culled */
+	int32_t count = leaf->count;
 	for (int32_t i = 0; i < count; ++i)
 		group[i] = i;
-	/* Each triangle joins the group of any earlier one it shares a corner with, until nothing changes. */
+	/* Each triangle takes the least group of those it shares an edge with, until nothing changes. */
 	for (bool changed = true; changed;) {
 		changed = false;
 		for (int32_t i = 0; i < count; ++i) {
@@ -116,8 +119,12 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	for (int32_t i = 0; i < bvh->triangle_count; ++i)
 		position[bvh->triangles[i].source] = i;
 	/* Two children meet where an edge has a triangle on each side of their parent's split: the deepest
-	 * node holding both triangles of each edge (found from each of its two corners). */
+	 * node holding both triangles of each edge (found from each of its two corners). A corner of more than
+	 * LVP__FAN_TRIANGLES triangles (the pole of a fan) is not looked at from: its edges are found from their
+	 * other corners, or not at all, which leaves a patch unculled, never a crossing unseen. */
 	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		if (mesh->vertex_corner_offsets[k + 1] - mesh->vertex_corner_offsets[k] > LVP__FAN_TRIANGLES)
+			continue;
 		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
 			int32_t p = position[mesh->vertex_triangles[c]];
 			for (int32_t d = c + 1; d < mesh->vertex_corner_offsets[k + 1] && p >= 0; ++d) {

@@ -339,12 +339,18 @@ static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triang
 	return false;
 }
 
-/* A search through the hierarchy on its own (going down only into boxes that meet its ball), and
- * contact.clearance of its vertex. */
-static void lvp__search_alone(lvp__contact *contact, lvp__clearance_search *search)
+/* A vertex's search over its group's gathered triangles, or (candidates NULL, or more than were
+ * gathered) through the hierarchy on its own, going down only into boxes that meet its ball; then
+ * contact.clearance of its vertex (lvp__measure_clearance set it to INFINITY). */
+static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, const lvp__candidates *candidates)
 {
 	double reach = search->least;
-	lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);
+	if (candidates && !candidates->overflow) {
+		for (int32_t c = 0; c < candidates->count; ++c)
+			lvp__visit_clearance(search, candidates->triangles[c]);
+	} else {
+		lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);
+	}
 	if (search->least < reach)
 		contact->clearance[search->vertex] = (float)search->least;
 }
@@ -366,13 +372,10 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 		float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
 		for (int32_t i = contact->group_offsets[g]; i < contact->group_offsets[g + 1]; ++i) {
 			int32_t k = contact->group_vertices[i];
-			if (!dynamic[k])
-				continue;
-			contact->clearance[k] = INFINITY;
-			if (!lvp__start_search(pass, k, &searches[count]))
+			if (!dynamic[k] || !lvp__start_search(pass, k, &searches[count]))
 				continue;
 			if (count == LVP__GROUP_SEARCHES - 1) { /* a group of a larger leaf than the hierarchy makes: */
-				lvp__search_alone(contact, &searches[count]); /* this one alone */
+				lvp__search(contact, &searches[count], NULL); /* this one alone */
 				continue;
 			}
 			for (int axis = 0; axis < 3; ++axis) {
@@ -386,18 +389,8 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 		candidates->count = 0;
 		candidates->overflow = false;
 		lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__gather_candidate, candidates);
-		for (int32_t s = 0; s < count; ++s) {
-			lvp__clearance_search *search = &searches[s];
-			if (candidates->overflow) {
-				lvp__search_alone(contact, search);
-				continue;
-			}
-			double reach = search->least;
-			for (int32_t c = 0; c < candidates->count; ++c)
-				lvp__visit_clearance(search, candidates->triangles[c]);
-			if (search->least < reach)
-				contact->clearance[search->vertex] = (float)search->least;
-		}
+		for (int32_t s = 0; s < count; ++s)
+			lvp__search(contact, &searches[s], candidates);
 	}
 }
 

@@ -21,6 +21,7 @@ import importlib.util
 import math
 import os
 import tempfile
+import unittest
 
 import addon_utils
 import bpy
@@ -728,7 +729,6 @@ def mocap_character(clip="jumps", voxel_share=0.015, decimated=None):
     ratio of its faces when given), parented With Automatic Weights; the scene's frame range set to the clip's.
     Raises unittest.SkipTest where the file is missing or this Blender cannot import BVH files, RuntimeError when
     the body is not closed or heat weighting leaves it unweighted."""
-    import unittest
     relative, flesh, _what = MOCAP_CLIPS[clip]
     path = os.path.join(BVH_MODELS, relative)
     if not os.path.isfile(path):

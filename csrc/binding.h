@@ -344,6 +344,8 @@ typedef struct lvp__fold {
 	                              child share (lvp__share_child_planes), or -1 */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there (nonzero:
 	                              the round that did, foldover.c), kept zero between frames */
+	uint8_t *held_before;      /* per vertex: fold.held before a relaxation (lvp__relax_pressed) */
+	int32_t *zone;             /* vertex_count: the vertices a relaxation may move, pressed ones first */
 } lvp__fold;
 
 /* Skin kept from passing through skin (contact.c), allocated at the first frame that asks. */
@@ -802,6 +804,14 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
  * and holds them (fold.held); marks the neighbour pairs where that happened. Returns how many
  * vertices it held that were not held yet. */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
+/* Relaxes the skin fold-over pressed with the skin around it (within `passes` rings), `passes` times:
+ * every held vertex let go, the offsets smoothed one pass (lvp__smooth_offsets), the skin pressed
+ * again at the joints where skin crossed; the vertices held before stay held. The volume it takes is not restored
+ * here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set), which it keeps
+ * listing the vertices presses made dynamic. Returns whether any vertex was held (else it does
+ * nothing). */
+bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
+                        const lvp__region_sums *totals, int32_t passes);
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);

@@ -23,8 +23,12 @@
 
 /* Rounds of (volume step, contact test) after the first contact test of fold-over prevention. */
 #define LVP__FOLD_ROUNDS 4
-/* Volume corrections again after shortening offsets to keep skin apart, at most. */
-#define LVP__CONTACT_CYCLES 4
+/* Volume corrections again after shortening offsets to keep skin apart, at most. Each restores what
+ * the check before it took, and the check after it takes less again; what the last check takes stays
+ * lost, so where skin keeps meeting skin (a low-poly leg folded under a body, with fold-over) too few
+ * cycles leave the volume short by a visible share. Where the checks stop shortening early, as they
+ * do at most poses, the cycles left cost nothing. */
+#define LVP__CONTACT_CYCLES 8
 /* Rounds of fading the offsets that near other skin and restoring the volume elsewhere, at most
  * (clearance.c): restoring grows the faded offsets too, a little less each round; what the last
  * leaves beyond their room, the crossing test after them takes. */
@@ -1082,6 +1086,58 @@ static double lvp__largest_displacement(const lvp_binding *binding, const float 
 	return sqrt(largest);
 }
 
+/* Fold-over prevention (paper 5.4): the contact test, then the extra volume step with the moved
+ * vertices held on the contact surface (which turns the compression into a bulge); the bulge may
+ * push other vertices across, so the two alternate a few rounds, each moved vertex staying held.
+ * After each contact test the pressed skin is relaxed with the skin around it (lvp__relax_pressed,
+ * as many passes as the offsets' smoothing), and the volume that takes is restored at the end, what
+ * that pushes across pressed in turn. Adds to stats->iterations and stats->folded_vertices. */
+static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options *options, const float *positions,
+                                   const float *rest_positions, const lvp__region_sums *totals,
+                                   lvp_frame_stats *stats)
+{
+	int32_t n = binding->vertex_count, relax_passes = options->smoothing_passes, ignored;
+	lvp__begin_fold_over(binding, rest_positions);
+	int32_t moved = lvp__fold_over(binding, rest_positions);
+	stats->folded_vertices = moved;
+	bool relaxed = lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes);
+	/* A round may move no vertex more than twice as far as the correction before it (volume
+	 * steps and the first contacts) moved any: further, it is diverging (the map faded at the
+	 * contacts leaves the volume too few places to go), and the frame keeps the round before. */
+	double bound = 2.0 * lvp__largest_displacement(binding, positions, binding->step.positions);
+	for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
+		memcpy(binding->fold.saved, binding->step.positions, sizeof(float) * 3 * (size_t)n);
+		/* At the contacts found since the last round; only the fade changes what can move. */
+		if (lvp__fade_map_at_contact(binding))
+			lvp__movable_regions(binding);
+		lvp__measure_positions(binding, rest_positions, totals);
+		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+		if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
+			memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
+			break;
+		}
+		moved = lvp__fold_over(binding, rest_positions);
+		stats->folded_vertices += moved;
+		relaxed |= lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes);
+	}
+	if (relaxed) {
+		/* The volume the relaxation took comes back through the map, where it peaks beside the
+		 * contacts: those peaks are smoothed as the frame's offsets were before fold-over (the held
+		 * skin keeping its place), the volume restored along the smoothed offsets, and what that
+		 * carries across a plane pressed back. */
+		if (lvp__fade_map_at_contact(binding))
+			lvp__movable_regions(binding);
+		lvp__measure_positions(binding, rest_positions, totals);
+		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+		lvp__find_dynamic_set(binding, rest_positions, totals, false);
+		lvp__smooth_offsets(binding, positions, relax_passes);
+		lvp__measure_sums(binding, rest_positions, totals);
+		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
+		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
+	}
+	lvp__measure_positions(binding, rest_positions, totals);
+}
+
 /* One attempt at the frame's correction, from the input positions: the volume steps, then
  * fold-over when asked. Adds its steps to stats->iterations, sets the active regions and folded
  * vertices, and on the first attempt the volume and the worst group before correction. Groups
@@ -1121,34 +1177,8 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}
 	stats->folded_vertices = 0;
-	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
-		/* Contact test, then the extra volume step of 5.4 with the moved vertices held on the
-		 * contact surface (which turns the compression into a bulge); the bulge may push other
-		 * vertices across, so the two alternate a few rounds, each moved vertex staying held. */
-		lvp__begin_fold_over(binding, rest_positions);
-		int32_t moved = lvp__fold_over(binding, rest_positions);
-		stats->folded_vertices = moved;
-		/* A round may move no vertex more than twice as far as the correction before it (volume
-		 * steps and the first contacts) moved any: further, it is diverging (the map faded at the
-		 * contacts leaves the volume too few places to go), and the frame keeps the round before. */
-		double bound = 2.0 * lvp__largest_displacement(binding, positions, binding->step.positions);
-		for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
-			int32_t ignored;
-			memcpy(binding->fold.saved, binding->step.positions, sizeof(float) * 3 * (size_t)n);
-			/* At the contacts found since the last round; only the fade changes what can move. */
-			if (lvp__fade_map_at_contact(binding))
-				lvp__movable_regions(binding);
-			lvp__measure_positions(binding, rest_positions, totals);
-			stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
-			if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
-				memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
-				break;
-			}
-			moved = lvp__fold_over(binding, rest_positions);
-			stats->folded_vertices += moved;
-		}
-		lvp__measure_positions(binding, rest_positions, totals);
-	}
+	if (options->fold_over && binding->mode == LVP_MODE_LOCAL)
+		lvp__prevent_fold_over(binding, options, positions, rest_positions, totals, stats);
 	stats->shortened_vertices = 0;
 	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {

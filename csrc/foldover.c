@@ -36,8 +36,9 @@
 
 /* binding->fold.held, per vertex: */
 enum {
-	LVP__HELD_BEFORE = 1,    /* held by an earlier round of this frame: not pressed again */
-	LVP__HELD_THIS_ROUND = 2 /* held by this round (lvp__fold_over) */
+	LVP__HELD_BEFORE = 1,     /* held by an earlier round of this frame: not pressed again */
+	LVP__HELD_THIS_ROUND = 2, /* held by this round (lvp__fold_over) */
+	LVP__HELD_STILL = 3       /* too far from any pressed skin to move while it relaxes (lvp__relax_pressed) */
 };
 
 /* binding->fold.contact, per neighbour entry (s, j) of this frame: */
@@ -308,7 +309,8 @@ static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_
 		binding->fold.contact[m] = LVP__CONTACT_FOUND;
 }
 
-int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
+/* The contact test of lvp__fold_over, at the joints where skin crossed already when at_contacts. */
+static int32_t lvp__press_across(lvp_binding *binding, const float *rest_positions, bool at_contacts)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
 	float *work = binding->step.positions;
@@ -316,7 +318,7 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
 			const lvp__joint *joint = &binding->fold.joints[n];
-			if (!joint->bends)
+			if (!joint->bends || (at_contacts && binding->fold.contact[n] == LVP__CONTACT_NONE))
 				continue;
 			int32_t j = binding->mesh.neighbour_bones[n];
 			/* The skin of the two sides does not quite touch. */
@@ -324,8 +326,9 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
 			     ++i) {
 				int32_t k = binding->mesh.region_vertices[i];
-				/* Pressed once: pressing again would soften its contact twice. */
-				if (binding->fold.held[k] == LVP__HELD_BEFORE)
+				/* Pressed once: pressing again would soften its contact twice. Held still while
+				 * pressed skin relaxes: it has not moved. */
+				if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
 					continue;
 				double rest_side =
 				    lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
@@ -354,6 +357,83 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 		if (binding->fold.held[k] == LVP__HELD_THIS_ROUND)
 			binding->fold.held[k] = LVP__HELD_BEFORE;
 	return moved;
+}
+
+int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
+{
+	return lvp__press_across(binding, rest_positions, false);
+}
+
+/* How many of the `count` vertices listed are dynamic (frame_map.vertex_dynamic). */
+static int32_t lvp__count_dynamic(const lvp_binding *binding, const int32_t *vertices, int32_t count)
+{
+	int32_t dynamic = 0;
+	for (int32_t i = 0; i < count; ++i)
+		dynamic += binding->frame_map.vertex_dynamic[vertices[i]] != 0;
+	return dynamic;
+}
+
+/* Pressed onto its plane, the skin that crossed it meets the free skin beside it at the angle at which
+ * the skinning carried it through the plane, and each vertex is pressed by as much as it crossed: a
+ * crease along the contact line, and pressed vertices standing out of their neighbours' surface
+ * where the next crossed less. Relaxing it is smoothing under the contact's constraint: the offsets
+ * of the pressed skin and of the skin within `passes` rings of it averaged with their neighbours'
+ * (both ways), then whatever that carried across a plane pressed back onto it. A few passes leave
+ * the pressed patch on its plane and the free skin around it curving into it, as flesh does around
+ * a contact; the skin further away keeps its offsets. */
+bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
+                        const lvp__region_sums *totals, int32_t passes)
+{
+	int32_t n = binding->vertex_count;
+	uint8_t *held = binding->fold.held, *before = binding->fold.held_before;
+	int32_t *zone = binding->fold.zone;
+	if (passes <= 0 || !memchr(held, LVP__HELD_BEFORE, (size_t)n))
+		return false;
+	memcpy(before, held, (size_t)n);
+	/* The skin that may move (the zone): the pressed vertices and the rings around them, found ring
+	 * by ring; the rest is held still (lvp__can_move) while the passes run. */
+	int32_t count = 0;
+	for (int32_t k = 0; k < n; ++k) {
+		held[k] = before[k] ? 0 : LVP__HELD_STILL;
+		if (before[k])
+			zone[count++] = k;
+	}
+	const int32_t *offsets = binding->smoothing.offsets, *neighbours = binding->smoothing.neighbours;
+	for (int32_t ring = 0, first = 0; ring < passes; ++ring) {
+		int32_t last = count;
+		for (int32_t z = first; z < last; ++z)
+			for (int32_t i = offsets[zone[z]]; i < offsets[zone[z] + 1]; ++i)
+				if (held[neighbours[i]] == LVP__HELD_STILL) {
+					held[neighbours[i]] = 0;
+					zone[count++] = neighbours[i];
+				}
+		first = last;
+	}
+	/* A smoothing pass reads the offsets of the dynamic vertices, taken only for those the dynamic
+	 * set lists: it lists every vertex a press made dynamic (lvp__make_dynamic) before each pass. */
+	int32_t flagged = 0;
+	for (int32_t k = 0; k < n; ++k)
+		flagged += binding->frame_map.vertex_dynamic[k] != 0;
+	if (flagged != binding->dynamic.vertex_count)
+		lvp__find_dynamic_set(binding, rest_positions, totals, false);
+	for (int32_t pass = 0; pass < passes; ++pass) {
+		for (int32_t z = 0; z < count; ++z)
+			held[zone[z]] = 0;
+		lvp__smooth_offsets(binding, positions, 1);
+		/* Pressed back at the joints it was pressed at: a plane where no skin crossed yet is the
+		 * next contact test's (the rounds', and the one after the last volume step). Pressed softly
+		 * again each pass, skin that stays within the soft band goes a little deeper each time,
+		 * towards its inner edge: the band's slope is what rounds the contact line (pressed onto
+		 * the limit itself, the hands of the tests kept twice the creases). Only the zone moved, so
+		 * only its vertices can become dynamic. */
+		int32_t dynamic = lvp__count_dynamic(binding, zone, count);
+		lvp__press_across(binding, rest_positions, true);
+		if (lvp__count_dynamic(binding, zone, count) != dynamic)
+			lvp__find_dynamic_set(binding, rest_positions, totals, false);
+	}
+	for (int32_t k = 0; k < n; ++k)
+		held[k] = before[k] || held[k] == LVP__HELD_BEFORE ? LVP__HELD_BEFORE : 0;
+	return true;
 }
 
 /* Where skin crossed at a joint, the flesh pressed against its contact plane does not bulge into
@@ -474,6 +554,8 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	binding->fold.radius = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
 	binding->fold.plane_entry = lvp__calloc((size_t)binding->region_count + 1, sizeof(int32_t), &ok);
 	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	binding->fold.held_before = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	binding->fold.zone = lvp__calloc((size_t)binding->vertex_count, sizeof(int32_t), &ok);
 	binding->fold.saved = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
 	if (ok && binding->mode == LVP_MODE_LOCAL) {
 		lvp__flesh_radii(binding);
@@ -489,6 +571,8 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->radius);
 	free(fold->plane_entry);
 	free(fold->held);
+	free(fold->held_before);
+	free(fold->zone);
 	free(fold->saved);
 	free(fold->border_offsets);
 	free(fold->border_vertices);

@@ -192,9 +192,15 @@
  *   into the free skin without a kink; the skin at the bottom of the crease, which the plane
  *   cuts at rest, may cross it by as much as it lay near it at rest until the joint bends to a
  *   right angle; a vertex of s on j's side at rest crosses further the deeper it lay there
- *   (docs/method.md, foldover.c). Contact test and volume step alternate up to 4 more rounds;
- *   a round that would move a vertex more than twice as far as the correction before it is
- *   undone and ends them (the frame keeps its contacts, a little volume missing). Limits: bones
+ *   (docs/method.md, foldover.c). After each contact test the pressed skin is relaxed under the
+ *   contact (options.smoothing_passes passes, none at 0): it and the skin within that many rings
+ *   of it take one smoothing pass, and whatever that carries across a plane is pressed back, so
+ *   the pressed patch meets the free skin around it without a crease. Contact test and volume
+ *   step alternate up to 4 more rounds; a round that would move a vertex more than twice as far
+ *   as the correction before it is undone and ends them (the frame keeps its contacts, a little
+ *   volume missing); the volume the relaxation took is restored after them, through the map and
+ *   then along the offsets smoothed once more (so that it does not rise where the map peaks beside
+ *   a contact). Limits: bones
  *   without a joint between them (a fingertip on the palm, a thumb on the index), two parts of
  *   one bone's flesh and the joints of one B-Bone are not separated; at the edge of the skin
  *   pressed onto the plane the skin beside it may cross it; where two bones lie on top of each
@@ -274,7 +280,7 @@
  *   crossing away; those shares are smoothed the same way but
  *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
- *   faded), checked in turn, at most 4 times. Vertices fold-over put on a contact surface keep their
+ *   faded), checked in turn, at most 8 times. Vertices fold-over put on a contact surface keep their
  *   place in each patch of them where the skinned triangles cross skin (fold-over undid that crossing;
  *   moving them back would bring it back); the other patches are shortened as any. It never gives up: a
  *   pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every joint:

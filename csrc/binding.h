@@ -806,10 +806,10 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
 /* Relaxes the skin fold-over pressed with the skin around it (within `passes` rings), `passes` times:
  * every held vertex let go, the offsets smoothed one pass (lvp__smooth_offsets), the skin pressed
- * again at the joints where skin crossed; the vertices held before stay held. The volume it takes is not restored
- * here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set), which it keeps
- * listing the vertices presses made dynamic. Returns whether any vertex was held (else it does
- * nothing). */
+ * again at the joints where skin crossed; the vertices held before stay held. The volume it takes
+ * is not restored here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set),
+ * which it keeps listing the vertices presses made dynamic. Returns whether any vertex was held
+ * (else it does nothing). */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
                         const lvp__region_sums *totals, int32_t passes);
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns

@@ -1086,6 +1086,18 @@ static double lvp__largest_displacement(const lvp_binding *binding, const float 
 	return sqrt(largest);
 }
 
+/* Fold-over's volume step: the map faded at the contacts found since the last (only the fade changes
+ * what can move), the positions measured, the volume corrected with the pressed skin held. */
+static int32_t lvp__volume_step_at_contacts(lvp_binding *binding, const lvp_frame_options *options,
+                                            const float *rest_positions, const lvp__region_sums *totals)
+{
+	int32_t ignored;
+	if (lvp__fade_map_at_contact(binding))
+		lvp__movable_regions(binding);
+	lvp__measure_positions(binding, rest_positions, totals);
+	return lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+}
+
 /* Fold-over prevention (paper 5.4): the contact test, then the extra volume step with the moved
  * vertices held on the contact surface (which turns the compression into a bulge); the bulge may
  * push other vertices across, so the two alternate a few rounds, each moved vertex staying held.
@@ -1096,7 +1108,7 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
                                    const float *rest_positions, const lvp__region_sums *totals,
                                    lvp_frame_stats *stats)
 {
-	int32_t n = binding->vertex_count, relax_passes = options->smoothing_passes, ignored;
+	int32_t n = binding->vertex_count, relax_passes = options->smoothing_passes;
 	lvp__begin_fold_over(binding, rest_positions);
 	int32_t moved = lvp__fold_over(binding, rest_positions);
 	stats->folded_vertices = moved;
@@ -1107,11 +1119,7 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 	double bound = 2.0 * lvp__largest_displacement(binding, positions, binding->step.positions);
 	for (int round = 0; round < LVP__FOLD_ROUNDS && moved > 0; ++round) {
 		memcpy(binding->fold.saved, binding->step.positions, sizeof(float) * 3 * (size_t)n);
-		/* At the contacts found since the last round; only the fade changes what can move. */
-		if (lvp__fade_map_at_contact(binding))
-			lvp__movable_regions(binding);
-		lvp__measure_positions(binding, rest_positions, totals);
-		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
+		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 		if (lvp__largest_displacement(binding, binding->fold.saved, binding->step.positions) > bound) {
 			memcpy(binding->step.positions, binding->fold.saved, sizeof(float) * 3 * (size_t)n);
 			break;
@@ -1125,11 +1133,7 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		 * contacts: those peaks are smoothed as the frame's offsets were before fold-over (the held
 		 * skin keeping its place), the volume restored along the smoothed offsets, and what that
 		 * carries across a plane pressed back. */
-		if (lvp__fade_map_at_contact(binding))
-			lvp__movable_regions(binding);
-		lvp__measure_positions(binding, rest_positions, totals);
-		stats->iterations += lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
-		lvp__find_dynamic_set(binding, rest_positions, totals, false);
+		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 		lvp__smooth_offsets(binding, positions, relax_passes);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);

@@ -364,13 +364,16 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions)
 	return lvp__press_across(binding, rest_positions, false);
 }
 
-/* How many of the `count` vertices listed are dynamic (frame_map.vertex_dynamic). */
-static int32_t lvp__count_dynamic(const lvp_binding *binding, const int32_t *vertices, int32_t count)
+/* The dynamic set listing every vertex a press made dynamic (lvp__make_dynamic, which only ever adds):
+ * a smoothing pass reads the offsets of the vertices flagged dynamic, taken only for those listed. */
+static void lvp__list_pressed_dynamic(lvp_binding *binding, const float *rest_positions,
+                                      const lvp__region_sums *totals)
 {
-	int32_t dynamic = 0;
-	for (int32_t i = 0; i < count; ++i)
-		dynamic += binding->frame_map.vertex_dynamic[vertices[i]] != 0;
-	return dynamic;
+	int32_t flagged = 0;
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		flagged += binding->frame_map.vertex_dynamic[k] != 0;
+	if (flagged != binding->dynamic.vertex_count)
+		lvp__find_dynamic_set(binding, rest_positions, totals, false);
 }
 
 /* Pressed onto its plane, the skin that crossed it meets the free skin beside it at the angle at which
@@ -409,27 +412,17 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 				}
 		first = last;
 	}
-	/* A smoothing pass reads the offsets of the dynamic vertices, taken only for those the dynamic
-	 * set lists: it lists every vertex a press made dynamic (lvp__make_dynamic) before each pass. */
-	int32_t flagged = 0;
-	for (int32_t k = 0; k < n; ++k)
-		flagged += binding->frame_map.vertex_dynamic[k] != 0;
-	if (flagged != binding->dynamic.vertex_count)
-		lvp__find_dynamic_set(binding, rest_positions, totals, false);
 	for (int32_t pass = 0; pass < passes; ++pass) {
 		for (int32_t z = 0; z < count; ++z)
 			held[zone[z]] = 0;
+		lvp__list_pressed_dynamic(binding, rest_positions, totals);
 		lvp__smooth_offsets(binding, positions, 1);
 		/* Pressed back at the joints it was pressed at: a plane where no skin crossed yet is the
 		 * next contact test's (the rounds', and the one after the last volume step). Pressed softly
 		 * again each pass, skin that stays within the soft band goes a little deeper each time,
 		 * towards its inner edge: the band's slope is what rounds the contact line (pressed onto
-		 * the limit itself, the hands of the tests kept twice the creases). Only the zone moved, so
-		 * only its vertices can become dynamic. */
-		int32_t dynamic = lvp__count_dynamic(binding, zone, count);
+		 * the limit itself, the hands of the tests kept twice the creases). */
 		lvp__press_across(binding, rest_positions, true);
-		if (lvp__count_dynamic(binding, zone, count) != dynamic)
-			lvp__find_dynamic_set(binding, rest_positions, totals, false);
 	}
 	for (int32_t k = 0; k < n; ++k)
 		held[k] = before[k] || held[k] == LVP__HELD_BEFORE ? LVP__HELD_BEFORE : 0;

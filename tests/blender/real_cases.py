@@ -632,21 +632,35 @@ def gltf_round_trip(obj, rig, directory=None):
     return result
 
 
+def world_positions(obj, evaluated=False):
+    """obj's vertices in world space (mathutils Vectors): its mesh's, or with evaluated its evaluated mesh's."""
+    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data if evaluated else obj.data
+    return [obj.matrix_world @ vertex.co for vertex in mesh.vertices]
+
+
+def nearest_vertices(source, target):
+    """Per vertex of target, the index of the vertex of source nearest to it in world space (their meshes as
+    they are, not evaluated). Raises RuntimeError when one is more than 1e-4 away: target is not a copy."""
+    tree = kdtree.KDTree(len(source.data.vertices))
+    for index, position in enumerate(world_positions(source)):
+        tree.insert(position, index)
+    tree.balance()
+    nearest, worst = [], 0.0
+    for position in world_positions(target):
+        _co, index, distance = tree.find(position)
+        nearest.append(index)
+        worst = max(worst, distance)
+    if worst > 1e-4:
+        raise RuntimeError("%s is no copy of %s: a vertex is %g from the nearest" % (target.name, source.name, worst))
+    return nearest
+
+
 def _copy_weights_by_position(source, target):
     """Every vertex of target gets the vertex groups of the source vertex nearest to it (in world space)."""
-    tree = kdtree.KDTree(len(source.data.vertices))
-    for vertex in source.data.vertices:
-        tree.insert(source.matrix_world @ vertex.co, vertex.index)
-    tree.balance()
     groups = {group.index: target.vertex_groups.new(name=group.name) for group in source.vertex_groups}
-    worst = 0.0
-    for vertex in target.data.vertices:
-        _co, index, distance = tree.find(target.matrix_world @ vertex.co)
-        worst = max(worst, distance)
+    for vertex, index in zip(target.data.vertices, nearest_vertices(source, target)):
         for element in source.data.vertices[index].groups:
             groups[element.group].add([vertex.index], element.weight, 'REPLACE')
-    if worst > 1e-4:
-        raise RuntimeError("the glTF round trip moved a vertex by %g" % worst)
 
 
 def split_vertex_count(obj, relative_tolerance=1e-6):

@@ -271,13 +271,6 @@ else uses it, and its attributes. The mesh is left exactly as it was"""
         return {'FINISHED'}
 
 
-def _diagonal(positions):
-    """The diagonal of the bounding box of packed float[3] positions."""
-    if not positions:
-        return 0.0
-    return sum((max(positions[axis::3]) - min(positions[axis::3])) ** 2 for axis in range(3)) ** 0.5
-
-
 class OBJECT_OT_lvp_auto_weights(_OnSelectedMeshes, bpy.types.Operator):
     """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
 write them into the deforming bones' vertex groups, replacing their weights"""
@@ -338,10 +331,11 @@ write them into the deforming bones' vertex groups, replacing their weights"""
     )
     blend_width: FloatProperty(
         name="Blend Width",
-        description="How far the weights are smoothed along the mesh's edges, so that neighbouring vertices have "
-        "similar weights and the skin blends between bones: a fraction of the mesh's size (the diagonal of its "
-        "bounding box), the same at any resolution (0: the paper's weights as they are)",
-        default=0.025, min=0.0, soft_max=0.2, precision=3,
+        description="How far the weights are smoothed along the mesh's edges, so that the skin blends between "
+        "bones: times the thickness of the flesh around each bone (the middle distance of its skin from it), so "
+        "a finger blends over a short distance and a hip over a long one, at any resolution (0: the paper's "
+        "weights as they are)",
+        default=0.9, min=0.0, max=16.0, soft_max=2.0, precision=2,
     )
 
     def execute(self, context):
@@ -390,7 +384,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
                 positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, by_length=self.by_length, visibility=self.visibility,
                 max_influences=self.max_influences, min_weight=self.min_weight,
-                smoothing_length=self.blend_width * _diagonal(positions))
+                smoothing_thickness=self.blend_width)
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

@@ -197,6 +197,17 @@ static void lvp__diffuse_vertex(lvp__diffusion *diffusion, int32_t k, double rat
 	                              touched_count);
 }
 
+/* The next rows become the rows. */
+static void lvp__swap_rows(lvp__diffusion *diffusion)
+{
+	int32_t *swap_ints = diffusion->counts;
+	diffusion->counts = diffusion->next_counts, diffusion->next_counts = swap_ints;
+	swap_ints = diffusion->bones;
+	diffusion->bones = diffusion->next_bones, diffusion->next_bones = swap_ints;
+	float *swap_floats = diffusion->values;
+	diffusion->values = diffusion->next_values, diffusion->next_values = swap_floats;
+}
+
 typedef struct lvp__diffusion_loop {
 	lvp__diffusion *diffusion;
 	const float *rates;
@@ -218,12 +229,64 @@ void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const 
 {
 	lvp__diffusion_loop loop = {diffusion, rates};
 	lvp__parallel_for(pool, lvp__diffusion_task, &loop, vertex_count, diffusion->grain);
-	int32_t *swap_ints = diffusion->counts;
-	diffusion->counts = diffusion->next_counts, diffusion->next_counts = swap_ints;
-	swap_ints = diffusion->bones;
-	diffusion->bones = diffusion->next_bones, diffusion->next_bones = swap_ints;
-	float *swap_floats = diffusion->values;
-	diffusion->values = diffusion->next_values, diffusion->next_values = swap_floats;
+	lvp__swap_rows(diffusion);
+}
+
+/* Lists in r_list the vertices marked in `wanted` and every vertex within `reach` edges of one (breadth
+ * first; r_ring is scratch); returns how many. */
+static int32_t lvp__list_near(int32_t *r_list, int32_t *r_ring, const lvp__diffusion *diffusion, const uint8_t *wanted,
+                              int32_t vertex_count, int64_t reach)
+{
+	int32_t count = 0;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		r_ring[k] = wanted[k] ? 0 : -1;
+		if (wanted[k])
+			r_list[count++] = k;
+	}
+	for (int32_t i = 0; i < count; ++i) {
+		int32_t k = r_list[i];
+		if (r_ring[k] >= reach)
+			continue;
+		for (int32_t e = diffusion->neighbour_offsets[k]; e < diffusion->neighbour_offsets[k + 1]; ++e) {
+			int32_t u = diffusion->neighbours[e];
+			if (r_ring[u] < 0) {
+				r_ring[u] = r_ring[k] + 1;
+				r_list[count++] = u;
+			}
+		}
+	}
+	return count;
+}
+
+bool lvp__diffusion_steps_near(lvp__diffusion *diffusion, int32_t vertex_count, int64_t steps, const uint8_t *wanted,
+                               lvp__pool *pool)
+{
+	if (!wanted) {
+		for (int64_t step = 0; step < steps; ++step)
+			lvp__diffusion_step(diffusion, vertex_count, NULL, pool);
+		return true;
+	}
+	int32_t *list = malloc(sizeof(int32_t) * ((size_t)vertex_count + 1));
+	int32_t *ring = malloc(sizeof(int32_t) * ((size_t)vertex_count + 1));
+	if (!list || !ring) {
+		free(list);
+		free(ring);
+		return false;
+	}
+	int32_t count = lvp__list_near(list, ring, diffusion, wanted, vertex_count, steps);
+	/* The vertices left out keep their rows: both buffers hold them, whichever a step reads. */
+	size_t n = (size_t)vertex_count, entries = n * (size_t)diffusion->stride;
+	memcpy(diffusion->next_counts, diffusion->counts, sizeof(int32_t) * n);
+	memcpy(diffusion->next_bones, diffusion->bones, sizeof(int32_t) * entries);
+	memcpy(diffusion->next_values, diffusion->values, sizeof(float) * entries);
+	for (int64_t step = 0; step < steps; ++step) {
+		for (int32_t i = 0; i < count; ++i)
+			lvp__diffuse_vertex(diffusion, list[i], 1.0, diffusion->accum, diffusion->touched);
+		lvp__swap_rows(diffusion);
+	}
+	free(list);
+	free(ring);
+	return true;
 }
 
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count)

@@ -60,18 +60,34 @@ int32_t lvp__diffusion_finish_row(int32_t *r_bones, float *r_values, int32_t str
  * independent within a step: split over the pool's threads (NULL: this thread), the same result. */
 void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates, lvp__pool *pool);
 
+/* `steps` steps of lvp__diffusion_step. With `wanted` (per vertex, nonzero: wanted), on this thread and only
+ * on the wanted vertices and those within `steps` edges of one, which is all that the wanted ones' rows
+ * read: theirs come out as the whole mesh's steps give them, bit for bit; the others' rows are left partly
+ * stepped. Returns false when memory runs out (wanted only). */
+bool lvp__diffusion_steps_near(lvp__diffusion *diffusion, int32_t vertex_count, int64_t steps, const uint8_t *wanted,
+                               lvp__pool *pool);
+
 /* Diffuses the rows as `steps` steps at rate 1 would. From LVP__DIFFUSION_COARSE_FROM steps on, in a
  * time that does not grow with them (diffusion_levels.c): the rows are averaged over clusters of the
  * vertices within LVP__DIFFUSION_CLUSTER_RINGS edges of a seed, diffused over the graph of the
  * clusters (adjacent when an edge joins them) as far as the steps would spread them (through clusters
  * of clusters when that is many steps again), given back to
  * the vertices, and smoothed over about one cluster's width by ordinary steps. Like the steps, weight
- * flows only along edges. positions: the vertices', to measure the clusters' spacing. Returns false
- * when memory runs out (the rows are then as they were or diffused in part). */
+ * flows only along edges. positions: the vertices', to measure the clusters' spacing. wanted (NULL:
+ * every vertex): the ordinary steps are taken only where the wanted vertices' rows need them
+ * (lvp__diffusion_steps_near), and only the wanted rows are the blend's. Returns false when memory
+ * runs out (the rows are then as they were or diffused in part). */
 #define LVP__DIFFUSION_COARSE_FROM 64
 #define LVP__DIFFUSION_CLUSTER_RINGS 2
 bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count, int64_t steps,
-                          lvp__pool *pool);
+                          const uint8_t *wanted, lvp__pool *pool);
+
+/* Blends the rows (filled, not yet blended) over a distance that follows the flesh (lvp.h, SMOOTHING BY
+ * THICKNESS; diffusion_thickness.c): distances[k] is vertex k's distance from the first bone of its row,
+ * share how many times a bone's thickness its skin blends over. Returns false when memory runs out (the
+ * rows are then partly blended). */
+bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
+                                       const double *distances, double share);
 
 /* The mean length of the edges (each counted from both ends); 0 when there is none. */
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);

@@ -156,13 +156,10 @@ static void lvp__prolong_rows(lvp__diffusion *fine, const lvp__diffusion *coarse
 }
 
 bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count, int64_t steps,
-                          lvp__pool *pool)
+                          const uint8_t *wanted, lvp__pool *pool)
 {
-	if (steps < LVP__DIFFUSION_COARSE_FROM) {
-		for (int64_t step = 0; step < steps; ++step)
-			lvp__diffusion_step(diffusion, vertex_count, NULL, pool);
-		return true;
-	}
+	if (steps < LVP__DIFFUSION_COARSE_FROM)
+		return lvp__diffusion_steps_near(diffusion, vertex_count, steps, wanted, pool);
 	double edge = lvp__mean_edge_length(diffusion, positions, vertex_count);
 	double length = edge * sqrt(2.0 * (double)steps); /* what the steps would blend over (lvp__blend_steps) */
 	lvp__clusters clusters;
@@ -178,12 +175,11 @@ bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int
 		/* Many steps on the clusters too are taken through clusters of clusters: each level is a few
 		 * times coarser, so the levels are few and the whole costs a few steps of the finest. */
 		ok = lvp__diffusion_blend(&coarse, centroids, clusters.count, lvp__diffusion_steps(length, spacing, INT32_MAX),
-		                          pool);
+		                          NULL, pool);
 		lvp__prolong_rows(diffusion, &coarse, &clusters, vertex_count);
 		/* The clusters' borders, a step of up to a cluster's spacing, smoothed over about that. */
-		int32_t fine_steps = lvp__diffusion_steps(spacing, edge, INT32_MAX);
-		for (int32_t step = 0; step < fine_steps; ++step)
-			lvp__diffusion_step(diffusion, vertex_count, NULL, pool);
+		ok = ok && lvp__diffusion_steps_near(diffusion, vertex_count, lvp__diffusion_steps(spacing, edge, INT32_MAX),
+		                                     wanted, pool);
 	}
 	free(centroids);
 	lvp__diffusion_free(&coarse);

@@ -14,8 +14,8 @@
  * a vertex casts a few paths instead of one per bone; and the triangle that hid a bone from the previous
  * vertex is tried first, since neighbours are usually hidden by the same wall.
  *
- * Optionally (smoothing_iterations > 0) the rows are then diffused over the surface's edges, which makes
- * them continuous; see "smoothing over the surface" below.
+ * Optionally (smoothing_iterations, smoothing_length or smoothing_thickness > 0) the rows are then diffused over the
+ * surface's edges, which makes them continuous; see "smoothing over the surface" below.
  */
 #include "bvh.h"
 #include "diffusion.h"
@@ -44,6 +44,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	options.min_weight = 0.01f;
 	options.smoothing_iterations = 0;
 	options.smoothing_length = 0.0f;
+	options.smoothing_thickness = 0.0f;
 	return options;
 }
 
@@ -101,6 +102,11 @@ static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diag
 		                 "options.smoothing_length is %g; it is a distance in the mesh's units, 0 (use "
 		                 "smoothing_iterations) or above.",
 		                 (double)o->smoothing_length);
+	if (!(o->smoothing_thickness >= 0.0f && o->smoothing_thickness <= LVP_MAX_SMOOTHING_THICKNESS))
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_thickness", -1,
+		                 "options.smoothing_thickness is %g; it is a multiple of the flesh's thickness, 0 (use "
+		                 "smoothing_length or smoothing_iterations) to %g.",
+		                 (double)o->smoothing_thickness, (double)LVP_MAX_SMOOTHING_THICKNESS);
 	return lvp_success;
 }
 
@@ -388,27 +394,54 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__d
 	return kept;
 }
 
-/* Fills the smoothing's rows with the 5.1 weights of ctx (kept to stride bones) and diffuses them. Returns
- * false when memory runs out. */
+/* The distance from vertex k to bone i (to its head when it has no length). */
+static double lvp__distance_to_bone(const lvp__weights_context *ctx, int32_t k, int32_t i)
+{
+	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
+	const lvp__bone_segment *bone = &ctx->bones[i];
+	return lvp__length(lvp__sub(bone->length2 > 0.0 ? lvp__closest_on_bone(bone, p) : bone->head, p));
+}
+
+/* Blends the rows by the flesh's thickness (SMOOTHING BY THICKNESS in lvp.h): each vertex's distance from
+ * its strongest bone, then diffusion_thickness.c. */
+static bool lvp__blend_by_thickness(lvp__diffusion *smooth, const lvp__weights_context *ctx, int32_t vertex_count,
+                                    double share)
+{
+	double *distances = malloc(sizeof(double) * ((size_t)vertex_count + 1));
+	if (!distances)
+		return false;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		distances[k] = lvp__distance_to_bone(ctx, k, smooth->bones[(int64_t)k * smooth->stride]);
+	bool ok = lvp__diffusion_blend_by_thickness(smooth, ctx->positions, vertex_count, distances, share);
+	free(distances);
+	return ok;
+}
+
+/* Fills the smoothing's rows with the 5.1 weights of ctx (kept to stride bones) and diffuses them as the
+ * options say. Returns false when memory runs out. */
 static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ctx, const int32_t *triangles,
-                                int32_t vertex_count, int32_t triangle_count, int32_t iterations, double length)
+                                int32_t vertex_count, int32_t triangle_count,
+                                const lvp_auto_weights_options *options)
 {
 	int32_t stride = ctx->bone_count < LVP__DIFFUSION_ROW ? ctx->bone_count : LVP__DIFFUSION_ROW;
 	if (!lvp__diffusion_init(smooth, triangles, vertex_count, triangle_count, ctx->bone_count, stride))
 		return false;
-	/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what a
-	 * few do (lvp__diffusion_blend). */
-	int64_t steps = length > 0.0 ? lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions,
-	                                                                                      vertex_count),
-	                                                    INT32_MAX)
-	                             : iterations;
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
 	for (int32_t k = 0; k < vertex_count; ++k)
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
-	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL);
+	if (options->smoothing_thickness > 0.0f)
+		return lvp__blend_by_thickness(smooth, ctx, vertex_count, (double)options->smoothing_thickness);
+	/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what a
+	 * few do (lvp__diffusion_blend). */
+	double length = (double)options->smoothing_length;
+	int64_t steps = length > 0.0 ? lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions,
+	                                                                                      vertex_count),
+	                                                    INT32_MAX)
+	                             : options->smoothing_iterations;
+	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL, NULL);
 }
 
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
@@ -519,15 +552,16 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .blockers = blockers,
 	};
 	lvp__diffusion smooth = {0};
-	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f;
-	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count,
-	                                     options->smoothing_iterations, (double)options->smoothing_length)) {
+	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f ||
+	                options->smoothing_thickness > 0.0f;
+	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count, options)) {
 		lvp__diffusion_free(&smooth);
 		lvp__bvh_free(&bvh);
 		free(memory);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
 		                 "could not allocate the work memory to smooth the automatic weights of %d vertices; "
-		                 "set options.smoothing_iterations and smoothing_length to 0 to do without.",
+		                 "set options.smoothing_iterations, smoothing_length and smoothing_thickness to 0 to do "
+		                 "without.",
 		                 (int)vertex_count);
 	}
 	int64_t total = 0;

@@ -75,26 +75,12 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 	return median(times, repeats);
 }
 
-/* The add-on's Auto Weights blends over this share of the mesh's diagonal (its Blend Width default). */
-#define ADDON_BLEND_WIDTH 0.025
-
-/* The mesh's bounding-box diagonal. */
-static double diagonal_of(const test_rig *rig)
-{
-	double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, sum = 0.0;
-	for (int32_t k = 0; k < rig->vertex_count; ++k)
-		for (int a = 0; a < 3; ++a) {
-			lo[a] = fmin(lo[a], rig->positions[3 * k + a]);
-			hi[a] = fmax(hi[a], rig->positions[3 * k + a]);
-		}
-	for (int a = 0; a < 3; ++a)
-		sum += (hi[a] - lo[a]) * (hi[a] - lo[a]);
-	return sqrt(sum);
-}
+/* The add-on's Auto Weights blends over this many times the flesh's thickness (its Blend Width default). */
+#define ADDON_BLEND_WIDTH 0.9
 
 /* blend 0: the core's defaults (the paper's weights); otherwise what the add-on's Auto Weights asks with its
- * defaults: falloff 16, 4 influences of at least 1 %, smoothed over `blend` times the diagonal (lvp.h,
- * SMOOTHING). */
+ * defaults: falloff 16, 4 influences of at least 1 %, smoothed over `blend` times the flesh's thickness
+ * (lvp.h, SMOOTHING BY THICKNESS). */
 static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, double blend)
 {
 	lvp_auto_weights_options options = lvp_auto_weights_default_options();
@@ -103,7 +89,7 @@ static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, 
 		options.alpha = 16.0f;
 		options.max_influences = 4;
 		options.min_weight = 0.01f;
-		options.smoothing_length = (float)(blend * diagonal_of(rig));
+		options.smoothing_thickness = (float)blend;
 	}
 	lvp_skeleton skeleton = test_rig_skeleton(rig);
 	int64_t capacity = lvp_auto_weights_bound(rig->vertex_count, rig->bone_count, &options);

@@ -374,6 +374,31 @@ def pose_rigify_human(rig, amount=1.0):
     }
 
 
+
+def pose_rigify_human_legs(rig, kind):
+    """Two more hard poses of the legs, from rest, arms and spine left straight: 'crouch' (both hips raised 100
+    degrees, both knees bent 130: thigh on belly, calf on thigh) or 'spread' (both thighs swung out 50 degrees,
+    then raised 60). Returns {joint: degrees measured between the DEF bones}."""
+    pose_rigify_human(rig, 0.0)
+    forward, back = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0)
+    for side, outwards in (("L", (1.0, 0.0, 0.0)), ("R", (-1.0, 0.0, 0.0))):
+        thigh, shin = "DEF-thigh.%s.001" % side, "DEF-shin.%s.001" % side
+        if kind == "crouch":
+            _turn_towards(rig, "thigh_fk." + side, 'X', 100.0, thigh, forward)
+            _turn_towards(rig, "shin_fk." + side, 'X', 130.0, shin, back)
+        elif kind == "spread":
+            _turn_towards(rig, "thigh_fk." + side, 'Z', 50.0, thigh, outwards)
+            _turn_towards(rig, "thigh_fk." + side, 'X', 60.0, thigh, forward)
+        else:
+            raise ValueError("no leg pose %r: 'crouch' or 'spread'" % kind)
+    bpy.context.view_layer.update()
+    return {joint: angle for joint, angle in (
+        ("knee.L", bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L")),
+        ("knee.R", bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R")),
+        ("hip.L", 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.L")),
+        ("hip.R", 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.R")))}
+
+
 # ---- a hand ------------------------------------------------------------------------------------
 
 HAND_VOXEL = 0.003

@@ -6,19 +6,23 @@ on the same mesh.
 The paper's weights alone (falloff 2, no smoothing) spread every bone over its neighbours' skin: at the
 hard pose of real_cases.pose_rigify_human() plain skinning lost 10.4 % of the volume (heat weights: 3.3 %),
 and the weights jumped by 1.0 across single edges (heat weights: at most 0.8). What must hold with the
-operator's defaults (falloff 16, blend width 0.025):
+operator's defaults (falloff 16, blend width 0.9 times the flesh's thickness), at the hard pose, crouching and
+with the legs spread (real_cases.pose_rigify_human, pose_rigify_human_legs), on the voxel body and as far as
+each class says on the bodies grown from metaballs and by the Skin modifier:
 
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
-- plain skinning at the hard pose loses at most 1.2 times the volume it loses with heat weights, and
-  crosses itself at most 1.1 times as much;
+- plain skinning loses at most 1.1 times the volume it loses with heat weights, and crosses itself at most
+  1.1 times as much;
 - the skin of a thigh crosses itself (triangles whose corners mostly follow the thigh) no more often than
   with heat weights: where the thigh's weights reach up into the buttock and the belly, raising the leg
   folds that skin through itself;
 - the face's bones, inside the head, take no weight below the neck.
 
 Falloff 2 fails the first two; falloff 16 without smoothing keeps the volume but crosses itself too much
-(8 without smoothing: 458 crossing pairs against 240). With Reach by Length (the paper's l_i: a long bone
+(8 without smoothing: 458 crossing pairs against 240). One blend width for the whole body (a share of the
+mesh's size, as before) lost 1.31x heat weights' volume at the hard pose on the metaball body and 1.40x
+crouching, whose limbs are thinner for the same size, and 1.11x on the voxel body. With Reach by Length (the paper's l_i: a long bone
 reaches farther than the short ones beside it) the thighs took the pelvis's skin, and each thigh's skin
 crossed itself in 17 pairs of triangles where heat weights' crossed in none.
 """
@@ -82,16 +86,28 @@ def edge_jumps(mesh, rows):
     return sorted(jumps)
 
 
+def pose(rig, name):
+    """The pose of that name: real_cases.pose_rigify_human's hard pose, or a pose_rigify_human_legs one."""
+    return real_cases.pose_rigify_human(rig, 1.0) if name == "hard" else real_cases.pose_rigify_human_legs(rig, name)
+
+
 class TestRigifyHuman(unittest.TestCase):
-    measured = {}
+    """The voxel body; the subclasses build the others of the family (real_cases.rigify_human) and say which of
+    the measures hold there."""
+    body_arguments = {}  # real_cases.rigify_human's
+    poses = ("hard", "crouch", "spread")
+    volume_poses = ("hard", "crouch")  # the poses at which plain skinning loses volume (spread gains)
+    crossing_poses = poses
+    thigh_poses = poses
 
     @classmethod
     def setUpClass(cls):
+        cls.measured = {}
         bpy.ops.wm.read_homefile(use_empty=True)
         if not real_cases.enable_rigify():
             raise unittest.SkipTest("this Blender has no Rigify add-on")
         helpers.enable_addon()
-        cls.body, cls.rig = real_cases.rigify_human()
+        cls.body, cls.rig = real_cases.rigify_human(**cls.body_arguments)
         cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
         cls.measured["heat"] = cls.measure()
@@ -104,13 +120,15 @@ class TestRigifyHuman(unittest.TestCase):
     def measure(cls):
         rows = normalized_rows(cls.body, cls.bone_names)
         jumps = edge_jumps(cls.body.data, rows)
-        real_cases.pose_rigify_human(cls.rig, 1.0)
-        posed = helpers.evaluated_positions(cls.body)
+        measured = {"rows": rows, "largest jump": jumps[-1], "jump p99": jumps[int(0.99 * (len(jumps) - 1))]}
+        for name in cls.poses:
+            pose(cls.rig, name)
+            posed = helpers.evaluated_positions(cls.body)
+            pairs = quality.crossing_pairs(posed, cls.mesh)
+            measured[name] = {"volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
+                              "crossings": len(pairs), "within one bone": crossings_within_one_bone(pairs, cls.mesh, rows)}
         real_cases.pose_rigify_human(cls.rig, 0.0)
-        pairs = quality.crossing_pairs(posed, cls.mesh)
-        return {"rows": rows, "largest jump": jumps[-1], "jump p99": jumps[int(0.99 * (len(jumps) - 1))],
-                "volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
-                "crossings": len(pairs), "within one bone": crossings_within_one_bone(pairs, cls.mesh, rows)}
+        return measured
 
     def summary(self):
         return {name: {key: value for key, value in measured.items() if key != "rows"}
@@ -123,30 +141,37 @@ class TestRigifyHuman(unittest.TestCase):
     def test_weights_are_continuous(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
         for name, measured in (("heat weights", heat), ("Auto Weights", auto)):
-            print("\n    %s: plain skinning at the hard pose %+.2f %% of the volume, %d crossing pairs; largest "
-                  "change across an edge %.2f (99th percentile %.2f)" % (name, 100.0 * measured["volume"],
-                                                                          measured["crossings"],
-                                                                          measured["largest jump"],
-                                                                          measured["jump p99"]))
+            print("\n    %s %s: largest change across an edge %.2f (99th percentile %.2f); plain skinning %s"
+                  % (type(self).__name__, name, measured["largest jump"], measured["jump p99"],
+                     ", ".join("%s %+.2f %% of the volume, %d crossing pairs" % (
+                         pose_name, 100.0 * measured[pose_name]["volume"], measured[pose_name]["crossings"])
+                         for pose_name in self.poses)))
         self.assertLessEqual(auto["largest jump"], heat["largest jump"], self.summary())
         self.assertLessEqual(auto["jump p99"], heat["jump p99"], self.summary())
 
     def test_plain_skinning_keeps_volume_as_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
-        self.assertLess(heat["volume"], -0.01, "the pose is hard enough to lose volume")
-        self.assertGreater(auto["volume"], 1.2 * heat["volume"], self.summary())
+        for name in self.volume_poses:
+            self.assertLess(heat[name]["volume"], -0.01, "%s: the pose is hard enough to lose volume" % name)
+            self.assertGreater(auto[name]["volume"], 1.1 * heat[name]["volume"], "%s: %s" % (name, self.summary()))
 
     def test_crosses_itself_no_more_than_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
-        self.assertLessEqual(auto["crossings"], 1.1 * heat["crossings"], self.summary())
+        for name in self.crossing_poses:
+            self.assertLessEqual(auto[name]["crossings"], 1.1 * heat[name]["crossings"],
+                                 "%s: %s" % (name, self.summary()))
 
     def test_a_thigh_crosses_itself_no_more_than_with_heat_weights(self):
+        if not self.thigh_poses:
+            self.skipTest("not met on this body (issue 43): see the class")
         heat, auto = self.measured["heat"], self.measured["auto"]
         thighs = sorted({limb(name) for name in self.bone_names if "thigh" in name})
         self.assertTrue(thighs, "Rigify's thigh bones")
-        for thigh in thighs:
-            self.assertLessEqual(auto["within one bone"].get(thigh, 0), heat["within one bone"].get(thigh, 0),
-                                 "%s: %s" % (thigh, self.summary()))
+        for name in self.thigh_poses:
+            for thigh in thighs:
+                self.assertLessEqual(auto[name]["within one bone"].get(thigh, 0),
+                                     heat[name]["within one bone"].get(thigh, 0),
+                                     "%s, %s: %s" % (name, thigh, self.summary()))
 
     def test_volume_preservation_on_these_weights(self):
         # At the hard pose, Volume Preservation on top of these weights, Keep Skin Apart on, meets the measures of
@@ -181,6 +206,26 @@ class TestRigifyHuman(unittest.TestCase):
             if vertex.co.z < neck:
                 self.assertFalse(set(row) & set(face), "vertex %d at %s" % (vertex.index, tuple(vertex.co)))
 
+
+
+class TestMetaballHuman(TestRigifyHuman):
+    """The same metarig's body grown from metaballs (irregular triangles). Not met yet (issue 43): legs spread,
+    10 crossing pairs where heat weights have 1; each thigh's skin crosses itself in 1-7 pairs at every pose,
+    where heat weights give that skin (the buttock) to the pelvis. Plain skinning loses 1.06x heat weights'
+    volume at the hard pose and 1.10x crouching."""
+    body_arguments = {"metaball_resolution": 0.02}
+    crossing_poses = ("hard", "crouch")
+    thigh_poses = ()
+
+
+class TestSkinModifierHuman(TestRigifyHuman):
+    """The same metarig's body made by the Skin modifier along the bones, subdivided twice. Not met yet (issue
+    43): at the hard pose 296 crossing pairs against heat weights' 259, most where the raised shoulder's skin
+    folds through itself (heat weights give that skin to the upper arm and the spine); crouching, plain skinning
+    loses 1.25x heat weights' volume."""
+    body_arguments = {"skin_subdivisions": 2}
+    volume_poses = ("hard",)
+    crossing_poses = ("crouch", "spread")
 
 def capped_tube(centre, axis, radius, length, rings=8, around=12):
     """(vertices, faces) of a closed tube of `rings` rings from centre - axis * length / 2 to centre + axis *

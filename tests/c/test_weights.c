@@ -20,8 +20,8 @@
 
 typedef struct builder {
 	int32_t vertex_count, triangle_count, bone_count;
-	float positions[3 * 4096];
-	int32_t triangles[3 * 8192];
+	float positions[3 * 8192];
+	int32_t triangles[3 * 16384];
 	float heads[3 * 16], tails[3 * 16], rest_matrices[16 * 16];
 } builder;
 
@@ -656,32 +656,52 @@ static void test_smoothing_makes_weights_continuous(void)
 	free(b);
 }
 
-/* The straight arm of test_smoothing_makes_weights_continuous with rings `spacing` apart and as many around
- * as keep its triangles' shape: every edge scales with spacing. */
-static void make_arm(builder *b, double spacing)
+/* Vertices around a ring of an arm of that radius with rings `spacing` apart: edges around about as long
+ * as along. */
+static int arm_around(double spacing, double radius)
 {
-	memset(b, 0, sizeof(*b));
+	return (int)lround(8.0 * radius / spacing);
+}
+
+/* A straight arm of three bones along z from 0 to 3, of that radius, with rings `spacing` apart and as many
+ * around as keep its triangles' shape: every edge scales with spacing. */
+static void add_arm(builder *b, double spacing, double radius, double x)
+{
 	int rings = (int)lround(3.0 / spacing) + 1;
 	double(*centres)[3] = malloc(sizeof(double[3]) * (size_t)rings);
 	for (int i = 0; i < rings; ++i)
-		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = spacing * i;
-	add_tube(b, (const double(*)[3])centres, rings, 0.2, (int)lround(1.6 / spacing), y_axis);
+		centres[i][0] = x, centres[i][1] = 0.0, centres[i][2] = spacing * i;
+	add_tube(b, (const double(*)[3])centres, rings, radius, arm_around(spacing, radius), y_axis);
 	free(centres);
 	for (int i = 0; i < 3; ++i)
-		add_bone(b, 0, 0, i, 0, 0, i + 1);
+		add_bone(b, x, 0, i, x, 0, i + 1);
 }
 
-/* How wide the blend of bones 0 and 1 is along the arm: the integral over z of 4 w0 w1 (1 where they are
- * even, 0 where one holds alone), along the line of the rings' first vertices. */
-static double blend_width(const result *r, double spacing)
+/* The straight arm of test_smoothing_makes_weights_continuous (radius 0.2). */
+static void make_arm(builder *b, double spacing)
 {
-	int around = (int)lround(1.6 / spacing), rings = (int)lround(3.0 / spacing) + 1;
+	memset(b, 0, sizeof(*b));
+	add_arm(b, spacing, 0.2, 0.0);
+}
+
+/* How wide the blend of bones `first` and first + 1 (the first joint of an arm of that radius whose
+ * vertices start at `vertex`) is along the arm: the integral over z of 4 w0 w1 (1 where they are even, 0
+ * where one holds alone), along the line of the rings' first vertices. */
+static double arm_blend_width(const result *r, double spacing, double radius, int32_t vertex, int32_t first)
+{
+	int around = arm_around(spacing, radius), rings = (int)lround(3.0 / spacing) + 1;
 	double width = 0.0;
 	for (int i = 0; i < rings && spacing * i < 2.0; ++i) {
-		int32_t v = i * around;
-		width += 4.0 * (double)weight_of(r, v, 0) * (double)weight_of(r, v, 1) * spacing;
+		int32_t v = vertex + i * around;
+		width += 4.0 * (double)weight_of(r, v, first) * (double)weight_of(r, v, first + 1) * spacing;
 	}
 	return width;
+}
+
+/* arm_blend_width of make_arm's arm. */
+static double blend_width(const result *r, double spacing)
+{
+	return arm_blend_width(r, spacing, 0.2, 0, 0);
 }
 
 /* smoothing_length blends over about the same distance on the arm at two resolutions, where a fixed number
@@ -793,6 +813,71 @@ static void test_smoothing_keeps_separate_pieces_apart(void)
 	result_free(&raw);
 	free(both);
 	free(alone);
+}
+
+/* smoothing_thickness blends each joint over a distance that follows its flesh: side by side, an arm twice
+ * as thick blends its joints over about twice the distance, and the same arm at twice the resolution over
+ * the same distance; the weights stay continuous and each bone holds the middle of its segment. */
+static void test_smoothing_follows_the_thickness(void)
+{
+	builder *b = malloc(sizeof(builder)), *fine = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	add_arm(b, 0.05, 0.1, 0.0);
+	int32_t thick_arm = b->vertex_count;
+	add_arm(b, 0.05, 0.2, 2.0);
+	memset(fine, 0, sizeof(*fine));
+	add_arm(fine, 0.025, 0.1, 0.0);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	result sharp = compute(b, &o);
+	o.smoothing_thickness = 1.5f;
+	result both = compute(b, &o), thin_fine = compute(fine, &o);
+	check_rows(b, &both, &o);
+	check_rows(fine, &thin_fine, &o);
+	double thin = arm_blend_width(&both, 0.05, 0.1, 0, 0), thick = arm_blend_width(&both, 0.05, 0.2, thick_arm, 3);
+	double finer = arm_blend_width(&thin_fine, 0.025, 0.1, 0, 0);
+	printf("  blend over 1.5 times the thickness: %.3f on the arm of radius 0.1, %.3f on the one of 0.2 (%.2fx), "
+	       "%.3f on the thin one twice as dense; largest jump across an edge %.3f (unsmoothed %.3f)\n",
+	       thin, thick, thick / thin, finer, largest_edge_jump(b, &both), largest_edge_jump(b, &sharp));
+	CHECK(thick > 1.6 * thin && thick < 2.5 * thin);
+	CHECK(finer > 0.8 * thin && finer < 1.25 * thin);
+	CHECK(largest_edge_jump(b, &both) < 0.6 * largest_edge_jump(b, &sharp));
+	/* The middle of each segment stays its bone's: at z = 0.5, 1.5, 2.5 on either arm. */
+	const int32_t arms[2] = {0, thick_arm};
+	const double radii[2] = {0.1, 0.2};
+	for (int arm = 0; arm < 2; ++arm)
+		for (int bone = 0; bone < 3; ++bone) {
+			int32_t v = arms[arm] + (int32_t)lround((bone + 0.5) / 0.05) * arm_around(0.05, radii[arm]);
+			CHECK(weight_of(&both, v, 3 * arm + bone) > 0.9f);
+		}
+	result_free(&sharp);
+	result_free(&both);
+	result_free(&thin_fine);
+	free(b);
+	free(fine);
+}
+
+/* A thicker separate piece (a weapon, a tail, another character in the mesh) barely changes how an arm is
+ * weighted by its thickness, where a blend length taken from the mesh's size would double; the same for
+ * 1 and 2 threads is not asked (auto weights run on one). */
+static void test_smoothing_by_thickness_is_local(void)
+{
+	builder *alone = malloc(sizeof(builder)), *with = malloc(sizeof(builder));
+	memset(alone, 0, sizeof(*alone));
+	add_arm(alone, 0.05, 0.1, 0.0);
+	*with = *alone;
+	add_arm(with, 0.05, 0.4, 3.0);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	o.smoothing_thickness = 1.5f;
+	result a = compute(alone, &o), w = compute(with, &o);
+	double by_itself = arm_blend_width(&a, 0.05, 0.1, 0, 0), beside = arm_blend_width(&w, 0.05, 0.1, 0, 0);
+	printf("  the thin arm's blend %.3f alone, %.3f beside an arm four times as thick\n", by_itself, beside);
+	CHECK(beside > 0.9 * by_itself && beside < 1.1 * by_itself);
+	result_free(&a);
+	result_free(&w);
+	free(alone);
+	free(with);
 }
 
 /* ---- sizes --------------------------------------------------------------------------------------- */
@@ -948,6 +1033,13 @@ static void test_error_paths_name_the_argument(void)
 		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
 		            lvp_error_invalid_option, "options.smoothing_length", -1);
 	}
+	const float bad_thickness[] = {-1.0f, NAN, INFINITY, 17.0f};
+	for (size_t i = 0; i < 4; ++i) {
+		bad = o;
+		bad.smoothing_thickness = bad_thickness[i];
+		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
+		            lvp_error_invalid_option, "options.smoothing_thickness", -1);
+	}
 	/* NULL options are the defaults */
 	CHECK_OK(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, NULL, &d), d);
 	CHECK(lvp_auto_weights(NULL, bones, values, cap, p, n, t, f, &s, &o, NULL) == lvp_error_null_argument);
@@ -968,6 +1060,8 @@ int main(void)
 	RUN(test_smoothing_keeps_separate_pieces_apart);
 	RUN(test_smoothing_length_follows_the_resolution);
 	RUN(test_smoothing_of_many_steps);
+	RUN(test_smoothing_follows_the_thickness);
+	RUN(test_smoothing_by_thickness_is_local);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

@@ -1012,8 +1012,10 @@ static void fuzz_run(const uint8_t *data, size_t size)
 	uint8_t smoothing = (uint8_t)((auto_flags >> 4) & 3);
 	if (smoothing == 1)
 		auto_options.smoothing_iterations = 3;
+	else if (smoothing == 2 && (auto_flags & 128))
+		auto_options.smoothing_thickness = auto_options.alpha; /* any float the fuzzer gave, some invalid */
 	else if (smoothing == 2)
-		auto_options.smoothing_length = auto_options.alpha; /* any float the fuzzer gave, some invalid */
+		auto_options.smoothing_length = auto_options.alpha;
 	else if (smoothing == 3)
 		auto_options.smoothing_iterations = (auto_flags & 64) ? -1 : LVP_MAX_SMOOTHING_ITERATIONS;
 	const lvp_auto_weights_options *auto_used = (auto_flags & 1) ? NULL : &auto_options;

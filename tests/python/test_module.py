@@ -311,11 +311,13 @@ class TestGeometry(unittest.TestCase):
         self.assertNotEqual(list(sharp[2]), list(smooth[2]))
         by_length = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_length=0.5)
         self.assertNotEqual(list(sharp[2]), list(by_length[2]))
-        offsets, bones, values = smooth
-        for vertex in range(tube.vertex_count):
-            row = values[offsets[vertex]:offsets[vertex + 1]]
-            self.assertAlmostEqual(sum(row), 1.0, places=5, msg=f'vertex {vertex}')
-            self.assertEqual(list(row), sorted(row, reverse=True))
+        by_thickness = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_thickness=1.0)
+        self.assertNotEqual(list(sharp[2]), list(by_thickness[2]))
+        for offsets, bones, values in (smooth, by_thickness):
+            for vertex in range(tube.vertex_count):
+                row = values[offsets[vertex]:offsets[vertex + 1]]
+                self.assertAlmostEqual(sum(row), 1.0, places=5, msg=f'vertex {vertex}')
+                self.assertEqual(list(row), sorted(row, reverse=True))
 
 
 # ---- Binding -------------------------------------------------------------------------------------------------------
@@ -894,6 +896,8 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('smoothing_iterations', _lvp.auto_weights, **arguments,
                                    smoothing_iterations=1001)
         self.assertValueErrorNames('smoothing_length', _lvp.auto_weights, **arguments, smoothing_length=-0.5)
+        self.assertValueErrorNames('smoothing_thickness', _lvp.auto_weights, **arguments, smoothing_thickness=-1.0)
+        self.assertValueErrorNames('smoothing_thickness', _lvp.auto_weights, **arguments, smoothing_thickness=17.0)
 
     def binding_arguments(self, tube):
         return {'rest_positions': tube.positions, 'triangles': tube.triangles, 'weight_offsets': tube.weight_offsets,

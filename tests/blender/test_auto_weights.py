@@ -211,8 +211,8 @@ class TestRigifyHuman(unittest.TestCase):
 class TestMetaballHuman(TestRigifyHuman):
     """The same metarig's body grown from metaballs (irregular triangles). Not met yet (issue 43): legs spread,
     10 crossing pairs where heat weights have 1; each thigh's skin crosses itself in 1-7 pairs at every pose,
-    where heat weights give that skin (the buttock) to the pelvis. Plain skinning loses 1.06x heat weights'
-    volume at the hard pose and 1.10x crouching."""
+    where heat weights' does not (both give nearly the same skin to each bone: the blend across the buttock's
+    fold differs). Plain skinning loses 1.06x heat weights' volume at the hard pose and 1.10x crouching."""
     body_arguments = {"metaball_resolution": 0.02}
     crossing_poses = ("hard", "crouch")
     thigh_poses = ()
@@ -221,8 +221,8 @@ class TestMetaballHuman(TestRigifyHuman):
 class TestSkinModifierHuman(TestRigifyHuman):
     """The same metarig's body made by the Skin modifier along the bones, subdivided twice. Not met yet (issue
     43): at the hard pose 296 crossing pairs against heat weights' 259, most where the raised shoulder's skin
-    folds through itself (heat weights give that skin to the upper arm and the spine); crouching, plain skinning
-    loses 1.25x heat weights' volume."""
+    folds through itself (with heat weights it does not); crouching, plain skinning loses 1.25x heat weights'
+    volume."""
     body_arguments = {"skin_subdivisions": 2}
     volume_poses = ("hard",)
     crossing_poses = ("crouch", "spread")

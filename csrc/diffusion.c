@@ -197,6 +197,15 @@ static void lvp__diffuse_vertex(lvp__diffusion *diffusion, int32_t k, double rat
 	                              touched_count);
 }
 
+void lvp__copy_rows(int32_t *counts, int32_t *bones, float *values, const int32_t *from_counts,
+                    const int32_t *from_bones, const float *from_values, int32_t vertex_count, int32_t stride)
+{
+	size_t n = (size_t)vertex_count, entries = n * (size_t)stride;
+	memcpy(counts, from_counts, sizeof(int32_t) * n);
+	memcpy(bones, from_bones, sizeof(int32_t) * entries);
+	memcpy(values, from_values, sizeof(float) * entries);
+}
+
 /* The next rows become the rows. */
 static void lvp__swap_rows(lvp__diffusion *diffusion)
 {
@@ -275,10 +284,8 @@ bool lvp__diffusion_steps_near(lvp__diffusion *diffusion, int32_t vertex_count, 
 	}
 	int32_t count = lvp__list_near(list, ring, diffusion, wanted, vertex_count, steps);
 	/* The vertices left out keep their rows: both buffers hold them, whichever a step reads. */
-	size_t n = (size_t)vertex_count, entries = n * (size_t)diffusion->stride;
-	memcpy(diffusion->next_counts, diffusion->counts, sizeof(int32_t) * n);
-	memcpy(diffusion->next_bones, diffusion->bones, sizeof(int32_t) * entries);
-	memcpy(diffusion->next_values, diffusion->values, sizeof(float) * entries);
+	lvp__copy_rows(diffusion->next_counts, diffusion->next_bones, diffusion->next_values, diffusion->counts,
+	               diffusion->bones, diffusion->values, vertex_count, diffusion->stride);
 	for (int64_t step = 0; step < steps; ++step) {
 		for (int32_t i = 0; i < count; ++i)
 			lvp__diffuse_vertex(diffusion, list[i], 1.0, diffusion->accum, diffusion->touched);

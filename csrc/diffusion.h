@@ -60,6 +60,10 @@ int32_t lvp__diffusion_finish_row(int32_t *r_bones, float *r_values, int32_t str
  * independent within a step: split over the pool's threads (NULL: this thread), the same result. */
 void lvp__diffusion_step(lvp__diffusion *diffusion, int32_t vertex_count, const float *rates, lvp__pool *pool);
 
+/* Copies vertex_count rows of `stride` entries (counts, bones, values) from the from_ arrays. */
+void lvp__copy_rows(int32_t *counts, int32_t *bones, float *values, const int32_t *from_counts,
+                    const int32_t *from_bones, const float *from_values, int32_t vertex_count, int32_t stride);
+
 /* `steps` steps of lvp__diffusion_step. With `wanted` (per vertex, nonzero: wanted), on this thread and only
  * on the wanted vertices and those within `steps` edges of one, which is all that the wanted ones' rows
  * read: theirs come out as the whole mesh's steps give them, bit for bit; the others' rows are left partly

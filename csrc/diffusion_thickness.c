@@ -114,16 +114,24 @@ static int32_t lvp__rung_steps(double low, double ratio, int32_t rung, double ed
 	return missing > 0.0 ? lvp__diffusion_steps(sqrt(missing), edge, INT32_MAX) : 1;
 }
 
+/* How much of rung `rung` a vertex at `place` on the ladder takes: of the two rungs around it, the lower
+ * 1 - (place - lower), the upper the rest; 0 of any other. */
+static double lvp__rung_share(double place, int32_t rung)
+{
+	double lower = floor(place), upper_share = place - lower;
+	if ((int32_t)lower == rung)
+		return 1.0 - upper_share;
+	return (int32_t)lower + 1 == rung ? upper_share : 0.0;
+}
+
 /* Adds the rows, as blended for `rung`, to the mix of each vertex that takes that rung. */
 static void lvp__mix_rung(int32_t *mix_counts, int32_t *mix_bones, double *mix_values, const lvp__diffusion *rows,
                           const double *place, int32_t vertex_count, int32_t rung)
 {
 	for (int32_t k = 0; k < vertex_count; ++k) {
-		double below = floor(place[k]), above_share = place[k] - below;
-		if ((int32_t)below == rung)
-			lvp__add_to_mix(mix_counts, mix_bones, mix_values, rows, k, 1.0 - above_share);
-		else if ((int32_t)below + 1 == rung && above_share > 0.0)
-			lvp__add_to_mix(mix_counts, mix_bones, mix_values, rows, k, above_share);
+		double share = lvp__rung_share(place[k], rung);
+		if (share > 0.0)
+			lvp__add_to_mix(mix_counts, mix_bones, mix_values, rows, k, share);
 	}
 }
 
@@ -132,8 +140,7 @@ static bool lvp__takers(uint8_t *r_wanted, const double *place, int32_t vertex_c
 {
 	bool any = false;
 	for (int32_t k = 0; k < vertex_count; ++k) {
-		double below = floor(place[k]);
-		r_wanted[k] = (int32_t)below == rung || ((int32_t)below + 1 == rung && place[k] > below);
+		r_wanted[k] = lvp__rung_share(place[k], rung) > 0.0;
 		any = any || r_wanted[k];
 	}
 	return any;
@@ -184,11 +191,9 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
 	uint8_t *wanted = malloc(n);
 	bool ok = raw_counts && raw_bones && raw_values && place && mix_values && mix_counts && mix_bones && accum &&
 	          touched && wanted;
-	if (ok) {
-		memcpy(raw_counts, diffusion->counts, sizeof(int32_t) * n);
-		memcpy(raw_bones, diffusion->bones, sizeof(int32_t) * entries);
-		memcpy(raw_values, diffusion->values, sizeof(float) * entries);
-	}
+	if (ok)
+		lvp__copy_rows(raw_counts, raw_bones, raw_values, diffusion->counts, diffusion->bones, diffusion->values,
+		               vertex_count, stride);
 	/* The widest rung first, everywhere: its rows say which length each vertex asks for. Then each other
 	 * rung from the unblended rows, blended only where the vertices that take it need (a rung no vertex
 	 * takes is not blended at all): the narrow ones near the thin bones, the wide ones near the thick. */
@@ -197,9 +202,8 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
 		if (turn > 0) {
 			if (!lvp__takers(wanted, place, vertex_count, rung))
 				continue;
-			memcpy(diffusion->counts, raw_counts, sizeof(int32_t) * n);
-			memcpy(diffusion->bones, raw_bones, sizeof(int32_t) * entries);
-			memcpy(diffusion->values, raw_values, sizeof(float) * entries);
+			lvp__copy_rows(diffusion->counts, diffusion->bones, diffusion->values, raw_counts, raw_bones, raw_values,
+			               vertex_count, stride);
 		}
 		ok = lvp__diffusion_blend(diffusion, positions, vertex_count, lvp__rung_steps(low, ratio, rung, edge),
 		                          turn == 0 ? NULL : wanted, NULL);

@@ -14,8 +14,8 @@
  * a vertex casts a few paths instead of one per bone; and the triangle that hid a bone from the previous
  * vertex is tried first, since neighbours are usually hidden by the same wall.
  *
- * Optionally (smoothing_iterations, smoothing_length or smoothing_thickness > 0) the rows are then diffused over the
- * surface's edges, which makes them continuous; see "smoothing over the surface" below.
+ * Optionally (smoothing_iterations, smoothing_length or smoothing_thickness > 0) the rows are then diffused
+ * over the surface's edges, which makes them continuous; see "smoothing over the surface" below.
  */
 #include "bvh.h"
 #include "diffusion.h"

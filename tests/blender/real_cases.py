@@ -365,14 +365,20 @@ def pose_rigify_human(rig, amount=1.0):
     return {
         "elbow.L": bend_angle(rig, "DEF-upper_arm.L.001", "DEF-forearm.L"),
         "elbow.R": bend_angle(rig, "DEF-upper_arm.R.001", "DEF-forearm.R"),
+        **_leg_angles(rig),
+        "spine": bend_angle(rig, "DEF-spine.001", "DEF-spine.003"),
+    }
+
+
+def _leg_angles(rig):
+    """{joint: degrees} of the knees and hips, measured between the DEF bones."""
+    return {
         "knee.L": bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L"),
         "knee.R": bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R"),
         # Flexion: 0 when the thigh hangs straight down from the spine.
         "hip.L": 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.L"),
         "hip.R": 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.R"),
-        "spine": bend_angle(rig, "DEF-spine.001", "DEF-spine.003"),
     }
-
 
 
 def pose_rigify_human_legs(rig, kind):
@@ -392,11 +398,7 @@ def pose_rigify_human_legs(rig, kind):
         else:
             raise ValueError("no leg pose %r: 'crouch' or 'spread'" % kind)
     bpy.context.view_layer.update()
-    return {joint: angle for joint, angle in (
-        ("knee.L", bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L")),
-        ("knee.R", bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R")),
-        ("hip.L", 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.L")),
-        ("hip.R", 180.0 - bend_angle(rig, "DEF-spine", "DEF-thigh.R")))}
+    return _leg_angles(rig)
 
 
 # ---- a hand ------------------------------------------------------------------------------------

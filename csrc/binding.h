@@ -368,6 +368,7 @@ typedef struct lvp__contact {
 	                              anew (each kept apart since) */
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
 	                              skinning (clearance.c; INFINITY: none near) */
+	float *clearance_reach;    /* per vertex, this frame: how far that was searched (0: not yet) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
 	uint8_t *connected;        /* per node of the hierarchy: its triangles are one patch (flat_patches.c) */
 	float *cones;              /* per node: the cone of its triangles' normals at the last fit */
@@ -870,8 +871,10 @@ void lvp__fit_flat_patches(lvp__contact *contact);
 /* contact.group_offsets and group_vertices (after the hierarchy and contact.leaf_of are built). */
 lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* contact.clearance of the dynamic vertices, ahead of their offsets (step.positions less
- * `positions`) in the skinning at `positions` (contact.bvh fitted to it: lvp__contact_fit_skinning). */
-void lvp__measure_clearance(lvp_binding *binding, const float *positions);
+ * `positions`) in the skinning at `positions` (contact.bvh fitted to it: lvp__contact_fit_skinning),
+ * as far as their offsets want (LVP__CLEARANCE_WANTED times them, clearance.c); `again` after the
+ * offsets changed (the same frame): only those whose offsets grew past what was searched are. */
+void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool again);
 /* Scales the offsets (step.positions and step.smoothing_offsets) and frame_map.gamma of the dynamic
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,
  * changing nothing, when every offset is within its clearance. */

@@ -21,10 +21,14 @@
 
 #include <stdlib.h>
 
-/* Clearances are looked for up to this many times a vertex's offset: a vertex whose clearance is more
- * than four times its offset keeps all of it, and offsets may grow twice over while the volume is put
- * back elsewhere. */
-#define LVP__CLEARANCE_REACH 8.0
+/* A vertex whose clearance is more than this many times its offset keeps all of it (lvp__share_kept):
+ * its clearance is wanted only below that. */
+#define LVP__CLEARANCE_WANTED 4.0
+/* Clearances are looked for up to this many times a vertex's offset, a quarter past what is wanted, so
+ * that an offset the restore after a fade grows by less than that is not searched again; one that grows
+ * more is (lvp__measure_clearance): every fade sees each clearance it needs, exactly. The search's
+ * cost grows with the square of its reach (the skin around a vertex within it). */
+#define LVP__CLEARANCE_REACH 5.0
 /* How much a share may rise from one ring of the mesh to the next, at most: a vertex left no offset
  * holds its neighbours down over 1 / LVP__SHARE_SLOPE rings, one that keeps most of it only its own
  * ring: the roughness it adds to the offsets is about this share of their size. */
@@ -299,16 +303,20 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 /* Groups a task takes at a time. */
 #define LVP__GROUP_GRAIN 16
 
-/* The search of dynamic vertex k, up to LVP__CLEARANCE_REACH times its offset, and false when it has no
- * offset (its clearance is INFINITY). The balls that reach no further lie in the box around the one of
- * that diameter. */
+/* The search of dynamic vertex k, up to LVP__CLEARANCE_REACH times its offset, and false when it needs
+ * none: no offset (its clearance is INFINITY), or one whose wanted clearance lies within the reach
+ * searched already this frame. The balls that reach no further lie in the box around the one of that
+ * diameter. */
 static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__clearance_search *search)
 {
+	lvp__contact *contact = &pass->binding->contact;
 	lvp__vec3 offset = lvp__offset_of(pass->binding, pass->positions, k);
 	double length = lvp__length(offset);
-	if (!(length > 0.0))
+	if (!(length > 0.0) || LVP__CLEARANCE_WANTED * length <= contact->clearance_reach[k])
 		return false;
 	double reach = LVP__CLEARANCE_REACH * length;
+	contact->clearance[k] = INFINITY;
+	contact->clearance_reach[k] = (float)reach;
 	search->from = lvp__load(pass->positions + 3 * k);
 	search->direction = lvp__scale(offset, 1.0 / length);
 	search->vertex = k;
@@ -341,7 +349,7 @@ static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triang
 
 /* A vertex's search over its group's gathered triangles, or (candidates NULL, or more than were
  * gathered) through the hierarchy on its own, going down only into boxes that meet its ball; then
- * contact.clearance of its vertex (lvp__measure_clearance set it to INFINITY). */
+ * contact.clearance of its vertex (lvp__start_search set it to INFINITY). */
 static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, const lvp__candidates *candidates)
 {
 	double reach = search->least;
@@ -453,14 +461,16 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	return lvp_success;
 }
 
-void lvp__measure_clearance(lvp_binding *binding, const float *positions)
+void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool again)
 {
 	lvp__contact *contact = &binding->contact;
 	lvp__pool *pool = LVP__POOL_FOR(binding, binding->dynamic.vertex_count);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+	for (int32_t v = 0; v < binding->dynamic.vertex_count && !again; ++v) {
 		contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
+		contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
+	}
 	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }
 
@@ -470,7 +480,7 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions)
 static float lvp__share_kept(double m, double c)
 {
 	double h = 0.5 * c;
-	if (!(m > 0.5 * h))
+	if (!(m > 0.5 * h)) /* m <= c / LVP__CLEARANCE_WANTED */
 		return 1.0f;
 	return (float)((h - h * h / (4.0 * m)) / m);
 }

@@ -322,6 +322,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->clearance = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->clearance_reach = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	if (ok) {
@@ -556,6 +557,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->scale);
 	free(contact->next_scale);
 	free(contact->clearance);
+	free(contact->clearance_reach);
 	free(contact->fade);
 	free(contact->fade_scratch);
 	free(contact->connected);

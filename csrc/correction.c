@@ -996,9 +996,9 @@ static int32_t lvp__restore_short_of_contact(lvp_binding *binding, const lvp_fra
                                              const float *positions, const float *rest_positions,
                                              const lvp__region_sums *totals)
 {
-	lvp__measure_clearance(binding, positions);
 	int32_t steps = 0;
 	for (int cycle = 0; cycle < LVP__CLEARANCE_CYCLES; ++cycle) {
+		lvp__measure_clearance(binding, positions, cycle > 0);
 		if (!lvp__fade_at_clearance(binding, positions))
 			break;
 		steps += lvp__restore_after_fade(binding, options, positions, rest_positions, totals);

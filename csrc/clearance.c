@@ -467,10 +467,11 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
 	lvp__pool *pool = LVP__POOL_FOR(binding, binding->dynamic.vertex_count);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
-	for (int32_t v = 0; v < binding->dynamic.vertex_count && !again; ++v) {
-		contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
-		contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
-	}
+	if (!again) /* a new frame: nothing searched yet */
+		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+			contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
+			contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
+		}
 	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }
 

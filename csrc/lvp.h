@@ -301,8 +301,9 @@
  *   what lies outside the ball of the nearest skin found so far, and searches a triangle's edges and
  *   inside only where their distance could bring it nearer), a traversal of the hierarchy against
  *   itself per check (passing over each subtree whose triangles form one connected patch with every
- *   normal within 90 degrees of one axis: such a height field cannot cross itself), and the volume restored again after each fade and check; refits in between visit
- *   the triangles around moving vertices only (PERFORMANCE, BENCHMARKS.md).
+ *   normal within 90 degrees of one axis: such a height field cannot cross itself), and the volume
+ *   restored again after each fade and check; refits in between visit the triangles around moving
+ *   vertices only (PERFORMANCE, BENCHMARKS.md).
  *
  * DEGRADING (lvp_frame_options.displacement_limit > 0, local mode)
  *

@@ -284,11 +284,12 @@ def skin_modifier_surface(name, rig, subdivisions):
     return obj
 
 
-def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisions=None):
+def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisions=None, decimated=None):
     """(body, rig): Rigify's human generated, a closed body around its DEF bones parented to it With Automatic
     Weights: a voxel remesh; with metaball_resolution, the same ellipsoids as metaballs; with skin_subdivisions,
-    the Skin modifier's body subdivided that many times. Raises RuntimeError when this Blender has no Rigify or
-    heat weighting leaves the body unweighted."""
+    the Skin modifier's body subdivided that many times; decimated to that ratio of its faces when given (the
+    irregular triangles of a game mesh). Raises RuntimeError when this Blender has no Rigify or heat weighting
+    leaves the body unweighted."""
     if not enable_rigify():
         raise RuntimeError("this Blender has no Rigify add-on")
     bpy.ops.object.armature_human_metarig_add()
@@ -302,6 +303,8 @@ def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisi
         body = skin_modifier_surface("Body", rig, skin_subdivisions)
     else:
         body = closed_surface("Body", _body_spheres(rig), voxel_size)
+    if decimated is not None:
+        decimate(body, decimated)
     if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the body")
     limbs = [name for name in ("DEF-thigh.L", "DEF-shin.L", "DEF-forearm.L", "DEF-spine.002")

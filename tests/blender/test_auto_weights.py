@@ -231,15 +231,15 @@ class TestSkinModifierHuman(TestRigifyHuman):
 class TestDecimatedHuman(TestRigifyHuman):
     """The voxel body decimated to 0.3 of its faces (1,392 vertices: long, thin triangles beside small ones, as
     game meshes have). Heat weights there change by up to 0.90 across an edge (0.83 at the 99th percentile), Auto
-    Weights by 0.70 (0.48). Not met yet (issue 43): crouching, plain skinning loses 1.57x heat weights' volume
-    (8.5 % against 5.4 %; with Blend Width 0.5 8.2 %: on edges this long the width asked changes little), and
-    the right thigh's skin crosses itself in 3 pairs where heat weights' crosses in 2 (Blender 3.4 and 5.2).
-    Where: the knee's blend is wide. Within 0.12 of the left knee's axis, the vertices whose shin weight (of
-    thigh and shin) is 0.1-0.9 span 0.39 along it, from 0.25 up the thigh (heat weights: 0.13; the undecimated
-    body: 0.11, heat 0.08). The blend is a graph diffusion (diffusion.c: each step a vertex's row and its edge
-    neighbours' averaged, whatever the edges' lengths; steps counted in mean edges), so one step carries weight
-    the whole length of a long edge.""" At the hard pose and with the legs spread: 75 and 5 crossing pairs against heat
-    weights' 116 and 12, the thighs' own 2 and none against 17 and 1."""
+    Weights by 0.70 (0.48). At the hard pose and with the legs spread: 75 and 5 crossing pairs against heat
+    weights' 116 and 12, the thighs' own 2 and none against 17 and 1. Not met yet (issue 43): crouching, plain
+    skinning loses 1.56-1.57x heat weights' volume (8.5 % against 5.4 %; with Blend Width 0.5 8.2 %: on edges this
+    long the width asked changes little), and the right thigh's skin crosses itself in 3 pairs where heat
+    weights' crosses in 2 (Blender 3.4, 4.3 and 5.2). Where: the knee's blend is wide. Within 0.12 of the left
+    knee's axis, the vertices whose shin weight (of thigh and shin) is 0.1-0.9 span 0.39 along it, from 0.25 up
+    the thigh (heat weights: 0.13; the undecimated body: 0.11, heat 0.08). The blend is a graph diffusion
+    (diffusion.c: each step a vertex's row and its edge neighbours' averaged, whatever the edges' lengths; steps
+    counted in mean edges), so one step carries weight the whole length of a long edge."""
     body_arguments = {"decimated": 0.3}
     volume_poses = ("hard",)
     thigh_poses = ("hard", "spread")

@@ -73,13 +73,13 @@ class TestHandFamily(unittest.TestCase):
     def test_fold_over_halves_the_crossings(self):
         """Fold-Over Prevention with Keep Skin Apart (what renders with Fold-Over get): the volume kept and at most
         half of plain skinning's crossing pairs, three quarters closed and at the fist (issue 46). Measured on 3.4,
-        4.3 and 5.2, the voxel hands: 0-19 pairs where plain skinning has 21-310. Not held yet, and so not asserted: the decimated
-        hand three quarters closed keeps 23 of plain skinning's 30 pairs (the little finger's tip folded onto its
-        first phalanx, which is no joint's contact plane, and long triangles of one phalanx crossing each other);
-        roughness 0.15-0.56 of the largest offset (0.30-0.35 on the coarse and the long hand, 0.34-0.47 on the
-        decimated ones, 0.56 on the stubby one at the fist: the skin pressed onto a knuckle's plane stands above
-        its free neighbours); creases at
-        the fist 49 on the three-fingered hand (35 allowed) and 64 on the stubby one (39)."""
+        4.3 and 5.2, the voxel hands: 0-19 pairs where plain skinning has 21-310. Not held yet, and so not
+        asserted: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs (the little
+        finger's tip folded onto its first phalanx, which is no joint's contact plane, and long triangles of one
+        phalanx crossing each other); roughness 0.15-0.56 of the largest offset (0.30-0.35 on the coarse and the
+        long hand, 0.31-0.47 on the decimated ones, 0.56 on the stubby one at the fist: the skin pressed onto a
+        knuckle's plane stands above its free neighbours); creases at the fist, 49 on the three-fingered hand (35
+        allowed) and 64 on the stubby one (39)."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 helpers.reset_scene()

@@ -364,6 +364,9 @@ typedef struct lvp__contact {
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
 	                              (lvp__pin_held); its offset is never shortened */
+	float *shifted_limit;      /* per triangle, a first round: limit's share for the pairs that cross along
+	                              the skinning's own crossing, moved by less than a triangle (contact.c) */
+	int32_t *pair_count;       /* per triangle, a first round: crossing pairs counted at it (each pair once) */
 	int32_t crossed;           /* the last lvp__keep_skin_apart: triangles its first round found crossing
 	                              anew (each kept apart since) */
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the

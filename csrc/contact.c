@@ -7,6 +7,14 @@
  * not in the skinning is found (a hierarchy over the triangles, refitted to each round's positions),
  * and the offsets of its corners are shortened to what keeps the pair apart (a bisected share of
  * them); a few rounds, then the shortening smoothed around and the smoothed patch tested again.
+ *
+ * Where the skinning itself passes skin through skin (a fist's creases), offsets of a hundredth of an
+ * edge move that intersection by a fraction of a triangle, and which pairs it passes through changes:
+ * a pair crossing anew there is no new contact. When every pair a first round finds crossing anew is
+ * such a pair (some triangle around one of the two crosses some triangle around the other in the
+ * skinning) and the moved skin crosses no more pairs than the skinning does, nothing is shortened:
+ * chasing those pairs one by one shortened a fifth of a hand at the fist and still ended with more
+ * pairs than the skinning (BENCHMARKS.md).
  */
 #include "binding.h"
 
@@ -115,6 +123,10 @@ typedef struct lvp__triangle_search {
 	lvp__vec3 moved[3], skinned[3];
 	float lo[3], hi[3];
 	float limit;
+	/* A first round's: the share for the pairs along the skinning's own crossing (limit: the others'),
+	 * and whether the pair visited crosses after the correction (to count it). */
+	bool first_round, crossing;
+	float shifted_limit;
 } lvp__triangle_search;
 
 /* The share lambda of the offsets (the corners at skinned + lambda (moved - skinned)) below which two
@@ -154,7 +166,8 @@ static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const 
 	lvp__triangle_search search;
 	search.pass = pass;
 	search.corners = corners;
-	search.limit = 1.0f;
+	search.limit = search.shifted_limit = 1.0f;
+	search.first_round = search.crossing = false;
 	for (int i = 0; i < 3; ++i) {
 		search.moved[i] = lvp__load(moved[i]);
 		search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
@@ -188,6 +201,39 @@ static bool lvp__may_cross(const lvp__triangle_search *search, const lvp__bvh_tr
 	return true;
 }
 
+/* The corners of triangle t, where the skinning put them. */
+static void lvp__skinned_corners(const lvp__contact_pass *pass, int32_t t, lvp__vec3 r_x[3])
+{
+	const int32_t *corners = pass->binding->mesh.triangles + 3 * (int64_t)t;
+	for (int i = 0; i < 3; ++i)
+		r_x[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
+}
+
+/* Whether two triangles (their corners) cross along the skinning's own crossing: some triangle sharing
+ * a corner with the first crosses, in the skinning, some triangle sharing a corner with the second.
+ * Then the correction moved an intersection the skinning has by less than a triangle. */
+static bool lvp__along_skinned_crossing(const lvp__contact_pass *pass, const int32_t a[3], const int32_t b[3])
+{
+	const lvp__mesh *mesh = &pass->binding->mesh;
+	for (int i = 0; i < 3; ++i)
+		for (int32_t c = mesh->vertex_corner_offsets[a[i]]; c < mesh->vertex_corner_offsets[a[i] + 1]; ++c) {
+			int32_t x = mesh->vertex_triangles[c];
+			lvp__vec3 xs[3];
+			lvp__skinned_corners(pass, x, xs);
+			for (int j = 0; j < 3; ++j)
+				for (int32_t d = mesh->vertex_corner_offsets[b[j]]; d < mesh->vertex_corner_offsets[b[j] + 1]; ++d) {
+					int32_t y = mesh->vertex_triangles[d];
+					if (lvp__share_corner(mesh->triangles + 3 * (int64_t)x, mesh->triangles + 3 * (int64_t)y))
+						continue;
+					lvp__vec3 ys[3];
+					lvp__skinned_corners(pass, y, ys);
+					if (lvp__triangles_cross(xs, ys) == LVP__CROSS)
+						return true;
+				}
+		}
+	return false;
+}
+
 static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 {
 	lvp__triangle_search *search = context;
@@ -205,10 +251,15 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	int after = lvp__triangles_cross(search->moved, moved);
 	if (after == LVP__APART)
 		return false;
+	search->crossing = true;
 	int before = lvp__triangles_cross(search->skinned, skinned);
 	if (before == LVP__CROSS || (before == LVP__UNSURE && after == LVP__UNSURE))
 		return false;
-	search->limit = fminf(search->limit, lvp__share_apart(search->moved, search->skinned, moved, skinned));
+	float share = lvp__share_apart(search->moved, search->skinned, moved, skinned);
+	if (search->first_round && lvp__along_skinned_crossing(search->pass, search->corners, other->vertices))
+		search->shifted_limit = fminf(search->shifted_limit, share);
+	else
+		search->limit = fminf(search->limit, share);
 	return false;
 }
 
@@ -225,9 +276,33 @@ static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp
 		return; /* neighbours, passed over before the search is set up (lvp__may_cross) */
 	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
 	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
+	search.first_round = true;
 	lvp__visit_candidate(&search, b);
 	contact->limit[a->source] = fminf(contact->limit[a->source], search.limit);
 	contact->limit[b->source] = fminf(contact->limit[b->source], search.limit);
+	contact->shifted_limit[a->source] = fminf(contact->shifted_limit[a->source], search.shifted_limit);
+	contact->shifted_limit[b->source] = fminf(contact->shifted_limit[b->source], search.shifted_limit);
+	contact->pair_count[a->source] += search.crossing;
+}
+
+/* With the hierarchy refitted to the skinning: counts each pair that crosses there (one of them moved)
+ * at its first triangle. */
+static void lvp__count_skinned_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
+{
+	const lvp__contact_pass *pass = context;
+	lvp__contact *contact = &pass->binding->contact;
+	if ((!lvp__any_marked(contact->moved, a->vertices) && !lvp__any_marked(contact->moved, b->vertices)) ||
+	    lvp__share_corner(a->vertices, b->vertices))
+		return;
+	for (int axis = 0; axis < 3; ++axis)
+		if (a->lo[axis] > b->hi[axis] || a->hi[axis] < b->lo[axis])
+			return;
+	lvp__vec3 x[3], y[3];
+	for (int i = 0; i < 3; ++i) {
+		x[i] = lvp__load(a->corners[i]);
+		y[i] = lvp__load(b->corners[i]);
+	}
+	contact->pair_count[a->source] += lvp__triangles_cross(x, y) == LVP__CROSS;
 }
 
 /* Later rounds: the triangles around the vertices shortened in the round before, each against the
@@ -316,6 +391,8 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->dynamic_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
 	contact->leaf_of = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
+	contact->shifted_limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
+	contact->pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -351,6 +428,27 @@ static void lvp__place_shortened(lvp_binding *binding, const float *positions, c
 	}
 }
 
+/* The pairs a first round counted crossing after the correction (contact.pair_count), against those
+ * crossing in the skinning among the same triangles (one of them moved): whether the correction crosses
+ * no more. Leaves the hierarchy fitted to the skinning. */
+static bool lvp__crosses_no_more(lvp_binding *binding, const lvp__contact_pass *pass)
+{
+	lvp__contact *contact = &binding->contact;
+	int32_t f = binding->triangle_count;
+	int64_t after = 0, skinned = 0;
+	for (int32_t t = 0; t < f; ++t) {
+		after += contact->pair_count[t];
+		contact->pair_count[t] = 0;
+	}
+	lvp__refit_dynamic(binding, pass->positions);
+	lvp__fit_flat_patches(contact);
+	lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
+	                       lvp__count_skinned_pair, (void *)pass);
+	for (int32_t t = 0; t < f; ++t)
+		skinned += contact->pair_count[t];
+	return after <= skinned;
+}
+
 /* Rounds of shortening (contact.scale, step.positions placed by it): the first tests every pair of
  * triangles one of which moved (`every_pair`) or the triangles around contact.moved, each later
  * one the triangles around the corners the round before shortened. Returns whether it shortened
@@ -366,13 +464,28 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
 		lvp__refit_dynamic(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
-			for (int32_t t = 0; t < f; ++t)
-				contact->limit[t] = 1.0f;
+			for (int32_t t = 0; t < f; ++t) {
+				contact->limit[t] = contact->shifted_limit[t] = 1.0f;
+				contact->pair_count[t] = 0;
+			}
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
 			lvp__fit_flat_patches(contact);
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_pair, (void *)pass);
+			/* Pairs along the skinning's own crossing are left when they are all there is and the count
+			 * holds (the top of this file); else they are kept apart as any. */
+			bool any_new = false, any_shifted = false;
+			for (int32_t t = 0; t < f; ++t) {
+				any_new = any_new || contact->limit[t] < 1.0f;
+				any_shifted = any_shifted || contact->shifted_limit[t] < 1.0f;
+			}
+			if (any_shifted && !any_new && lvp__crosses_no_more(binding, pass)) {
+				contact->crossed = 0;
+				break;
+			}
+			for (int32_t t = 0; t < f; ++t)
+				contact->limit[t] = fminf(contact->limit[t], contact->shifted_limit[t]);
 		} else {
 			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, (void *)pass, f, LVP__GRAIN);
 		}
@@ -547,6 +660,8 @@ void lvp__contact_free(lvp__contact *contact)
 {
 	lvp__bvh_free(&contact->bvh);
 	free(contact->limit);
+	free(contact->shifted_limit);
+	free(contact->pair_count);
 	free(contact->moved_nodes);
 	free(contact->node_dynamic);
 	free(contact->dynamic_nodes);

@@ -280,13 +280,20 @@
  *   crossing away; those shares are smoothed the same way but
  *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
- *   faded), checked in turn, at most 8 times. Vertices fold-over put on a contact surface keep their
+ *   faded), checked in turn, at most 8 times. Where plain skinning already passes skin through skin (a
+ *   fist's creases), offsets of a hundredth of an edge move that intersection by a fraction of a
+ *   triangle and change which pairs it passes through: when every pair a check finds crossing anew lies
+ *   along the skinning's own crossing (some triangle around one of the two crosses, in `positions`,
+ *   some triangle around the other) and the moved skin crosses no more pairs than the skinning does
+ *   (counted over the pairs with a moved triangle, in both), nothing is shortened. Vertices fold-over
+ *   put on a contact surface keep their
  *   place in each patch of them where the skinned triangles cross skin (fold-over undid that crossing;
  *   moving them back would bring it back); the other patches are shortened as any. It never gives up: a
  *   pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every joint:
  *   seconds, not milliseconds), and stats.crossing_triangles says how many triangles the crossing test
- *   found after the fade. Result: no pair crosses that did not cross in plain skinning (to the
- *   bisection's precision; a pair that plain skinning leaves touching can still flip), the volume is
+ *   found after the fade (0 when it left pairs along the skinning's own crossing). Result: no more pairs
+ *   cross than in plain skinning, and none that plain skinning keeps apart (to the bisection's precision;
+ *   a pair that plain skinning leaves touching can still flip), the volume is
  *   restored as before (within the tolerance on every case measured: the giraffe's 28 single-joint
  *   poses, a hand closing into a fist, a Rigify human bent hard, every frame of a game horse's 14
  *   actions), and smooth (roughness at most 0.22 of the largest offset on those cases);

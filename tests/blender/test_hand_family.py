@@ -5,12 +5,14 @@ under them, 1,850 to 4,190 vertices, and two decimated to irregular triangles. E
 hand is (a voxel remesh of its spheres, heat weights, an animation from open to a fist) and measured three
 quarters closed and at the fist (the measures of QUALITY.md, from surface_quality.py):
 
-- the volume within 0.5 % of the rest, and no crossing pair that plain skinning does not have;
+- the volume within 0.5 % of the rest, no more crossing pairs than plain skinning, and no new contact (a pair
+  crossing where plain skinning keeps skin apart, surface_quality.new_contact_pairs);
 - roughness at most a quarter of the largest offset;
 - at most one crease added per 300 edges.
 
-Measured on 3.4: no new crossing pair on any (the correction without Keep Skin Apart has up to 153 at the fist),
-roughness 0.06-0.17 of the largest offset, at most 3 creases on the voxel hands and 7 on the decimated ones (22
+Measured on 3.4: no new contact on any, and 0-32 fewer crossing pairs than plain skinning (the correction without
+Keep Skin Apart has up to 153 pairs that plain skinning has not at the fist),
+roughness 0.06-0.17 of the largest offset, at most 3 creases on the voxel hands and 8 on the decimated ones (22
 allowed). The decimated hands are the ones that need the smoothing weighted by the mesh (offset_smoothing.c):
 with equal weights they had 21 and 23 creases at the fist, their long thin triangles beside small ones tilted by
 offsets smooth over the rings (13 and 13 weighted, before tied vertices were averaged as one).
@@ -66,7 +68,8 @@ class TestHandFamily(unittest.TestCase):
                              kept["creases"], viewport["creases"], edges / EDGES_PER_CREASE,
                              kept["roughness"] / kept["largest_offset"]))
                     self.assertLess(abs(kept["volume"]), 0.005, label)
-                    self.assertEqual(kept["new crossings"], 0, label)
+                    self.assertEqual(kept["new contacts"], 0, label)
+                    self.assertLessEqual(kept["added crossings"], 0, label)
                     self.assertLessEqual(kept["roughness"], ROUGHNESS_OF_LARGEST * kept["largest_offset"], label)
                     self.assertLessEqual(kept["creases"], edges / EDGES_PER_CREASE, label)
 

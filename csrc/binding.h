@@ -366,7 +366,9 @@ typedef struct lvp__contact {
 	                              (lvp__pin_held); its offset is never shortened */
 	float *shifted_limit;      /* per triangle, a first round: limit's share for the pairs that cross along
 	                              the skinning's own crossing, moved by less than a triangle (contact.c) */
-	int32_t *pair_count;       /* per triangle, a first round: crossing pairs counted at it (each pair once) */
+	int32_t *pair_count;       /* per triangle, a first round: pairs crossing after the correction counted
+	                              at it (each pair once) */
+	int32_t *skinned_pair_count; /* and of the pairs it visited, those crossing in the skinning */
 	int32_t crossed;           /* the last lvp__keep_skin_apart: triangles its first round found crossing
 	                              anew (each kept apart since) */
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the

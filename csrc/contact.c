@@ -124,8 +124,8 @@ typedef struct lvp__triangle_search {
 	float lo[3], hi[3];
 	float limit;
 	/* A first round's: the share for the pairs along the skinning's own crossing (limit: the others'),
-	 * and whether the pair visited crosses after the correction (to count it). */
-	bool first_round, crossing;
+	 * and whether the pair visited crosses after the correction, and in the skinning (to count them). */
+	bool first_round, crossing, crossed_skinned;
 	float shifted_limit;
 } lvp__triangle_search;
 
@@ -167,7 +167,7 @@ static lvp__triangle_search lvp__search_of(const lvp__contact_pass *pass, const 
 	search.pass = pass;
 	search.corners = corners;
 	search.limit = search.shifted_limit = 1.0f;
-	search.first_round = search.crossing = false;
+	search.first_round = search.crossing = search.crossed_skinned = false;
 	for (int i = 0; i < 3; ++i) {
 		search.moved[i] = lvp__load(moved[i]);
 		search.skinned[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
@@ -249,10 +249,14 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	 * in one plane (a flat face, a flat strip bent in its plane), where the signs cannot tell and the
 	 * surface measures see no crossing. */
 	int after = lvp__triangles_cross(search->moved, moved);
-	if (after == LVP__APART)
+	if (after == LVP__APART) {
+		search->crossed_skinned =
+		    search->first_round && lvp__triangles_cross(search->skinned, skinned) == LVP__CROSS;
 		return false;
+	}
 	search->crossing = true;
 	int before = lvp__triangles_cross(search->skinned, skinned);
+	search->crossed_skinned = before == LVP__CROSS;
 	if (before == LVP__CROSS || (before == LVP__UNSURE && after == LVP__UNSURE))
 		return false;
 	float share = lvp__share_apart(search->moved, search->skinned, moved, skinned);
@@ -283,26 +287,7 @@ static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp
 	contact->shifted_limit[a->source] = fminf(contact->shifted_limit[a->source], search.shifted_limit);
 	contact->shifted_limit[b->source] = fminf(contact->shifted_limit[b->source], search.shifted_limit);
 	contact->pair_count[a->source] += search.crossing;
-}
-
-/* With the hierarchy refitted to the skinning: counts each pair that crosses there (one of them moved)
- * at its first triangle. */
-static void lvp__count_skinned_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
-{
-	const lvp__contact_pass *pass = context;
-	lvp__contact *contact = &pass->binding->contact;
-	if ((!lvp__any_marked(contact->moved, a->vertices) && !lvp__any_marked(contact->moved, b->vertices)) ||
-	    lvp__share_corner(a->vertices, b->vertices))
-		return;
-	for (int axis = 0; axis < 3; ++axis)
-		if (a->lo[axis] > b->hi[axis] || a->hi[axis] < b->lo[axis])
-			return;
-	lvp__vec3 x[3], y[3];
-	for (int i = 0; i < 3; ++i) {
-		x[i] = lvp__load(a->corners[i]);
-		y[i] = lvp__load(b->corners[i]);
-	}
-	contact->pair_count[a->source] += lvp__triangles_cross(x, y) == LVP__CROSS;
+	contact->skinned_pair_count[a->source] += search.crossed_skinned;
 }
 
 /* Later rounds: the triangles around the vertices shortened in the round before, each against the
@@ -393,6 +378,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->shifted_limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
+	contact->skinned_pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -428,24 +414,18 @@ static void lvp__place_shortened(lvp_binding *binding, const float *positions, c
 	}
 }
 
-/* The pairs a first round counted crossing after the correction (contact.pair_count), against those
- * crossing in the skinning among the same triangles (one of them moved): whether the correction crosses
- * no more. Leaves the hierarchy fitted to the skinning. */
-static bool lvp__crosses_no_more(lvp_binding *binding, const lvp__contact_pass *pass)
+/* Whether a first round's pairs crossing after the correction (contact.pair_count) are no more than those
+ * of the same pairs crossing in the skinning (contact.skinned_pair_count): every pair crossing after with
+ * a moved triangle is visited there, not every pair crossing in the skinning (its boxes after the
+ * correction may part), so the skinning's count is at most its own. */
+static bool lvp__crosses_no_more(const lvp_binding *binding)
 {
-	lvp__contact *contact = &binding->contact;
-	int32_t f = binding->triangle_count;
+	const lvp__contact *contact = &binding->contact;
 	int64_t after = 0, skinned = 0;
-	for (int32_t t = 0; t < f; ++t) {
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
 		after += contact->pair_count[t];
-		contact->pair_count[t] = 0;
+		skinned += contact->skinned_pair_count[t];
 	}
-	lvp__refit_dynamic(binding, pass->positions);
-	lvp__fit_flat_patches(contact);
-	lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
-	                       lvp__count_skinned_pair, (void *)pass);
-	for (int32_t t = 0; t < f; ++t)
-		skinned += contact->pair_count[t];
 	return after <= skinned;
 }
 
@@ -466,7 +446,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 		if (round == 0 && every_pair) {
 			for (int32_t t = 0; t < f; ++t) {
 				contact->limit[t] = contact->shifted_limit[t] = 1.0f;
-				contact->pair_count[t] = 0;
+				contact->pair_count[t] = contact->skinned_pair_count[t] = 0;
 			}
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
@@ -480,7 +460,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 				any_new = any_new || contact->limit[t] < 1.0f;
 				any_shifted = any_shifted || contact->shifted_limit[t] < 1.0f;
 			}
-			if (any_shifted && !any_new && lvp__crosses_no_more(binding, pass)) {
+			if (any_shifted && !any_new && lvp__crosses_no_more(binding)) {
 				contact->crossed = 0;
 				break;
 			}
@@ -662,6 +642,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->limit);
 	free(contact->shifted_limit);
 	free(contact->pair_count);
+	free(contact->skinned_pair_count);
 	free(contact->moved_nodes);
 	free(contact->node_dynamic);
 	free(contact->dynamic_nodes);

@@ -285,15 +285,15 @@
  *   triangle and change which pairs it passes through: when every pair a check finds crossing anew lies
  *   along the skinning's own crossing (some triangle around one of the two crosses, in `positions`,
  *   some triangle around the other) and the moved skin crosses no more pairs than the skinning does
- *   (counted over the pairs with a moved triangle, in both), nothing is shortened. Vertices fold-over
- *   put on a contact surface keep their
- *   place in each patch of them where the skinned triangles cross skin (fold-over undid that crossing;
- *   moving them back would bring it back); the other patches are shortened as any. It never gives up: a
- *   pose that folds the skin everywhere costs more (the 100k chain of the bench bent at every joint:
- *   seconds, not milliseconds), and stats.crossing_triangles says how many triangles the crossing test
- *   found after the fade (0 when it left pairs along the skinning's own crossing). Result: no more pairs
- *   cross than in plain skinning, and none that plain skinning keeps apart (to the bisection's precision;
- *   a pair that plain skinning leaves touching can still flip), the volume is
+ *   (counted over the pairs with a moved triangle that the check visits, which holds every pair crossing
+ *   after the correction), nothing is shortened. Vertices fold-over put on a contact surface keep
+ *   their place in each patch of them where the skinned triangles cross skin (fold-over undid that
+ *   crossing; moving them back would bring it back); the other patches are shortened as any. It never
+ *   gives up: a pose that folds the skin everywhere costs more (the 100k chain of the bench bent at
+ *   every joint: seconds, not milliseconds), and stats.crossing_triangles says how many triangles the
+ *   crossing test found after the fade (0 when it left pairs along the skinning's own crossing). Result:
+ *   no more pairs cross than in plain skinning, and none that plain skinning keeps apart (to the
+ *   bisection's precision; a pair that plain skinning leaves touching can still flip), the volume is
  *   restored as before (within the tolerance on every case measured: the giraffe's 28 single-joint
  *   poses, a hand closing into a fist, a Rigify human bent hard, every frame of a game horse's 14
  *   actions), and smooth (roughness at most 0.22 of the largest offset on those cases);

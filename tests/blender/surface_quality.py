@@ -356,8 +356,11 @@ def new_contact_pairs(plain_positions, new_pairs, mesh):
         return not set(mesh.welded_triangles[x]) & set(mesh.welded_triangles[y]) and \
             _cross_exactly(points, mesh, x, y)
 
-    return [(i, j) for i, j in new_pairs
-            if not any(plain_cross(x, y) for x in mesh.triangles_beside(i) for y in mesh.triangles_beside(j))]
+    def along_plain_crossing(i, j):
+        beside_j = mesh.triangles_beside(j)
+        return any(plain_cross(x, y) for x in mesh.triangles_beside(i) for y in beside_j)
+
+    return [(i, j) for i, j in new_pairs if not along_plain_crossing(i, j)]
 
 
 def _cross_exactly(points, mesh, i, j):

@@ -37,6 +37,15 @@ class TestHandFamily(unittest.TestCase):
     def setUpClass(cls):
         cls.addon = helpers.enable_addon()
 
+    def corrected_hand(self, voxel_size, shape, decimated):
+        """(hand, its WeldedMesh): a hand of the family in a fresh scene, Volume Preservation added."""
+        helpers.reset_scene()
+        obj, _rig = real_cases.hand(voxel_size, shape, decimated=decimated)
+        mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
+        helpers.select_only(obj)
+        self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+        return obj, mesh
+
     def measure(self, obj, mesh, frame):
         """{"plain", "kept apart", "viewport"} measures at `frame`: plain skinning, Keep Skin Apart on and off."""
         corrected = {}
@@ -51,12 +60,8 @@ class TestHandFamily(unittest.TestCase):
     def test_kept_apart_and_smooth(self):
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
-                helpers.reset_scene()
-                obj, _rig = real_cases.hand(voxel_size, shape, decimated=decimated)
-                mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
+                obj, mesh = self.corrected_hand(voxel_size, shape, decimated)
                 edges = len(mesh.interior_edges())
-                helpers.select_only(obj)
-                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
                 for pose, frame in FRAMES.items():
                     measured = self.measure(obj, mesh, frame)
                     kept, viewport = measured["kept apart"], measured["viewport"]
@@ -85,11 +90,7 @@ class TestHandFamily(unittest.TestCase):
         allowed) and 64 on the stubby one (39)."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
-                helpers.reset_scene()
-                obj, _rig = real_cases.hand(voxel_size, shape, decimated=decimated)
-                mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
-                helpers.select_only(obj)
-                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+                obj, mesh = self.corrected_hand(voxel_size, shape, decimated)
                 obj.lvp.fold_over = True
                 obj.lvp.keep_apart = True
                 for pose, frame in FRAMES.items():

@@ -18,6 +18,7 @@
  */
 #include "binding.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
 
 /* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
@@ -112,6 +113,10 @@ static int lvp__triangles_cross(const lvp__vec3 *x, const lvp__vec3 *y)
 typedef struct lvp__contact_pass {
 	lvp_binding *binding;
 	const float *positions; /* the frame's input points (the skinning) */
+	/* A first round: some pair found crossing anew is a new contact, not the skinning's own crossing
+	 * moved. Then every pair is kept apart whatever it is, and the rest of the round asks no more
+	 * which (which pairs a thread has seen when it reads this changes nothing that is kept). */
+	atomic_bool *new_contact;
 } lvp__contact_pass;
 
 /* One triangle's search: its corners, corrected and skinned, its box, and the least share of the
@@ -209,6 +214,16 @@ static void lvp__skinned_corners(const lvp__contact_pass *pass, int32_t t, lvp__
 		r_x[i] = lvp__load(pass->positions + 3 * (int64_t)corners[i]);
 }
 
+/* Whether a triangle around corner i of `corners` has one of its corners before i too: the triangles
+ * around a triangle's corners are each taken once, around the first of its corners they hold. */
+static inline bool lvp__has_earlier_corner(const int32_t triangle[3], const int32_t corners[3], int i)
+{
+	for (int e = 0; e < i; ++e)
+		if (triangle[0] == corners[e] || triangle[1] == corners[e] || triangle[2] == corners[e])
+			return true;
+	return false;
+}
+
 /* Whether two triangles (their corners) cross along the skinning's own crossing: some triangle sharing
  * a corner with the first crosses, in the skinning, some triangle sharing a corner with the second.
  * Then the correction moved an intersection the skinning has by less than a triangle. */
@@ -218,12 +233,16 @@ static bool lvp__along_skinned_crossing(const lvp__contact_pass *pass, const int
 	for (int i = 0; i < 3; ++i)
 		for (int32_t c = mesh->vertex_corner_offsets[a[i]]; c < mesh->vertex_corner_offsets[a[i] + 1]; ++c) {
 			int32_t x = mesh->vertex_triangles[c];
+			const int32_t *x_corners = mesh->triangles + 3 * (int64_t)x;
+			if (lvp__has_earlier_corner(x_corners, a, i))
+				continue; /* seen around that corner */
 			lvp__vec3 xs[3];
 			lvp__skinned_corners(pass, x, xs);
 			for (int j = 0; j < 3; ++j)
 				for (int32_t d = mesh->vertex_corner_offsets[b[j]]; d < mesh->vertex_corner_offsets[b[j] + 1]; ++d) {
 					int32_t y = mesh->vertex_triangles[d];
-					if (lvp__share_corner(mesh->triangles + 3 * (int64_t)x, mesh->triangles + 3 * (int64_t)y))
+					const int32_t *y_corners = mesh->triangles + 3 * (int64_t)y;
+					if (lvp__has_earlier_corner(y_corners, b, j) || lvp__share_corner(x_corners, y_corners))
 						continue;
 					lvp__vec3 ys[3];
 					lvp__skinned_corners(pass, y, ys);
@@ -260,10 +279,15 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	if (before == LVP__CROSS || (before == LVP__UNSURE && after == LVP__UNSURE))
 		return false;
 	float share = lvp__share_apart(search->moved, search->skinned, moved, skinned);
-	if (search->first_round && lvp__along_skinned_crossing(search->pass, search->corners, other->vertices))
+	atomic_bool *new_contact = search->pass->new_contact;
+	if (search->first_round && !atomic_load_explicit(new_contact, memory_order_relaxed) &&
+	    lvp__along_skinned_crossing(search->pass, search->corners, other->vertices)) {
 		search->shifted_limit = fminf(search->shifted_limit, share);
-	else
+	} else {
 		search->limit = fminf(search->limit, share);
+		if (search->first_round)
+			atomic_store_explicit(new_contact, true, memory_order_relaxed);
+	}
 	return false;
 }
 
@@ -444,6 +468,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
 		lvp__refit_dynamic(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
+			atomic_store_explicit(pass->new_contact, false, memory_order_relaxed);
 			for (int32_t t = 0; t < f; ++t) {
 				contact->limit[t] = contact->shifted_limit[t] = 1.0f;
 				contact->pair_count[t] = contact->skinned_pair_count[t] = 0;
@@ -538,7 +563,8 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 	if (!any)
 		return;
 	lvp__refit_dynamic(binding, positions);
-	lvp__contact_pass pass = {binding, positions};
+	atomic_bool new_contact = false;
+	lvp__contact_pass pass = {binding, positions, &new_contact};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		if (!lvp__any_marked(held, corners))
@@ -594,7 +620,8 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		int32_t k = dynamic[v];
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
-	lvp__contact_pass pass = {binding, positions};
+	atomic_bool new_contact = false;
+	lvp__contact_pass pass = {binding, positions, &new_contact};
 	/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
 	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
 	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices

@@ -165,10 +165,32 @@ def enable_rigify():
     return hasattr(bpy.ops.pose, "rigify_generate")
 
 
-def _limbs(rig, side):
-    """{limb: (points, radii)} of one side of a body that fits Rigify's human: the leg from the hip to the ankle,
-    the foot from the ankle to the toe, the arm from the shoulder joint to the hand, the shoulder."""
+# The builds of rigify_human's body, each as ellipsoids along Rigify's DEF bones (radii in metres, the metarig
+# 1.98 m tall): the legs' radii from the hip to the ankle, the arms' from the shoulder joint to the wrist, and
+# the trunk's (width, depth, height) at the pelvis, the waist, the chest and under the shoulders. "male": narrow
+# hips, a gap of 2.6 cm between the thighs at the crotch. "female": hips wider than the shoulders, a narrow
+# waist, breasts on Rigify's DEF-breast bones, fuller thighs that meet at the crotch and part below it, slimmer
+# arms. "no gap": the male body with thighs so full that they press on each other from the crotch to the
+# middle of the thigh, as a heavy body's do.
+BODY_BUILDS = {
+    "male": {"leg": [0.085, 0.075, 0.058, 0.052, 0.04], "arm": [0.052, 0.048, 0.042, 0.04, 0.03, 0.028],
+             "pelvis": (0.15, 0.11, 0.12), "waist": (0.14, 0.10, 0.10), "belly": (0.135, 0.095, 0.10),
+             "chest": (0.15, 0.10, 0.11), "upper chest": (0.16, 0.105, 0.11), "breast": None},
+    "female": {"leg": [0.094, 0.074, 0.058, 0.05, 0.038], "arm": [0.045, 0.042, 0.037, 0.036, 0.028, 0.026],
+               "pelvis": (0.18, 0.125, 0.13), "waist": (0.13, 0.095, 0.10), "belly": (0.115, 0.085, 0.10),
+               "chest": (0.13, 0.09, 0.11), "upper chest": (0.14, 0.095, 0.10), "breast": (0.06, 0.055, 0.058)},
+    "no gap": {"leg": [0.115, 0.092, 0.064, 0.054, 0.04], "arm": [0.056, 0.052, 0.045, 0.042, 0.031, 0.028],
+               "pelvis": (0.17, 0.125, 0.13), "waist": (0.16, 0.12, 0.11), "belly": (0.16, 0.12, 0.11),
+               "chest": (0.16, 0.11, 0.11), "upper chest": (0.165, 0.105, 0.11), "breast": None},
+}
+
+
+def _limbs(rig, side, build="male"):
+    """{limb: (points, radii)} of one side of a body that fits Rigify's human (BODY_BUILDS): the leg from the
+    hip to the ankle, the foot from the ankle to the toe, the arm from the shoulder joint to the hand, the
+    shoulder."""
     bones = rig.data.bones
+    radii = BODY_BUILDS[build]
 
     def head(name):
         return tuple(bones[name].head_local)
@@ -178,19 +200,20 @@ def _limbs(rig, side):
 
     return {
         "leg": ([head("DEF-thigh." + side), tail("DEF-thigh." + side), tail("DEF-thigh.%s.001" % side),
-                 tail("DEF-shin." + side), tail("DEF-shin.%s.001" % side)], [0.085, 0.075, 0.058, 0.052, 0.04]),
+                 tail("DEF-shin." + side), tail("DEF-shin.%s.001" % side)], radii["leg"]),
         "foot": ([tail("DEF-shin.%s.001" % side), tail("DEF-foot." + side), tail("DEF-toe." + side)],
                  [0.04, 0.035, 0.03]),
         "arm": ([head("DEF-upper_arm." + side), tail("DEF-upper_arm." + side),
                  tail("DEF-upper_arm.%s.001" % side), tail("DEF-forearm." + side),
-                 tail("DEF-forearm.%s.001" % side), tail("DEF-hand." + side)],
-                [0.052, 0.048, 0.042, 0.04, 0.03, 0.028]),
+                 tail("DEF-forearm.%s.001" % side), tail("DEF-hand." + side)], radii["arm"]),
         "shoulder": ([head("DEF-shoulder." + side), head("DEF-upper_arm." + side)], [0.055, 0.055]),
     }
 
 
-def _body_spheres(rig):
-    """Ellipsoids of a body that fits Rigify's human metarig (1.98 m, facing -Y), from the rig's DEF bones."""
+def _body_spheres(rig, build="male"):
+    """Ellipsoids of a body of that build (BODY_BUILDS) that fits Rigify's human metarig (1.98 m, facing -Y),
+    from the rig's DEF bones."""
+    radii = BODY_BUILDS[build]
     bones = rig.data.bones
 
     def head(name):
@@ -201,14 +224,17 @@ def _body_spheres(rig):
 
     spheres = []
     for side in ("L", "R"):
-        for points, radii in _limbs(rig, side).values():
-            spheres += _chain(points, radii)
+        for points, limb_radii in _limbs(rig, side, build).values():
+            spheres += _chain(points, limb_radii)
+        if radii["breast"]:
+            breast = "DEF-breast." + side
+            spheres.append((tuple(Vector(head(breast)).lerp(Vector(tail(breast)), 0.55)), radii["breast"]))
     # The trunk: flattened ellipsoids along the spine, from the pelvis to the head.
-    trunk = [("DEF-spine", 0.0, (0.15, 0.11, 0.12)), ("DEF-spine", 1.0, (0.14, 0.10, 0.10)),
-             ("DEF-spine.001", 1.0, (0.135, 0.095, 0.10)), ("DEF-spine.002", 0.5, (0.15, 0.10, 0.11)),
-             ("DEF-spine.003", 0.0, (0.16, 0.105, 0.11)), ("DEF-spine.003", 0.6, (0.15, 0.095, 0.10))]
-    for name, t, radii in trunk:
-        spheres.append((tuple(Vector(head(name)).lerp(Vector(tail(name)), t)), radii))
+    trunk = [("DEF-spine", 0.0, radii["pelvis"]), ("DEF-spine", 1.0, radii["waist"]),
+             ("DEF-spine.001", 1.0, radii["belly"]), ("DEF-spine.002", 0.5, radii["chest"]),
+             ("DEF-spine.003", 0.0, radii["upper chest"]), ("DEF-spine.003", 0.6, (0.15, 0.095, 0.10))]
+    for name, t, trunk_radii in trunk:
+        spheres.append((tuple(Vector(head(name)).lerp(Vector(tail(name)), t)), trunk_radii))
     spheres += _chain([head("DEF-spine.004"), tail("DEF-spine.005")], [0.05, 0.05])
     centre = Vector(head("DEF-spine.006")).lerp(Vector(tail("DEF-spine.006")), 0.4)
     spheres.append((tuple(centre), (0.085, 0.1, 0.115)))
@@ -284,12 +310,13 @@ def skin_modifier_surface(name, rig, subdivisions):
     return obj
 
 
-def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisions=None, decimated=None):
-    """(body, rig): Rigify's human generated, a closed body around its DEF bones parented to it With Automatic
-    Weights: a voxel remesh; with metaball_resolution, the same ellipsoids as metaballs; with skin_subdivisions,
-    the Skin modifier's body subdivided that many times; decimated to that ratio of its faces when given (the
-    irregular triangles of a game mesh). Raises RuntimeError when this Blender has no Rigify or heat weighting
-    leaves the body unweighted."""
+def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisions=None, decimated=None,
+                 build="male"):
+    """(body, rig): Rigify's human generated, a closed body of that build (BODY_BUILDS) around its DEF bones
+    parented to it With Automatic Weights: a voxel remesh; with metaball_resolution, the same ellipsoids as
+    metaballs; with skin_subdivisions, the Skin modifier's body subdivided that many times (male); decimated to
+    that ratio of its faces when given (the irregular triangles of a game mesh). Raises RuntimeError when this
+    Blender has no Rigify or heat weighting leaves the body unweighted."""
     if not enable_rigify():
         raise RuntimeError("this Blender has no Rigify add-on")
     bpy.ops.object.armature_human_metarig_add()
@@ -298,11 +325,11 @@ def rigify_human(voxel_size=BODY_VOXEL, metaball_resolution=None, skin_subdivisi
     rig = next(obj for obj in bpy.data.objects if obj.type == 'ARMATURE' and obj != metarig)
     bpy.data.objects.remove(metarig)
     if metaball_resolution is not None:
-        body = metaball_surface("Body", _body_spheres(rig), metaball_resolution)
+        body = metaball_surface("Body", _body_spheres(rig, build), metaball_resolution)
     elif skin_subdivisions is not None:
         body = skin_modifier_surface("Body", rig, skin_subdivisions)
     else:
-        body = closed_surface("Body", _body_spheres(rig), voxel_size)
+        body = closed_surface("Body", _body_spheres(rig, build), voxel_size)
     if decimated is not None:
         decimate(body, decimated)
     if parent_with_automatic_weights(body, rig) != {'FINISHED'}:

@@ -329,9 +329,11 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	return true;
 }
 
-/* The triangles a group's descent gathers. */
+/* The triangles a group's descent gathers, and their boxes by coordinate (lvp__near_candidates reads
+ * them in one pass per vertex). */
 typedef struct lvp__candidates {
 	const lvp__bvh_triangle *triangles[LVP__GROUP_CANDIDATES];
+	float lo[3][LVP__GROUP_CANDIDATES], hi[3][LVP__GROUP_CANDIDATES];
 	int32_t count;
 	bool overflow;
 } lvp__candidates;
@@ -343,8 +345,47 @@ static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triang
 		candidates->overflow = true;
 		return true;
 	}
+	for (int axis = 0; axis < 3; ++axis) {
+		candidates->lo[axis][candidates->count] = triangle->lo[axis];
+		candidates->hi[axis][candidates->count] = triangle->hi[axis];
+	}
 	candidates->triangles[candidates->count++] = triangle;
 	return false;
+}
+
+/* Into r_near (in the order gathered), the candidates whose boxes may meet the vertex's ball as it is at
+ * the start of its search, by a float test with a margin well past its rounding: one tight pass over the
+ * boxes, where most of a group's candidates lie outside a vertex's ball. The search then tests those as
+ * it tests any triangle, against the ball as it narrows: what this passes over, the larger ball of the
+ * start passed over already. Returns their number. */
+static int32_t lvp__near_candidates(const lvp__candidates *candidates, const lvp__clearance_search *search,
+                                    int32_t *r_near)
+{
+	double radius = 0.5 * search->least;
+	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, radius));
+	double size = fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + radius;
+	float reach = (float)(radius + 1e-5 * size), reach2 = reach * reach;
+	const float cx = (float)centre.x, cy = (float)centre.y, cz = (float)centre.z;
+	uint8_t meets[LVP__GROUP_CANDIDATES];
+	/* The gap along an axis, max(lo - c, c - hi, 0), as sums and absolute values: no branch, so that the
+	 * compiler tests four boxes at a time. */
+	for (int32_t i = 0; i < candidates->count; ++i) {
+		float distance2 = 0.0f;
+		for (int axis = 0; axis < 3; ++axis) {
+			float c = axis == 0 ? cx : (axis == 1 ? cy : cz);
+			float below = candidates->lo[axis][i] - c, above = c - candidates->hi[axis][i];
+			float gap = 0.5f * (below + above + fabsf(below - above));
+			gap = 0.5f * (gap + fabsf(gap));
+			distance2 += gap * gap;
+		}
+		meets[i] = distance2 <= reach2;
+	}
+	int32_t count = 0;
+	for (int32_t i = 0; i < candidates->count; ++i) {
+		r_near[count] = i;
+		count += meets[i];
+	}
+	return count;
 }
 
 /* A vertex's search over its group's gathered triangles, or (candidates NULL, or more than were
@@ -354,8 +395,10 @@ static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, co
 {
 	double reach = search->least;
 	if (candidates && !candidates->overflow) {
-		for (int32_t c = 0; c < candidates->count; ++c)
-			lvp__visit_clearance(search, candidates->triangles[c]);
+		int32_t nearby[LVP__GROUP_CANDIDATES];
+		int32_t count = lvp__near_candidates(candidates, search, nearby);
+		for (int32_t c = 0; c < count; ++c)
+			lvp__visit_clearance(search, candidates->triangles[nearby[c]]);
 	} else {
 		lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);
 	}

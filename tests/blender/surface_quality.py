@@ -142,6 +142,11 @@ class WeldedMesh:
         """The welded triangles that share a vertex with welded triangle `index`, itself included."""
         return set().union(*(self.triangles_around[vertex] for vertex in self.welded_triangles[index]))
 
+    def share_vertex(self, first, second):
+        """Whether welded triangles `first` and `second` have a vertex in common (neighbours meet there, which is
+        no crossing)."""
+        return bool(set(self.welded_triangles[first]) & set(self.welded_triangles[second]))
+
     def interior_edges(self):
         """The edges with exactly two triangles (on a closed mesh, all of them)."""
         return [edge for edge in self.edges if len(self.edge_triangles[edge]) == 2]
@@ -353,8 +358,7 @@ def new_contact_pairs(plain_positions, new_pairs, mesh):
     points = points_of(plain_positions)
 
     def plain_cross(x, y):
-        return not set(mesh.welded_triangles[x]) & set(mesh.welded_triangles[y]) and \
-            _cross_exactly(points, mesh, x, y)
+        return not mesh.share_vertex(x, y) and _cross_exactly(points, mesh, x, y)
 
     def along_plain_crossing(i, j):
         beside_j = mesh.triangles_beside(j)
@@ -386,7 +390,7 @@ def added_crossings(plain_positions, positions, mesh, plain_pairs, pairs):
         beside_j = mesh.triangles_beside(j)
         for x in mesh.triangles_beside(i):
             for y in beside_j:
-                if x != y and not set(mesh.welded_triangles[x]) & set(mesh.welded_triangles[y]):
+                if not mesh.share_vertex(x, y):  # x == y shares all three
                     candidates.add((x, y) if x < y else (y, x))
     plain_points, points = points_of(plain_positions), points_of(positions)
     return (sum(_cross_exactly(points, mesh, i, j) for i, j in candidates)

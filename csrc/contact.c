@@ -278,7 +278,20 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	search->crossed_skinned = before == LVP__CROSS;
 	if (before == LVP__CROSS || (before == LVP__UNSURE && after == LVP__UNSURE))
 		return false;
-	float share = lvp__share_apart(search->moved, search->skinned, moved, skinned);
+	/* A corner fold-over pinned keeps its place (lvp__pin_held): the shares move the other corners
+	 * only. A pair they cannot part, crossing with every other corner where the skinning put it, is
+	 * left as it is: shortening takes offsets there and parts nothing (the skin pressed into a
+	 * thumb's web beside a fingertip that the skinning already pushed into it). */
+	const uint8_t *pinned = search->pass->binding->contact.pinned;
+	lvp__vec3 x_floor[3], y_floor[3];
+	for (int i = 0; i < 3; ++i) {
+		x_floor[i] = pinned[search->corners[i]] ? search->moved[i] : search->skinned[i];
+		y_floor[i] = pinned[other->vertices[i]] ? moved[i] : skinned[i];
+	}
+	if ((lvp__any_marked(pinned, search->corners) || lvp__any_marked(pinned, other->vertices)) &&
+	    lvp__triangles_cross(x_floor, y_floor) != LVP__APART)
+		return false;
+	float share = lvp__share_apart(search->moved, x_floor, moved, y_floor);
 	atomic_bool *new_contact = search->pass->new_contact;
 	if (search->first_round && !atomic_load_explicit(new_contact, memory_order_relaxed) &&
 	    lvp__along_skinned_crossing(search->pass, search->corners, other->vertices)) {

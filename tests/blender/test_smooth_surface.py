@@ -97,7 +97,7 @@ class TestRigifyHuman(SurfaceCase):
         # place: taken for a joint (foldover.c, lvp__joint_child), the inner skin of one thigh was pressed onto a
         # plane across the other, roughness 0.78 of the largest offset there; then 0.50 at the armpit, where the
         # upper arm's skin meets the spine's, the shoulder's and the breast's, each pair pressing onto a plane of
-        # its own until they shared the plane of the bone the arm hangs from. Now 0.36, at a thigh (README).
+        # its own until they shared the plane of the bone the arm hangs from. Now 0.31 (README).
         real_cases.pose_rigify_human(self.rig, 1.0)
         self.body.lvp.fold_over = True
         try:

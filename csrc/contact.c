@@ -284,12 +284,14 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	 * thumb's web beside a fingertip that the skinning already pushed into it). */
 	const uint8_t *pinned = search->pass->binding->contact.pinned;
 	lvp__vec3 x_floor[3], y_floor[3];
+	bool any_pinned = false;
 	for (int i = 0; i < 3; ++i) {
-		x_floor[i] = pinned[search->corners[i]] ? search->moved[i] : search->skinned[i];
-		y_floor[i] = pinned[other->vertices[i]] ? moved[i] : skinned[i];
+		bool x_pinned = pinned[search->corners[i]], y_pinned = pinned[other->vertices[i]];
+		x_floor[i] = x_pinned ? search->moved[i] : search->skinned[i];
+		y_floor[i] = y_pinned ? moved[i] : skinned[i];
+		any_pinned = any_pinned || x_pinned || y_pinned;
 	}
-	if ((lvp__any_marked(pinned, search->corners) || lvp__any_marked(pinned, other->vertices)) &&
-	    lvp__triangles_cross(x_floor, y_floor) != LVP__APART)
+	if (any_pinned && lvp__triangles_cross(x_floor, y_floor) != LVP__APART)
 		return false;
 	float share = lvp__share_apart(search->moved, x_floor, moved, y_floor);
 	atomic_bool *new_contact = search->pass->new_contact;

@@ -20,6 +20,8 @@
 /* A correction step that leaves more than this share of the error norm ends the coupled
  * iteration (lvp__volume_iterations). */
 #define LVP__LEAST_GAIN 0.9
+/* Halvings of a step through the map that leaves the volume further off (lvp__global_steps). */
+#define LVP__STEP_HALVINGS 4
 
 /* Rounds of (volume step, contact test) after the first contact test of fold-over prevention. */
 #define LVP__FOLD_ROUNDS 4
@@ -833,6 +835,21 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		lvp__remeasure_sums(binding);
 		regions_measured = false;
 		lvp__part_changes(binding);
+		/* A step through the map that leaves the volume further off went too far for the linear
+		 * response (skin moved along normals that turn by more than the step can follow): it is
+		 * undone and tried again at half the multipliers, a few times. */
+		for (int halving = 0; halving < LVP__STEP_HALVINGS && !along_offsets && !(lvp__parts_error(binding) < before);
+		     ++halving) {
+			lvp__undo_step(binding);
+			for (int32_t j = 0; j < touched; ++j)
+				binding->step.mu[binding->step.active[j]] *= 0.5;
+			binding->step.uniform_step = one_part;
+			binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
+			lvp__apply_multipliers(binding, binding->step.active, touched);
+			binding->step.uniform_step = false;
+			lvp__remeasure_sums(binding);
+			lvp__part_changes(binding);
+		}
 		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);
 			lvp__measure_positions(binding, rest_positions, totals);

@@ -249,6 +249,37 @@ static void lvp__share_child_planes(lvp_binding *binding)
 	}
 }
 
+/* The entry that presses each side of a joint (fold.side_entry): one side is the skin of a group (a B-Bone's
+ * joints, or a bone alone) on one side of one child's plane, and its first bending entry presses all of it.
+ * Around a B-Bone's end its joints bend alike (the knee of a Rigify leg: the thigh's last B-Bone and the
+ * shin's first each curve into the bend), and the calf pressed into the back of the thigh at 150 degrees
+ * is skin of joints that border no joint of the other bone: pressed region by region, only the pairs at
+ * the border were, and the skinning's crossings further along stayed (94 pairs a knee, 91 after). */
+static void lvp__find_side_entries(lvp_binding *binding)
+{
+	const lvp__mesh *mesh = &binding->mesh;
+	const lvp__region_system *system = &binding->system;
+	const lvp__joint *joints = binding->fold.joints;
+	for (int32_t s = 0; s < binding->region_count; ++s)
+		for (int32_t n = mesh->neighbour_offsets[s]; n < mesh->neighbour_offsets[s + 1]; ++n) {
+			binding->fold.side_entry[n] = -1;
+			if (!joints[n].bends)
+				continue;
+			int32_t leader = system->group_leader[s];
+			/* The first entry of a region of the group (in region order) with the same child and side. */
+			for (int32_t g = system->group_offsets[leader];
+			     g < system->group_offsets[leader + 1] && binding->fold.side_entry[n] < 0; ++g) {
+				int32_t t = system->group_regions[g];
+				for (int32_t m = mesh->neighbour_offsets[t]; m < mesh->neighbour_offsets[t + 1]; ++m)
+					if (joints[m].bends && joints[m].child == joints[n].child &&
+					    joints[m].child_side == joints[n].child_side) {
+						binding->fold.side_entry[n] = m;
+						break;
+					}
+			}
+		}
+}
+
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
@@ -296,62 +327,74 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 				lvp__place_at_border(binding, rest, s, n, joint);
 		}
 	lvp__share_child_planes(binding);
+	lvp__find_side_entries(binding);
 }
 
 /* Marks the contact of entry n of region s's neighbours, bone j, for both sides: the flesh of s
- * and of j is pressed together, whichever crossed. */
+ * and of j is pressed together, whichever crossed (each side by the entry that presses it). */
 static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_t j)
 {
 	int32_t m = lvp__neighbour_entry(binding, j, s); /* a region's neighbours are listed once each */
-	if (binding->fold.contact[n] == LVP__CONTACT_NONE)
-		binding->fold.contact[n] = LVP__CONTACT_FOUND;
-	if (m >= 0 && binding->fold.contact[m] == LVP__CONTACT_NONE)
-		binding->fold.contact[m] = LVP__CONTACT_FOUND;
+	int32_t sides[2] = {binding->fold.side_entry[n], m >= 0 ? binding->fold.side_entry[m] : -1};
+	for (int side = 0; side < 2; ++side)
+		if (sides[side] >= 0 && binding->fold.contact[sides[side]] == LVP__CONTACT_NONE)
+			binding->fold.contact[sides[side]] = LVP__CONTACT_FOUND;
 }
 
-/* The contact test of lvp__fold_over, at the joints where skin crossed already when at_contacts. */
+/* Presses the vertices of region r across the joint's plane of entry n (region s, bone j) back onto it;
+ * returns how many were not held before. */
+static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_t r, int32_t s, int32_t n)
+{
+	const lvp__joint *joint = &binding->fold.joints[n];
+	float *work = binding->step.positions;
+	int32_t j = binding->mesh.neighbour_bones[n], moved = 0;
+	/* The skin of the two sides does not quite touch. */
+	double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
+	for (int32_t i = binding->mesh.region_vertex_offsets[r]; i < binding->mesh.region_vertex_offsets[r + 1]; ++i) {
+		int32_t k = binding->mesh.region_vertices[i];
+		/* Pressed once: pressing again would soften its contact twice. Held still while pressed skin
+		 * relaxes: it has not moved. */
+		if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
+			continue;
+		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
+		double allowed = lvp__allowed_across(joint, rest_side);
+		if (allowed == INFINITY)
+			continue;
+		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+		double soft = joint->soft * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach);
+		double push = lvp__press(lvp__dot(from_joint, joint->normal) - allowed + gap, soft);
+		if (!(push > 0.0))
+			continue;
+		double held = lvp__across_joint(joint, p);
+		if (!(held > 0.0))
+			continue;
+		lvp__vec3 q = lvp__sub(p, lvp__scale(joint->normal, held * push));
+		work[3 * k] = (float)q.x;
+		work[3 * k + 1] = (float)q.y;
+		work[3 * k + 2] = (float)q.z;
+		lvp__mark_contact(binding, s, n, j);
+		moved += !binding->fold.held[k];
+		binding->fold.held[k] = LVP__HELD_THIS_ROUND;
+		lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
+	}
+	return moved;
+}
+
+/* The contact test of lvp__fold_over, at the joints where skin crossed already when at_contacts: each side
+ * of each joint, every region of its group (lvp__find_side_entries). */
 static int32_t lvp__press_across(lvp_binding *binding, const float *rest_positions, bool at_contacts)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
-	float *work = binding->step.positions;
+	const lvp__region_system *system = &binding->system;
 	int32_t moved = 0;
 	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
-			const lvp__joint *joint = &binding->fold.joints[n];
-			if (!joint->bends || (at_contacts && binding->fold.contact[n] == LVP__CONTACT_NONE))
+			if (!binding->fold.joints[n].bends || binding->fold.side_entry[n] != n ||
+			    (at_contacts && binding->fold.contact[n] == LVP__CONTACT_NONE))
 				continue;
-			int32_t j = binding->mesh.neighbour_bones[n];
-			/* The skin of the two sides does not quite touch. */
-			double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
-			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
-			     ++i) {
-				int32_t k = binding->mesh.region_vertices[i];
-				/* Pressed once: pressing again would soften its contact twice. Held still while
-				 * pressed skin relaxes: it has not moved. */
-				if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
-					continue;
-				double rest_side =
-				    lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-				double allowed = lvp__allowed_across(joint, rest_side);
-				if (allowed == INFINITY)
-					continue;
-				lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
-				double soft = joint->soft * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach);
-				double push = lvp__press(lvp__dot(from_joint, joint->normal) - allowed + gap, soft);
-				if (!(push > 0.0))
-					continue;
-				double held = lvp__across_joint(joint, p);
-				if (!(held > 0.0))
-					continue;
-				lvp__vec3 q = lvp__sub(p, lvp__scale(joint->normal, held * push));
-				work[3 * k] = (float)q.x;
-				work[3 * k + 1] = (float)q.y;
-				work[3 * k + 2] = (float)q.z;
-				lvp__mark_contact(binding, s, n, j);
-				moved += !binding->fold.held[k];
-				binding->fold.held[k] = LVP__HELD_THIS_ROUND;
-				lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
-			}
+			int32_t leader = system->group_leader[s];
+			for (int32_t g = system->group_offsets[leader]; g < system->group_offsets[leader + 1]; ++g)
+				moved += lvp__press_region(binding, rest, system->group_regions[g], s, n);
 		}
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
 		if (binding->fold.held[k] == LVP__HELD_THIS_ROUND)
@@ -429,6 +472,29 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 	return true;
 }
 
+/* The map of region r faded at the joint's contact (lvp__fade_map_at_contact). */
+static void lvp__fade_region_at_contact(lvp_binding *binding, int32_t r, const lvp__joint *joint)
+{
+	const float *work = binding->step.positions;
+	for (int32_t i = binding->mesh.region_vertex_offsets[r]; i < binding->mesh.region_vertex_offsets[r + 1]; ++i) {
+		int32_t k = binding->mesh.region_vertices[i];
+		if (!(binding->frame_map.gamma[k] > 0.0f))
+			continue;
+		double width = 0.5 * binding->map.distance[k];
+		if (!(width > 0.0))
+			continue; /* on the bone itself (where the map is zero anyway) */
+		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+		double across = lvp__dot(from_joint, joint->normal);
+		double fade = lvp__smoothstep(-across / width);
+		double pressed = lvp__smoothstep(lvp__dot(from_joint, joint->concave) / width);
+		/* Skin of the side already across the plane is pressed too: heat weights give a finger's region
+		 * some palm skin behind its knuckle, which otherwise bulged into the crease. */
+		pressed = fmax(pressed, lvp__smoothstep(across / width));
+		pressed *= lvp__across_joint(joint, p);
+		binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
+	}
+}
+
 /* Where skin crossed at a joint, the flesh pressed against its contact plane does not bulge into
  * it. The map is faded to zero there, over half the vertex's rest distance to its bone, so the
  * extra volume goes into the bulge beside the contact (paper Fig. 10d) instead of pushing skin
@@ -439,35 +505,18 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
  * bent without contact keeps its bulge), each once a frame. */
 bool lvp__fade_map_at_contact(lvp_binding *binding)
 {
-	const float *work = binding->step.positions;
+	const lvp__region_system *system = &binding->system;
 	bool faded = false;
 	for (int32_t s = 0; s < binding->region_count; ++s)
 		for (int32_t n = binding->mesh.neighbour_offsets[s]; n < binding->mesh.neighbour_offsets[s + 1]; ++n) {
 			if (binding->fold.contact[n] != LVP__CONTACT_FOUND)
 				continue;
 			binding->fold.contact[n] = LVP__CONTACT_FADED;
-			const lvp__joint *joint = &binding->fold.joints[n];
-			if (!joint->bends)
-				continue; /* marked from j's side: its joint is the same */
+			/* Contacts are marked on the entries that press a side (lvp__mark_contact): its group's regions. */
 			faded = true;
-			for (int32_t i = binding->mesh.region_vertex_offsets[s]; i < binding->mesh.region_vertex_offsets[s + 1];
-			     ++i) {
-				int32_t k = binding->mesh.region_vertices[i];
-				if (!(binding->frame_map.gamma[k] > 0.0f))
-					continue;
-				double width = 0.5 * binding->map.distance[k];
-				if (!(width > 0.0))
-					continue; /* on the bone itself (where the map is zero anyway) */
-				lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
-				double across = lvp__dot(from_joint, joint->normal);
-				double fade = lvp__smoothstep(-across / width);
-				double pressed = lvp__smoothstep(lvp__dot(from_joint, joint->concave) / width);
-				/* Skin of s already across the plane is pressed too: heat weights give a finger's
-				 * region some palm skin behind its knuckle, which otherwise bulged into the crease. */
-				pressed = fmax(pressed, lvp__smoothstep(across / width));
-				pressed *= lvp__across_joint(joint, p);
-				binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
-			}
+			int32_t leader = system->group_leader[s];
+			for (int32_t g = system->group_offsets[leader]; g < system->group_offsets[leader + 1]; ++g)
+				lvp__fade_region_at_contact(binding, system->group_regions[g], &binding->fold.joints[n]);
 		}
 	return faded;
 }
@@ -546,6 +595,7 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	binding->fold.joints = lvp__calloc(entries, sizeof(lvp__joint), &ok);
 	binding->fold.radius = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
 	binding->fold.plane_entry = lvp__calloc((size_t)binding->region_count + 1, sizeof(int32_t), &ok);
+	binding->fold.side_entry = lvp__calloc(entries + 1, sizeof(int32_t), &ok);
 	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	binding->fold.held_before = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	binding->fold.zone = lvp__calloc((size_t)binding->vertex_count, sizeof(int32_t), &ok);
@@ -563,6 +613,7 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->joints);
 	free(fold->radius);
 	free(fold->plane_entry);
+	free(fold->side_entry);
 	free(fold->held);
 	free(fold->held_before);
 	free(fold->zone);

@@ -184,9 +184,11 @@
  *   between where the child would point had it moved with the parent and where it points,
  *   through the crease: where the two regions' skins meet on the concave side of the bend, when
  *   that is within the child's flesh radius of the joint (moved from the joint by at most half
- *   that radius; of a group, only its first bone's joint moves: GROUPS). A vertex of s on its
- *   own side of that plane at rest and across it now goes back onto it (within the child's
- *   flesh radius of the joint along the bend's axis, tapering off at twice that) and is held
+ *   that radius; of a group, only its first bone's joint moves: GROUPS). A vertex of s's group
+ *   (a B-Bone's joints press together: the calf's skin away from the knee lies in regions of the
+ *   shin's later joints, which border none of the thigh's) on its own side of that plane at rest
+ *   and across it now goes back onto it (within the child's flesh radius of the joint along the
+ *   bend's axis, tapering off at twice that) and is held
  *   there while further volume steps run with the map faded near the contact, so the squeezed
  *   volume becomes a bulge beside it (paper Fig. 10d). It is pressed softly, so that it runs
  *   into the free skin without a kink; the skin at the bottom of the crease, which the plane
@@ -221,8 +223,10 @@
  *     collapses with it is not made up for.
  *   - Regions whose map is zero everywhere (fully rigid) cannot move and are left as they are.
  *   - Poses folded onto themselves (a joint bent near 180 degrees): a step moves a vertex by at
- *     most a quarter of the mesh's size, a step that makes the regions' volumes worse is undone and ends
- *     the iteration, and if anything still went non-finite the frame is passed through
+ *     most a quarter of the mesh's size, a step through the map that makes the regions' volumes
+ *     worse is tried again at half its multipliers (up to 4 times: a step far past what the linear
+ *     response can follow, as where fold-over pressed much skin and left the map few places), then
+ *     undone, which ends the iteration, and if anything still went non-finite the frame is passed through
  *     unchanged with stats.passed_through set. With options.displacement_limit the frame
  *     degrades locally first (DEGRADING).
  *   - Positions that are not the skinning of the rest by the bound weights and the given bones

@@ -431,6 +431,35 @@ def pose_rigify_human_legs(rig, kind):
     return _leg_angles(rig)
 
 
+
+def pose_rigify_human_folded(rig, degrees=150.0):
+    """Knees and elbows bent to `degrees` measured between the DEF bones (real_cases.bend_angle), from rest, the
+    rest of the body straight: Rigify's rest pose already bends them a little, so each FK control is turned until
+    the DEF bones read the angle (within 0.5 degrees). Returns {joint: degrees}."""
+    pose_rigify_human(rig, 0.0)
+    forward, back = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0)
+    for side in ("L", "R"):
+        for control, bone, direction, first, second in (
+                ("forearm_fk." + side, "DEF-forearm.%s.001" % side, forward, "DEF-upper_arm.%s.001" % side,
+                 "DEF-forearm." + side),
+                ("shin_fk." + side, "DEF-shin.%s.001" % side, back, "DEF-thigh.%s.001" % side, "DEF-shin." + side)):
+            turned = degrees
+            for _attempt in range(4):
+                rig.pose.bones[control].rotation_euler = Euler((0.0, 0.0, 0.0))
+                bpy.context.view_layer.update()
+                _turn_towards(rig, control, 'X', turned, bone, direction)
+                error = degrees - bend_angle(rig, first, second)
+                if abs(error) < 0.5:
+                    break
+                turned += error
+    bpy.context.view_layer.update()
+    return {
+        "elbow.L": bend_angle(rig, "DEF-upper_arm.L.001", "DEF-forearm.L"),
+        "elbow.R": bend_angle(rig, "DEF-upper_arm.R.001", "DEF-forearm.R"),
+        "knee.L": bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L"),
+        "knee.R": bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R"),
+    }
+
 # ---- a hand ------------------------------------------------------------------------------------
 
 HAND_VOXEL = 0.003

@@ -226,8 +226,8 @@
  *     most a quarter of the mesh's size, a step through the map that makes the regions' volumes
  *     worse is tried again at half its multipliers (up to 4 times: a step far past what the linear
  *     response can follow, as where fold-over pressed much skin and left the map few places), then
- *     undone, which ends the iteration, and if anything still went non-finite the frame is passed through
- *     unchanged with stats.passed_through set. With options.displacement_limit the frame
+ *     undone, which ends the iteration, and if anything still went non-finite the frame is passed
+ *     through unchanged with stats.passed_through set. With options.displacement_limit the frame
  *     degrades locally first (DEGRADING).
  *   - Positions that are not the skinning of the rest by the bound weights and the given bones
  *     (bone frames other than those that moved the mesh, weights changed since the bind): a

@@ -431,7 +431,6 @@ def pose_rigify_human_legs(rig, kind):
     return _leg_angles(rig)
 
 
-
 def pose_rigify_human_folded(rig, degrees=150.0):
     """Knees and elbows bent to `degrees` measured between the DEF bones (real_cases.bend_angle), from rest, the
     rest of the body straight: Rigify's rest pose already bends them a little, so each FK control is turned until
@@ -459,6 +458,7 @@ def pose_rigify_human_folded(rig, degrees=150.0):
         "knee.L": bend_angle(rig, "DEF-thigh.L.001", "DEF-shin.L"),
         "knee.R": bend_angle(rig, "DEF-thigh.R.001", "DEF-shin.R"),
     }
+
 
 # ---- a hand ------------------------------------------------------------------------------------
 

@@ -774,6 +774,21 @@ static void lvp__whole_mesh_gains(lvp_binding *binding, bool one_part, double *s
 	}
 }
 
+/* One step of lvp__global_steps, with the multipliers it set (step.mu of the touched regions, step.part_mu along
+ * the offsets), and the parts' changes measured after it. */
+static void lvp__apply_global_step(lvp_binding *binding, int32_t touched, bool one_part, bool along_offsets)
+{
+	binding->step.uniform_step = one_part && !along_offsets;
+	binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
+	binding->step.along_offsets = along_offsets;
+	/* Along the offsets no region's multiplier is applied (nor counted in moved_by: the steps that made the
+	 * offsets were). */
+	lvp__apply_multipliers(binding, binding->step.active, along_offsets ? 0 : touched);
+	binding->step.uniform_step = binding->step.along_offsets = false;
+	lvp__remeasure_sums(binding);
+	lvp__part_changes(binding);
+}
+
 /* One multiplier per part (one for the whole mesh when nothing is split) spread over the regions
  * touched this frame (eq. 5 with the sum of their maps, each step after the first scaled by how the
  * skin answered the one before) removes what is left of the part's change, holes capped: the whole
@@ -824,17 +839,9 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 		}
 		if (!any)
 			break;
-		binding->step.uniform_step = one_part && !along_offsets;
-		binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
-		binding->step.along_offsets = along_offsets;
-		/* Along the offsets no region's multiplier is applied (nor counted in moved_by: the
-		 * steps that made the offsets were). */
-		lvp__apply_multipliers(binding, binding->step.active, along_offsets ? 0 : touched);
-		binding->step.uniform_step = binding->step.along_offsets = false;
+		lvp__apply_global_step(binding, touched, one_part, along_offsets);
 		++steps;
-		lvp__remeasure_sums(binding);
 		regions_measured = false;
-		lvp__part_changes(binding);
 		/* A step through the map that leaves the volume further off went too far for the linear
 		 * response (skin moved along normals that turn by more than the step can follow): it is
 		 * undone and tried again at half the multipliers, a few times. */
@@ -843,12 +850,7 @@ static int32_t lvp__global_steps(lvp_binding *binding, const lvp_frame_options *
 			lvp__undo_step(binding);
 			for (int32_t j = 0; j < touched; ++j)
 				binding->step.mu[binding->step.active[j]] *= 0.5;
-			binding->step.uniform_step = one_part;
-			binding->step.uniform_mu = binding->step.mu[binding->step.active[0]];
-			lvp__apply_multipliers(binding, binding->step.active, touched);
-			binding->step.uniform_step = false;
-			lvp__remeasure_sums(binding);
-			lvp__part_changes(binding);
+			lvp__apply_global_step(binding, touched, one_part, false);
 		}
 		if (!(lvp__parts_error(binding) < before)) { /* no better: the step is undone, and that is all */
 			lvp__undo_step(binding);

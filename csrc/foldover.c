@@ -341,13 +341,14 @@ static void lvp__mark_contact(lvp_binding *binding, int32_t s, int32_t n, int32_
 			binding->fold.contact[sides[side]] = LVP__CONTACT_FOUND;
 }
 
-/* Presses the vertices of region r across the joint's plane of entry n (region s, bone j) back onto it;
- * returns how many were not held before. */
+/* Presses the vertices of region r across the joint's plane of entry n (region s, bone j) back onto it, and
+ * marks the joint's contact when it pressed any; returns how many were not held before. */
 static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_t r, int32_t s, int32_t n)
 {
 	const lvp__joint *joint = &binding->fold.joints[n];
 	float *work = binding->step.positions;
 	int32_t j = binding->mesh.neighbour_bones[n], moved = 0;
+	bool pressed = false;
 	/* The skin of the two sides does not quite touch. */
 	double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
 	for (int32_t i = binding->mesh.region_vertex_offsets[r]; i < binding->mesh.region_vertex_offsets[r + 1]; ++i) {
@@ -372,11 +373,13 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		work[3 * k] = (float)q.x;
 		work[3 * k + 1] = (float)q.y;
 		work[3 * k + 2] = (float)q.z;
-		lvp__mark_contact(binding, s, n, j);
+		pressed = true;
 		moved += !binding->fold.held[k];
 		binding->fold.held[k] = LVP__HELD_THIS_ROUND;
 		lvp__make_dynamic(binding, k); /* off its bone's path now: the next pass visits it */
 	}
+	if (pressed)
+		lvp__mark_contact(binding, s, n, j);
 	return moved;
 }
 

@@ -310,7 +310,8 @@ static bool lvp__bones_alike(const lvp_binding *binding, int32_t k)
 
 /* Whether dynamic vertex k is still by this frame's map while most of its neighbours move: a hole
  * (lvp__is_hole), or a vertex whose bones fall into several classes that carry it alike to float
- * noise (lvp__bones_alike), so its a_k is zero. Read before any is filled. */
+ * noise (lvp__bones_alike), so its a_k is zero. Read before any of a pass of lvp__fill_holes is
+ * filled. */
 static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
@@ -353,17 +354,27 @@ static void lvp__hole_map_loop(void *context, int32_t begin, int32_t end)
 }
 
 /* The map of each vertex still in moving skin (lvp__still_in_moving_skin) among `vertices` (NULL:
- * all `count` vertices): the mean of its neighbours' maps, all read before any is written, so that
- * it moves with the skin around it and its map tapers where the moving skin ends. Only dynamic
+ * all `count` vertices): the mean of its neighbours' maps, so that it moves with the skin around it
+ * and its map tapers where the moving skin ends. Pass by pass, each pass's maps all read before any
+ * is written, until a pass fills none: two or three such vertices side by side (a crotch vertex
+ * the two parts of one thigh carry alike, beside others of the same thigh) each have too few moving
+ * neighbours until the first is filled, and one left still keeps no offset among neighbours that
+ * take theirs, a pit the smoothing cannot reach (it moves only vertices the map moves). A filled
+ * vertex is never a candidate again, so each pass but the last fills one at least. Only dynamic
  * vertices can be such: when the dynamic set is current, it is all that is walked. */
 static void lvp__fill_holes(lvp_binding *binding, const int32_t *vertices, int32_t vertex_count)
 {
 	lvp__frame_map *frame_map = &binding->frame_map;
 	lvp__hole_walk walk = {binding, vertices};
-	lvp__parallel_for(LVP__POOL_FOR(binding, vertex_count), lvp__hole_map_loop, &walk, vertex_count, LVP__GRAIN);
-	for (int32_t v = 0; v < vertex_count; ++v)
-		if (frame_map->fill_gamma[v] >= 0.0f)
-			frame_map->gamma[vertices ? vertices[v] : v] = frame_map->fill_gamma[v];
+	for (bool filled = true; filled;) {
+		lvp__parallel_for(LVP__POOL_FOR(binding, vertex_count), lvp__hole_map_loop, &walk, vertex_count, LVP__GRAIN);
+		filled = false;
+		for (int32_t v = 0; v < vertex_count; ++v)
+			if (frame_map->fill_gamma[v] > 0.0f) {
+				frame_map->gamma[vertices ? vertices[v] : v] = frame_map->fill_gamma[v];
+				filled = true;
+			}
+	}
 }
 
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which

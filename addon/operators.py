@@ -319,6 +319,13 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         "the shoulder). Off: each vertex goes first to its nearest bone, as with Blender's heat weights",
         default=False,
     )
+    facing: BoolProperty(
+        name="Facing Distance",
+        description="A bone off to the side of the skin counts farther than one straight beneath it, as Blender's "
+        "heat weights measure it: the skin that faces away from a bone is its flesh (the front of a hip the "
+        "thigh's, not the pelvis's). Off: the straight distance, as in the paper",
+        default=True,
+    )
     max_influences: IntProperty(
         name="Max Influences",
         description="Keep at most this many bones per vertex (0: all)",
@@ -382,7 +389,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         try:
             weights = _lvp.auto_weights(
                 positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
-                alpha=self.alpha, by_length=self.by_length, visibility=self.visibility,
+                alpha=self.alpha, by_length=self.by_length, facing=self.facing, visibility=self.visibility,
                 max_influences=self.max_influences, min_weight=self.min_weight,
                 smoothing_thickness=self.blend_width)
         except (_lvp.Error, MemoryError) as error:

@@ -499,6 +499,18 @@ typedef struct lvp_auto_weights_options {
 	                           an upper arm the shoulder) the border between them lies l_long / l_short
 	                           times farther from the long bone; 0: each vertex's strongest bone is its
 	                           nearest, borders halfway, as with heat weights */
+	int32_t facing;         /* nonzero: d_ki is the distance over (1.001 + cos) / 2, cos that of the angle
+	                           between vertex k's outward normal and the path to k from its closest point
+	                           on bone i, as Blender's heat weights measure it: a bone straight beneath
+	                           the skin counts at its distance, one off to the side at twice it, so the
+	                           skin that faces away from a bone is its flesh (the front of a hip is the
+	                           thigh's, where the pelvis's bone runs close under the skin above it);
+	                           the thickness of SMOOTHING BY THICKNESS is measured so too. The normal
+	                           counts only as far as it tells which way the skin faces: the share is
+	                           1 - t (1 - (1.001 + cos) / 2), t the least cosine (at least 0) between
+	                           the vertex normal and its triangles' normals, 0 at a vertex on an edge
+	                           that is not two triangles' (a fin, an open border, whose skin faces no
+	                           side). Default 0 (the paper's distance) */
 	lvp_visibility visibility;
 	float normal_cos_max;   /* NORMAL test: bone i is hidden from vertex k when the unit path
 	                           from k to its closest point on bone i has cos(path, outward

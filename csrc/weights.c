@@ -38,6 +38,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	lvp_auto_weights_options options;
 	options.alpha = 2.0f;
 	options.by_length = 1;
+	options.facing = 0;
 	options.visibility = LVP_VISIBILITY_NORMAL;
 	options.normal_cos_max = 0.0f;
 	options.max_influences = 4;
@@ -180,11 +181,74 @@ typedef struct lvp__weights_context {
 	lvp_visibility visibility;
 	double alpha, normal_cos_max, min_weight;
 	bool by_length;         /* options.by_length */
+	const float *facing_trust; /* options.facing: per vertex, how far its normal tells which way its skin
+	                              faces (lvp__facing_trust), else NULL */
 	int32_t max_influences; /* 0 = all */
 	lvp__candidate *heap;   /* bone_count scratch */
 	lvp__candidate *visible; /* bone_count scratch */
 	int32_t *blockers;       /* EXACT: per bone, the BVH subtree that last hid it (-1), searched first next time */
 } lvp__weights_context;
+
+/* options.facing: the share of a bone's distance from vertex k that counts, (1.001 + cos) / 2 with cos
+ * that of the angle between k's outward normal n and the path to k from the bone's closest point,
+ * `toward` = closest - k of length `distance`, taken only as far as the normal can be trusted: a
+ * share of 1 - trust (1 - (1.001 + cos) / 2). */
+static inline double lvp__facing_share(lvp__vec3 n, double trust, lvp__vec3 toward, double distance)
+{
+	if (!(distance > 0.0) || !(trust > 0.0))
+		return 1.0;
+	return 1.0 - trust * (1.0 - 0.5 * (1.001 - lvp__dot(toward, n) / distance));
+}
+
+static int lvp__compare_edge_keys(const void *a, const void *b)
+{
+	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+	return (x > y) - (x < y);
+}
+
+/* Into r_trust, how far each vertex's outward normal tells which way its skin faces, for options.facing:
+ * the least cosine between it and the normals of the triangles around it (0 when negative), 1 on a
+ * smooth surface, less where the triangles turn around a crease or a corner (a cap's rim, whose normal
+ * leans half toward each side: it faces neither way); and 0 on an edge that is not two triangles' (an open
+ * border, a fin on a body), where the surface has no inside to face away from. Returns false when memory
+ * runs out. */
+static bool lvp__facing_trust(float *r_trust, const float *positions, const float *normals, int32_t vertex_count,
+                              const int32_t *triangles, int32_t triangle_count)
+{
+	uint64_t *edges = malloc(sizeof(uint64_t) * (3 * (size_t)triangle_count + 1));
+	if (!edges)
+		return false;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		r_trust[k] = 1.0f;
+	for (int32_t t = 0; t < triangle_count; ++t) {
+		const int32_t *corners = triangles + 3 * (int64_t)t;
+		lvp__vec3 a = lvp__load(positions + 3 * (int64_t)corners[0]);
+		lvp__vec3 normal = lvp__cross(lvp__sub(lvp__load(positions + 3 * (int64_t)corners[1]), a),
+		                              lvp__sub(lvp__load(positions + 3 * (int64_t)corners[2]), a));
+		double area2 = lvp__length(normal);
+		for (int i = 0; i < 3; ++i) {
+			int32_t k = corners[i], next = corners[(i + 1) % 3];
+			uint32_t low = (uint32_t)(k < next ? k : next), high = (uint32_t)(k < next ? next : k);
+			edges[3 * (int64_t)t + i] = ((uint64_t)low << 32) | high;
+			if (area2 > 0.0) {
+				double cosine = lvp__dot(normal, lvp__load(normals + 3 * (int64_t)k)) / area2;
+				r_trust[k] = fminf(r_trust[k], cosine > 0.0 ? (float)cosine : 0.0f);
+			}
+		}
+	}
+	size_t count = 3 * (size_t)triangle_count;
+	qsort(edges, count, sizeof(uint64_t), lvp__compare_edge_keys);
+	for (size_t first = 0, last; first < count; first = last) {
+		for (last = first + 1; last < count && edges[last] == edges[first]; ++last) {
+		}
+		if (last - first != 2) {
+			r_trust[edges[first] >> 32] = 0.0f;
+			r_trust[edges[first] & 0xffffffffu] = 0.0f;
+		}
+	}
+	free(edges);
+	return true;
+}
 
 /* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
 static bool lvp__path_is_inside(const lvp__weights_context *ctx, int32_t k, lvp__vec3 p, int32_t bone)
@@ -340,7 +404,12 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
 			if (along > ctx->normal_cos_max * sqrt(d2))
 				continue;
 		}
-		candidates[count].key = (ctx->by_length ? bone->length2 : 1.0) / (d2 > bone->floor2 ? d2 : bone->floor2);
+		double counted2 = d2 > bone->floor2 ? d2 : bone->floor2;
+		if (ctx->facing_trust) {
+			double share = lvp__facing_share(n, ctx->facing_trust[k], diff, sqrt(d2));
+			counted2 /= share * share;
+		}
+		candidates[count].key = (ctx->by_length ? bone->length2 : 1.0) / counted2;
 		candidates[count].bone = i;
 		candidates[count].weight = 0.0;
 		++count;
@@ -394,12 +463,18 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__d
 	return kept;
 }
 
-/* The distance from vertex k to bone i (to its head when it has no length). */
+/* The distance from vertex k to bone i (to its head when it has no length), over its facing share with
+ * options.facing. */
 static double lvp__distance_to_bone(const lvp__weights_context *ctx, int32_t k, int32_t i)
 {
 	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
 	const lvp__bone_segment *bone = &ctx->bones[i];
-	return lvp__length(lvp__sub(bone->length2 > 0.0 ? lvp__closest_on_bone(bone, p) : bone->head, p));
+	lvp__vec3 toward = lvp__sub(bone->length2 > 0.0 ? lvp__closest_on_bone(bone, p) : bone->head, p);
+	double distance = lvp__length(toward);
+	if (ctx->facing_trust)
+		distance /= lvp__facing_share(lvp__load(ctx->normals + 3 * (int64_t)k), ctx->facing_trust[k], toward,
+		                              distance);
+	return distance;
 }
 
 /* Blends the rows by the flesh's thickness (SMOOTHING BY THICKNESS in lvp.h): each vertex's distance from
@@ -482,10 +557,12 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	size_t staged = direct ? 0 : (size_t)limit;
 	bool normal_test = options->visibility == LVP_VISIBILITY_NORMAL;
 	size_t n = (size_t)vertex_count, b = (size_t)bone_count, row = (size_t)row_bound;
-	size_t normal_bytes = normal_test ? sizeof(float) * 3 * n : 0;
+	bool with_normals = normal_test || options->facing;
+	size_t normal_bytes = with_normals ? sizeof(float) * 3 * n : 0;
+	size_t trust_bytes = options->facing ? sizeof(float) * n : 0;
 	size_t offset_bytes = direct ? 0 : sizeof(int32_t) * (n + 1);
 	size_t bytes = (sizeof(lvp__bone_segment) + 2 * sizeof(lvp__candidate) + sizeof(int32_t)) * b + normal_bytes +
-	               offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
+	               trust_bytes + offset_bytes + (sizeof(int32_t) + sizeof(float)) * (staged + row);
 	unsigned char *memory = malloc(bytes);
 	if (!memory)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
@@ -498,8 +575,10 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	unsigned char *cursor = (unsigned char *)(blockers + b);
 	for (size_t i = 0; i < b; ++i)
 		blockers[i] = -1;
-	float *normals = normal_test ? (float *)cursor : NULL;
+	float *normals = with_normals ? (float *)cursor : NULL;
 	cursor += normal_bytes;
+	float *facing_trust = options->facing ? (float *)cursor : NULL;
+	cursor += trust_bytes;
 	int32_t *offsets = direct ? r_offsets : (int32_t *)cursor;
 	cursor += offset_bytes;
 	int32_t *out_bones = direct ? r_bones : (int32_t *)cursor;
@@ -519,15 +598,25 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	}
 
 	lvp__bvh bvh = {0};
-	if (normal_test) {
+	if (with_normals) {
 		double volume = 0.0;
 		lvp_vertex_normals(normals, positions, vertex_count, triangles, triangle_count, NULL);
 		lvp_mesh_volume(&volume, positions, vertex_count, triangles, triangle_count, NULL);
-		/* The test needs outward normals: a mesh wound inward has a negative volume. */
+		/* Judged while the vertex normals are wound as the triangles' are. */
+		if (facing_trust &&
+		    !lvp__facing_trust(facing_trust, positions, normals, vertex_count, triangles, triangle_count)) {
+			free(memory);
+			return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
+			                 "could not allocate the edges of %d triangles to judge which way the skin faces; "
+			                 "set options.facing to 0 to do without.",
+			                 (int)triangle_count);
+		}
+		/* The test and the facing need outward normals: a mesh wound inward has a negative volume. */
 		if (volume < 0.0)
 			for (size_t i = 0; i < 3 * n; ++i)
 				normals[i] = -normals[i];
-	} else if (options->visibility == LVP_VISIBILITY_EXACT) {
+	}
+	if (options->visibility == LVP_VISIBILITY_EXACT) {
 		result = lvp__bvh_build(&bvh, positions, triangles, triangle_count, r_diag);
 		if (result != lvp_success) {
 			free(memory);
@@ -544,6 +633,7 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .visibility = options->visibility,
 	    .alpha = options->alpha,
 	    .by_length = options->by_length != 0,
+	    .facing_trust = facing_trust,
 	    .normal_cos_max = options->normal_cos_max,
 	    .min_weight = options->min_weight,
 	    .max_influences = options->max_influences,

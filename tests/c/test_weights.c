@@ -483,20 +483,23 @@ static void test_inward_winding_is_detected(void)
 	builder *b = malloc(sizeof(builder));
 	int32_t split;
 	make_fingers(b, &split);
-	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
-	result outward = compute(b, &o);
-	for (int32_t t = 0; t < b->triangle_count; ++t) {
-		int32_t swap = b->triangles[3 * t + 1];
-		b->triangles[3 * t + 1] = b->triangles[3 * t + 2];
-		b->triangles[3 * t + 2] = swap;
+	for (int facing = 0; facing < 2; ++facing) { /* the distance along the normal needs it outward too */
+		lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+		o.facing = facing;
+		result outward = compute(b, &o);
+		for (int32_t t = 0; t < b->triangle_count; ++t) {
+			int32_t swap = b->triangles[3 * t + 1];
+			b->triangles[3 * t + 1] = b->triangles[3 * t + 2];
+			b->triangles[3 * t + 2] = swap;
+		}
+		result inward = compute(b, &o);
+		CHECK(memcmp(outward.offsets, inward.offsets, sizeof(int32_t) * ((size_t)b->vertex_count + 1)) == 0);
+		int32_t total = outward.offsets[b->vertex_count];
+		CHECK(memcmp(outward.bones, inward.bones, sizeof(int32_t) * (size_t)total) == 0);
+		CHECK(memcmp(outward.values, inward.values, sizeof(float) * (size_t)total) == 0);
+		result_free(&outward);
+		result_free(&inward);
 	}
-	result inward = compute(b, &o);
-	CHECK(memcmp(outward.offsets, inward.offsets, sizeof(int32_t) * ((size_t)b->vertex_count + 1)) == 0);
-	int32_t total = outward.offsets[b->vertex_count];
-	CHECK(memcmp(outward.bones, inward.bones, sizeof(int32_t) * (size_t)total) == 0);
-	CHECK(memcmp(outward.values, inward.values, sizeof(float) * (size_t)total) == 0);
-	result_free(&outward);
-	result_free(&inward);
 	free(b);
 }
 
@@ -880,6 +883,48 @@ static void test_smoothing_by_thickness_is_local(void)
 	free(with);
 }
 
+/* ---- the distance along the skin's normal -------------------------------------------------------- */
+
+/* options.facing: a tube around bone 0 on its axis, bone 1 inside it near the +x side (a hip's bone
+ * close under the skin above a thigh's, deeper). By the straight distance, bone 1 takes the skin out to
+ * 70.5 degrees either side of +x; measured along the normal, only the skin that faces away from it
+ * (straight over it, to about 60 degrees), and the skin at 67.5 degrees, which bone 1 lies off to the
+ * side of, goes to bone 0 beneath it. */
+static void test_facing_distance_gives_skin_to_the_bone_beneath(void)
+{
+	builder *b = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	double centres[21][3];
+	for (int i = 0; i < 21; ++i)
+		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
+	add_tube(b, (const double(*)[3])centres, 21, 0.3, 16, y_axis);
+	add_bone(b, 0, 0, 0, 0, 0, 2);
+	add_bone(b, 0.2, 0, 0.5, 0.2, 0, 1.5);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	o.by_length = 0;
+	o.smoothing_thickness = 0.0f;
+	result straight = compute(b, &o);
+	o.facing = 1;
+	result facing = compute(b, &o);
+	check_rows(b, &facing, &o);
+	int ring = 0;
+	for (int32_t v = 0; v < b->vertex_count; ++v) {
+		const float *p = b->positions + 3 * v;
+		if (fabsf(p[2] - 1.0f) > 0.01f || hypotf(p[0], p[1]) < 0.1f)
+			continue;
+		double degrees = fabs(atan2(p[1], p[0])) * 180.0 / PI;
+		bool straight_one = straight.bones[straight.offsets[v]] == 1, facing_one = facing.bones[facing.offsets[v]] == 1;
+		CHECK(straight_one == (degrees < 70.5));
+		CHECK(facing_one == (degrees < 60.0));
+		++ring;
+	}
+	CHECK(ring == 16);
+	result_free(&straight);
+	result_free(&facing);
+	free(b);
+}
+
 /* ---- sizes --------------------------------------------------------------------------------------- */
 
 static void test_bound(void)
@@ -1062,6 +1107,7 @@ int main(void)
 	RUN(test_smoothing_of_many_steps);
 	RUN(test_smoothing_follows_the_thickness);
 	RUN(test_smoothing_by_thickness_is_local);
+	RUN(test_facing_distance_gives_skin_to_the_bone_beneath);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

@@ -303,6 +303,33 @@ class TestGeometry(unittest.TestCase):
                 if not by_length:
                     self.assertAlmostEqual(row.get(0, 0.0), 0.5, places=4)
 
+    def test_auto_weights_facing(self):
+        # Measured along the normal, the other bone lies off to the side of a ring beside the joint (its closest
+        # point is the joint, the path oblique to the skin) and counts farther: each ring's own bone gains weight,
+        # the joint's ring (the two bones alike) stays shared evenly. The end rings, at the caps' rims, face
+        # both ways and are left out.
+        tube = Tube()
+        arguments = (tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tube.tails)
+        rows = {}
+        for facing in (False, True):
+            offsets, bones, values = _lvp.auto_weights(*arguments, alpha=4.0, visibility='NONE', by_length=False,
+                                                       min_weight=0.0, facing=facing)
+            rows[facing] = [dict(zip(bones[offsets[vertex]:offsets[vertex + 1]],
+                                     values[offsets[vertex]:offsets[vertex + 1]]))
+                            for vertex in range(tube.vertex_count)]
+        for ring in range(1, tube.rings - 1):
+            own = 0 if ring < tube.rings // 2 else 1
+            for step in range(tube.around):
+                vertex = ring * tube.around + step
+                straight, facing = rows[False][vertex], rows[True][vertex]
+                self.assertAlmostEqual(sum(facing.values()), 1.0, places=5)
+                if ring == tube.rings // 2:
+                    self.assertAlmostEqual(facing.get(0, 0.0), 0.5, places=4)
+                elif abs(ring - tube.rings // 2) == 1:
+                    self.assertGreater(facing.get(own, 0.0), straight.get(own, 0.0) + 0.01, f'vertex {vertex}')
+                else:
+                    self.assertGreaterEqual(facing.get(own, 0.0), straight.get(own, 0.0) - 1e-6, f'vertex {vertex}')
+
     def test_auto_weights_smoothing(self):
         tube = Tube()
         arguments = (tube.positions, tube.triangles, tube.rest_matrices, tube.heads, tube.tails)

@@ -87,11 +87,13 @@ bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int
                           const uint8_t *wanted, lvp__pool *pool);
 
 /* Blends the rows (filled, not yet blended) over a distance that follows the flesh (lvp.h, SMOOTHING BY
- * THICKNESS; diffusion_thickness.c): distances[k] is vertex k's distance from the first bone of its row,
- * share how many times a bone's thickness its skin blends over. Returns false when memory runs out (the
- * rows are then partly blended). */
+ * THICKNESS; diffusion_thickness.c): distances[k] is vertex k's distance from the first bone of its row
+ * (what its bone's thickness is measured by), depths[k] how deep the vertex lies under its skin (that
+ * distance, at most twice the straight one and the longest bone's length), share how many times a bone's
+ * thickness or a vertex's depth its skin blends over. Returns false when memory runs out (the rows are
+ * then partly blended). */
 bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
-                                       const double *distances, double share);
+                                       const double *distances, const double *depths, double share);
 
 /* The mean length of the edges (each counted from both ends); 0 when there is none. */
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);

@@ -9,9 +9,13 @@
  * nearest bone, so their blends follow the flesh's thickness; here each bone's thickness is
  * measured once (the median distance from it of the skin that is mostly its own), the rows are
  * blended over a ladder of lengths, and each vertex takes the mix of the two rungs around the length
- * its bones ask for. The rungs are ordinary blends (diffusion_levels.c), so weight still flows only
- * along edges, and the length a vertex asks for is read from the widest rung's rows, which change
- * smoothly over the surface: neighbouring vertices take nearly the same mix.
+ * its bones ask for, or its own depth under the skin when that is more: the skin of a palm's edge lies
+ * three or four times deeper than its finger's flesh is thick, and blended over the finger's
+ * thickness its weight fell from finger to palm within a centimetre, a fold as the finger bent. The
+ * rungs are ordinary blends (diffusion_levels.c), so weight still flows only along edges, and the
+ * length a vertex asks for is read from the widest rung's rows, which change smoothly over the surface
+ * (and its depth from a distance to its bone, continuous but for where its strongest bone changes):
+ * neighbouring vertices take nearly the same mix.
  */
 #include "diffusion.h"
 
@@ -68,8 +72,8 @@ static bool lvp__bone_thickness(double *thickness, const lvp__diffusion *rows, i
 	return true;
 }
 
-/* The length vertex k asks for: share times the thickness of the bones of its row, weighted by their
- * weights, over the bones that have a thickness (`fallback` when none has). */
+/* The length vertex k asks for by its bones: share times the thickness of the bones of its row, weighted
+ * by their weights, over the bones that have a thickness (`fallback` when none has). */
 static double lvp__wanted_length(const lvp__diffusion *rows, int32_t k, const double *thickness, double share,
                                  double fallback)
 {
@@ -147,7 +151,7 @@ static bool lvp__takers(uint8_t *r_wanted, const double *place, int32_t vertex_c
 }
 
 bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
-                                       const double *distances, double share)
+                                       const double *distances, const double *depths, double share)
 {
 	int32_t stride = diffusion->stride, bone_count = diffusion->bone_count;
 	size_t n = (size_t)vertex_count, entries = n * (size_t)stride;
@@ -165,6 +169,9 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
 			least = thickness[i] < least ? thickness[i] : least;
 			most = thickness[i] > most ? thickness[i] : most;
 		}
+	double deepest = most; /* the ladder reaches the deepest skin too */
+	for (int32_t k = 0; k < vertex_count; ++k)
+		deepest = depths[k] > deepest ? depths[k] : deepest;
 	if (!(most > 0.0) || !(edge > 0.0)) {
 		free(thickness); /* every vertex on its bone, or no edge: nothing to blend over */
 		return true;
@@ -172,7 +179,7 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
 	/* The rungs blend over edge * ratio^j, lengths that the bones' thicknesses choose among but do not
 	 * move: a piece with thicker or thinner bones adds rungs. Blends shorter than an edge take one step
 	 * all the same. */
-	double low = share * least > edge ? share * least : edge, high = share * most > low ? share * most : low;
+	double low = share * least > edge ? share * least : edge, high = share * deepest > low ? share * deepest : low;
 	int32_t lowest = (int32_t)floor(log(low / edge) / log(LVP__RUNG_RATIO) + 1e-9);
 	int32_t highest = (int32_t)ceil(log(high / edge) / log(LVP__RUNG_RATIO) - 1e-9);
 	if (highest - lowest + 1 > LVP__MAX_RUNGS)
@@ -209,7 +216,9 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
 		                          turn == 0 ? NULL : wanted, NULL);
 		if (ok && turn == 0)
 			for (int32_t k = 0; k < vertex_count; ++k) {
-				double wanted_length = lvp__wanted_length(diffusion, k, thickness, share, high);
+				double wanted_length = lvp__wanted_length(diffusion, k, thickness, share, share * most);
+				if (share * depths[k] > wanted_length)
+					wanted_length = share * depths[k];
 				double at = rungs > 1 && wanted_length > low ? log(wanted_length / low) / log(ratio) : 0.0;
 				place[k] = at < (double)(rungs - 1) ? at : (double)(rungs - 1);
 			}

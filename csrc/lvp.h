@@ -566,11 +566,14 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * over follows the flesh. Bone i's thickness T_i is the median distance from it of the vertices
  * whose strongest bone (before smoothing) it is; a vertex blends over s times the thickness of its
  * bones, sum_i w_ki T_i over the bones with a thickness (w_k its row blended over s times the
- * largest thickness, which varies smoothly over the surface). The rows are blended over lengths
- * e sqrt(2)^j (e the mean edge) from s times the least thickness to s times the largest, the steps
- * adding only what the mesh's sampling does not blend already (a border spreads over about an edge
- * by itself; widths add in quadrature; at least one step), and each vertex takes the mix of the
- * two lengths around its own (by their ratio's logarithm), kept to its 8 strongest bones and
+ * largest thickness, which varies smoothly over the surface), or s times its own depth under the
+ * skin, its distance from its strongest bone before smoothing, when that is more (at most twice the
+ * straight distance and the longest bone's length): skin deeper than its bones' flesh is thick (a
+ * palm's edge beside the little finger, a buttock) blends as widely as it is deep. The rows are
+ * blended over lengths e sqrt(2)^j (e the mean edge) from s times the least thickness to s times the
+ * largest (or the deepest skin's depth), the steps adding only what the mesh's sampling does not
+ * blend already (a border spreads over about an edge by itself; widths add in quadrature; at least
+ * one step), and each vertex takes the mix of the two lengths around its own (by their ratio's logarithm), kept to its 8 strongest bones and
  * renormalized; then pruned as above. Like heat weights, whose diffusion is screened by the
  * distance to the nearest bone: the blend between finger bones is a few millimetres, at the hip a
  * hand's width, and neither depends on the mesh's size (a tail or a weapon in the mesh changes

@@ -464,30 +464,42 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__d
 }
 
 /* The distance from vertex k to bone i (to its head when it has no length), over its facing share with
- * options.facing. */
-static double lvp__distance_to_bone(const lvp__weights_context *ctx, int32_t k, int32_t i)
+ * options.facing when `facing`. */
+static double lvp__distance_to_bone(const lvp__weights_context *ctx, int32_t k, int32_t i, bool facing)
 {
 	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
 	const lvp__bone_segment *bone = &ctx->bones[i];
 	lvp__vec3 toward = lvp__sub(bone->length2 > 0.0 ? lvp__closest_on_bone(bone, p) : bone->head, p);
 	double distance = lvp__length(toward);
-	if (ctx->facing_trust)
+	if (facing && ctx->facing_trust)
 		distance /= lvp__facing_share(lvp__load(ctx->normals + 3 * (int64_t)k), ctx->facing_trust[k], toward,
 		                              distance);
 	return distance;
 }
 
 /* Blends the rows by the flesh's thickness (SMOOTHING BY THICKNESS in lvp.h): each vertex's distance from
- * its strongest bone, then diffusion_thickness.c. */
+ * its strongest bone (as options.facing measures it) and its depth under the skin, then
+ * diffusion_thickness.c. */
 static bool lvp__blend_by_thickness(lvp__diffusion *smooth, const lvp__weights_context *ctx, int32_t vertex_count,
                                     double share)
 {
-	double *distances = malloc(sizeof(double) * ((size_t)vertex_count + 1));
+	double *distances = malloc(sizeof(double) * 2 * ((size_t)vertex_count + 1));
 	if (!distances)
 		return false;
-	for (int32_t k = 0; k < vertex_count; ++k)
-		distances[k] = lvp__distance_to_bone(ctx, k, smooth->bones[(int64_t)k * smooth->stride]);
-	bool ok = lvp__diffusion_blend_by_thickness(smooth, ctx->positions, vertex_count, distances, share);
+	double *depths = distances + vertex_count + 1;
+	double longest2 = 0.0;
+	for (int32_t i = 0; i < ctx->bone_count; ++i)
+		longest2 = ctx->bones[i].length2 > longest2 ? ctx->bones[i].length2 : longest2;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		int32_t strongest = smooth->bones[(int64_t)k * smooth->stride];
+		distances[k] = lvp__distance_to_bone(ctx, k, strongest, true);
+		double straight = lvp__distance_to_bone(ctx, k, strongest, false);
+		/* A bone seen from the skin counts at most twice its distance; one the rigid fallback took from
+		 * behind the skin, far more. Skin deeper than the longest bone is long is no limb's flesh (a
+		 * piece away from the skeleton): it would only widen the ladder of blends for everyone. */
+		depths[k] = fmin(fmin(distances[k], 2.0 * straight), sqrt(longest2));
+	}
+	bool ok = lvp__diffusion_blend_by_thickness(smooth, ctx->positions, vertex_count, distances, depths, share);
 	free(distances);
 	return ok;
 }

@@ -79,14 +79,17 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 #define ADDON_BLEND_WIDTH 0.9
 
 /* blend 0: the core's defaults (the paper's weights); otherwise what the add-on's Auto Weights asks with its
- * defaults: falloff 16, 4 influences of at least 1 %, smoothed over `blend` times the flesh's thickness
- * (lvp.h, SMOOTHING BY THICKNESS). */
+ * defaults: falloff 16 by distance alone (not by the bones' lengths), measured along the skin's normal, 4
+ * influences of at least 1 %, smoothed over `blend` times the flesh's thickness (lvp.h, SMOOTHING BY
+ * THICKNESS). */
 static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, double blend)
 {
 	lvp_auto_weights_options options = lvp_auto_weights_default_options();
 	options.visibility = visibility;
 	if (blend > 0.0) {
 		options.alpha = 16.0f;
+		options.by_length = 0;
+		options.facing = 1;
 		options.max_influences = 4;
 		options.min_weight = 0.01f;
 		options.smoothing_thickness = (float)blend;

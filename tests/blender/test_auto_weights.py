@@ -283,8 +283,8 @@ class TestHand(unittest.TestCase):
     itself as the finger bent (the default hand at the fist: 327 crossing pairs, heat weights 220; 269 by the
     straight distance); blended as widely as it is deep, as heat weights' screening blends it, 211. Measured on
     the hand family of real_cases.HAND_FAMILY (BENCHMARKS.md), not met yet (issue 43): the hand of three fingers
-    and the decimated hands at the fist (179 and 158 pairs against heat weights' 144 and 84), and the three
-    fingers lose 1.17x heat weights' volume there."""
+    and the two decimated hands at the fist (179, 158 and 158 pairs against heat weights' 144, 84 and 111), and
+    the three fingers lose 1.17x heat weights' volume there."""
     shape_name = "default"
 
     @classmethod

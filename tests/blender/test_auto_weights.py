@@ -28,8 +28,8 @@ crouching, whose limbs are thinner for the same size, and 1.11x on the voxel bod
 reaches farther than the short ones beside it) the thighs took the pelvis's skin, and each thigh's skin
 crossed itself in 17 pairs of triangles where heat weights' crossed in none. By the straight distance (Facing
 Distance off, the paper's) the front of the hip went to the pelvis, whose bone runs close under the skin
-above it: with the legs spread the female body's groin folded in 57 pairs (heat weights 23, now 13), the
-heavy one's in 87 (68, now 78), the voxel body's in 26 (43, now 10).
+above it: with the legs spread the female body's groin folded in 57 pairs (heat weights 23, now 12), the
+heavy one's in 87 (68, now 73), the voxel body's in 26 (43, now 10).
 """
 
 import math

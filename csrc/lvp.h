@@ -573,8 +573,8 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * blended over lengths e sqrt(2)^j (e the mean edge) from s times the least thickness to s times the
  * largest (or the deepest skin's depth), the steps adding only what the mesh's sampling does not
  * blend already (a border spreads over about an edge by itself; widths add in quadrature; at least
- * one step), and each vertex takes the mix of the two lengths around its own (by their ratio's logarithm), kept to its 8 strongest bones and
- * renormalized; then pruned as above. Like heat weights, whose diffusion is screened by the
+ * one step), and each vertex takes the mix of the two lengths around its own (by their ratio's
+ * logarithm), kept to its 8 strongest bones and renormalized; then pruned as above. Like heat weights, whose diffusion is screened by the
  * distance to the nearest bone: the blend between finger bones is a few millimetres, at the hip a
  * hand's width, and neither depends on the mesh's size (a tail or a weapon in the mesh changes
  * little) nor much on its resolution. Costs one blend per length (a few dozen steps' worth each).

@@ -200,12 +200,6 @@ static inline double lvp__facing_share(lvp__vec3 n, double trust, lvp__vec3 towa
 	return 1.0 - trust * (1.0 - 0.5 * (1.001 - lvp__dot(toward, n) / distance));
 }
 
-static int lvp__compare_edge_keys(const void *a, const void *b)
-{
-	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-	return (x > y) - (x < y);
-}
-
 /* Into r_trust, how far each vertex's outward normal tells which way its skin faces, for options.facing:
  * the least cosine between it and the normals of the triangles around it (0 when negative), 1 on a
  * smooth surface, less where the triangles turn around a crease or a corner (a cap's rim, whose normal
@@ -237,7 +231,7 @@ static bool lvp__facing_trust(float *r_trust, const float *positions, const floa
 		}
 	}
 	size_t count = 3 * (size_t)triangle_count;
-	qsort(edges, count, sizeof(uint64_t), lvp__compare_edge_keys);
+	qsort(edges, count, sizeof(uint64_t), lvp__compare_u64);
 	for (size_t first = 0, last; first < count; first = last) {
 		for (last = first + 1; last < count && edges[last] == edges[first]; ++last) {
 		}
@@ -463,15 +457,16 @@ static int32_t lvp__smoothed_row(int32_t *r_bones, float *r_values, const lvp__d
 	return kept;
 }
 
-/* The distance from vertex k to bone i (to its head when it has no length), over its facing share with
- * options.facing when `facing`. */
-static double lvp__distance_to_bone(const lvp__weights_context *ctx, int32_t k, int32_t i, bool facing)
+/* The distance from vertex k to bone i (to its head when it has no length) over its facing share with
+ * options.facing; the straight distance into *r_straight. */
+static double lvp__distance_to_bone(double *r_straight, const lvp__weights_context *ctx, int32_t k, int32_t i)
 {
 	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
 	const lvp__bone_segment *bone = &ctx->bones[i];
 	lvp__vec3 toward = lvp__sub(bone->length2 > 0.0 ? lvp__closest_on_bone(bone, p) : bone->head, p);
 	double distance = lvp__length(toward);
-	if (facing && ctx->facing_trust)
+	*r_straight = distance;
+	if (ctx->facing_trust)
 		distance /= lvp__facing_share(lvp__load(ctx->normals + 3 * (int64_t)k), ctx->facing_trust[k], toward,
 		                              distance);
 	return distance;
@@ -491,9 +486,8 @@ static bool lvp__blend_by_thickness(lvp__diffusion *smooth, const lvp__weights_c
 	for (int32_t i = 0; i < ctx->bone_count; ++i)
 		longest2 = ctx->bones[i].length2 > longest2 ? ctx->bones[i].length2 : longest2;
 	for (int32_t k = 0; k < vertex_count; ++k) {
-		int32_t strongest = smooth->bones[(int64_t)k * smooth->stride];
-		distances[k] = lvp__distance_to_bone(ctx, k, strongest, true);
-		double straight = lvp__distance_to_bone(ctx, k, strongest, false);
+		double straight;
+		distances[k] = lvp__distance_to_bone(&straight, ctx, k, smooth->bones[(int64_t)k * smooth->stride]);
 		/* A bone seen from the skin counts at most twice its distance; one the rigid fallback took from
 		 * behind the skin, far more. Skin deeper than the longest bone is long is no limb's flesh (a
 		 * piece away from the skeleton): it would only widen the ladder of blends for everyone. */

@@ -90,6 +90,13 @@ def edge_jumps(mesh, rows):
     return sorted(jumps)
 
 
+def auto_weights(obj):
+    """The add-on's Auto Weights with its defaults on obj alone, as a user runs it; the operator's result."""
+    helpers.select_only(obj)
+    bpy.context.view_layer.objects.active = obj
+    return bpy.ops.object.lvp_auto_weights()
+
+
 def pose(rig, name):
     """The pose of that name: real_cases.pose_rigify_human's hard pose, or a pose_rigify_human_legs one."""
     return real_cases.pose_rigify_human(rig, 1.0) if name == "hard" else real_cases.pose_rigify_human_legs(rig, name)
@@ -115,9 +122,7 @@ class TestRigifyHuman(unittest.TestCase):
         cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
         cls.measured["heat"] = cls.measure()
-        helpers.select_only(cls.body)
-        bpy.context.view_layer.objects.active = cls.body
-        cls.result = bpy.ops.object.lvp_auto_weights()
+        cls.result = auto_weights(cls.body)
         cls.measured["auto"] = cls.measure()
 
     @classmethod
@@ -297,9 +302,7 @@ class TestHand(unittest.TestCase):
         cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.hand.data), helpers.mesh_triangles(cls.hand.data))
         cls.measured = {"heat": cls.measure()}
-        helpers.select_only(cls.hand)
-        bpy.context.view_layer.objects.active = cls.hand
-        cls.result = bpy.ops.object.lvp_auto_weights()
+        cls.result = auto_weights(cls.hand)
         cls.measured["auto"] = cls.measure()
 
     @classmethod

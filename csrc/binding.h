@@ -362,6 +362,8 @@ typedef struct lvp__contact {
 	                              last first (what a refit between the skinning and the correction visits) */
 	int32_t dynamic_node_count;
 	uint8_t *node_dynamic;     /* per node: listed in dynamic_nodes */
+	int32_t *refit_nodes;      /* a later round's refit: the dynamic nodes above a moved triangle, the
+	                              last first (node_count) */
 	float *scale, *next_scale; /* per vertex: what is kept of its offset (1: all of it) */
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
@@ -872,7 +874,7 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 /* contact.cones and contact.flat of the nodes of contact.dynamic_nodes, from the hierarchy's corners as
  * last fitted (a node with a child not listed is not flat: only listed nodes are searched for crossings,
  * and the others' cones are not fitted). */
-void lvp__fit_flat_patches(lvp__contact *contact);
+void lvp__fit_flat_patches(lvp__contact *contact, lvp__pool *pool);
 
 /* clearance.c */
 /* contact.group_offsets and group_vertices (after the hierarchy and contact.leaf_of are built). */

@@ -383,14 +383,38 @@ void lvp__bvh_refit(lvp__bvh *bvh, const float *positions)
 		lvp__refit_node(bvh, index);
 }
 
-void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count)
+typedef struct lvp__refit_pass {
+	lvp__bvh *bvh;
+	const float *positions;
+	const int32_t *nodes;
+} lvp__refit_pass;
+
+/* The listed leaves in [begin, end): their triangles and boxes (each writes only its own). */
+static void lvp__refit_leaves(void *context, int32_t begin, int32_t end)
 {
-	for (int32_t i = 0; i < count; ++i) {
-		const lvp__bvh_node *node = &bvh->nodes[nodes[i]];
+	const lvp__refit_pass *pass = context;
+	lvp__bvh *bvh = pass->bvh;
+	for (int32_t i = begin; i < end; ++i) {
+		const lvp__bvh_node *node = &bvh->nodes[pass->nodes[i]];
+		if (node->count == 0)
+			continue;
 		for (int32_t t = node->index; t < node->index + node->count; ++t)
-			lvp__refit_triangle(&bvh->triangles[t], positions);
-		lvp__refit_node(bvh, nodes[i]);
+			lvp__refit_triangle(&bvh->triangles[t], pass->positions);
+		lvp__refit_node(bvh, pass->nodes[i]);
 	}
+}
+
+/* Listed nodes a task of the leaves' refit takes at a time. */
+#define LVP__BVH_REFIT_GRAIN 512
+
+void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count, lvp__pool *pool)
+{
+	lvp__refit_pass pass = {bvh, positions, nodes};
+	lvp__parallel_for(pool, lvp__refit_leaves, &pass, count, LVP__BVH_REFIT_GRAIN);
+	/* Then the inner nodes, each after its children (listed before it). */
+	for (int32_t i = 0; i < count; ++i)
+		if (bvh->nodes[nodes[i]].count == 0)
+			lvp__refit_node(bvh, nodes[i]);
 }
 
 void lvp__bvh_mark(const lvp__bvh *bvh, const uint8_t *vertex_marked, uint8_t *r_marked)

@@ -68,10 +68,10 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 void lvp__bvh_refit(lvp__bvh *bvh, const float *positions);
 
 /* The refit of the listed nodes alone (`nodes`: indices from the last to the first, each listed
- * node's parent listed too): their leaves' triangles moved to `positions`, then their boxes. Gives
- * what lvp__bvh_refit gives when no triangle outside the listed leaves has a corner that moved
- * since the tree was last fitted; O(count). */
-void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count);
+ * node's parent listed too): their leaves' triangles moved to `positions`, then their boxes, the
+ * leaves on the pool's threads (NULL: this one). Gives what lvp__bvh_refit gives when no triangle
+ * outside the listed leaves has a corner that moved since the tree was last fitted; O(count). */
+void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count, lvp__pool *pool);
 
 /* Calls visit(context, triangle) for every triangle whose box may overlap [lo, hi] (a superset:
  * padded boxes), until visit returns true. The box is read at every node: a visit may narrow it

@@ -302,6 +302,14 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 #define LVP__GROUP_SEARCHES (3 * LVP__GROUP_TRIANGLES)
 /* Groups a task takes at a time. */
 #define LVP__GROUP_GRAIN 16
+/* What one vertex's search costs against a vertex's step of the correction (LVP__POOL_FOR counts
+ * those): it looks through tens to hundreds of triangles, so a hand's few thousand moving vertices
+ * are worth the threads where its steps are not. */
+#define LVP__SEARCH_WORK 64
+/* The same for a pass over the shares, which reads a vertex's neighbours (about six), and the vertices
+ * such a pass takes at a time: a hand's few thousand shared among the threads. */
+#define LVP__SHARE_WORK 4
+#define LVP__SHARE_GRAIN 1024
 
 /* The search of dynamic vertex k, up to LVP__CLEARANCE_REACH times its offset, and false when it needs
  * none: no offset (its clearance is INFINITY), or one whose wanted clearance lies within the reach
@@ -507,7 +515,7 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool again)
 {
 	lvp__contact *contact = &binding->contact;
-	lvp__pool *pool = LVP__POOL_FOR(binding, binding->dynamic.vertex_count);
+	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)binding->dynamic.vertex_count * LVP__SEARCH_WORK);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
 	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
 	if (!again) /* a new frame: nothing searched yet */
@@ -621,13 +629,13 @@ static void lvp__apply_range(void *context, int32_t begin, int32_t end)
 void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors)
 {
 	int32_t count = binding->dynamic.vertex_count;
-	lvp__pool *pool = LVP__POOL_FOR(binding, count);
+	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
 	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors};
 	/* First no share more than the slope above a neighbour's (each pass reaches one ring further;
 	 * none rises), then averaged. An even number of passes leaves the result in `shares`. */
 	for (int i = 0; i < LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++i) {
 		lvp__parallel_for(pool, i < LVP__SLOPE_PASSES ? lvp__slope_range : lvp__average_range, &pass, count,
-		                  LVP__GRAIN);
+		                  LVP__SHARE_GRAIN);
 		float *read = pass.to;
 		pass.to = (float *)pass.from;
 		pass.from = read;
@@ -638,9 +646,9 @@ _Static_assert((LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES) % 2 == 0, "the smoothed
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 {
 	int32_t count = binding->dynamic.vertex_count;
-	lvp__pool *pool = LVP__POOL_FOR(binding, count);
+	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
-	lvp__parallel_for(pool, lvp__share_range, &pass, count, LVP__GRAIN);
+	lvp__parallel_for(pool, lvp__share_range, &pass, count, LVP__SHARE_GRAIN);
 	bool any = false;
 	for (int32_t v = 0; v < count && !any; ++v)
 		any = binding->contact.fade[binding->dynamic.vertices[v]] < 1.0f;
@@ -649,6 +657,6 @@ bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 	/* Clearances differ from vertex to vertex with the triangles around them: the averaging raises
 	 * the single low ones to their neighbours' (the floors of the dips). */
 	lvp__smooth_shares(binding, binding->contact.fade, binding->contact.fade_scratch, NULL, false);
-	lvp__parallel_for(pool, lvp__apply_range, &pass, count, LVP__GRAIN);
+	lvp__parallel_for(pool, lvp__apply_range, &pass, count, LVP__SHARE_GRAIN);
 	return true;
 }

@@ -267,10 +267,13 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	 * leaves touching is kept as it is. Unsure both before and after is skinning's own: two triangles
 	 * in one plane (a flat face, a flat strip bent in its plane), where the signs cannot tell and the
 	 * surface measures see no crossing. */
+	/* The pairs crossing skinned are counted for a first round that finds no new contact (lvp__crosses_no_more):
+	 * once one is found, the count is not asked. */
 	int after = lvp__triangles_cross(search->moved, moved);
 	if (after == LVP__APART) {
-		search->crossed_skinned =
-		    search->first_round && lvp__triangles_cross(search->skinned, skinned) == LVP__CROSS;
+		search->crossed_skinned = search->first_round &&
+		                          !atomic_load_explicit(search->pass->new_contact, memory_order_relaxed) &&
+		                          lvp__triangles_cross(search->skinned, skinned) == LVP__CROSS;
 		return false;
 	}
 	search->crossing = true;
@@ -393,11 +396,30 @@ void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
 	lvp__list_dynamic_nodes(binding);
 }
 
+/* The work of refitting a node against a vertex's step (LVP__POOL_FOR): up to eight triangles' corners. */
+#define LVP__REFIT_WORK 8
+
 /* The hierarchy fitted to `to` (the skinning, or the correction), from either. */
 static void lvp__refit_dynamic(lvp_binding *binding, const float *to)
 {
 	lvp__contact *contact = &binding->contact;
-	lvp__bvh_refit_nodes(&contact->bvh, to, contact->dynamic_nodes, contact->dynamic_node_count);
+	int32_t count = contact->dynamic_node_count;
+	lvp__bvh_refit_nodes(&contact->bvh, to, contact->dynamic_nodes, count,
+	                     LVP__POOL_FOR(binding, (int64_t)count * LVP__REFIT_WORK));
+}
+
+/* The hierarchy fitted to `to` where only the corners marked in contact.moved moved since it was last
+ * fitted (a later round: the corners the round before shortened): the nodes above them (moved_nodes). */
+static void lvp__refit_moved(lvp_binding *binding, const float *to)
+{
+	lvp__contact *contact = &binding->contact;
+	lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
+	int32_t count = 0;
+	for (int32_t i = 0; i < contact->dynamic_node_count; ++i)
+		if (contact->moved_nodes[contact->dynamic_nodes[i]])
+			contact->refit_nodes[count++] = contact->dynamic_nodes[i];
+	lvp__bvh_refit_nodes(&contact->bvh, to, contact->refit_nodes, count,
+	                     LVP__POOL_FOR(binding, (int64_t)count * LVP__REFIT_WORK));
 }
 
 lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
@@ -413,6 +435,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->moved_nodes = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
 	contact->node_dynamic = lvp__calloc((size_t)contact->bvh.node_count, 1, &ok);
 	contact->dynamic_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
+	contact->refit_nodes = lvp__calloc((size_t)contact->bvh.node_count, sizeof(int32_t), &ok);
 	contact->leaf_of = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
 	contact->shifted_limit = lvp__calloc((size_t)binding->triangle_count, sizeof(float), &ok);
@@ -481,7 +504,13 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	float *scale = contact->scale, *next = contact->next_scale;
 	bool shortened = false;
 	for (int round = 0; round < LVP__CONTACT_ROUNDS; ++round) {
-		lvp__refit_dynamic(binding, binding->step.positions);
+		/* A first round follows the restore, which moved every dynamic vertex; a later one follows a
+		 * shortening, which moved only the corners it marked (a share only falls: smoothing lowers
+		 * shares, and a vertex placed again at an unchanged share lands where it was). */
+		if (round == 0 && every_pair)
+			lvp__refit_dynamic(binding, binding->step.positions);
+		else
+			lvp__refit_moved(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
 			atomic_store_explicit(pass->new_contact, false, memory_order_relaxed);
 			for (int32_t t = 0; t < f; ++t) {
@@ -490,7 +519,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			}
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
-			lvp__fit_flat_patches(contact);
+			lvp__fit_flat_patches(contact, LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_pair, (void *)pass);
 			/* Pairs along the skinning's own crossing are left when they are all there is and the count
@@ -688,6 +717,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->moved_nodes);
 	free(contact->node_dynamic);
 	free(contact->dynamic_nodes);
+	free(contact->refit_nodes);
 	free(contact->leaf_of);
 	free(contact->moved);
 	free(contact->shortened);

@@ -222,8 +222,23 @@ static void lvp__fit_cone(lvp__contact *contact, int32_t index)
 	contact->flat[index] = contact->connected[index] && cone[3] > LVP__FLAT_COSINE;
 }
 
-void lvp__fit_flat_patches(lvp__contact *contact)
+/* The listed leaves in [begin, end) (each writes only its own cone). */
+static void lvp__fit_leaves(void *context, int32_t begin, int32_t end)
 {
+	lvp__contact *contact = context;
+	for (int32_t i = begin; i < end; ++i)
+		if (contact->bvh.nodes[contact->dynamic_nodes[i]].count > 0)
+			lvp__fit_cone(contact, contact->dynamic_nodes[i]);
+}
+
+/* Listed nodes a task of the leaves' fit takes at a time. */
+#define LVP__FIT_GRAIN 512
+
+void lvp__fit_flat_patches(lvp__contact *contact, lvp__pool *pool)
+{
+	lvp__parallel_for(pool, lvp__fit_leaves, contact, contact->dynamic_node_count, LVP__FIT_GRAIN);
+	/* Then the inner nodes, each after its children (listed before it). */
 	for (int32_t i = 0; i < contact->dynamic_node_count; ++i)
-		lvp__fit_cone(contact, contact->dynamic_nodes[i]);
+		if (contact->bvh.nodes[contact->dynamic_nodes[i]].count == 0)
+			lvp__fit_cone(contact, contact->dynamic_nodes[i]);
 }

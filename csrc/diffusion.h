@@ -95,6 +95,11 @@ bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int
 bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
                                        const double *distances, const double *depths, double share);
 
+/* Gives the ends of every edge far shorter than the edges around its two ends (a sliver a metaball or a
+ * remesher left; diffusion_slivers.c), and of chains of such edges, the mean of their rows. positions: the
+ * vertices'. Returns false when memory runs out (the rows are then as they were). */
+bool lvp__diffusion_share_slivers(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);
+
 /* The mean length of the edges (each counted from both ends); 0 when there is none. */
 double lvp__mean_edge_length(const lvp__diffusion *diffusion, const float *positions, int32_t vertex_count);
 

@@ -559,7 +559,11 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * as the steps would spread them, through clusters of clusters when that is many steps again; then
  * given back to the vertices and smoothed over a cluster's width): about the same blend (on a body
  * of 101,336 vertices, a vertex's weights differ from the steps' by 0.03 in all in the median, 0.16
- * at the 99th percentile), at the cost of a few steps however many are asked.
+ * at the 99th percentile), at the cost of a few steps however many are asked. Steps count edges, not
+ * lengths: the two ends of a sliver (an edge shorter than an eighth of the mean length of the edges
+ * around its ends, which metaballs and remeshers leave) would blend as two vertices an edge apart, and
+ * a small difference of their rows folds the skin across a millimetre where the bones move apart; the
+ * ends of such edges (and of chains of them) take the mean of their rows after the blend.
  *
  * SMOOTHING BY THICKNESS (options.smoothing_thickness = s > 0): a blend that fits a finger is too
  * narrow for a hip, and one that fits a hip takes a finger's whole length, so the distance blended

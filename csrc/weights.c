@@ -514,7 +514,8 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
 	if (options->smoothing_thickness > 0.0f)
-		return lvp__blend_by_thickness(smooth, ctx, vertex_count, (double)options->smoothing_thickness);
+		return lvp__blend_by_thickness(smooth, ctx, vertex_count, (double)options->smoothing_thickness) &&
+		       lvp__diffusion_share_slivers(smooth, ctx->positions, vertex_count);
 	/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what a
 	 * few do (lvp__diffusion_blend). */
 	double length = (double)options->smoothing_length;
@@ -522,7 +523,8 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 	                                                                                      vertex_count),
 	                                                    INT32_MAX)
 	                             : options->smoothing_iterations;
-	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL, NULL);
+	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL, NULL) &&
+	       lvp__diffusion_share_slivers(smooth, ctx->positions, vertex_count);
 }
 
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,

@@ -883,6 +883,55 @@ static void test_smoothing_by_thickness_is_local(void)
 	free(with);
 }
 
+/* Splits edge (p, q) at s = p + t (q - p): each triangle around the edge becomes two, wound as it was. */
+static int32_t split_edge(builder *b, int32_t p, int32_t q, double t)
+{
+	const float *a = b->positions + 3 * p, *c = b->positions + 3 * q;
+	int32_t s = add_vertex(b, a[0] + t * (c[0] - a[0]), a[1] + t * (c[1] - a[1]), a[2] + t * (c[2] - a[2]));
+	int32_t count = b->triangle_count;
+	for (int32_t f = 0; f < count; ++f) {
+		int32_t *corners = b->triangles + 3 * f;
+		for (int i = 0; i < 3; ++i) {
+			int32_t from = corners[i], to = corners[(i + 1) % 3], third = corners[(i + 2) % 3];
+			if ((from == p && to == q) || (from == q && to == p)) {
+				corners[(i + 1) % 3] = s; /* (from, s, third) */
+				add_triangle(b, s, to, third);
+				break;
+			}
+		}
+	}
+	return s;
+}
+
+/* A sliver (an edge a fiftieth as long as the edges around it, as metaballs leave) across the blend of an
+ * arm's joint: its two ends take one row, where the steps, which count edges and not lengths, would have
+ * left the ends of any edge, even one this short, rows a step apart. */
+static void test_a_sliver_s_ends_share_one_row(void)
+{
+	builder *b = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	add_arm(b, 0.05, 0.1, 0.0);
+	int around = arm_around(0.05, 0.1);
+	int32_t p = 20 * around, next_ring = p + around; /* z = 1.0, the first joint, and z = 1.05 */
+	int32_t s = split_edge(b, p, next_ring, 0.02);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
+	o.alpha = 16.0f;
+	o.smoothing_thickness = 1.5f;
+	result r = compute(b, &o);
+	check_rows(b, &r, &o);
+	printf("  bone 1 across the sliver %.4f / %.4f, across the ordinary edge beside it %.4f / %.4f\n",
+	       weight_of(&r, p, 1), weight_of(&r, s, 1), weight_of(&r, s, 1), weight_of(&r, next_ring, 1));
+	CHECK(weight_of(&r, p, 0) > 0.1f && weight_of(&r, p, 1) > 0.1f); /* in the blend */
+	CHECK(r.offsets[p + 1] - r.offsets[p] == r.offsets[s + 1] - r.offsets[s]);
+	for (int32_t e = 0; e < r.offsets[p + 1] - r.offsets[p]; ++e) {
+		CHECK(r.bones[r.offsets[p] + e] == r.bones[r.offsets[s] + e]);
+		CHECK(r.values[r.offsets[p] + e] == r.values[r.offsets[s] + e]);
+	}
+	CHECK(weight_of(&r, next_ring, 1) > weight_of(&r, s, 1) + 0.01f); /* an ordinary edge blends on */
+	result_free(&r);
+	free(b);
+}
+
 /* ---- the distance along the skin's normal -------------------------------------------------------- */
 
 /* options.facing: a tube around bone 0 on its axis, bone 1 inside it near the +x side (a hip's bone
@@ -1107,6 +1156,7 @@ int main(void)
 	RUN(test_smoothing_of_many_steps);
 	RUN(test_smoothing_follows_the_thickness);
 	RUN(test_smoothing_by_thickness_is_local);
+	RUN(test_a_sliver_s_ends_share_one_row);
 	RUN(test_facing_distance_gives_skin_to_the_bone_beneath);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);

@@ -15,8 +15,9 @@
 #define LVP__GRAIN 4096
 
 /* The pool for a loop that does about `work` items of work (vertices, triangles): none when
- * that is too little for waking the workers to pay (a small mesh, or a pose bent at one joint). */
-#define LVP__POOL_FOR(binding, work) ((work) >= 2 * LVP__GRAIN ? (binding)->pool : NULL)
+ * that fits in one chunk (a small mesh, or a pose bent at one joint); a hand's few thousand moving
+ * vertices are two chunks already, and between the loops of a frame the workers are still awake. */
+#define LVP__POOL_FOR(binding, work) ((work) > LVP__GRAIN ? (binding)->pool : NULL)
 
 /* The most cells a region system (region_system.c) is stored in: a step whose active regions'
  * profile would take more solves the coupled system for as many of them as fit (in the solve

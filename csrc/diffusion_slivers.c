@@ -75,9 +75,11 @@ bool lvp__diffusion_share_slivers(lvp__diffusion *diffusion, const float *positi
 		return false;
 	}
 	if (lvp__join_slivers(parent, around, diffusion, positions, vertex_count) > 0) {
-		/* The members of each cluster, by root (in vertex order). */
+		/* The members of each cluster, by root (in vertex order); first every vertex's parent its root. */
 		for (int32_t k = 0; k < vertex_count; ++k)
-			++offsets[lvp__find_root(parent, k) + 2];
+			parent[k] = lvp__find_root(parent, k);
+		for (int32_t k = 0; k < vertex_count; ++k)
+			++offsets[parent[k] + 2];
 		for (size_t k = 2; k < n + 2; ++k)
 			offsets[k] += offsets[k - 1];
 		for (int32_t k = 0; k < vertex_count; ++k)

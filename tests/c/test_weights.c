@@ -904,8 +904,8 @@ static int32_t split_edge(builder *b, int32_t p, int32_t q, double t)
 }
 
 /* A sliver (an edge a fiftieth as long as the edges around it, as metaballs leave) across the blend of an
- * arm's joint: its two ends take one row, where the steps, which count edges and not lengths, would have
- * left the ends of any edge, even one this short, rows a step apart. */
+ * arm's joint, and a chain of four more beyond it: their ends take one row, where the steps, which count
+ * edges and not lengths, would have left the ends of any edge, even one this short, rows a step apart. */
 static void test_a_sliver_s_ends_share_one_row(void)
 {
 	builder *b = malloc(sizeof(builder));
@@ -914,20 +914,25 @@ static void test_a_sliver_s_ends_share_one_row(void)
 	int around = arm_around(0.05, 0.1);
 	int32_t p = 20 * around, next_ring = p + around; /* z = 1.0, the first joint, and z = 1.05 */
 	int32_t s = split_edge(b, p, next_ring, 0.02);
+	int32_t chain[4] = {split_edge(b, s, next_ring, 0.02), 0, 0, 0}; /* a chain of slivers beyond it */
+	for (int i = 1; i < 4; ++i)
+		chain[i] = split_edge(b, chain[i - 1], next_ring, 0.02);
 	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
 	o.alpha = 16.0f;
 	o.smoothing_thickness = 1.5f;
 	result r = compute(b, &o);
 	check_rows(b, &r, &o);
-	printf("  bone 1 across the sliver %.4f / %.4f, across the ordinary edge beside it %.4f / %.4f\n",
-	       weight_of(&r, p, 1), weight_of(&r, s, 1), weight_of(&r, s, 1), weight_of(&r, next_ring, 1));
+	printf("  bone 1 across the slivers %.4f / %.4f, across the ordinary edge beyond them %.4f / %.4f\n",
+	       weight_of(&r, p, 1), weight_of(&r, chain[3], 1), weight_of(&r, chain[3], 1), weight_of(&r, next_ring, 1));
 	CHECK(weight_of(&r, p, 0) > 0.1f && weight_of(&r, p, 1) > 0.1f); /* in the blend */
 	CHECK(r.offsets[p + 1] - r.offsets[p] == r.offsets[s + 1] - r.offsets[s]);
-	for (int32_t e = 0; e < r.offsets[p + 1] - r.offsets[p]; ++e) {
-		CHECK(r.bones[r.offsets[p] + e] == r.bones[r.offsets[s] + e]);
-		CHECK(r.values[r.offsets[p] + e] == r.values[r.offsets[s] + e]);
-	}
-	CHECK(weight_of(&r, next_ring, 1) > weight_of(&r, s, 1) + 0.01f); /* an ordinary edge blends on */
+	const int32_t ends[5] = {s, chain[0], chain[1], chain[2], chain[3]};
+	for (int i = 0; i < 5; ++i)
+		for (int32_t e = 0; e < r.offsets[p + 1] - r.offsets[p]; ++e) {
+			CHECK(r.bones[r.offsets[p] + e] == r.bones[r.offsets[ends[i]] + e]);
+			CHECK(r.values[r.offsets[p] + e] == r.values[r.offsets[ends[i]] + e]);
+		}
+	CHECK(weight_of(&r, next_ring, 1) > weight_of(&r, chain[3], 1) + 0.01f); /* an ordinary edge blends on */
 	result_free(&r);
 	free(b);
 }

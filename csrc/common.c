@@ -238,6 +238,15 @@ int lvp__compare_u64(const void *a, const void *b)
 	return (x > y) - (x < y);
 }
 
+int32_t lvp__union_root(int32_t *parent, int32_t k)
+{
+	while (parent[k] != k) {
+		parent[k] = parent[parent[k]];
+		k = parent[k];
+	}
+	return k;
+}
+
 void *lvp__calloc(size_t count, size_t size, bool *ok)
 {
 	if (!*ok)

@@ -519,7 +519,8 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			}
 			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
-			lvp__fit_flat_patches(contact, LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
+			lvp__fit_flat_patches(contact,
+			                      LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_pair, (void *)pass);
 			/* Pairs along the skinning's own crossing are left when they are all there is and the count

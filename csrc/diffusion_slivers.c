@@ -17,15 +17,6 @@
  * two ends. */
 #define LVP__SLIVER_SHARE 0.125
 
-static int32_t lvp__find_root(int32_t *parent, int32_t k)
-{
-	while (parent[k] != k) {
-		parent[k] = parent[parent[k]];
-		k = parent[k];
-	}
-	return k;
-}
-
 static double lvp__edge_length(const float *positions, int32_t a, int32_t b)
 {
 	lvp__vec3 d = lvp__sub(lvp__load(positions + 3 * (int64_t)a), lvp__load(positions + 3 * (int64_t)b));
@@ -50,7 +41,7 @@ static int32_t lvp__join_slivers(int32_t *parent, double *around, const lvp__dif
 			int32_t u = neighbours[e];
 			if (u < k || !(lvp__edge_length(positions, k, u) < LVP__SLIVER_SHARE * 0.5 * (around[k] + around[u])))
 				continue;
-			int32_t a = lvp__find_root(parent, k), b = lvp__find_root(parent, u);
+			int32_t a = lvp__union_root(parent, k), b = lvp__union_root(parent, u);
 			if (a != b) {
 				parent[a < b ? b : a] = a < b ? a : b; /* the lower root stays: the clusters do not
 				                                          depend on the order edges are met in */
@@ -77,7 +68,7 @@ bool lvp__diffusion_share_slivers(lvp__diffusion *diffusion, const float *positi
 	if (lvp__join_slivers(parent, around, diffusion, positions, vertex_count) > 0) {
 		/* The members of each cluster, by root (in vertex order); first every vertex's parent its root. */
 		for (int32_t k = 0; k < vertex_count; ++k)
-			parent[k] = lvp__find_root(parent, k);
+			parent[k] = lvp__union_root(parent, k);
 		for (int32_t k = 0; k < vertex_count; ++k)
 			++offsets[parent[k] + 2];
 		for (size_t k = 2; k < n + 2; ++k)

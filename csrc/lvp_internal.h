@@ -144,4 +144,7 @@ static inline bool lvp__finite(float v)
 /* qsort comparison of two uint64_t. */
 int lvp__compare_u64(const void *a, const void *b);
 
+/* The root of k's set in a union-find forest (parent[r] == r at a root), halving the path on the way. */
+int32_t lvp__union_root(int32_t *parent, int32_t k);
+
 #endif /* LVP_INTERNAL_H */

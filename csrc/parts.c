@@ -10,15 +10,6 @@
 
 #include <stdlib.h>
 
-static int32_t lvp__find_root(int32_t *parent, int32_t k)
-{
-	while (parent[k] != k) {
-		parent[k] = parent[parent[k]]; /* path halving */
-		k = parent[k];
-	}
-	return k;
-}
-
 /* part[k]: the smallest vertex index of k's connected part (vertices joined by triangles), or -1
  * for a vertex in no triangle. Union by smaller index, so the root of a part is its first vertex.
  * used: vertex_count bytes of scratch, left zero. */
@@ -29,14 +20,14 @@ static void lvp__connected_parts(int32_t *part, uint8_t *used, const int32_t *tr
 		part[k] = k;
 	for (int32_t t = 0; t < triangle_count; ++t)
 		for (int c = 1; c < 3; ++c) {
-			int32_t a = lvp__find_root(part, triangles[3 * t]), b = lvp__find_root(part, triangles[3 * t + c]);
+			int32_t a = lvp__union_root(part, triangles[3 * t]), b = lvp__union_root(part, triangles[3 * t + c]);
 			if (a < b)
 				part[b] = a;
 			else if (b < a)
 				part[a] = b;
 		}
 	for (int32_t k = 0; k < vertex_count; ++k)
-		part[k] = lvp__find_root(part, k);
+		part[k] = lvp__union_root(part, k);
 	/* Vertices in no triangle are their own root and no other vertex points at them. */
 	for (int32_t i = 0; i < 3 * triangle_count; ++i)
 		used[triangles[i]] = 1;

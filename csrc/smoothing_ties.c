@@ -25,19 +25,9 @@
  * lists would cost the bind quadratic time, and a cluster that large would not be one point. */
 #define LVP__CLUSTER_MOST 16
 
-/* Union-find over the vertices (path halving). */
-static int32_t lvp__cluster_of(int32_t *parent, int32_t k)
-{
-	while (parent[k] != k) {
-		parent[k] = parent[parent[k]];
-		k = parent[k];
-	}
-	return k;
-}
-
 typedef struct lvp__clusters {
 	int32_t count;    /* vertices */
-	int32_t *parent;  /* union-find: the vertex's cluster is lvp__cluster_of(parent, vertex) */
+	int32_t *parent;  /* union-find: the vertex's cluster is lvp__union_root(parent, vertex) */
 	int32_t *first;   /* per cluster (its root): where its members start in `members`; count+1 */
 	int32_t *members; /* the vertices by cluster, in vertex order */
 	int32_t *joins;   /* per cluster: the cluster it is tied to this round, or -1 */
@@ -59,12 +49,12 @@ static bool lvp__list_members(lvp__clusters *clusters, const lvp__smoothing *smo
 	for (int32_t k = 0; k <= n; ++k)
 		first[k] = 0;
 	for (int32_t k = 0; k < n; ++k)
-		++first[lvp__cluster_of(clusters->parent, k) + 1];
+		++first[lvp__union_root(clusters->parent, k) + 1];
 	for (int32_t k = 0; k < n; ++k)
 		first[k + 1] += first[k];
 	/* first[root] walks along its members as they are placed, then everything shifts back by one */
 	for (int32_t k = 0; k < n; ++k)
-		clusters->members[first[lvp__cluster_of(clusters->parent, k)]++] = k;
+		clusters->members[first[lvp__union_root(clusters->parent, k)]++] = k;
 	for (int32_t k = n; k > 0; --k)
 		first[k] = first[k - 1];
 	first[0] = 0;
@@ -99,7 +89,7 @@ static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *s
 	for (int32_t m = clusters->first[root]; m < clusters->first[root + 1]; ++m) {
 		int32_t k = clusters->members[m];
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
-			int32_t j = smoothing->neighbours[e], cluster = lvp__cluster_of(clusters->parent, j);
+			int32_t j = smoothing->neighbours[e], cluster = lvp__union_root(clusters->parent, j);
 			if (cluster == root)
 				continue;
 			int32_t key = by_cluster ? cluster : j, i = 0;
@@ -142,7 +132,7 @@ static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smo
 	for (int32_t root = 0; root < n; ++root) {
 		if (clusters->joins[root] < 0)
 			continue;
-		int32_t a = lvp__cluster_of(clusters->parent, root), b = lvp__cluster_of(clusters->parent, clusters->joins[root]);
+		int32_t a = lvp__union_root(clusters->parent, root), b = lvp__union_root(clusters->parent, clusters->joins[root]);
 		if (a != b && clusters->sizes[a] + clusters->sizes[b] <= LVP__CLUSTER_MOST) {
 			int32_t kept = a < b ? a : b;
 			clusters->parent[a > b ? a : b] = kept;
@@ -157,7 +147,7 @@ static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smo
 static int32_t lvp__list_of(lvp__clusters *clusters, const lvp__smoothing *smoothing, int32_t k, int32_t *neighbours,
                             float *shares)
 {
-	int32_t root = lvp__cluster_of(clusters->parent, k);
+	int32_t root = lvp__union_root(clusters->parent, k);
 	if (lvp__size_of(clusters, root) == 1) {
 		int32_t count = smoothing->offsets[k + 1] - smoothing->offsets[k];
 		for (int32_t i = 0; neighbours && i < count; ++i) {

@@ -168,30 +168,9 @@ static void lvp__diffuse_vertex(lvp__diffusion *diffusion, int32_t k, double rat
 	}
 	int32_t begin = diffusion->neighbour_offsets[k], end = diffusion->neighbour_offsets[k + 1];
 	double share = rate / (double)(end - begin + 1), self = 1.0 - rate + share;
-	/* A share that adds nothing (a weight that rounded to zero) is skipped: its bone, not yet in accum,
-	 * would be listed in touched once per such share, past its bone_count entries. */
-	for (int32_t j = 0; j < own_count; ++j) {
-		int32_t bone = diffusion->bones[at + j];
-		double value = self * (double)diffusion->values[at + j];
-		if (!(value > 0.0))
-			continue;
-		if (accum[bone] == 0.0)
-			touched[touched_count++] = bone;
-		accum[bone] += value;
-	}
-	for (int32_t e = begin; e < end; ++e) {
-		int32_t u = diffusion->neighbours[e];
-		int64_t row = (int64_t)u * stride;
-		for (int32_t j = 0; j < diffusion->counts[u]; ++j) {
-			int32_t bone = diffusion->bones[row + j];
-			double value = share * (double)diffusion->values[row + j];
-			if (!(value > 0.0))
-				continue;
-			if (accum[bone] == 0.0)
-				touched[touched_count++] = bone;
-			accum[bone] += value;
-		}
-	}
+	touched_count = lvp__diffusion_add_row(accum, touched, touched_count, diffusion, k, self);
+	for (int32_t e = begin; e < end; ++e)
+		touched_count = lvp__diffusion_add_row(accum, touched, touched_count, diffusion, diffusion->neighbours[e], share);
 	diffusion->next_counts[k] =
 	    lvp__diffusion_finish_row(diffusion->next_bones + at, diffusion->next_values + at, stride, accum, touched,
 	                              touched_count);

@@ -48,6 +48,26 @@ bool lvp__diffusion_alloc(lvp__diffusion *diffusion, int32_t vertex_count, int32
  * packs the lists to the front, offsets shrinking to match. */
 void lvp__compact_neighbour_lists(int32_t *offsets, int32_t *list, int32_t count);
 
+/* Adds `share` times row k of `rows` to the sums in accum, listing in touched (touched_count of them so far)
+ * each bone met for the first time; returns the new count. A share that adds nothing (a weight that rounded
+ * to zero) is skipped: its bone, not yet in accum, would be listed once per such share, past its bone_count
+ * entries. */
+static inline int32_t lvp__diffusion_add_row(double *accum, int32_t *touched, int32_t touched_count,
+                                             const lvp__diffusion *rows, int32_t k, double share)
+{
+	int64_t at = (int64_t)k * rows->stride;
+	for (int32_t j = 0; j < rows->counts[k]; ++j) {
+		int32_t bone = rows->bones[at + j];
+		double value = share * (double)rows->values[at + j];
+		if (!(value > 0.0))
+			continue;
+		if (accum[bone] == 0.0)
+			touched[touched_count++] = bone;
+		accum[bone] += value;
+	}
+	return touched_count;
+}
+
 /* A row from the sums of its bones in accum (the bones met listed in touched, accum zero elsewhere): the
  * `stride` strongest, by decreasing weight, renormalized, into r_bones and r_values; clears what it read
  * of accum. Returns the row's length. */

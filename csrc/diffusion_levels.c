@@ -124,15 +124,7 @@ static void lvp__restrict_rows(lvp__diffusion *coarse, float *r_centroids, const
 			int32_t v = clusters->members[i];
 			for (int a = 0; a < 3; ++a)
 				centroid[a] += share * positions[3 * (int64_t)v + a];
-			for (int32_t j = 0; j < fine->counts[v]; ++j) {
-				int32_t bone = fine->bones[(int64_t)v * stride + j];
-				double value = share * (double)fine->values[(int64_t)v * stride + j];
-				if (!(value > 0.0)) /* nothing to add, and a bone listed twice would overrun touched */
-					continue;
-				if (coarse->accum[bone] == 0.0)
-					coarse->touched[touched_count++] = bone;
-				coarse->accum[bone] += value;
-			}
+			touched_count = lvp__diffusion_add_row(coarse->accum, coarse->touched, touched_count, fine, v, share);
 		}
 		for (int a = 0; a < 3; ++a)
 			r_centroids[3 * (int64_t)c + a] = (float)centroid[a];

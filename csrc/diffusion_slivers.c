@@ -81,18 +81,10 @@ bool lvp__diffusion_share_slivers(lvp__diffusion *diffusion, const float *positi
 			int32_t begin = offsets[root], end = offsets[root + 1], touched_count = 0;
 			if (end - begin < 2)
 				continue;
-			for (int32_t i = begin; i < end; ++i) {
-				int64_t at = (int64_t)members[i] * stride;
-				for (int32_t j = 0; j < diffusion->counts[members[i]]; ++j) {
-					int32_t bone = diffusion->bones[at + j];
-					double value = (double)diffusion->values[at + j] / (double)(end - begin);
-					if (!(value > 0.0))
-						continue;
-					if (diffusion->accum[bone] == 0.0)
-						diffusion->touched[touched_count++] = bone;
-					diffusion->accum[bone] += value;
-				}
-			}
+			double share = 1.0 / (double)(end - begin);
+			for (int32_t i = begin; i < end; ++i)
+				touched_count = lvp__diffusion_add_row(diffusion->accum, diffusion->touched, touched_count, diffusion,
+				                                       members[i], share);
 			int32_t count = lvp__diffusion_finish_row(bones, values, stride, diffusion->accum, diffusion->touched,
 			                                          touched_count);
 			for (int32_t i = begin; i < end; ++i) {

@@ -513,18 +513,20 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 	for (int32_t k = 0; k < vertex_count; ++k)
 		smooth->counts[k] = lvp__vertex_weights(smooth->bones + (int64_t)k * stride,
 		                                        smooth->values + (int64_t)k * stride, &raw, k);
-	if (options->smoothing_thickness > 0.0f)
-		return lvp__blend_by_thickness(smooth, ctx, vertex_count, (double)options->smoothing_thickness) &&
-		       lvp__diffusion_share_slivers(smooth, ctx->positions, vertex_count);
-	/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what a
-	 * few do (lvp__diffusion_blend). */
-	double length = (double)options->smoothing_length;
-	int64_t steps = length > 0.0 ? lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions,
-	                                                                                      vertex_count),
-	                                                    INT32_MAX)
-	                             : options->smoothing_iterations;
-	return lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL, NULL) &&
-	       lvp__diffusion_share_slivers(smooth, ctx->positions, vertex_count);
+	bool blended;
+	if (options->smoothing_thickness > 0.0f) {
+		blended = lvp__blend_by_thickness(smooth, ctx, vertex_count, (double)options->smoothing_thickness);
+	} else {
+		/* A length asks for as many steps as blend over it, however many: from a few dozen on they cost what
+		 * a few do (lvp__diffusion_blend). */
+		double length = (double)options->smoothing_length;
+		int64_t steps = length > 0.0 ? lvp__diffusion_steps(length, lvp__mean_edge_length(smooth, ctx->positions,
+		                                                                                      vertex_count),
+		                                                    INT32_MAX)
+		                             : options->smoothing_iterations;
+		blended = lvp__diffusion_blend(smooth, ctx->positions, vertex_count, steps, NULL, NULL);
+	}
+	return blended && lvp__diffusion_share_slivers(smooth, ctx->positions, vertex_count);
 }
 
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,

@@ -347,6 +347,7 @@ typedef struct lvp__fold {
 	                              the round that did, foldover.c), kept zero between frames */
 	uint8_t *held_before;      /* per vertex: fold.held before a relaxation (lvp__relax_pressed) */
 	int32_t *zone;             /* vertex_count: the vertices a relaxation may move, pressed ones first */
+	bool relaxing;             /* a relaxation runs: the zone's vertices move whatever their map (lvp__relax_pressed) */
 	int32_t *side_entry;       /* per neighbour entry (s, j), this frame: the entry that presses the skin of s's
 	                              group on its side of the joint (foldover.c, lvp__find_side_entries), or -1 */
 } lvp__fold;

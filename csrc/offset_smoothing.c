@@ -192,7 +192,7 @@ static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float 
 	int32_t count = 0;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		if (lvp__can_move(binding, k))
+		if (lvp__can_move(binding, k) || (binding->fold.relaxing && !binding->fold.held[k]))
 			binding->smoothing.movable[count++] = k;
 		else
 			memcpy(to + 3 * k, from + 3 * k, 3 * sizeof(float));

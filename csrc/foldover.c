@@ -529,10 +529,13 @@ static void lvp__fade_region_at_contact(lvp_binding *binding, int32_t r, const l
 		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
 		double across = lvp__dot(from_joint, joint->normal);
 		double fade = lvp__smoothstep(-across / width);
-		double pressed = lvp__smoothstep(lvp__dot(from_joint, joint->concave) / width);
+		double concave = lvp__dot(from_joint, joint->concave) / width;
+		double pressed = lvp__smoothstep(concave);
 		/* Skin of the side already across the plane is pressed too: heat weights give a finger's region
-		 * some palm skin behind its knuckle, which otherwise bulged into the crease. */
-		pressed = fmax(pressed, lvp__smoothstep(across / width));
+		 * some palm skin behind its knuckle, which otherwise bulged into the crease. Not on the convex
+		 * side, which nothing presses: a hip bent 90 degrees puts the buttock, skin of the pelvis's region,
+		 * across the hip's plane, and its map faded to nothing beside the thigh's bulge left creases. */
+		pressed = fmax(pressed, lvp__smoothstep(across / width) * lvp__smoothstep(concave + 1.0));
 		pressed *= lvp__across_joint(joint, p);
 		binding->frame_map.gamma[k] *= (float)(1.0 - (1.0 - fade) * pressed);
 	}

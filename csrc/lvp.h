@@ -193,7 +193,8 @@
  *   shin's later joints, which border none of the thigh's) on its own side of that plane at rest
  *   and across it now goes back onto it (within the child's flesh radius of the joint along the
  *   bend's axis, tapering off at twice that) and is held
- *   there while further volume steps run with the map faded near the contact, so the squeezed
+ *   there while further volume steps run with the map faded near the contact (on the concave side
+ *   of the bend: nothing presses the convex side), so the squeezed
  *   volume becomes a bulge beside it (paper Fig. 10d). It is pressed softly, so that it runs
  *   into the free skin without a kink; the skin at the bottom of the crease, which the plane
  *   cuts at rest, may cross it by as much as it lay near it at rest until the joint bends to a

@@ -11,9 +11,9 @@ defaults and Keep Skin Apart on, at every frame of the animation:
   contact (skin meeting skin that plain skinning keeps apart);
 - the volume within 1 % of the rest, the whole mesh never falling back to plain skinning;
 - no spike: roughness at most a quarter of the largest offset at every frame (QUALITY.md; with fold-over up to
-  0.30 half closed, its press beside a bulge that smoothing leaves lower, 0.17 at the fist; 1.00 at frame 6,
-  0.44 half closed and 0.29 three quarters closed before foldover.c's crease window and soft contact);
-- few creases where fold-over presses skin: at most one added per 300 edges at any frame (38 of 22,428 edges
+  0.18 half closed, 0.09 at the fist; 0.30 and 0.17 while the relaxation left skin of no map still; 1.00 at
+  frame 6, 0.44 half closed and 0.29 three quarters closed before foldover.c's crease window and soft contact);
+- few creases where fold-over presses skin: at most one added per 300 edges at any frame (31 of 22,428 edges
   at the fist; 126 before the pressed skin was relaxed with the skin around it, lvp__relax_pressed);
 - offsets that follow the motion: from frame to frame they change by less than the skin moved (0.64 near the
   fist, where the animation eases out; 0.11 without Keep Skin Apart), with fold-over by about as much at most

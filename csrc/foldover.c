@@ -96,10 +96,12 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
 	return true;
 }
 
-/* The contact plane of a joint this frame: through the joint, its normal halfway between `unbent`
- * and `bent`, towards the child's side (lvp__begin_fold_over: at a limb's joint the two bones' lines
- * posed, elsewhere where the child would point had it moved with the parent and where it points,
- * the plane then across the child at its head at rest). Also the bend's axis
+/* The contact plane of a joint this frame: through the joint, its normal halfway between where
+ * the child would point had it moved with the parent (straight on, `unbent`) and where it points
+ * (`bent`), towards the child's side: at rest, the plane across the child at its head; bent, the
+ * bisector plane of the bend. Only the child's direction and the two bones' motion enter, never
+ * the parent's direction: a palm bone down the middle of the hand, a pelvis bone pointing at the
+ * hip bone's crest, say nothing of where the flesh of their children turns. Also the bend's axis
  * and its concave side (where the child bent to). False when the child does not turn (nothing
  * folds) or turns back onto the parent (no plane between them). */
 static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 bent)
@@ -278,23 +280,6 @@ static void lvp__find_side_entries(lvp_binding *binding)
 		}
 }
 
-/* Bone b's line at rest, and where it runs posed: from the head of its group's first joint to the end of
- * its last (a B-Bone's joints all carry the whole bone's head and end, each turned by its own stretch of
- * the curve: the whole bone's chord is the curve's first joint's head to its last joint's end). */
-static void lvp__posed_line(const lvp_binding *binding, int32_t b, lvp__vec3 *r_rest, lvp__vec3 *r_posed)
-{
-	int32_t first, last;
-	lvp__group_range(binding, binding->system.group_leader[b], &first, &last);
-	int32_t head = b, end = b;
-	if (last - first > 1) {
-		head = binding->system.group_regions[first];
-		end = binding->system.group_regions[last - 1];
-	}
-	*r_rest = lvp__sub(binding->lines.end[end], binding->rig.heads[head]);
-	*r_posed = lvp__sub(lvp__transform_point(&binding->rig.skin[end], binding->lines.end[end]),
-	                    lvp__transform_point(&binding->rig.skin[head], binding->rig.heads[head]));
-}
-
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 {
 	const float *rest = rest_positions ? rest_positions : binding->rest_positions;
@@ -323,24 +308,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->point = rig->posed_heads[child];
 			joint->rest_normal = lvp__unit(direction);
 			lvp__vec3 unbent = lvp__transform_vector(&rig->skin[parent], direction);
-			lvp__vec3 bent = lvp__transform_vector(&rig->skin[child], direction);
-			/* A limb's joint (the parent's line ends at the child's head): the two flesh axes meet there, and
-			 * the flesh of the two sides meets halfway between them. Elsewhere only the child's direction and
-			 * the two bones' motion enter, never the parent's direction: a palm bone down the middle of the
-			 * hand, a pelvis bone pointing at the hip bone's crest, say nothing of where the flesh of their
-			 * children turns. Halfway between where the child would point had it moved with the parent and
-			 * where it points, a limb's plane leans by half its rest bend towards the parent: Rigify's elbow,
-			 * bent 150 degrees, pressed the upper arm's skin onto a plane along the upper arm up to the
-			 * border of its two DEF bones, and left a step there. */
-			if (lvp__length(lvp__sub(lines->end[parent], rig->heads[child])) <= 1e-3 * lines->length[parent]) {
-				lvp__vec3 parent_rest, parent_posed, child_rest, child_posed;
-				lvp__posed_line(binding, parent, &parent_rest, &parent_posed);
-				lvp__posed_line(binding, child, &child_rest, &child_posed);
-				joint->rest_normal = lvp__unit(lvp__add(lvp__unit(parent_rest), lvp__unit(child_rest)));
-				unbent = parent_posed;
-				bent = child_posed;
-			}
-			if (!lvp__contact_plane(joint, unbent, bent))
+			if (!lvp__contact_plane(joint, unbent, lvp__transform_vector(&rig->skin[child], direction)))
 				continue;
 			/* The sine of half the bend: the normal lies halfway between unbent and bent. */
 			double sine = lvp__length(lvp__cross(lvp__unit(unbent), joint->normal));

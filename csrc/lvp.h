@@ -180,13 +180,9 @@
  *   child, that their relative motion leaves in place: found from the motion, no hierarchy
  *   needed; when it leaves both heads in place, only if the child's head lies within the
  *   parent's flesh radius of the parent's bone; a child of several such bones takes the plane
- *   of the one whose bone passes nearest its head), the contact surface is a plane through the
- *   crease: at a limb's joint (the parent's line ends at the child's head: an elbow, a knee, a
- *   finger's joints) halfway between the two bones' lines, where the flesh of the two sides meets
- *   (of a B-Bone, its whole chord, not its joints' curve into the bend); elsewhere (a palm's
- *   knuckles, a hip) halfway between where the child would point had it moved with the parent and
- *   where it points, the parent's line saying nothing of where the child's flesh turns. Through
- *   the crease: where the two regions' skins meet on the concave side of the bend, when
+ *   of the one whose bone passes nearest its head), the contact surface is the plane halfway
+ *   between where the child would point had it moved with the parent and where it points,
+ *   through the crease: where the two regions' skins meet on the concave side of the bend, when
  *   that is within the child's flesh radius of the joint (moved from the joint by at most half
  *   that radius; of a group, only its first bone's joint moves: GROUPS). A vertex of s's group
  *   (a B-Bone's joints press together: the calf's skin away from the knee lies in regions of the

@@ -303,8 +303,8 @@ static void fold_limb(const test_rig *rig, const float *posed, const float *skin
  * second begins. The second's skin lies on the first's from the joint to three joints along, skin of regions
  * that border no region of the other side; each side of the joint is its B-Bone's skin, pressed as one
  * (foldover.c, lvp__find_side_entries): at most an eighth of plain skinning's crossing pairs are left (none of
- * 174 since the plane of a limb's joint bisects the two B-Bones' chords and the pressed skin relaxes into skin of
- * no map; 18 before, at the edge of the pressed skin), and the volume is within half a percent (-0.005 %; -0.13 %
+ * 174 since the pressed skin relaxes into skin of no map, lvp__relax_pressed; 18 before, at the edge of the
+ * pressed skin), and the volume is within half a percent (-0.005 %; -0.13 %
  * before: the frame keeps its contacts with a little volume missing, lvp.h FOLD-OVER). As bones alone, fold-over
  * presses only the two regions at the joint (143 pairs, 212 before; printed). */
 static void test_fold_over_presses_a_b_bone_whole(void)

@@ -185,8 +185,9 @@ void lvp__take_offsets(lvp_binding *binding, const float *positions)
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
 }
 
-/* Lists the dynamic vertices that can move in smoothing.movable, their number returned; every other
- * dynamic vertex keeps its offset through the passes, so it is copied into `to` once. */
+/* Lists the dynamic vertices that can move in smoothing.movable (during fold-over's relaxation also every
+ * vertex of its zone, whatever its map: lvp__relax_pressed), their number returned; every other dynamic
+ * vertex keeps its offset through the passes, so it is copied into `to` once. */
 static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float *to)
 {
 	int32_t count = 0;

@@ -347,7 +347,6 @@ typedef struct lvp__fold {
 	                              the round that did, foldover.c), kept zero between frames */
 	uint8_t *held_before;      /* per vertex: fold.held before a relaxation (lvp__relax_pressed) */
 	int32_t *zone;             /* vertex_count: the vertices a relaxation may move, pressed ones first */
-	bool relaxing;             /* a relaxation runs: the zone's vertices move whatever their map (lvp__relax_pressed) */
 	int32_t *side_entry;       /* per neighbour entry (s, j), this frame: the entry that presses the skin of s's
 	                              group on its side of the joint (foldover.c, lvp__find_side_entries), or -1 */
 } lvp__fold;
@@ -842,9 +841,10 @@ void lvp__smoothing_free(lvp__smoothing *smoothing);
 lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
- * neighbours'. The volume is not restored here; step.smoothing_offsets is left holding the smoothed
- * offsets. */
-void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes);
+ * neighbours'; with whatever_the_map, every dynamic vertex that fold-over does not hold moves, its map
+ * zero or not (fold-over's relaxation, lvp__relax_pressed). The volume is not restored here;
+ * step.smoothing_offsets is left holding the smoothed offsets. */
+void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map);
 /* step.smoothing_offsets of the dynamic vertices: their offsets as they are (step.positions less
  * positions), for steps along them (lvp__restore_smoothed) without smoothing. */
 void lvp__take_offsets(lvp_binding *binding, const float *positions);

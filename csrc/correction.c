@@ -1153,7 +1153,7 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		 * skin keeping its place), the volume restored along the smoothed offsets, and what that
 		 * carries across a plane pressed back. */
 		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
-		lvp__smooth_offsets(binding, positions, relax_passes);
+		lvp__smooth_offsets(binding, positions, relax_passes, false);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
@@ -1195,7 +1195,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		/* Offsets along normals that turn fast (folds) open creases, and a coarse mesh's map changes
 		 * much from one vertex to the next: smoothed, then the volume the smoothing took restored
 		 * along the smoothed offsets (lvp__restore_smoothed). */
-		lvp__smooth_offsets(binding, positions, options->smoothing_passes);
+		lvp__smooth_offsets(binding, positions, options->smoothing_passes, false);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}

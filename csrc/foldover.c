@@ -464,12 +464,11 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 	for (int32_t z = 0; z < count; ++z)
 		if (!binding->frame_map.vertex_dynamic[zone[z]])
 			lvp__make_dynamic(binding, zone[z]);
-	binding->fold.relaxing = true;
 	for (int32_t pass = 0; pass < passes; ++pass) {
 		for (int32_t z = 0; z < count; ++z)
 			held[zone[z]] = 0;
 		lvp__list_pressed_dynamic(binding, rest_positions, totals);
-		lvp__smooth_offsets(binding, positions, 1);
+		lvp__smooth_offsets(binding, positions, 1, true);
 		/* Pressed back at the joints it was pressed at: a plane where no skin crossed yet is the
 		 * next contact test's (the rounds', and the one after the last volume step). Pressed softly
 		 * again each pass, skin that stays within the soft band goes a little deeper each time,
@@ -477,7 +476,6 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 		 * the limit itself, the hands of the tests kept twice the creases). */
 		lvp__press_across(binding, rest_positions, true);
 	}
-	binding->fold.relaxing = false;
 	for (int32_t k = 0; k < n; ++k)
 		held[k] = before[k] || held[k] == LVP__HELD_BEFORE ? LVP__HELD_BEFORE : 0;
 	return true;

@@ -185,15 +185,15 @@ void lvp__take_offsets(lvp_binding *binding, const float *positions)
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
 }
 
-/* Lists the dynamic vertices that can move in smoothing.movable (during fold-over's relaxation also every
- * vertex of its zone, whatever its map: lvp__relax_pressed), their number returned; every other dynamic
- * vertex keeps its offset through the passes, so it is copied into `to` once. */
-static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float *to)
+/* Lists the dynamic vertices that can move in smoothing.movable (whatever_the_map: those fold-over does not
+ * hold), their number returned; every other dynamic vertex keeps its offset through the passes, so it is
+ * copied into `to` once. */
+static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float *to, bool whatever_the_map)
 {
 	int32_t count = 0;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		if (lvp__can_move(binding, k) || (binding->fold.relaxing && !binding->fold.held[k]))
+		if (whatever_the_map ? !binding->fold.held[k] : lvp__can_move(binding, k))
 			binding->smoothing.movable[count++] = k;
 		else
 			memcpy(to + 3 * k, from + 3 * k, 3 * sizeof(float));
@@ -201,12 +201,12 @@ static int32_t lvp__list_movable(lvp_binding *binding, const float *from, float 
 	return count;
 }
 
-void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes)
+void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__smoothing_pass pass = {binding, positions, binding->step.smoothing_offsets, binding->step.smoothing_scratch};
 	lvp__take_offsets(binding, positions);
-	int32_t movable = lvp__list_movable(binding, pass.from, pass.to);
+	int32_t movable = lvp__list_movable(binding, pass.from, pass.to, whatever_the_map);
 	for (int32_t i = 0; i < passes; ++i) {
 		lvp__parallel_for(LVP__POOL_FOR(binding, movable), lvp__smooth_range, &pass, movable, LVP__GRAIN);
 		float *read = pass.to;

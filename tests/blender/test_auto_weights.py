@@ -108,6 +108,7 @@ class TestRigifyHuman(unittest.TestCase):
     body_arguments = {}  # real_cases.rigify_human's
     poses = ("hard", "crouch", "spread")
     volume_poses = ("hard", "crouch")  # the poses at which plain skinning loses volume (spread gains)
+    gain_poses = ("spread",)  # the poses at which heat weights gain volume, or lose almost none
     crossing_poses = poses
     thigh_poses = poses
 
@@ -163,6 +164,11 @@ class TestRigifyHuman(unittest.TestCase):
         for name in self.volume_poses:
             self.assertLess(heat[name]["volume"], -0.01, "%s: the pose is hard enough to lose volume" % name)
             self.assertGreater(auto[name]["volume"], 1.1 * heat[name]["volume"], "%s: %s" % (name, self.summary()))
+        # Legs spread, plain skinning gains volume with heat weights on most bodies: Auto Weights lose none there,
+        # and where heat weights lose a little, at most 1.1 times as much.
+        for name in self.gain_poses:
+            self.assertGreaterEqual(auto[name]["volume"], 1.1 * min(heat[name]["volume"], 0.0),
+                                    "%s: %s" % (name, self.summary()))
 
     def test_crosses_itself_no_more_than_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
@@ -236,9 +242,11 @@ class TestSkinModifierHuman(TestRigifyHuman):
     """The same metarig's body made by the Skin modifier along the bones, subdivided twice. Not met yet (issue
     43): at the hard pose 306 crossing pairs against heat weights' 259, most where the raised shoulder's skin
     folds through itself (with heat weights it does not); crouching, plain skinning loses 1.29x heat weights'
-    volume (-4.49 % against -3.49 %)."""
+    volume (-4.49 % against -3.49 %), and with the legs spread -1.30 % where heat weights lose -0.07 % (the other
+    bodies gain 3-9 % with either)."""
     body_arguments = {"skin_subdivisions": 2}
     volume_poses = ("hard",)
+    gain_poses = ()
     crossing_poses = ("crouch", "spread")
 
 class TestDecimatedHuman(TestRigifyHuman):

@@ -175,6 +175,29 @@ static int32_t lvp__neighbour_entry(const lvp_binding *binding, int32_t s, int32
 	return -1;
 }
 
+/* Where the border vertices of a joint's two sides lie, weighted (lvp__place_at_border). */
+typedef struct lvp__border_mean {
+	double weight, across, at_rest;
+} lvp__border_mean;
+
+/* Adds the border vertices of neighbour entry m to `mean`: each weighted by how far it lies on the concave
+ * side, within the joint's reach along its axis, and within that reach of the joint's rest plane. */
+static void lvp__weigh_border(const lvp_binding *binding, const float *rest, int32_t m, const lvp__joint *joint,
+                              lvp__border_mean *mean)
+{
+	const float *work = binding->step.positions;
+	for (int32_t i = binding->fold.border_offsets[m]; i < binding->fold.border_offsets[m + 1]; ++i) {
+		int32_t k = binding->fold.border_vertices[i];
+		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
+		double w = lvp__across_joint(joint, p) * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach) *
+		           (1.0 - lvp__smoothstep(fabs(rest_side) / joint->reach));
+		mean->weight += w;
+		mean->across += w * lvp__dot(from_joint, joint->normal);
+		mean->at_rest += w * rest_side;
+	}
+}
+
 /* Moves the joint's plane, along its normal, to where the skins of s and j meet on the concave
  * side of the bend, at rest and posed: the weighted mean of their border vertices there, within
  * the joint's reach along its axis and within the child's flesh radius of the joint at rest (a
@@ -182,34 +205,30 @@ static int32_t lvp__neighbour_entry(const lvp_binding *binding, int32_t s, int32
  * half that radius. Heat weights rarely put the border between a finger and the palm at the
  * finger bone's head; with the plane through the head, the part of the region beyond it at rest
  * (never pressed) and the part just short of it (pressed onto the plane as soon as the joint
- * bends) made a step in the skin, at poses where nothing touches yet. */
+ * bends) made a step in the skin, at poses where nothing touches yet. The borders are those of
+ * every region of s's group with every region of j's: a B-Bone's joints share its head and line,
+ * and which of them borders the crease is the weights' choice (a Rigify shin's first joint may
+ * have no skin at all). */
 static void lvp__place_at_border(const lvp_binding *binding, const float *rest, int32_t s, int32_t n,
                                  lvp__joint *joint)
 {
-	const float *work = binding->step.positions;
-	int32_t sides[2] = {n, lvp__neighbour_entry(binding, binding->mesh.neighbour_bones[n], s)};
-	double weight = 0.0, across = 0.0, at_rest = 0.0;
+	const lvp__region_system *system = &binding->system;
+	int32_t leaders[2] = {system->group_leader[s], system->group_leader[binding->mesh.neighbour_bones[n]]};
+	lvp__border_mean mean = {0.0, 0.0, 0.0};
 	for (int side = 0; side < 2; ++side) {
-		if (sides[side] < 0)
-			continue;
-		for (int32_t i = binding->fold.border_offsets[sides[side]]; i < binding->fold.border_offsets[sides[side] + 1];
-		     ++i) {
-			int32_t k = binding->fold.border_vertices[i];
-			lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
-			double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-			double w = lvp__across_joint(joint, p) * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach) *
-			           (1.0 - lvp__smoothstep(fabs(rest_side) / joint->reach));
-			weight += w;
-			across += w * lvp__dot(from_joint, joint->normal);
-			at_rest += w * rest_side;
+		int32_t leader = leaders[side], other = leaders[1 - side];
+		for (int32_t g = system->group_offsets[leader]; g < system->group_offsets[leader + 1]; ++g) {
+			int32_t r = system->group_regions[g];
+			for (int32_t m = binding->mesh.neighbour_offsets[r]; m < binding->mesh.neighbour_offsets[r + 1]; ++m)
+				if (system->group_leader[binding->mesh.neighbour_bones[m]] == other)
+					lvp__weigh_border(binding, rest, m, joint, &mean);
 		}
 	}
-	if (!(weight > 0.0))
+	if (!(mean.weight > 0.0))
 		return;
-	double most = 0.5 * joint->reach;
-	joint->point = lvp__add(joint->point, lvp__scale(joint->normal, fmax(-most, fmin(most, across / weight))));
-	joint->rest_point =
-	    lvp__add(joint->rest_point, lvp__scale(joint->rest_normal, fmax(-most, fmin(most, at_rest / weight))));
+	double most = 0.5 * joint->reach, across = mean.across / mean.weight, at_rest = mean.at_rest / mean.weight;
+	joint->point = lvp__add(joint->point, lvp__scale(joint->normal, fmax(-most, fmin(most, across))));
+	joint->rest_point = lvp__add(joint->rest_point, lvp__scale(joint->rest_normal, fmax(-most, fmin(most, at_rest))));
 }
 
 /* A bone whose skin meets the skin of several bones it turns against (the upper arm's meets the
@@ -250,11 +269,16 @@ static void lvp__share_child_planes(lvp_binding *binding)
 }
 
 /* The entry that presses each side of a joint (fold.side_entry): one side is the skin of a group (a B-Bone's
- * joints, or a bone alone) on one side of one child's plane, and its first bending entry presses all of it.
- * Around a B-Bone's end its joints bend alike (the knee of a Rigify leg: the thigh's last B-Bone and the
+ * joints, or a bone alone) on one side of the joint of two groups, and its first bending entry presses all of
+ * it. Around a B-Bone's end its joints bend alike (the knee of a Rigify leg: the thigh's last B-Bone and the
  * shin's first each curve into the bend), and the calf pressed into the back of the thigh at 150 degrees
  * is skin of joints that border no joint of the other bone: pressed region by region, only the pairs at
- * the border were, and the skinning's crossings further along stayed (94 pairs a knee, 91 after). */
+ * the border were, and the skinning's crossings further along stayed (94 pairs a knee, 91 after). The child
+ * is the B-Bone, not one of its joints: a B-Bone's joints share its head and line, and where several of them
+ * border the parent's skin (the shin's second, third and fourth at the back of a Rigify knee, its first
+ * having no skin), each as the child would make the same plane again and press the whole side once more: the
+ * soft contact, applied that many times a pass, held the calf's skin at the bottom of the crease apart from
+ * the thigh's further than the relaxation leaves it, a step in the offsets there. */
 static void lvp__find_side_entries(lvp_binding *binding)
 {
 	const lvp__mesh *mesh = &binding->mesh;
@@ -271,7 +295,8 @@ static void lvp__find_side_entries(lvp_binding *binding)
 			     g < system->group_offsets[leader + 1] && binding->fold.side_entry[n] < 0; ++g) {
 				int32_t t = system->group_regions[g];
 				for (int32_t m = mesh->neighbour_offsets[t]; m < mesh->neighbour_offsets[t + 1]; ++m)
-					if (joints[m].bends && joints[m].child == joints[n].child &&
+					if (joints[m].bends &&
+					    system->group_leader[joints[m].child] == system->group_leader[joints[n].child] &&
 					    joints[m].child_side == joints[n].child_side) {
 						binding->fold.side_entry[n] = m;
 						break;
@@ -321,9 +346,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			/* cos(bend) = 1 - 2 sin(bend / 2)^2 */
 			joint->window = LVP__CREASE_WINDOW * joint->reach * fmax(0.0, 1.0 - 2.0 * sine * sine);
 			joint->bends = joint->reach > 0.0;
-			/* Of a group (a B-Bone's joints), only the first meets the parent at a crease: the
-			 * others' borders with it run along the bone. */
-			if (joint->bends && binding->system.group_leader[child] == child)
+			if (joint->bends)
 				lvp__place_at_border(binding, rest, s, n, joint);
 		}
 	lvp__share_child_planes(binding);

@@ -273,17 +273,7 @@ static void test_fold_over_follows_the_crease(void)
 
 /* Intersecting pairs of triangles and the volume, a limb of two B-Bones folded 150 degrees, corrected with
  * fold-over as the add-on does (whole mesh, Smoothing 6), its joints passed as one group per B-Bone or as
- * bones alone. */
-static void fold_limb_into(float *r_corrected, const test_rig *rig, const float *posed, const float *skinned,
-                           const int32_t *groups, int64_t *r_pairs, double *r_volume_error);
-
-static void fold_limb(const test_rig *rig, const float *posed, const float *skinned, const int32_t *groups,
-                      int64_t *r_pairs, double *r_volume_error)
-{
-	fold_limb_into(NULL, rig, posed, skinned, groups, r_pairs, r_volume_error);
-}
-
-/* fold_limb, keeping the corrected positions in r_corrected when it is not NULL. */
+ * bones alone; the corrected positions into r_corrected when it is not NULL. */
 static void fold_limb_into(float *r_corrected, const test_rig *rig, const float *posed, const float *skinned,
                            const int32_t *groups, int64_t *r_pairs, double *r_volume_error)
 {
@@ -308,6 +298,12 @@ static void fold_limb_into(float *r_corrected, const test_rig *rig, const float 
 		memcpy(r_corrected, corrected, sizeof(float) * 3 * (size_t)rig->vertex_count);
 	free(corrected);
 	lvp_free(binding);
+}
+
+static void fold_limb(const test_rig *rig, const float *posed, const float *skinned, const int32_t *groups,
+                      int64_t *r_pairs, double *r_volume_error)
+{
+	fold_limb_into(NULL, rig, posed, skinned, groups, r_pairs, r_volume_error);
 }
 
 /* Rigify's limbs are B-Bones, whose joints the add-on passes as bones of one group (lvp.h, GROUPS): here a
@@ -350,8 +346,8 @@ static void test_fold_over_presses_a_b_bone_whole(void)
  * of a Rigify knee, three of the shin's joints border the thigh's skin. Here the chain of
  * test_fold_over_presses_a_b_bone_whole as two such B-Bones, folded 150 degrees at the second's head, where
  * the second's joints all move alike: the inside of the bend near the joint given to its second joint instead
- * of its first skins exactly the same, and must be pressed the same. Each joint bordering the other side was a
- * child of its own then, whose plane (the same plane) pressed the whole side again: printed, the largest
+ * of its first skins exactly the same, and must be pressed the same: every joint of a B-Bone that borders the
+ * other side makes the same plane, and the side is pressed once, not once per joint. Printed: the largest
  * difference of the two corrections against the largest offset. */
 static void test_fold_over_presses_a_b_bone_side_once(void)
 {

@@ -138,7 +138,8 @@
  *   group are corrected as one: one multiplier, aiming at the sum of their changes. Corrected
  *   apart, neighbouring joints of one bone are nearly indistinguishable to the correction, and
  *   their multipliers pull against each other (a ridge where one bone should bulge smoothly).
- *   A group's regions stay apart in separate parts (SEGMENTATION). Stats and warnings speak of
+ *   A group's regions stay apart in separate parts (SEGMENTATION). Fold-over takes a group as
+ *   one side of a joint, one plane and one press a pass (FOLD-OVER). Stats and warnings speak of
  *   the group by its first bone.
  *
  * BULGE WIDTH (how far a region's correction spreads)
@@ -182,12 +183,14 @@
  *   parent's flesh radius of the parent's bone; a child of several such bones takes the plane
  *   of the one whose bone passes nearest its head), the contact surface is the plane halfway
  *   between where the child would point had it moved with the parent and where it points,
- *   through the crease: where the two regions' skins meet on the concave side of the bend, when
+ *   through the crease: where the two groups' skins meet on the concave side of the bend, when
  *   that is within the child's flesh radius of the joint (moved from the joint by at most half
- *   that radius; of a group, only its first bone's joint moves: GROUPS). A vertex of s's group
- *   (a B-Bone's joints press together: the calf's skin away from the knee lies in regions of the
- *   shin's later joints, which border none of the thigh's) on its own side of that plane at rest
- *   and across it now goes back onto it (within the child's flesh radius of the joint along the
+ *   that radius; the joints of a B-Bone share its head and line, and whichever of them border
+ *   the crease make one plane: GROUPS). A vertex of s's group, pressed once whichever of its
+ *   joints border the other side (a B-Bone's joints press together: the calf's skin away from
+ *   the knee lies in regions of the shin's later joints, which border none of the thigh's), on
+ *   its own side of that plane at rest and across it now goes back onto it (within the child's
+ *   flesh radius of the joint along the
  *   bend's axis, tapering off at twice that) and is held
  *   there while further volume steps run with the map faded near the contact (on the concave side
  *   of the bend: nothing presses the convex side), so the squeezed

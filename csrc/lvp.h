@@ -190,8 +190,7 @@
  *   joints border the other side (a B-Bone's joints press together: the calf's skin away from
  *   the knee lies in regions of the shin's later joints, which border none of the thigh's), on
  *   its own side of that plane at rest and across it now goes back onto it (within the child's
- *   flesh radius of the joint along the
- *   bend's axis, tapering off at twice that) and is held
+ *   flesh radius of the joint along the bend's axis, tapering off at twice that) and is held
  *   there while further volume steps run with the map faded near the contact (on the concave side
  *   of the bend: nothing presses the convex side), so the squeezed
  *   volume becomes a bulge beside it (paper Fig. 10d). It is pressed softly, so that it runs

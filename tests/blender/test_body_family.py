@@ -120,11 +120,11 @@ class TestBodyFamily(unittest.TestCase):
         that border the other side at a crease each pressed the whole side once more a pass (the shin's second,
         third and fourth joints at the back of the knee; foldover.c, lvp__find_side_entries), and 60-107 before the
         relaxation. The metaball body's are on its thighs' and upper arms' lower DEF bones (25 and 20 of the 65),
-        where the pressed skin meets the free skin; at the elbow the contact plane, halfway between where the forearm would point had it moved with the upper arm and
-        where it points, leans by half Rigify's rest bend of the elbow towards the upper arm (bisecting the two
-        bones' lines instead halved them, but not where a parent's line is no flesh axis: BENCHMARKS.md). Before a
-        B-Bone's joints pressed together, the calf's skin away from the knee stayed in the thigh: 272-359 pairs. The
-        squeezed volume goes back as a rounder knee."""
+        where the pressed skin meets the free skin; at the elbow the contact plane, halfway between where the
+        forearm would point had it moved with the upper arm and where it points, leans by half Rigify's rest bend
+        of the elbow towards the upper arm (bisecting the two bones' lines instead halved them, but not where a
+        parent's line is no flesh axis: BENCHMARKS.md). Before a B-Bone's joints pressed together, the calf's skin
+        away from the knee stayed in the thigh: 272-359 pairs. The squeezed volume goes back as a rounder knee."""
         for name, built_by in FOLDED_BODIES.items():
             with self.subTest(body=name):
                 helpers.reset_scene()

@@ -151,26 +151,6 @@ static float *correct_with(const test_posed_rig *p, const float *rest, const flo
 	return offsets;
 }
 
-static double largest_length(const float *v, int32_t count)
-{
-	double largest = 0.0;
-	for (int32_t k = 0; k < count; ++k)
-		largest = fmax(largest, sqrt(v[3 * k] * v[3 * k] + v[3 * k + 1] * v[3 * k + 1] + v[3 * k + 2] * v[3 * k + 2]));
-	return largest;
-}
-
-static double largest_difference(const float *a, const float *b, int32_t count)
-{
-	double largest = 0.0;
-	for (int32_t k = 0; k < count; ++k) {
-		double d2 = 0.0;
-		for (int c = 0; c < 3; ++c)
-			d2 += ((double)a[3 * k + c] - b[3 * k + c]) * ((double)a[3 * k + c] - b[3 * k + c]);
-		largest = fmax(largest, sqrt(d2));
-	}
-	return largest;
-}
-
 /* Every variant of p against p as built. */
 static void check_variants(const char *name, const test_posed_rig *p)
 {
@@ -179,7 +159,7 @@ static void check_variants(const char *name, const test_posed_rig *p)
 	const test_rig *rig = &p->rig;
 	float *clean = correct_with(p, rig->rest_matrices, p->posed, rig->heads, rig->tails, rig->parents,
 	                            rig->bone_count);
-	double largest = largest_length(clean, rig->vertex_count);
+	double largest = test_largest_distance(clean, NULL, rig->vertex_count);
 	printf("  %s: largest offset %.4g\n", name, largest);
 	CHECK(largest > 0.0);
 	uint64_t state = 20261127;
@@ -188,7 +168,7 @@ static void check_variants(const char *name, const test_posed_rig *p)
 		int32_t *parents, count;
 		variant_skeleton(p, (tails_variant)variant, &state, &rest, &posed, &tails, &parents, &heads, &count);
 		float *offsets = correct_with(p, rest, posed, heads, tails, parents, count);
-		double difference = largest_difference(clean, offsets, rig->vertex_count);
+		double difference = test_largest_distance(clean, offsets, rig->vertex_count);
 		printf("    %-26s offsets differ by %.2e of the largest\n", variant_names[variant], difference / largest);
 		CHECK(difference <= 1e-3 * largest);
 		free(offsets);

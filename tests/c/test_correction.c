@@ -674,15 +674,6 @@ static void scale_upper_bone(posed_cylinder *c, double sx, double sy, double sz)
 	skin_linear(c->skinned, &c->rig, c->posed);
 }
 
-static double largest_length(const float *offsets, int32_t n)
-{
-	double largest = 0.0;
-	for (int32_t k = 0; k < n; ++k)
-		largest = fmax(largest, sqrt(offsets[3 * k] * offsets[3 * k] + offsets[3 * k + 1] * offsets[3 * k + 1] +
-		                             offsets[3 * k + 2] * offsets[3 * k + 2]));
-	return largest;
-}
-
 /* A bone scaled on purpose (squash and stretch, an inflated limb) changes its region's volume
  * on purpose, and across the weight band linear blending interpolates the two bones' sizes: a
  * straight joint between a scaled and an unscaled bone is what the animator asked for, and the
@@ -706,7 +697,7 @@ static void test_scaled_bone_is_not_undone(void)
 		float *offsets = malloc(sizeof(float) * 3 * (size_t)n);
 		lvp_frame_stats stats;
 		CHECK_OK(lvp_correct(NULL, offsets, binding, c.skinned, c.posed, NULL, NULL, &stats, &diag), diag);
-		double largest = largest_length(offsets, n);
+		double largest = test_largest_distance(offsets, NULL, n);
 		printf("  upper bone scaled %.2f x %.2f x %.2f: volume %+.2f %% plain, %+.2f %% corrected; largest offset "
 		       "%.2e (%.4f %% of the radius), worst region %+.4f %% off what its scale gives\n",
 		       scales[i].x, scales[i].y, scales[i].z, 100.0 * (stats.volume_before / stats.volume_rest - 1.0),
@@ -777,7 +768,7 @@ static void test_bone_scaled_to_zero(void)
 		offsets[i] = malloc(sizeof(float) * 3 * (size_t)n);
 		lvp_frame_stats stats;
 		CHECK_OK(lvp_correct(NULL, offsets[i], binding, c.skinned, c.posed, NULL, NULL, &stats, &diag), diag);
-		double largest = largest_length(offsets[i], n);
+		double largest = test_largest_distance(offsets[i], NULL, n);
 		printf("  upper bone scaled %g: %d region(s) skipped, largest offset %.4f (%.2f %% of the radius), worst "
 		       "region %+.3g %% after\n",
 		       scales[i], (int)stats.skipped_regions, largest, 100.0 * largest / 0.5,

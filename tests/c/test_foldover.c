@@ -384,16 +384,8 @@ static void test_fold_over_presses_a_b_bone_side_once(void)
 			}
 	}
 	fold_limb_into(split, &rig, posed, skinned, groups, &split_pairs, &split_error);
-	double largest = 0.0, differ = 0.0;
-	for (int32_t k = 0; k < 3 * rig.vertex_count; k += 3) {
-		double offset = 0.0, apart = 0.0;
-		for (int i = 0; i < 3; ++i) {
-			offset += ((double)whole[k + i] - skinned[k + i]) * ((double)whole[k + i] - skinned[k + i]);
-			apart += ((double)whole[k + i] - split[k + i]) * ((double)whole[k + i] - split[k + i]);
-		}
-		largest = fmax(largest, sqrt(offset));
-		differ = fmax(differ, sqrt(apart));
-	}
+	double largest = test_largest_distance(whole, skinned, rig.vertex_count);
+	double differ = test_largest_distance(whole, split, rig.vertex_count);
 	printf("  150 degrees, %d weights moved to the second joint: corrections differ by %.3f of the largest offset "
 	       "(%.4f); crossing pairs %lld and %lld\n",
 	       (int)moved, differ / largest, largest, (long long)whole_pairs, (long long)split_pairs);

@@ -633,6 +633,20 @@ static double test_length3(const float *v)
 	return sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]);
 }
 
+double test_largest_distance(const float *a, const float *b, int32_t count)
+{
+	double largest = 0.0;
+	for (int32_t k = 0; k < count; ++k) {
+		double d2 = 0.0;
+		for (int c = 0; c < 3; ++c) {
+			double d = (double)a[3 * k + c] - (b ? (double)b[3 * k + c] : 0.0);
+			d2 += d * d;
+		}
+		largest = fmax(largest, sqrt(d2));
+	}
+	return largest;
+}
+
 double test_roughness(const test_rig *rig, const float *offsets)
 {
 	int32_t n = rig->vertex_count;

@@ -107,6 +107,10 @@ void test_multiply_matrices_double(double r[16], const double a[16], const doubl
  * sx, sy, sz along its axes (Y along the bone) about its head, as Blender scales a pose bone. */
 void test_scale_bone(float posed_bone[16], double sx, double sy, double sz);
 
+/* The largest distance between a and b (3 floats per point, count points), or the largest length of a when b
+ * is NULL. */
+double test_largest_distance(const float *a, const float *b, int32_t count);
+
 /* The roughness of offsets (3 per vertex) as ../shared/QUALITY.md measures it: the largest
  * |offset - the mean of its edge neighbours' offsets|, over the largest offset (0 when none). */
 double test_roughness(const test_rig *rig, const float *offsets);

@@ -1151,12 +1151,20 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		/* The volume the relaxation took comes back through the map, where it peaks beside the
 		 * contacts: those peaks are smoothed as the frame's offsets were before fold-over (the held
 		 * skin keeping its place), the volume restored along the smoothed offsets, and what that
-		 * carries across a plane pressed back. */
+		 * carries across a plane pressed back. That press is relaxed as the rounds' are: left as it
+		 * was, the rim it put on the plane met the free skin beside it at an angle, creases along the
+		 * contact line (the flanks of a thigh that its calf presses, the sides of a finger at the
+		 * fist). The volume that relaxation takes comes back through the map once more, where the
+		 * contacts faded it, so little crosses again, and what does is pressed back. */
 		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 		lvp__smooth_offsets(binding, positions, relax_passes, false);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
+		if (lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes)) {
+			stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
+			stats->folded_vertices += lvp__fold_over(binding, rest_positions);
+		}
 	}
 	lvp__measure_positions(binding, rest_positions, totals);
 }

@@ -207,7 +207,8 @@
  *   as the correction before it is undone and ends them (the frame keeps its contacts, a little
  *   volume missing); the volume the relaxation took is restored after them, through the map and
  *   then along the offsets smoothed once more (so that it does not rise where the map peaks beside
- *   a contact). Limits: bones
+ *   a contact), what that carries across pressed back and relaxed in turn, and what that takes
+ *   restored through the map once more (what it carries across pressed back). Limits: bones
  *   without a joint between them (a fingertip on the palm, a thumb on the index), two parts of
  *   one bone's flesh and the joints of one B-Bone are not separated; at the edge of the skin
  *   pressed onto the plane the skin beside it may cross it; where two bones lie on top of each

@@ -97,8 +97,8 @@ class TestRigifyHuman(SurfaceCase):
         # place: taken for a joint (foldover.c, lvp__joint_child), the inner skin of one thigh was pressed onto a
         # plane across the other, roughness 0.78 of the largest offset there; then 0.50 at the armpit, where the
         # upper arm's skin meets the spine's, the shoulder's and the breast's, each pair pressing onto a plane of
-        # its own until they shared the plane of the bone the arm hangs from. Now 0.29 (README). At most one crease
-        # per 300 edges: 35 (46 allowed); 92 while the pressed skin's relaxation stopped at skin its bones carry
+        # its own until they shared the plane of the bone the arm hangs from. Now 0.27 (README). At most one crease
+        # per 300 edges: 36 (46 allowed); 92 while the pressed skin's relaxation stopped at skin its bones carry
         # rigidly (the upper arm's two DEF bones) and the map was faded on the convex side of a joint too (the
         # buttock, across the raised hip's plane; foldover.c).
         real_cases.pose_rigify_human(self.rig, 1.0)

@@ -116,13 +116,13 @@ class TestBodyFamily(unittest.TestCase):
         Measured on 3.4: at most one pair left, roughness 0.23 / 0.20 / 0.16 / 0.20 (voxel, metaballs, Skin
         modifier, female); 0.23-0.44 before the pressed skin relaxed into skin its bones carry rigidly (foldover.c,
         lvp__relax_pressed), when the upper arm's lower DEF bone, pressed, met its upper one, not pressed, in a step.
-        Creases 28 / 49 / 21 / 24 where 46 / 46 / 40 / 46 are allowed (25 / 65 / 26 / 22 while the last press of
-        a frame was left unrelaxed, its rim meeting the free skin at an angle along the contact line; foldover.c,
-        lvp__relax_pressed, correction.c): 46 / 55 / 36 / 39 while a B-Bone's joints
-        that border the other side at a crease each pressed the whole side once more a pass (the shin's second,
-        third and fourth joints at the back of the knee; foldover.c, lvp__find_side_entries), and 60-107 before the
-        relaxation. The metaball body's were on its thighs' and upper arms' lower DEF bones (25 and 20 of the 65),
-        where the pressed skin meets the free skin, 10-25 cm from the knee; at the elbow the contact plane, halfway between where the
+        Creases 28 / 49 / 21 / 24 where 46 / 46 / 40 / 46 are allowed; 25 / 65 / 26 / 22 while the last press of
+        a frame was left unrelaxed, its rim meeting the free skin at an angle along the contact line (correction.c,
+        lvp__prevent_fold_over); 46 / 55 / 36 / 39 while a B-Bone's joints that border the other side at a crease
+        each pressed the whole side once more a pass (the shin's second, third and fourth joints at the back of
+        the knee; foldover.c, lvp__find_side_entries), and 60-107 before the relaxation. The metaball body's 65 were
+        on its thighs' and upper arms' lower DEF bones (25 and 20), where the pressed skin meets the free skin,
+        10-25 cm from the knee; at the elbow the contact plane, halfway between where the
         forearm would point had it moved with the upper arm and where it points, leans by half Rigify's rest bend
         of the elbow towards the upper arm (bisecting the two bones' lines instead halved them, but not where a
         parent's line is no flesh axis: BENCHMARKS.md). Before a B-Bone's joints pressed together, the calf's skin

@@ -650,7 +650,7 @@ double test_largest_distance(const float *a, const float *b, int32_t count)
 double test_roughness(const test_rig *rig, const float *offsets)
 {
 	int32_t n = rig->vertex_count;
-	double *sum = calloc((size_t)n * 3, sizeof(double)), largest = 0.0, worst = 0.0;
+	double *sum = calloc((size_t)n * 3, sizeof(double)), largest = test_largest_distance(offsets, NULL, n), worst = 0.0;
 	int32_t *count = calloc((size_t)n, sizeof(int32_t));
 	for (int32_t t = 0; t < rig->triangle_count; ++t)
 		for (int e = 0; e < 3; ++e) {
@@ -663,7 +663,6 @@ double test_roughness(const test_rig *rig, const float *offsets)
 			++count[b];
 		}
 	for (int32_t k = 0; k < n; ++k) {
-		largest = fmax(largest, test_length3(offsets + 3 * k));
 		if (count[k] == 0)
 			continue;
 		float difference[3];

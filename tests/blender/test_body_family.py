@@ -52,7 +52,10 @@ FOLDED_BODIES = {
     "female voxel body": {"build": "female"},
 }
 # Bodies whose creases at 150 degrees with Fold-Over are not held yet (test_fold_over_at_150_degrees): measured 49
-# where 46 are allowed.
+# where 46 are allowed. 33 of the 49 edges border a needle (a triangle with an angle under 15 degrees, a tenth of a
+# degree on some; 30 % of the body's edges do), along the lines where pressed skin meets free skin: a needle's
+# normal turns with the difference of its two near corners' offsets over its width, and pressing each vertex onto
+# the contact plane on its own is smooth from vertex to vertex, not within a needle.
 CREASES_NOT_MET_AT_150 = ("metaballs, 0.02",)
 
 
@@ -111,8 +114,9 @@ class TestBodyFamily(unittest.TestCase):
         """Knees and elbows bent to 150 degrees (real_cases.pose_rigify_human_folded): the calf lies on the back of
         the thigh and the forearm on the upper arm, and plain skinning passes each through the other (278-355
         crossing pairs). With Fold-Over Prevention and Keep Skin Apart (what renders with Fold-Over get): the volume
-        kept, at most half of plain skinning's crossing pairs (issue 46), roughness at most 0.3 of the largest
-        offset, and at most one crease added per 300 edges but on the metaball body (CREASES_NOT_MET_AT_150).
+        kept, at most half of plain skinning's crossing pairs (issue 46), roughness at most a quarter of the largest
+        offset (as at the hard poses), and at most one crease added per 300 edges but on the metaball body
+        (CREASES_NOT_MET_AT_150).
         Measured on 3.4: at most one pair left, roughness 0.23 / 0.20 / 0.16 / 0.20 (voxel, metaballs, Skin
         modifier, female); 0.23-0.44 before the pressed skin relaxed into skin its bones carry rigidly (foldover.c,
         lvp__relax_pressed), when the upper arm's lower DEF bone, pressed, met its upper one, not pressed, in a step.
@@ -153,7 +157,7 @@ class TestBodyFamily(unittest.TestCase):
                 self.assertGreater(plain["crossings"], 100, "the pose folds skin through skin")
                 self.assertLess(abs(folded["volume"]), 0.005, name)
                 self.assertLessEqual(folded["crossings"], plain["crossings"] / 2, name)
-                self.assertLessEqual(folded["roughness"], 0.3 * folded["largest_offset"], name)
+                self.assertLessEqual(folded["roughness"], ROUGHNESS_OF_LARGEST * folded["largest_offset"], name)
                 if name not in CREASES_NOT_MET_AT_150:
                     self.assertLessEqual(folded["creases"], edges / EDGES_PER_CREASE, name)
 

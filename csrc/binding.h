@@ -893,7 +893,8 @@ bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
 /* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
  * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, then averaged; with
  * keep_floors the averaging only lowers (it rounds the rims of the dips and keeps their floors).
- * Vertices marked in `kept` (may be NULL) are neither read nor changed. `scratch`: per vertex. */
+ * Vertices marked in `kept` (may be NULL) are not read by the others and only take the slope from
+ * the skin around them (kept or not), never averaged. `scratch`: per vertex. */
 void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors);
 
 #endif /* LVP_BINDING_H */

@@ -557,7 +557,9 @@ static inline bool lvp__share_counts(const lvp__clearance_pass *pass, const uint
 }
 
 /* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the vertex's share, or
- * its least neighbour's and LVP__SHARE_SLOPE more when that is less. */
+ * its least neighbour's and LVP__SHARE_SLOPE more when that is less. A kept vertex takes the slope
+ * from every neighbour with an offset, kept or not (a kept patch comes down with the skin around it,
+ * ring by ring), while the others do not read the kept ones' shares. */
 static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__clearance_pass *pass = context;
@@ -566,13 +568,13 @@ static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
+		bool kept = pass->kept && pass->kept[k];
 		float least = pass->from[k];
-		if (!(pass->kept && pass->kept[k])) {
-			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
-				int32_t j = smoothing->neighbours[e];
-				if (lvp__share_counts(pass, dynamic, j) && pass->from[j] + LVP__SHARE_SLOPE < least)
-					least = pass->from[j] + LVP__SHARE_SLOPE;
-			}
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+			int32_t j = smoothing->neighbours[e];
+			bool counts = kept ? dynamic[j] != 0 : lvp__share_counts(pass, dynamic, j);
+			if (counts && pass->from[j] + LVP__SHARE_SLOPE < least)
+				least = pass->from[j] + LVP__SHARE_SLOPE;
 		}
 		pass->to[k] = least;
 	}

@@ -590,6 +590,29 @@ static bool lvp__visit_skinned_crossing(void *context, const lvp__bvh_triangle *
 	return true;
 }
 
+/* Marks (1) every dynamic vertex in `patch` joined to a marked one through triangles whose corners are in
+ * `patch`, out to the whole patch, a ring or more a pass (patches are a few rings across). */
+static void lvp__grow_marked_patches(const lvp_binding *binding, const uint8_t *patch, uint8_t *marks)
+{
+	const lvp__mesh *mesh = &binding->mesh;
+	for (bool grew = true; grew;) {
+		grew = false;
+		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+			int32_t k = binding->dynamic.vertices[v];
+			if (!patch[k] || marks[k])
+				continue;
+			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+				const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
+				if (lvp__any_marked(marks, corners)) {
+					marks[k] = 1;
+					grew = true;
+					break;
+				}
+			}
+		}
+	}
+}
+
 /* contact.pinned: the patches of vertices fold-over holds on a contact surface (fold.held; a patch:
  * held vertices joined by edges) where some triangle crosses skin in the skinning (touching within
  * rounding counts). Fold-over undid those crossings, and shortening the offsets of such a patch would
@@ -622,24 +645,72 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 			for (int i = 0; i < 3; ++i)
 				contact->pinned[corners[i]] = held[corners[i]];
 	}
-	/* Out to the whole patch, a ring or more a pass (patches are a few rings across). */
-	const lvp__mesh *mesh = &binding->mesh;
-	for (bool grew = true; grew;) {
-		grew = false;
-		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
-			int32_t k = binding->dynamic.vertices[v];
-			if (!held[k] || contact->pinned[k])
-				continue;
-			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
-				const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
-				if (lvp__any_marked(contact->pinned, corners)) {
-					contact->pinned[k] = 1;
-					grew = true;
-					break;
+	lvp__grow_marked_patches(binding, held, contact->pinned);
+}
+
+/* With the tree fitted to the correction: stops at the first triangle the searched one (where the
+ * correction put it) crosses there (limit 0), touching within rounding included. */
+static bool lvp__visit_corrected_crossing(void *context, const lvp__bvh_triangle *other)
+{
+	lvp__triangle_search *search = context;
+	if (!lvp__may_cross(search, other))
+		return false;
+	lvp__vec3 corners[3];
+	for (int i = 0; i < 3; ++i)
+		corners[i] = lvp__load(other->corners[i]);
+	if (lvp__triangles_cross(search->moved, corners) == LVP__APART)
+		return false;
+	search->limit = 0.0f;
+	return true;
+}
+
+/* A pinned patch comes down with the skin around it when the shares are smoothed: where the crossing
+ * test shortened that skin (it would meet a third skin), a patch left in place stood out of it, a shard
+ * as tall as the offsets. Brought down, it may bring back the crossing fold-over undid: every patch one of
+ * whose lowered triangles then crosses skin goes back up whole (its shares 1). Marks the vertices raised
+ * in contact.moved (which the caller sets afterwards) and returns whether it raised any; the positions
+ * are placed by the shares as they were (the caller places them again). */
+static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_pass *pass)
+{
+	lvp__contact *contact = &binding->contact;
+	const uint8_t *pinned = contact->pinned;
+	uint8_t *raised = contact->moved;
+	float *scale = contact->scale, *next = contact->next_scale;
+	const float *work = binding->step.positions;
+	const int32_t *dynamic = binding->dynamic.vertices, dynamic_count = binding->dynamic.vertex_count;
+	bool lowered = false;
+	for (int32_t v = 0; v < dynamic_count && !lowered; ++v)
+		lowered = pinned[dynamic[v]] && scale[dynamic[v]] < 1.0f;
+	if (!lowered)
+		return false;
+	memset(raised, 0, (size_t)binding->vertex_count);
+	lvp__refit_dynamic(binding, work);
+	bool any = false;
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		bool down = false;
+		for (int i = 0; i < 3; ++i)
+			down = down || (pinned[corners[i]] && scale[corners[i]] < 1.0f);
+		if (!down)
+			continue;
+		const float *const at[3] = {work + 3 * (int64_t)corners[0], work + 3 * (int64_t)corners[1],
+		                            work + 3 * (int64_t)corners[2]};
+		lvp__triangle_search search = lvp__search_of(pass, corners, at);
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_corrected_crossing, &search);
+		if (search.limit < 1.0f)
+			for (int i = 0; i < 3; ++i)
+				if (pinned[corners[i]]) {
+					raised[corners[i]] = 1;
+					any = true;
 				}
-			}
-		}
 	}
+	if (!any)
+		return false;
+	lvp__grow_marked_patches(binding, pinned, raised);
+	for (int32_t v = 0; v < dynamic_count; ++v)
+		if (raised[dynamic[v]])
+			scale[dynamic[v]] = next[dynamic[v]] = 1.0f;
+	return true;
 }
 
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first)
@@ -677,8 +748,14 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		lvp__smooth_shares(binding, scale, next, pinned, true);
 		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
-		for (int32_t v = 0; v < dynamic_count; ++v)
-			contact->moved[dynamic[v]] = scale[dynamic[v]] < 1.0f;
+		bool raised = lvp__raise_pinned_crossing(binding, &pass);
+		if (raised)
+			lvp__place_shortened(binding, positions, corrected);
+		/* What the next round tests: the corners shortened, and those raised back (contact.moved). */
+		for (int32_t v = 0; v < dynamic_count; ++v) {
+			int32_t k = dynamic[v];
+			contact->moved[k] = scale[k] < 1.0f || (raised && contact->moved[k]);
+		}
 		shortening = lvp__shorten_rounds(binding, &pass, corrected, false);
 	}
 	int32_t shortened = 0;

@@ -29,6 +29,8 @@ import surface_quality as quality
 EDGES_PER_CREASE = 300
 ROUGHNESS_OF_LARGEST = 0.25
 FRAMES = {"three quarters closed": 16, "at the fist": 21}
+# Hands whose roughness with Fold-Over is not held to a quarter yet (test_fold_over_halves_the_crossings).
+FOLD_OVER_ROUGH = ("coarse", "decimated", "decimated, thumb over")
 
 
 class TestHandFamily(unittest.TestCase):
@@ -80,19 +82,21 @@ class TestHandFamily(unittest.TestCase):
 
     def test_fold_over_halves_the_crossings(self):
         """Fold-Over Prevention with Keep Skin Apart (what renders with Fold-Over get): the volume kept, at most half
-        of plain skinning's crossing pairs, three quarters closed and at the fist (issue 46), and Keep Skin Apart
-        adding at most one crease per 300 edges to Fold-Over's own. Measured on 3.4, 4.3 and 5.2, the voxel hands:
-        0-18 pairs where plain skinning has 21-310. Keep Skin Apart shortens only what it can part: on the stubby
-        hand at the fist, the skin that fold-over holds in the thumb's web meets the index's fingertip, which the
-        skinning already pushed into it; shortening the skin beside it to nothing parted none of those pairs and
-        added 42 creases to Fold-Over's 22 (13 now). Not held yet, and so not asserted: the decimated hand three
-        quarters closed keeps 23 of plain skinning's 30 pairs (the little finger's tip folded onto its first
-        phalanx, which is no joint's contact plane, and long triangles of one phalanx crossing each other);
-        roughness 0.15-0.57 of the largest offset (0.30-0.35 on the coarse and the long hand, 0.31-0.36 on the
+        of plain skinning's crossing pairs, three quarters closed and at the fist (issue 46), Keep Skin Apart
+        adding at most one crease per 300 edges to Fold-Over's own, and roughness at most a quarter of the largest
+        offset but on FOLD_OVER_ROUGH. Measured on 3.4, the voxel hands: no pair left where plain skinning has
+        21-310, roughness 0.12-0.22. Keep Skin Apart shortens only what it can part: on the stubby hand at the
+        fist, the skin that fold-over holds in the thumb's web meets the index's fingertip, which the skinning
+        already pushed into it; shortening the skin beside it to nothing parted none of those pairs and added 42
+        creases to Fold-Over's 22. The web held in place then stood out of the skin around it, shortened because
+        it met a third skin (roughness 0.45): now it comes down with that skin, the skinning's crossing in it
+        not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's 19). Not
+        held yet: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs (the little
+        finger's tip folded onto its first phalanx, which is no joint's contact plane, and long triangles of one
+        phalanx crossing each other), and so is not asserted there; roughness 0.29 on the coarse hand three
+        quarters closed (1,850 vertices: README asks Smoothing 10 of meshes this coarse), 0.24-0.35 on the
         decimated ones, where fold-over presses one vertex on the crease's line as far as the skinning carried it
-        across and its neighbours, across the plane at rest, much less; 0.57 on the stubby one at the fist, the held
-        web beside the skin shortened); creases at the fist, 49 on the three-fingered hand (35 allowed), every one
-        Fold-Over's own."""
+        across and its neighbours, across the plane at rest, much less."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 obj, mesh = self.corrected_hand(voxel_size, shape, decimated)
@@ -116,6 +120,9 @@ class TestHandFamily(unittest.TestCase):
                     self.assertLessEqual(folded["creases"] - alone["creases"], edges / EDGES_PER_CREASE, label)
                     if decimated is None:
                         self.assertLessEqual(folded["crossings"], plain / 2, label)
+                    if name not in FOLD_OVER_ROUGH:
+                        self.assertLessEqual(folded["roughness"], ROUGHNESS_OF_LARGEST * folded["largest_offset"],
+                                             label)
 
 
 if __name__ == "__main__":

@@ -590,8 +590,8 @@ static bool lvp__visit_skinned_crossing(void *context, const lvp__bvh_triangle *
 	return true;
 }
 
-/* Marks (1) every dynamic vertex in `patch` joined to a marked one through triangles whose corners are in
- * `patch`, out to the whole patch, a ring or more a pass (patches are a few rings across). */
+/* Marks (1) every dynamic vertex of `patch` that shares a triangle with a marked one, and so on out to the
+ * whole patch (its vertices joined by edges), a ring or more a pass (patches are a few rings across). */
 static void lvp__grow_marked_patches(const lvp_binding *binding, const uint8_t *patch, uint8_t *marks)
 {
 	const lvp__mesh *mesh = &binding->mesh;

@@ -574,17 +574,17 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 	return shortened;
 }
 
-/* With the tree refitted to the skinning: stops at the first triangle the searched one crosses there
- * (limit 0), touching within rounding included. */
-static bool lvp__visit_skinned_crossing(void *context, const lvp__bvh_triangle *other)
+/* With the tree fitted to the pass's positions (the skinning, or the correction as it stands): stops at
+ * the first triangle the searched one crosses there (limit 0), touching within rounding included. */
+static bool lvp__visit_crossing_at(void *context, const lvp__bvh_triangle *other)
 {
 	lvp__triangle_search *search = context;
 	if (!lvp__may_cross(search, other))
 		return false;
-	lvp__vec3 skinned[3];
+	lvp__vec3 corners[3];
 	for (int i = 0; i < 3; ++i)
-		skinned[i] = lvp__load(other->corners[i]);
-	if (lvp__triangles_cross(search->skinned, skinned) == LVP__APART)
+		corners[i] = lvp__load(other->corners[i]);
+	if (lvp__triangles_cross(search->skinned, corners) == LVP__APART)
 		return false;
 	search->limit = 0.0f;
 	return true;
@@ -640,28 +640,12 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		const float *const skinned[3] = {positions + 3 * (int64_t)corners[0], positions + 3 * (int64_t)corners[1],
 		                                 positions + 3 * (int64_t)corners[2]};
 		lvp__triangle_search search = lvp__search_of(&pass, corners, skinned);
-		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_skinned_crossing, &search);
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_crossing_at, &search);
 		if (search.limit < 1.0f)
 			for (int i = 0; i < 3; ++i)
 				contact->pinned[corners[i]] = held[corners[i]];
 	}
 	lvp__grow_marked_patches(binding, held, contact->pinned);
-}
-
-/* With the tree fitted to the correction: stops at the first triangle the searched one (where the
- * correction put it) crosses there (limit 0), touching within rounding included. */
-static bool lvp__visit_corrected_crossing(void *context, const lvp__bvh_triangle *other)
-{
-	lvp__triangle_search *search = context;
-	if (!lvp__may_cross(search, other))
-		return false;
-	lvp__vec3 corners[3];
-	for (int i = 0; i < 3; ++i)
-		corners[i] = lvp__load(other->corners[i]);
-	if (lvp__triangles_cross(search->moved, corners) == LVP__APART)
-		return false;
-	search->limit = 0.0f;
-	return true;
 }
 
 /* A pinned patch comes down with the skin around it when the shares are smoothed: where the crossing
@@ -685,6 +669,9 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 		return false;
 	memset(raised, 0, (size_t)binding->vertex_count);
 	lvp__refit_dynamic(binding, work);
+	/* Searched where the correction put it, against the tree fitted there. */
+	lvp__contact_pass at_correction = *pass;
+	at_correction.positions = work;
 	bool any = false;
 	for (int32_t t = 0; t < binding->triangle_count; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
@@ -695,8 +682,8 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 			continue;
 		const float *const at[3] = {work + 3 * (int64_t)corners[0], work + 3 * (int64_t)corners[1],
 		                            work + 3 * (int64_t)corners[2]};
-		lvp__triangle_search search = lvp__search_of(pass, corners, at);
-		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_corrected_crossing, &search);
+		lvp__triangle_search search = lvp__search_of(&at_correction, corners, at);
+		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_crossing_at, &search);
 		if (search.limit < 1.0f)
 			for (int i = 0; i < 3; ++i)
 				if (pinned[corners[i]]) {

@@ -590,6 +590,18 @@ static bool lvp__visit_crossing_at(void *context, const lvp__bvh_triangle *other
 	return true;
 }
 
+/* Whether the triangle with these corners crosses skin (touching within rounding included) where the
+ * pass's positions put every triangle, the tree fitted there. */
+static bool lvp__crosses_at(const lvp__contact_pass *pass, const int32_t corners[3])
+{
+	const float *at = pass->positions;
+	const float *const corner_at[3] = {at + 3 * (int64_t)corners[0], at + 3 * (int64_t)corners[1],
+	                                   at + 3 * (int64_t)corners[2]};
+	lvp__triangle_search search = lvp__search_of(pass, corners, corner_at);
+	lvp__bvh_overlapping(&pass->binding->contact.bvh, search.lo, search.hi, lvp__visit_crossing_at, &search);
+	return search.limit < 1.0f;
+}
+
 /* Marks (1) every dynamic vertex of `patch` that shares a triangle with a marked one, and so on out to the
  * whole patch (its vertices joined by edges), a ring or more a pass (patches are a few rings across). */
 static void lvp__grow_marked_patches(const lvp_binding *binding, const uint8_t *patch, uint8_t *marks)
@@ -635,15 +647,10 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 	lvp__contact_pass pass = {binding, positions, &new_contact};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
-		if (!lvp__any_marked(held, corners))
+		if (!lvp__any_marked(held, corners) || !lvp__crosses_at(&pass, corners))
 			continue;
-		const float *const skinned[3] = {positions + 3 * (int64_t)corners[0], positions + 3 * (int64_t)corners[1],
-		                                 positions + 3 * (int64_t)corners[2]};
-		lvp__triangle_search search = lvp__search_of(&pass, corners, skinned);
-		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_crossing_at, &search);
-		if (search.limit < 1.0f)
-			for (int i = 0; i < 3; ++i)
-				contact->pinned[corners[i]] = held[corners[i]];
+		for (int i = 0; i < 3; ++i)
+			contact->pinned[corners[i]] = held[corners[i]];
 	}
 	lvp__grow_marked_patches(binding, held, contact->pinned);
 }
@@ -678,18 +685,13 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 		bool down = false;
 		for (int i = 0; i < 3; ++i)
 			down = down || (pinned[corners[i]] && scale[corners[i]] < 1.0f);
-		if (!down)
+		if (!down || !lvp__crosses_at(&at_correction, corners))
 			continue;
-		const float *const at[3] = {work + 3 * (int64_t)corners[0], work + 3 * (int64_t)corners[1],
-		                            work + 3 * (int64_t)corners[2]};
-		lvp__triangle_search search = lvp__search_of(&at_correction, corners, at);
-		lvp__bvh_overlapping(&contact->bvh, search.lo, search.hi, lvp__visit_crossing_at, &search);
-		if (search.limit < 1.0f)
-			for (int i = 0; i < 3; ++i)
-				if (pinned[corners[i]]) {
-					raised[corners[i]] = 1;
-					any = true;
-				}
+		for (int i = 0; i < 3; ++i)
+			if (pinned[corners[i]]) {
+				raised[corners[i]] = 1;
+				any = true;
+			}
 	}
 	if (!any)
 		return false;

@@ -296,6 +296,18 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         "separated by commas",
         default="",
     )
+    method: EnumProperty(
+        name="Method",
+        description="How the weights blend from one bone to the next",
+        items=(
+            ('HEAT', "Bone Heat", "Each bone's weight spreads from the skin nearest it as heat does, screened by "
+             "how deep the skin lies: as Blender's With Automatic Weights, solved on any mesh (separate pieces, "
+             "holes, parts that cross)"),
+            ('DISTANCE', "Distance", "The paper's weights by the distance to each bone, smoothed over Blend Width "
+             "times the flesh's thickness"),
+        ),
+        default='DISTANCE',
+    )
     visibility: EnumProperty(
         name="Visibility Test",
         description="How a bone hidden from a vertex (behind the surface) is detected",
@@ -391,7 +403,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
                 positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, by_length=self.by_length, facing=self.facing, visibility=self.visibility,
                 max_influences=self.max_influences, min_weight=self.min_weight,
-                smoothing_thickness=self.blend_width)
+                smoothing_thickness=self.blend_width, heat=self.method == 'HEAT')
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

@@ -115,6 +115,16 @@ bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int
 bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
                                        const double *distances, const double *depths, double share);
 
+/* Replaces the rows by bone heat's weights (Baran and Popovic 2007; screened_diffusion.c): each bone's weight
+ * solves -(1/4) Laplacian(w) + H w = H p, p its share of each vertex's row as filled (the vertex's nearest
+ * bones, evenly), H = screening[k]; depths[k], the vertex's distance to its nearest bone, bounds how far a
+ * bone's weight can reach past it. Rows keep the `stride` strongest, renormalized; a vertex no weight reaches
+ * (a piece of skin with no source) is left with an empty row. Returns false when memory runs out (the rows
+ * then as filled). */
+bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const int32_t *triangles,
+                             int32_t vertex_count, int32_t triangle_count, const double *screening,
+                             const double *depths);
+
 /* Gives the ends of every edge far shorter than the edges around its two ends (a sliver a metaball or a
  * remesher left; diffusion_slivers.c), and of chains of such edges, the mean of their rows. positions: the
  * vertices'. Returns false when memory runs out (the rows are then as they were). */

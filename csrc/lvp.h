@@ -533,6 +533,8 @@ typedef struct lvp_auto_weights_options {
 	float smoothing_thickness; /* > 0: instead, each vertex blends over this many times the thickness of
 	                              the flesh around its bones (SMOOTHING BY THICKNESS); at most
 	                              LVP_MAX_SMOOTHING_THICKNESS, default 0 */
+	int32_t heat;             /* 1: bone heat instead (HEAT below; the smoothing options and alpha unused);
+	                             default 0 */
 } lvp_auto_weights_options;
 
 lvp_auto_weights_options lvp_auto_weights_default_options(void);

@@ -46,6 +46,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	options.smoothing_iterations = 0;
 	options.smoothing_length = 0.0f;
 	options.smoothing_thickness = 0.0f;
+	options.heat = 0;
 	return options;
 }
 
@@ -103,6 +104,11 @@ static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diag
 		                 "options.smoothing_length is %g; it is a distance in the mesh's units, 0 (use "
 		                 "smoothing_iterations) or above.",
 		                 (double)o->smoothing_length);
+	if (o->heat != 0 && o->heat != 1)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.heat", -1,
+		                 "options.heat is %d; use 0 (the weights of 5.1, smoothed as the options say) or 1 (bone "
+		                 "heat).",
+		                 (int)o->heat);
 	if (!(o->smoothing_thickness >= 0.0f && o->smoothing_thickness <= LVP_MAX_SMOOTHING_THICKNESS))
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.smoothing_thickness", -1,
 		                 "options.smoothing_thickness is %g; it is a multiple of the flesh's thickness, 0 (use "
@@ -472,6 +478,80 @@ static double lvp__distance_to_bone(double *r_straight, const lvp__weights_conte
 	return distance;
 }
 
+/* Vertex k's sources for bone heat (HEAT in lvp.h; screened_diffusion.c), as Blender finds them: its distance
+ * to the nearest bone with a length (over the facing share with options.facing), and the bones within a
+ * ten-thousandth of it that the visibility test lets it see, shared evenly, into r_bones / r_values (at most
+ * `room`); its screening 1 / d^2 times their number (0 when it sees none of them) and that distance into
+ * r_screening and r_depth. Returns how many. */
+static int32_t lvp__heat_sources(int32_t *r_bones, float *r_values, double *r_screening, double *r_depth,
+                                 const lvp__weights_context *ctx, int32_t k, int32_t room)
+{
+	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
+	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
+	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
+	double nearest = INFINITY;
+	lvp__candidate *distances = ctx->heap;
+	int32_t count = 0;
+	for (int32_t i = 0; i < ctx->bone_count; ++i) {
+		const lvp__bone_segment *bone = &ctx->bones[i];
+		if (bone->length2 == 0.0)
+			continue;
+		lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
+		double d2 = lvp__dot(diff, diff), distance = sqrt(d2 > bone->floor2 ? d2 : bone->floor2);
+		if (ctx->facing_trust)
+			distance /= lvp__facing_share(n, ctx->facing_trust[k], diff, sqrt(d2));
+		distances[count].key = distance;
+		distances[count++].bone = i;
+		nearest = distance < nearest ? distance : nearest;
+	}
+	int32_t sources = 0;
+	for (int32_t j = 0; j < count && sources < room; ++j) {
+		if (!(distances[j].key <= nearest * (1.0 + 1e-4)))
+			continue;
+		int32_t bone = distances[j].bone;
+		if (normal_test) {
+			lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(&ctx->bones[bone], p), p);
+			double d2 = lvp__dot(diff, diff);
+			if (d2 > 0.0 && lvp__dot(diff, n) > ctx->normal_cos_max * sqrt(d2))
+				continue;
+		} else if (ctx->visibility == LVP_VISIBILITY_EXACT && !lvp__path_is_inside(ctx, k, p, bone)) {
+			continue;
+		}
+		r_bones[sources++] = bone;
+	}
+	for (int32_t j = 0; j < sources; ++j)
+		r_values[j] = 1.0f / (float)sources;
+	*r_depth = nearest;
+	*r_screening = sources > 0 ? (double)sources / (nearest * nearest) : 0.0;
+	return sources;
+}
+
+/* The rows of bone heat (HEAT in lvp.h): each vertex's sources, then the screened diffusion; a vertex that
+ * no bone's heat reaches (no source on its piece of skin) takes its row by 5.1, the rigid fallback when it
+ * sees no bone. Returns false when memory runs out. */
+static bool lvp__heat_weights(lvp__diffusion *rows, const lvp__weights_context *ctx, const int32_t *triangles,
+                              int32_t vertex_count, int32_t triangle_count)
+{
+	double *screening = malloc(sizeof(double) * 2 * ((size_t)vertex_count + 1));
+	if (!screening)
+		return false;
+	double *depths = screening + vertex_count + 1;
+	int32_t stride = rows->stride;
+	for (int32_t k = 0; k < vertex_count; ++k)
+		rows->counts[k] = lvp__heat_sources(rows->bones + (int64_t)k * stride, rows->values + (int64_t)k * stride,
+		                                    &screening[k], &depths[k], ctx, k, stride);
+	bool ok = lvp__diffusion_screened(rows, ctx->positions, triangles, vertex_count, triangle_count, screening,
+	                                  depths);
+	free(screening);
+	lvp__weights_context raw = *ctx;
+	raw.max_influences = stride;
+	for (int32_t k = 0; ok && k < vertex_count; ++k)
+		if (rows->counts[k] == 0)
+			rows->counts[k] = lvp__vertex_weights(rows->bones + (int64_t)k * stride,
+			                                      rows->values + (int64_t)k * stride, &raw, k);
+	return ok;
+}
+
 /* Blends the rows by the flesh's thickness (SMOOTHING BY THICKNESS in lvp.h): each vertex's distance from
  * its strongest bone (as options.facing measures it) and its depth under the skin, then
  * diffusion_thickness.c. */
@@ -507,6 +587,8 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 	int32_t stride = ctx->bone_count < LVP__DIFFUSION_ROW ? ctx->bone_count : LVP__DIFFUSION_ROW;
 	if (!lvp__diffusion_init(smooth, triangles, vertex_count, triangle_count, ctx->bone_count, stride))
 		return false;
+	if (options->heat)
+		return lvp__heat_weights(smooth, ctx, triangles, vertex_count, triangle_count);
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
@@ -652,7 +734,7 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 	    .blockers = blockers,
 	};
 	lvp__diffusion smooth = {0};
-	bool smoothed = options->smoothing_iterations > 0 || options->smoothing_length > 0.0f ||
+	bool smoothed = options->heat || options->smoothing_iterations > 0 || options->smoothing_length > 0.0f ||
 	                options->smoothing_thickness > 0.0f;
 	if (smoothed && !lvp__smooth_weights(&smooth, &ctx, triangles, vertex_count, triangle_count, options)) {
 		lvp__diffusion_free(&smooth);

@@ -1,0 +1,443 @@
+/*
+ * screened_diffusion.c - bone weights as heat weights are made (diffusion.h, lvp__diffusion_screened;
+ * lvp.h, HEAT): Baran and Popovic's bone heat (2007), which Blender's With Automatic Weights computes.
+ * Each bone's weight w solves, over the surface,
+ *
+ *     -(1/4) Laplacian(w) + H w = H p,
+ *
+ * p being 1 at the vertices whose nearest bone (seen from the skin) it is, shared where several are
+ * equally near, and H = 1 / d^2 there, d the vertex's distance to that bone: the weight diffuses from the
+ * bone's skin into its neighbours' screened by the depth of the skin, so deep skin (a hip, a buttock,
+ * the palm's edge) blends over a hand's width and skin close to its bone (a finger) over millimetres,
+ * however dense the mesh and whatever else is in it. Since the sources of all bones sum to one, so do
+ * the weights, wherever the skin sees a bone.
+ *
+ * The Laplacian is the cotangent one over Meyer's mixed areas, scaled as Blender scales it (each edge's
+ * cotangents over the number of triangles on it; the factor 1/4 above), so the blend is as wide as heat
+ * weights'. A negative cotangent (an obtuse angle) counts as zero: the system is then a symmetric
+ * M-matrix, whose solution never leaves [0, 1] (no weight below zero or overshooting beside a joint,
+ * which heat weights clip afterwards), and which conjugate gradients solve.
+ *
+ * A bone's weight falls by e over about half the skin's depth: it is solved only on the skin within
+ * reach of its sources (each edge costing its length over half the depth at its far end, up to
+ * LVP__SCREENED_REACH), with no weight beyond; where the weight at the rim of that patch comes out above
+ * LVP__SCREENED_RIM, the patch grows and is solved again. So a bone costs what its skin and its blends
+ * cost, not the whole mesh, and every solve is on one thread in a fixed order: the same bits on any
+ * thread count.
+ */
+#include "diffusion.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* How far a bone's patch reaches from its sources: where its weight has fallen by about e^-9 (1e-4). */
+#define LVP__SCREENED_REACH 9.0
+/* A weight above this at the rim of a bone's patch (where the solve sets it to zero beyond) grows the
+ * patch by LVP__SCREENED_GROWTH more of the reach; the weights kept (LVP__SCREENED_KEPT and up) are then
+ * those of the whole mesh's solve to within about this much. */
+#define LVP__SCREENED_RIM 1e-4
+#define LVP__SCREENED_GROWTH 3.0
+#define LVP__SCREENED_GROWTHS 8 /* at most, past which the weights beyond the rim are left at zero */
+#define LVP__SCREENED_KEPT 1e-4
+/* Conjugate gradients stop when no vertex's residual over its diagonal (the change of its weight that
+ * would answer it alone) is above this, or after this many iterations (a bound that ordinary meshes never
+ * reach). Residuals are compared vertex by vertex, not by their sum of squares: a vertex on its bone has a
+ * screening millions of times its neighbours', and would hide their residuals in any norm. */
+#define LVP__SCREENED_TOLERANCE 1e-7
+#define LVP__SCREENED_MAX_ITERATIONS 4000
+
+/* The symmetric system, rows multiplied by the vertex's area: sum_j c_kj (w_k - w_j) + D_k w_k = D_k p_k. */
+typedef struct lvp__screened {
+	int32_t n;
+	const int32_t *offsets, *neighbours; /* the rows' edge neighbours (CSR) */
+	double *coupling;                     /* c_kj per neighbour entry */
+	double *diagonal;                     /* sum_j c_kj + D_k */
+	double *screen;                       /* D_k */
+	double *rate;                         /* per vertex, how fast weight falls off there: 2 / depth */
+} lvp__screened;
+
+typedef struct lvp__queued {
+	double cost;
+	int32_t vertex;
+} lvp__queued;
+
+static inline bool lvp__before(lvp__queued a, lvp__queued b)
+{
+	return a.cost < b.cost || (a.cost == b.cost && a.vertex < b.vertex);
+}
+
+/* One bone's solve: its patch (global vertex indices), each vertex's place in it (-1 outside), and the
+ * vectors of conjugate gradients over it. */
+typedef struct lvp__patch {
+	int32_t *vertices, count;
+	int32_t *slot;
+	double *cost; /* per vertex, the least reach spent to get there (Dijkstra), INFINITY when not reached */
+	lvp__queued *heap; /* Dijkstra's queue: a vertex is queued again when a shorter way to it is found */
+	int32_t heap_count;
+	double *x, *r, *z, *p, *q, *b;
+} lvp__patch;
+
+/* Where neighbour j sits in vertex k's sorted list, or -1. */
+static int32_t lvp__entry_of(const lvp__screened *system, int32_t k, int32_t j)
+{
+	int32_t lo = system->offsets[k], hi = system->offsets[k + 1] - 1;
+	while (lo <= hi) {
+		int32_t mid = lo + (hi - lo) / 2, value = system->neighbours[mid];
+		if (value == j)
+			return mid;
+		if (value < j)
+			lo = mid + 1;
+		else
+			hi = mid - 1;
+	}
+	return -1;
+}
+
+/* The couplings (cotangents over the triangles on each edge) and each vertex's mixed area, as Blender's
+ * Laplacian takes them (twice Meyer's), into `area`. edge_count: scratch, one per neighbour entry. */
+static void lvp__assemble(lvp__screened *system, const float *positions, const int32_t *triangles,
+                          int32_t triangle_count, double *area, int32_t *edge_count)
+{
+	int32_t entries = system->offsets[system->n];
+	memset(edge_count, 0, sizeof(int32_t) * (size_t)entries);
+	for (int32_t e = 0; e < entries; ++e)
+		system->coupling[e] = 0.0;
+	for (int32_t k = 0; k < system->n; ++k)
+		area[k] = 0.0;
+	for (int64_t t = 0; t < triangle_count; ++t) {
+		const int32_t *v = triangles + 3 * t;
+		if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0])
+			continue;
+		lvp__vec3 p[3] = {lvp__load(positions + 3 * (int64_t)v[0]), lvp__load(positions + 3 * (int64_t)v[1]),
+		                  lvp__load(positions + 3 * (int64_t)v[2])};
+		double cotangent[3], length2[3]; /* per corner: its angle's cotangent, the opposite edge's length^2 */
+		bool obtuse[3];
+		double area2 = lvp__length(lvp__cross(lvp__sub(p[1], p[0]), lvp__sub(p[2], p[0])));
+		for (int i = 0; i < 3; ++i) {
+			lvp__vec3 a = lvp__sub(p[(i + 1) % 3], p[i]), b = lvp__sub(p[(i + 2) % 3], p[i]);
+			double cosine = lvp__dot(a, b);
+			obtuse[i] = cosine < 0.0;
+			cotangent[i] = area2 > 0.0 ? fmin(fmax(cosine / area2, 0.0), 1e6) : 0.0;
+			lvp__vec3 opposite = lvp__sub(p[(i + 2) % 3], p[(i + 1) % 3]);
+			length2[i] = lvp__dot(opposite, opposite);
+		}
+		for (int i = 0; i < 3; ++i) {
+			int32_t a = v[(i + 1) % 3], b = v[(i + 2) % 3]; /* the edge opposite corner i */
+			int32_t ab = lvp__entry_of(system, a, b), ba = lvp__entry_of(system, b, a);
+			system->coupling[ab] += cotangent[i];
+			system->coupling[ba] += cotangent[i];
+			++edge_count[ab];
+			++edge_count[ba];
+		}
+		bool any_obtuse = obtuse[0] || obtuse[1] || obtuse[2];
+		for (int i = 0; i < 3; ++i) {
+			if (any_obtuse) {
+				area[v[i]] += obtuse[i] ? 0.5 * area2 : 0.25 * area2;
+			} else {
+				int j = (i + 1) % 3, l = (i + 2) % 3; /* corner j's opposite edge joins i and l, and so on */
+				area[v[i]] += 0.25 * (cotangent[j] * length2[j] + cotangent[l] * length2[l]);
+			}
+		}
+	}
+	for (int32_t e = 0; e < entries; ++e)
+		if (edge_count[e] > 0)
+			system->coupling[e] /= (double)edge_count[e];
+}
+
+/* The screening of every vertex (D_k = 2 area_k H_k) and the diagonal. A vertex that no coupling and no
+ * area ties to the rest keeps its sources as they are (any positive screening gives that). */
+static void lvp__finish_diagonal(lvp__screened *system, const double *area, const double *screening)
+{
+	for (int32_t k = 0; k < system->n; ++k) {
+		double sum = 0.0;
+		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e)
+			sum += system->coupling[e];
+		double screen = 2.0 * area[k] * screening[k];
+		if (!(screen > 0.0) && screening[k] > 0.0 && !(sum > 0.0))
+			screen = 1.0;
+		system->screen[k] = screen;
+		system->diagonal[k] = sum + screen;
+	}
+}
+
+static void lvp__heap_push(lvp__patch *patch, int32_t vertex, double cost)
+{
+	lvp__queued entry = {cost, vertex};
+	int32_t at = patch->heap_count++;
+	while (at > 0 && lvp__before(entry, patch->heap[(at - 1) / 2])) {
+		patch->heap[at] = patch->heap[(at - 1) / 2];
+		at = (at - 1) / 2;
+	}
+	patch->heap[at] = entry;
+}
+
+static lvp__queued lvp__heap_pop(lvp__patch *patch)
+{
+	lvp__queued top = patch->heap[0], last = patch->heap[--patch->heap_count];
+	int32_t at = 0;
+	for (;;) {
+		int32_t child = 2 * at + 1;
+		if (child >= patch->heap_count)
+			break;
+		if (child + 1 < patch->heap_count && lvp__before(patch->heap[child + 1], patch->heap[child]))
+			++child;
+		if (!lvp__before(patch->heap[child], last))
+			break;
+		patch->heap[at] = patch->heap[child];
+		at = child;
+	}
+	patch->heap[at] = last;
+	return top;
+}
+
+/* Grows the patch to every vertex within `reach` of the bone's sources (queued at cost 0): Dijkstra over
+ * the edges, an edge costing its length times the lower rate of its two ends (a vertex on its bone, screened
+ * without end, holds its own weight but not its neighbours'). Vertices new to the patch start with
+ * no weight; those in it keep theirs. */
+static void lvp__grow_patch(const lvp__screened *system, const float *positions, lvp__patch *patch, double reach)
+{
+	while (patch->heap_count > 0) {
+		lvp__queued top = lvp__heap_pop(patch);
+		int32_t k = top.vertex;
+		if (top.cost > patch->cost[k])
+			continue; /* a longer way queued before the shorter one was found */
+		if (patch->slot[k] < 0) {
+			patch->slot[k] = patch->count;
+			patch->x[patch->count] = 0.0;
+			patch->vertices[patch->count++] = k;
+		}
+		lvp__vec3 at = lvp__load(positions + 3 * (int64_t)k);
+		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e) {
+			int32_t j = system->neighbours[e];
+			double rate = system->rate[j] < system->rate[k] ? system->rate[j] : system->rate[k];
+			double cost = top.cost + lvp__length(lvp__sub(lvp__load(positions + 3 * (int64_t)j), at)) * rate;
+			if (cost <= reach && cost < patch->cost[j]) {
+				patch->cost[j] = cost;
+				lvp__heap_push(patch, j, cost);
+			}
+		}
+	}
+}
+
+/* q = A v over the patch (zero outside it). */
+static void lvp__apply(const lvp__screened *system, const lvp__patch *patch, const double *v, double *q)
+{
+	for (int32_t i = 0; i < patch->count; ++i) {
+		int32_t k = patch->vertices[i];
+		double sum = system->diagonal[k] * v[i];
+		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e) {
+			int32_t s = patch->slot[system->neighbours[e]];
+			if (s >= 0)
+				sum -= system->coupling[e] * v[s];
+		}
+		q[i] = sum;
+	}
+}
+
+static double lvp__dot_n(const double *a, const double *b, int32_t count)
+{
+	double sum = 0.0;
+	for (int32_t i = 0; i < count; ++i)
+		sum += a[i] * b[i];
+	return sum;
+}
+
+static double lvp__largest_abs(const double *a, int32_t count)
+{
+	double largest = 0.0;
+	for (int32_t i = 0; i < count; ++i)
+		largest = fabs(a[i]) > largest ? fabs(a[i]) : largest;
+	return largest;
+}
+
+/* Conjugate gradients with the diagonal as preconditioner, from the patch's x, against its b. */
+static void lvp__solve_patch(const lvp__screened *system, lvp__patch *patch)
+{
+	int32_t count = patch->count;
+	double *x = patch->x, *r = patch->r, *z = patch->z, *p = patch->p, *q = patch->q, *b = patch->b;
+	lvp__apply(system, patch, x, q);
+	for (int32_t i = 0; i < count; ++i) {
+		r[i] = b[i] - q[i];
+		z[i] = r[i] / system->diagonal[patch->vertices[i]];
+		p[i] = z[i];
+	}
+	double rz = lvp__dot_n(r, z, count);
+	for (int iteration = 0; iteration < LVP__SCREENED_MAX_ITERATIONS; ++iteration) {
+		if (!(lvp__largest_abs(z, count) > LVP__SCREENED_TOLERANCE))
+			break;
+		lvp__apply(system, patch, p, q);
+		double pq = lvp__dot_n(p, q, count);
+		if (!(pq > 0.0))
+			break;
+		double alpha = rz / pq;
+		for (int32_t i = 0; i < count; ++i) {
+			x[i] += alpha * p[i];
+			r[i] -= alpha * q[i];
+			z[i] = r[i] / system->diagonal[patch->vertices[i]];
+		}
+		double next = lvp__dot_n(r, z, count), beta = next / rz;
+		rz = next;
+		for (int32_t i = 0; i < count; ++i)
+			p[i] = z[i] + beta * p[i];
+	}
+}
+
+/* Whether a vertex on the patch's rim (a neighbour outside it) has a weight above LVP__SCREENED_RIM: the
+ * zero the solve assumed beyond it was too early. */
+static bool lvp__rim_too_high(const lvp__screened *system, const lvp__patch *patch)
+{
+	for (int32_t i = 0; i < patch->count; ++i) {
+		int32_t k = patch->vertices[i];
+		if (!(patch->x[i] > LVP__SCREENED_RIM))
+			continue;
+		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e)
+			if (patch->slot[system->neighbours[e]] < 0)
+				return true;
+	}
+	return false;
+}
+
+/* The weights of one bone, its sources `sources` (count of them): into `out` as (vertex, weight) pairs
+ * above LVP__SCREENED_KEPT, returning how many (the patch's size at most). */
+static int32_t lvp__solve_bone(const lvp__screened *system, const float *positions, lvp__patch *patch,
+                               const int32_t *sources, const float *shares, int32_t count, int32_t *out_vertices,
+                               float *out_values)
+{
+	patch->count = 0;
+	for (int growth = 0;; ++growth) {
+		double reach = LVP__SCREENED_REACH + LVP__SCREENED_GROWTH * growth;
+		for (int32_t i = 0; i < patch->count; ++i)
+			patch->cost[patch->vertices[i]] = INFINITY;
+		patch->heap_count = 0;
+		for (int32_t s = 0; s < count; ++s) {
+			patch->cost[sources[s]] = 0.0;
+			lvp__heap_push(patch, sources[s], 0.0);
+		}
+		lvp__grow_patch(system, positions, patch, reach);
+		for (int32_t i = 0; i < patch->count; ++i)
+			patch->b[i] = 0.0;
+		for (int32_t s = 0; s < count; ++s)
+			patch->b[patch->slot[sources[s]]] = system->screen[sources[s]] * (double)shares[s];
+		lvp__solve_patch(system, patch);
+		if (growth == LVP__SCREENED_GROWTHS || patch->count == system->n || !lvp__rim_too_high(system, patch))
+			break;
+	}
+	int32_t kept = 0;
+	for (int32_t i = 0; i < patch->count; ++i) {
+		int32_t k = patch->vertices[i];
+		if (patch->x[i] > LVP__SCREENED_KEPT) {
+			out_vertices[kept] = k;
+			out_values[kept++] = (float)patch->x[i];
+		}
+		patch->slot[k] = -1;
+		patch->cost[k] = INFINITY;
+	}
+	return kept;
+}
+
+bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const int32_t *triangles,
+                             int32_t vertex_count, int32_t triangle_count, const double *screening,
+                             const double *depths)
+{
+	int32_t n = vertex_count, bones = rows->bone_count, stride = rows->stride;
+	int32_t entries = rows->neighbour_offsets[n];
+	size_t sources = (size_t)n * (size_t)stride + 1; /* a row's bones are its vertex's sources */
+	double *doubles = malloc(sizeof(double) * ((size_t)entries + 11 * (size_t)n + 1));
+	int32_t *ints = malloc(sizeof(int32_t) * ((size_t)entries + 4 * (size_t)n + 2 * (size_t)bones + 2 + sources));
+	float *floats = malloc(sizeof(float) * (sources + (size_t)n));
+	lvp__queued *heap = malloc(sizeof(lvp__queued) * ((size_t)entries + (size_t)n + 1));
+	if (!doubles || !ints || !floats || !heap) {
+		free(doubles);
+		free(ints);
+		free(floats);
+		free(heap);
+		return false;
+	}
+	lvp__screened system = {.n = n, .offsets = rows->neighbour_offsets, .neighbours = rows->neighbours};
+	system.coupling = doubles;
+	system.diagonal = doubles + entries;
+	system.screen = system.diagonal + n;
+	system.rate = system.screen + n;
+	double *area = system.rate + n;
+	lvp__patch patch = {0};
+	patch.cost = area + n;
+	patch.x = patch.cost + n;
+	patch.r = patch.x + n;
+	patch.z = patch.r + n;
+	patch.p = patch.z + n;
+	patch.q = patch.p + n;
+	patch.b = patch.q + n;
+	patch.heap = heap;
+	int32_t *edge_count = ints; /* entries */
+	patch.vertices = edge_count + entries;
+	patch.slot = patch.vertices + n;
+	int32_t *out_vertices = patch.slot + n;    /* n: one bone's weights */
+	int32_t *source_offsets = out_vertices + n; /* bones + 1 */
+	int32_t *cursor = source_offsets + bones + 1;
+	int32_t *source_vertices = cursor + bones;
+	float *source_shares = floats, *out_values = floats + sources;
+
+	lvp__assemble(&system, positions, triangles, triangle_count, area, edge_count);
+	lvp__finish_diagonal(&system, area, screening);
+	for (int32_t k = 0; k < n; ++k) {
+		system.rate[k] = depths[k] > 0.0 ? 2.0 / depths[k] : INFINITY;
+		patch.slot[k] = -1;
+		patch.cost[k] = INFINITY;
+	}
+	/* Each bone's sources: the vertices whose rows name it, with their shares. */
+	memset(source_offsets, 0, sizeof(int32_t) * ((size_t)bones + 1));
+	for (int32_t k = 0; k < n; ++k)
+		for (int32_t j = 0; j < rows->counts[k]; ++j)
+			++source_offsets[rows->bones[(int64_t)k * stride + j] + 1];
+	for (int32_t i = 0; i < bones; ++i)
+		source_offsets[i + 1] += source_offsets[i];
+	memcpy(cursor, source_offsets, sizeof(int32_t) * (size_t)bones);
+	for (int32_t k = 0; k < n; ++k)
+		for (int32_t j = 0; j < rows->counts[k]; ++j) {
+			int32_t bone = rows->bones[(int64_t)k * stride + j], at = cursor[bone]++;
+			source_vertices[at] = k;
+			source_shares[at] = rows->values[(int64_t)k * stride + j];
+		}
+	/* The solves, one bone after the other, each vertex's row gathered as they come (the rows are free:
+	 * the sources were copied out). */
+	for (int32_t k = 0; k < n; ++k)
+		rows->counts[k] = 0;
+	for (int32_t bone = 0; bone < bones; ++bone) {
+		int32_t first = source_offsets[bone], count = source_offsets[bone + 1] - first;
+		if (count == 0)
+			continue;
+		int32_t kept = lvp__solve_bone(&system, positions, &patch, source_vertices + first, source_shares + first,
+		                               count, out_vertices, out_values);
+		for (int32_t i = 0; i < kept; ++i) {
+			int32_t k = out_vertices[i];
+			int64_t at = (int64_t)k * stride;
+			int32_t length = rows->counts[k];
+			float w = out_values[i];
+			/* Keep the row sorted by decreasing weight (ties: the lower bone, met first), `stride` long. */
+			if (length == stride && !(w > rows->values[at + length - 1]))
+				continue;
+			int32_t place = length < stride ? length++ : length - 1;
+			while (place > 0 && rows->values[at + place - 1] < w) {
+				rows->values[at + place] = rows->values[at + place - 1];
+				rows->bones[at + place] = rows->bones[at + place - 1];
+				--place;
+			}
+			rows->values[at + place] = w;
+			rows->bones[at + place] = bone;
+			rows->counts[k] = length;
+		}
+	}
+	for (int32_t k = 0; k < n; ++k) {
+		int64_t at = (int64_t)k * stride;
+		double sum = 0.0;
+		for (int32_t j = 0; j < rows->counts[k]; ++j)
+			sum += rows->values[at + j];
+		for (int32_t j = 0; j < rows->counts[k]; ++j)
+			rows->values[at + j] = (float)(rows->values[at + j] / sum);
+	}
+	free(doubles);
+	free(ints);
+	free(floats);
+	free(heap);
+	return true;
+}

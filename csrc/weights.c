@@ -526,29 +526,98 @@ static int32_t lvp__heat_sources(int32_t *r_bones, float *r_values, double *r_sc
 	return sources;
 }
 
-/* The rows of bone heat (HEAT in lvp.h): each vertex's sources, then the screened diffusion; a vertex that
- * no bone's heat reaches (no source on its piece of skin) takes its row by 5.1, the rigid fallback when it
- * sees no bone. Returns false when memory runs out. */
+/* Heat weights' own cut (Blender's heat_limit_weight): a weight below LVP__HEAT_CUT is dropped, one up to
+ * twice that ramps from 0 to it, so that the long thin tails of the diffusion do not tie skin to bones far
+ * away (each such tail, small as it is, pulls the skin of a joint as the bone turns). */
+#define LVP__HEAT_CUT 0.025f
+
+static float lvp__heat_cut(float weight)
+{
+	if (weight < LVP__HEAT_CUT)
+		return 0.0f;
+	return weight < 2.0f * LVP__HEAT_CUT ? 2.0f * (weight - LVP__HEAT_CUT) : weight;
+}
+
+/* Into r_normals, each vertex's normal as heat weights measure which way skin faces: the sum of its
+ * triangles' unit normals (every triangle counting alike, however small), normalized, turned to agree with
+ * `outward` (the area-weighted normals, turned outward already). */
+static void lvp__heat_normals(float *r_normals, const float *outward, const float *positions, int32_t vertex_count,
+                              const int32_t *triangles, int32_t triangle_count)
+{
+	memset(r_normals, 0, sizeof(float) * 3 * (size_t)vertex_count);
+	for (int64_t t = 0; t < triangle_count; ++t) {
+		const int32_t *v = triangles + 3 * t;
+		lvp__vec3 a = lvp__load(positions + 3 * (int64_t)v[0]);
+		lvp__vec3 normal = lvp__cross(lvp__sub(lvp__load(positions + 3 * (int64_t)v[1]), a),
+		                              lvp__sub(lvp__load(positions + 3 * (int64_t)v[2]), a));
+		double length = lvp__length(normal);
+		if (!(length > 0.0))
+			continue;
+		for (int c = 0; c < 3; ++c) {
+			float *n = r_normals + 3 * (int64_t)v[c];
+			n[0] += (float)(normal.x / length);
+			n[1] += (float)(normal.y / length);
+			n[2] += (float)(normal.z / length);
+		}
+	}
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		lvp__vec3 n = lvp__load(r_normals + 3 * (int64_t)k);
+		double length = lvp__length(n);
+		double scale = length > 0.0 ? (lvp__dot(n, lvp__load(outward + 3 * (int64_t)k)) < 0.0 ? -1.0 : 1.0) / length
+		                            : 0.0;
+		r_normals[3 * (int64_t)k] = (float)(scale * n.x);
+		r_normals[3 * (int64_t)k + 1] = (float)(scale * n.y);
+		r_normals[3 * (int64_t)k + 2] = (float)(scale * n.z);
+	}
+}
+
+/* The rows of bone heat (HEAT in lvp.h): each vertex's sources, the screened diffusion, heat weights' cut;
+ * a vertex that no bone's heat reaches (no source on its piece of skin) takes its row by 5.1, the rigid
+ * fallback when it sees no bone. Returns false when memory runs out. */
 static bool lvp__heat_weights(lvp__diffusion *rows, const lvp__weights_context *ctx, const int32_t *triangles,
                               int32_t vertex_count, int32_t triangle_count)
 {
-	double *screening = malloc(sizeof(double) * 2 * ((size_t)vertex_count + 1));
-	if (!screening)
+	size_t n = (size_t)vertex_count;
+	double *screening = malloc(sizeof(double) * 2 * (n + 1));
+	float *normals = ctx->normals ? malloc(sizeof(float) * 3 * (n + 1)) : NULL;
+	if (!screening || (ctx->normals && !normals)) {
+		free(screening);
+		free(normals);
 		return false;
-	double *depths = screening + vertex_count + 1;
+	}
+	double *depths = screening + n + 1;
+	lvp__weights_context heat = *ctx;
+	if (normals) {
+		lvp__heat_normals(normals, ctx->normals, ctx->positions, vertex_count, triangles, triangle_count);
+		heat.normals = normals;
+	}
 	int32_t stride = rows->stride;
 	for (int32_t k = 0; k < vertex_count; ++k)
 		rows->counts[k] = lvp__heat_sources(rows->bones + (int64_t)k * stride, rows->values + (int64_t)k * stride,
-		                                    &screening[k], &depths[k], ctx, k, stride);
+		                                    &screening[k], &depths[k], &heat, k, stride);
 	bool ok = lvp__diffusion_screened(rows, ctx->positions, triangles, vertex_count, triangle_count, screening,
 	                                  depths);
 	free(screening);
+	free(normals);
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;
-	for (int32_t k = 0; ok && k < vertex_count; ++k)
-		if (rows->counts[k] == 0)
-			rows->counts[k] = lvp__vertex_weights(rows->bones + (int64_t)k * stride,
-			                                      rows->values + (int64_t)k * stride, &raw, k);
+	for (int32_t k = 0; ok && k < vertex_count; ++k) {
+		int32_t *bones = rows->bones + (int64_t)k * stride;
+		float *values = rows->values + (int64_t)k * stride;
+		int32_t kept = 0;
+		double sum = 0.0;
+		for (int32_t j = 0; j < rows->counts[k]; ++j) {
+			float cut = lvp__heat_cut(values[j]);
+			if (cut > 0.0f) {
+				bones[kept] = bones[j];
+				values[kept++] = cut;
+				sum += cut;
+			}
+		}
+		for (int32_t j = 0; j < kept; ++j)
+			values[j] = (float)(values[j] / sum);
+		rows->counts[k] = kept > 0 ? kept : lvp__vertex_weights(bones, values, &raw, k);
+	}
 	return ok;
 }
 

@@ -883,6 +883,75 @@ static void test_smoothing_by_thickness_is_local(void)
 	free(with);
 }
 
+/* Bone heat (options.heat): each joint blends over a distance that follows the depth of its skin, as heat weights
+ * do: an arm twice as thick over about twice the distance, the same arm twice as dense over the same
+ * distance; the weights are continuous (their jumps across edges shrink as the edges do, where the nearest
+ * bone's stay one), each bone holds the middle of
+ * its segment, and an arm beside another piece (a thicker arm: no edge joins them) is weighted bit for bit
+ * as alone, since a bone's heat flows along edges only. The horned body's hooked horn, which sees no bone
+ * from its tip, is weighted through its skin: every row as the contract says. */
+static void test_heat_blends_by_the_skin_s_depth(void)
+{
+	builder *b = malloc(sizeof(builder)), *fine = malloc(sizeof(builder)), *alone = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	add_arm(b, 0.05, 0.1, 0.0);
+	int32_t thick_arm = b->vertex_count;
+	add_arm(b, 0.05, 0.2, 2.0);
+	memset(fine, 0, sizeof(*fine));
+	add_arm(fine, 0.025, 0.1, 0.0);
+	memset(alone, 0, sizeof(*alone));
+	add_arm(alone, 0.05, 0.1, 0.0);
+	for (int vis = 0; vis < 3; ++vis) {
+		lvp_auto_weights_options o = options_with((lvp_visibility)vis);
+		o.alpha = 16.0f;
+		o.by_length = 0;
+		o.facing = 1;
+		result sharp = compute(b, &o);
+		o.heat = 1;
+		result both = compute(b, &o), thin_fine = compute(fine, &o), by_itself = compute(alone, &o);
+		check_rows(b, &both, &o);
+		check_rows(fine, &thin_fine, &o);
+		double thin = arm_blend_width(&both, 0.05, 0.1, 0, 0), thick = arm_blend_width(&both, 0.05, 0.2, thick_arm, 3);
+		double finer = arm_blend_width(&thin_fine, 0.025, 0.1, 0, 0);
+		double jump = largest_edge_jump(alone, &by_itself), finer_jump = largest_edge_jump(fine, &thin_fine);
+		printf("  bone heat, %s test: blend %.3f on the arm of radius 0.1, %.3f on the one of 0.2 (%.2fx), %.3f on "
+		       "the thin one twice as dense; largest jump across an edge %.3f, twice as dense %.3f (nearest bone "
+		       "%.3f)\n",
+		       vis == 0 ? "normal" : (vis == 1 ? "exact" : "no visibility"), thin, thick, thick / thin, finer, jump,
+		       finer_jump, largest_edge_jump(b, &sharp));
+		CHECK(thin > 0.02);
+		CHECK(thick > 1.6 * thin && thick < 2.5 * thin);
+		CHECK(finer > 0.8 * thin && finer < 1.25 * thin);
+		CHECK(jump < 0.8 * largest_edge_jump(b, &sharp));
+		CHECK(finer_jump < 0.7 * jump); /* continuous: the jumps shrink with the edges (0.63x) */
+		const int32_t arms[2] = {0, thick_arm};
+		const double radii[2] = {0.1, 0.2};
+		for (int arm = 0; arm < 2; ++arm)
+			for (int bone = 0; bone < 3; ++bone) {
+				int32_t v = arms[arm] + (int32_t)lround((bone + 0.5) / 0.05) * arm_around(0.05, radii[arm]);
+				CHECK(weight_of(&both, v, 3 * arm + bone) > 0.9f);
+			}
+		int32_t entries = by_itself.offsets[alone->vertex_count];
+		CHECK(memcmp(both.offsets, by_itself.offsets, sizeof(int32_t) * ((size_t)alone->vertex_count + 1)) == 0);
+		CHECK(memcmp(both.bones, by_itself.bones, sizeof(int32_t) * (size_t)entries) == 0);
+		CHECK(memcmp(both.values, by_itself.values, sizeof(float) * (size_t)entries) == 0);
+		result_free(&sharp);
+		result_free(&both);
+		result_free(&thin_fine);
+		result_free(&by_itself);
+	}
+	int32_t tip;
+	make_horned_body(alone, &tip);
+	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_EXACT);
+	o.heat = 1;
+	result horned = compute(alone, &o);
+	check_rows(alone, &horned, &o);
+	result_free(&horned);
+	free(b);
+	free(fine);
+	free(alone);
+}
+
 /* Splits edge (p, q) at s = p + t (q - p): each triangle around the edge becomes two, wound as it was. */
 static int32_t split_edge(builder *b, int32_t p, int32_t q, double t)
 {
@@ -1162,6 +1231,7 @@ int main(void)
 	RUN(test_smoothing_follows_the_thickness);
 	RUN(test_smoothing_by_thickness_is_local);
 	RUN(test_a_sliver_s_ends_share_one_row);
+	RUN(test_heat_blends_by_the_skin_s_depth);
 	RUN(test_facing_distance_gives_skin_to_the_bone_beneath);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);

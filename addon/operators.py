@@ -306,7 +306,7 @@ write them into the deforming bones' vertex groups, replacing their weights"""
             ('DISTANCE', "Distance", "The paper's weights by the distance to each bone, smoothed over Blend Width "
              "times the flesh's thickness"),
         ),
-        default='DISTANCE',
+        default='HEAT',
     )
     visibility: EnumProperty(
         name="Visibility Test",

@@ -533,8 +533,8 @@ typedef struct lvp_auto_weights_options {
 	float smoothing_thickness; /* > 0: instead, each vertex blends over this many times the thickness of
 	                              the flesh around its bones (SMOOTHING BY THICKNESS); at most
 	                              LVP_MAX_SMOOTHING_THICKNESS, default 0 */
-	int32_t heat;             /* 1: bone heat instead (HEAT below; the smoothing options and alpha unused);
-	                             default 0 */
+	int32_t heat;             /* 1: bone heat, as Blender's heat weights (HEAT below; the smoothing options
+	                             unused); default 0 */
 } lvp_auto_weights_options;
 
 lvp_auto_weights_options lvp_auto_weights_default_options(void);
@@ -593,7 +593,23 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * hand's width, and neither depends on the mesh's size (a tail or a weapon in the mesh changes
  * little) nor much on its resolution. Costs one blend per length (a few dozen steps' worth each).
  * With a high alpha (nearest bone first, e.g. 16) and by_length 0 this gives weights close to
- * Blender's heat weights on a closed body (README). */
+ * Blender's heat weights on a closed body (README).
+ *
+ * HEAT (options.heat = 1): Baran and Popovic's bone heat, the weights of Blender's With Automatic Weights,
+ * solved on any mesh. Each vertex's sources are the bones at its least distance (measured as options.facing
+ * says, over the facing share of its triangles' summed unit normals, as heat weights measure it) that the
+ * visibility test lets it see, shared evenly; its screening H = their number / d^2. Each bone's weight w
+ * solves -(1/4) Laplacian(w) + H w = H p over the surface (the cotangent Laplacian over mixed areas, as
+ * Blender scales it; p the bone's share of the sources), so a bone's weight spreads into its neighbours' skin
+ * over about half the skin's depth: millimetres on a finger, a hand's width at a hip, whatever the mesh's
+ * resolution. Where the skin lies closer to its bone than its edges are long, the screening is held to the
+ * vertex's couplings to its neighbours, so that no blend is narrower than an edge. Each bone is solved (by
+ * conjugate gradients) on the skin within reach of its sources, grown while its weight at the rim is above
+ * 1e-3: a bone costs what its skin does. Weights below 0.025 are dropped and those up to 0.05 ramp from 0
+ * (heat weights' own cut), then max_influences and min_weight prune as above. Weight flows only along
+ * edges: a piece, or a part of the skin, where no vertex sees its nearest bone gets no heat, and its
+ * vertices take their rows by 5.1 unsmoothed (alpha and by_length count there alone; the rigid fallback
+ * where they see no bone). The smoothing options are not used. */
 lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_values, int64_t capacity,
                             const float *positions, int32_t vertex_count, const int32_t *triangles,
                             int32_t triangle_count, const lvp_skeleton *skeleton,

@@ -14,13 +14,21 @@
  *
  * The Laplacian is the cotangent one over Meyer's mixed areas, scaled as Blender scales it (each edge's
  * cotangents over the number of triangles on it; the factor 1/4 above), so the blend is as wide as heat
- * weights'. A negative cotangent (an obtuse angle) counts as zero: the system is then a symmetric
- * M-matrix, whose solution never leaves [0, 1] (no weight below zero or overshooting beside a joint,
- * which heat weights clip afterwards), and which conjugate gradients solve.
+ * weights'. Multiplied by each vertex's area the system is symmetric and positive definite (the stiffness
+ * of linear elements plus the screening), which conjugate gradients solve. The obtuse angles' negative
+ * cotangents count as they are: taken as zero, the voxel-remeshed hands (right angles across every quad's
+ * diagonal) blended wider than heat weights and folded through themselves at the fist a quarter more.
+ *
+ * Where the skin lies closer to its bone than its edges are long (a coarse hand's palm, a finger of a few
+ * rings), heat weights screen each vertex so hard that it keeps its own bone's weight whatever its
+ * neighbours have, and the weight jumps from one bone to the next across a single edge. The screening is
+ * held to at most the vertex's couplings to its neighbours: its own bone then counts at most as much as its
+ * neighbours together, and no blend is narrower than the edges can show; on skin many edges deep, where
+ * the screening is far below that, nothing changes.
  *
  * A bone's weight falls by e over about half the skin's depth: it is solved only on the skin within
- * reach of its sources (each edge costing its length over half the depth at its far end, up to
- * LVP__SCREENED_REACH), with no weight beyond; where the weight at the rim of that patch comes out above
+ * reach of its sources (each edge costing its length over half the depth at the shallower of its ends, up
+ * to LVP__SCREENED_REACH), with no weight beyond; where the weight at the rim of that patch comes out above
  * LVP__SCREENED_RIM, the patch grows and is solved again. So a bone costs what its skin and its blends
  * cost, not the whole mesh, and every solve is on one thread in a fixed order: the same bits on any
  * thread count.
@@ -30,20 +38,22 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* How far a bone's patch reaches from its sources: where its weight has fallen by about e^-9 (1e-4). */
-#define LVP__SCREENED_REACH 9.0
-/* A weight above this at the rim of a bone's patch (where the solve sets it to zero beyond) grows the
- * patch by LVP__SCREENED_GROWTH more of the reach; the weights kept (LVP__SCREENED_KEPT and up) are then
- * those of the whole mesh's solve to within about this much. */
-#define LVP__SCREENED_RIM 1e-4
+/* How far a bone's patch reaches from its sources at first: where its weight has fallen by about e^-7 (1e-3),
+ * forty times below heat weights' cut (weights.c). */
+#define LVP__SCREENED_REACH 7.0
+/* A weight above this at the rim of a bone's patch (where the solve takes it as zero beyond) grows the patch
+ * by LVP__SCREENED_GROWTH more of the reach and solves again: the solve on a patch differs from the whole
+ * mesh's by about its largest weight on the rim, so the weights kept (LVP__SCREENED_KEPT and up) are the
+ * whole mesh's to within about this. */
+#define LVP__SCREENED_RIM 1e-3
 #define LVP__SCREENED_GROWTH 3.0
 #define LVP__SCREENED_GROWTHS 8 /* at most, past which the weights beyond the rim are left at zero */
 #define LVP__SCREENED_KEPT 1e-4
 /* Conjugate gradients stop when no vertex's residual over its diagonal (the change of its weight that
- * would answer it alone) is above this, or after this many iterations (a bound that ordinary meshes never
+ * would answer it alone) is above this (the weights then within a few 1e-4 of the exact solve's), or after this many iterations (a bound that ordinary meshes never
  * reach). Residuals are compared vertex by vertex, not by their sum of squares: a vertex on its bone has a
  * screening millions of times its neighbours', and would hide their residuals in any norm. */
-#define LVP__SCREENED_TOLERANCE 1e-7
+#define LVP__SCREENED_TOLERANCE 1e-5
 #define LVP__SCREENED_MAX_ITERATIONS 4000
 
 /* The symmetric system, rows multiplied by the vertex's area: sum_j c_kj (w_k - w_j) + D_k w_k = D_k p_k. */
@@ -117,7 +127,7 @@ static void lvp__assemble(lvp__screened *system, const float *positions, const i
 			lvp__vec3 a = lvp__sub(p[(i + 1) % 3], p[i]), b = lvp__sub(p[(i + 2) % 3], p[i]);
 			double cosine = lvp__dot(a, b);
 			obtuse[i] = cosine < 0.0;
-			cotangent[i] = area2 > 0.0 ? fmin(fmax(cosine / area2, 0.0), 1e6) : 0.0;
+			cotangent[i] = area2 > 0.0 ? fmin(fmax(cosine / area2, -1e6), 1e6) : 0.0;
 			lvp__vec3 opposite = lvp__sub(p[(i + 2) % 3], p[(i + 1) % 3]);
 			length2[i] = lvp__dot(opposite, opposite);
 		}
@@ -144,7 +154,7 @@ static void lvp__assemble(lvp__screened *system, const float *positions, const i
 			system->coupling[e] /= (double)edge_count[e];
 }
 
-/* The screening of every vertex (D_k = 2 area_k H_k) and the diagonal. A vertex that no coupling and no
+/* The screening of every vertex (D_k = 2 area_k H_k, at most its couplings' sum) and the diagonal. A vertex that no coupling and no
  * area ties to the rest keeps its sources as they are (any positive screening gives that). */
 static void lvp__finish_diagonal(lvp__screened *system, const double *area, const double *screening)
 {
@@ -153,6 +163,7 @@ static void lvp__finish_diagonal(lvp__screened *system, const double *area, cons
 		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e)
 			sum += system->coupling[e];
 		double screen = 2.0 * area[k] * screening[k];
+		screen = screen < sum ? screen : sum; /* a blend no narrower than the edges around (the top of this file) */
 		if (!(screen > 0.0) && screening[k] > 0.0 && !(sum > 0.0))
 			screen = 1.0;
 		system->screen[k] = screen;
@@ -316,8 +327,14 @@ static int32_t lvp__solve_bone(const lvp__screened *system, const float *positio
 		lvp__grow_patch(system, positions, patch, reach);
 		for (int32_t i = 0; i < patch->count; ++i)
 			patch->b[i] = 0.0;
-		for (int32_t s = 0; s < count; ++s)
-			patch->b[patch->slot[sources[s]]] = system->screen[sources[s]] * (double)shares[s];
+		for (int32_t s = 0; s < count; ++s) {
+			int32_t at = patch->slot[sources[s]];
+			patch->b[at] = system->screen[sources[s]] * (double)shares[s];
+			/* Conjugate gradients start from the sources' shares: away from the borders between bones that is
+			 * the answer already, and what is left to solve lies along those borders. */
+			if (growth == 0)
+				patch->x[at] = (double)shares[s];
+		}
 		lvp__solve_patch(system, patch);
 		if (growth == LVP__SCREENED_GROWTHS || patch->count == system->n || !lvp__rim_too_high(system, patch))
 			break;

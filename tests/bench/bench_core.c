@@ -78,15 +78,19 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 /* The add-on's Auto Weights blends over this many times the flesh's thickness (its Blend Width default). */
 #define ADDON_BLEND_WIDTH 0.9
 
-/* blend 0: the core's defaults (the paper's weights); otherwise what the add-on's Auto Weights asks with its
- * defaults: falloff 16 by distance alone (not by the bones' lengths), measured along the skin's normal, 4
- * influences of at least 1 %, smoothed over `blend` times the flesh's thickness (lvp.h, SMOOTHING BY
- * THICKNESS). */
-static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, double blend)
+/* How the weights are made: the core's defaults (the paper's weights), or what the add-on's Auto Weights asks
+ * with Method: Distance (falloff 16 by distance alone, not by the bones' lengths, measured along the skin's
+ * normal, 4 influences of at least 1 %, smoothed over ADDON_BLEND_WIDTH times the flesh's thickness: lvp.h,
+ * SMOOTHING BY THICKNESS) or with its default Method: Bone Heat (lvp.h, HEAT). */
+typedef enum { PAPER, DISTANCE, HEAT } weights_method;
+
+static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, weights_method method)
 {
+	double blend = method == DISTANCE ? ADDON_BLEND_WIDTH : 0.0;
 	lvp_auto_weights_options options = lvp_auto_weights_default_options();
 	options.visibility = visibility;
-	if (blend > 0.0) {
+	options.heat = method == HEAT;
+	if (method != PAPER) {
 		options.alpha = 16.0f;
 		options.by_length = 0;
 		options.facing = 1;
@@ -127,16 +131,18 @@ static void run_case(bench_case *c, int32_t cores)
 	double bind1, bind_all;
 	double one = frame_time(c, 1, skinned, posed, &stats, &bind1);
 	double all = frame_time(c, cores, skinned, posed, &stats, &bind_all);
-	double normal = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, 0);
-	double smoothed = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, ADDON_BLEND_WIDTH);
-	double exact = n <= 200000 ? auto_weights_time(rig, LVP_VISIBILITY_EXACT, 0) : NAN;
+	double normal = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, PAPER);
+	double heat = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, HEAT);
+	double smoothed = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, DISTANCE);
+	double exact = n <= 200000 ? auto_weights_time(rig, LVP_VISIBILITY_EXACT, PAPER) : NAN;
 	double before = 100.0 * (stats.volume_before - stats.volume_rest) / stats.volume_rest;
 	double after = 100.0 * (stats.volume_after - stats.volume_rest) / stats.volume_rest;
 	char exact_text[32] = "-";
 	if (!isnan(exact))
 		snprintf(exact_text, sizeof(exact_text), "%.0f", 1e3 * exact);
-	printf("| %s | %d | %d | %s | %.0f | %.0f | %s | %.0f | %.2f | %.2f | %.2f | %.2f%% -> %.4f%% (%d steps) |\n",
-	       c->name, (int)n, (int)b, c->pose, 1e3 * normal, 1e3 * smoothed, exact_text, 1e3 * bind1, 1e3 * one, 1e3 * all,
+	printf("| %s | %d | %d | %s | %.0f | %.0f | %.0f | %s | %.0f | %.2f | %.2f | %.2f | %.2f%% -> %.4f%% (%d steps) |\n",
+	       c->name, (int)n, (int)b, c->pose, 1e3 * normal, 1e3 * heat, 1e3 * smoothed, exact_text, 1e3 * bind1,
+	       1e3 * one, 1e3 * all,
 	       one / all, before, after, (int)stats.iterations);
 	fflush(stdout);
 	for (int pose = 0; pose < POSES; ++pose) {
@@ -154,11 +160,12 @@ int main(int argc, char **argv)
 	       "map, up to 8 steps, tolerance 1e-4), %d cores.\n\n",
 	       POSES,
 	       (int)cores);
-	printf("| mesh | vertices | bones | bent | automatic weights, normal test (ms) | the add-on's Auto Weights "
-	       "(falloff 16, blended over 2.5 %% of the diagonal; ms) | automatic weights, exact test (ms) "
+	printf("| mesh | vertices | bones | bent | automatic weights, normal test (ms) | the add-on's Auto Weights, "
+	       "Bone Heat (ms) | Auto Weights, Distance (falloff 16, blended over 0.9 times the flesh's thickness; ms) "
+	       "| automatic weights, exact test (ms) "
 	       "| bind (ms) | frame, 1 thread (ms) | frame, %d threads (ms) | speed-up | volume error |\n",
 	       (int)cores);
-	printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+	printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
 
 	struct {
 		const char *name;

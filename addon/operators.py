@@ -272,8 +272,8 @@ else uses it, and its attributes. The mesh is left exactly as it was"""
 
 
 class OBJECT_OT_lvp_auto_weights(_OnSelectedMeshes, bpy.types.Operator):
-    """Compute skinning weights by the paper's method (distance to each bone, hidden bones ignored) and \
-write them into the deforming bones' vertex groups, replacing their weights"""
+    """Compute skinning weights (bone heat, as With Automatic Weights, on any mesh; or by the distance to each \
+bone) and write them into the deforming bones' vertex groups, replacing their weights"""
 
     bl_idname = "object.lvp_auto_weights"
     bl_label = "Volume Preservation Auto Weights"
@@ -356,6 +356,23 @@ write them into the deforming bones' vertex groups, replacing their weights"""
         "weights as they are)",
         default=0.9, min=0.0, max=16.0, soft_max=2.0, precision=2,
     )
+
+    def draw(self, _context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "bones")
+        if self.bones == 'COLLECTIONS':
+            layout.prop(self, "collections")
+        layout.prop(self, "method")
+        layout.prop(self, "visibility")
+        layout.prop(self, "facing")
+        distance = layout.column()
+        distance.active = self.method == 'DISTANCE'
+        distance.prop(self, "alpha")
+        distance.prop(self, "by_length")
+        distance.prop(self, "blend_width")
+        layout.prop(self, "max_influences")
+        layout.prop(self, "min_weight")
 
     def execute(self, context):
         plans = _plan_each(self, context, self._weights, mesh_too=True)

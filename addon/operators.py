@@ -420,7 +420,7 @@ bone) and write them into the deforming bones' vertex groups, replacing their we
                 positions, mesh_data.loop_triangles(mesh), rest_matrices, heads, tails,
                 alpha=self.alpha, by_length=self.by_length, facing=self.facing, visibility=self.visibility,
                 max_influences=self.max_influences, min_weight=self.min_weight,
-                smoothing_thickness=self.blend_width, heat=self.method == 'HEAT')
+                smoothing_thickness=self.blend_width, heat=self.method == 'HEAT', threads=bindings.thread_count())
         except (_lvp.Error, MemoryError) as error:
             raise _Refused("Cannot compute weights for %s: %s" % (obj.name, error)) from None
         return obj, bone_names, weights

@@ -119,11 +119,11 @@ bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *p
  * solves -(1/4) Laplacian(w) + H w = H p, p its share of each vertex's row as filled (the vertex's nearest
  * bones, evenly), H = screening[k]; depths[k], the vertex's distance to its nearest bone, bounds how far a
  * bone's weight can reach past it. Rows keep the `stride` strongest, renormalized; a vertex no weight reaches
- * (a piece of skin with no source) is left with an empty row. Returns false when memory runs out (the rows
- * then as filled). */
+ * (a piece of skin with no source) is left with an empty row. The bones are solved on thread_count threads,
+ * the same bits on any count. Returns false when memory runs out (the rows then as filled). */
 bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const int32_t *triangles,
                              int32_t vertex_count, int32_t triangle_count, const double *screening,
-                             const double *depths);
+                             const double *depths, int32_t thread_count);
 
 /* Gives the ends of every edge far shorter than the edges around its two ends (a sliver a metaball or a
  * remesher left; diffusion_slivers.c), and of chains of such edges, the mean of their rows. positions: the

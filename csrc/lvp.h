@@ -535,6 +535,8 @@ typedef struct lvp_auto_weights_options {
 	                              LVP_MAX_SMOOTHING_THICKNESS, default 0 */
 	int32_t heat;             /* 1: bone heat, as Blender's heat weights (HEAT below; the smoothing options
 	                             unused); default 0 */
+	int32_t thread_count;     /* HEAT: threads solving the bones, the same bits on any count;
+	                             1..LVP_MAX_THREADS, default 1 */
 } lvp_auto_weights_options;
 
 lvp_auto_weights_options lvp_auto_weights_default_options(void);

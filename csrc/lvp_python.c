@@ -861,16 +861,16 @@ static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject
 	static char *keywords[] = {"positions",      "triangles",      "rest_matrices", "heads",      "tails",
 	                           "alpha",          "visibility",     "normal_cos_max", "max_influences", "min_weight",
 	                           "smoothing_iterations", "smoothing_length", "by_length", "smoothing_thickness", "facing",
-	                           "heat",           NULL};
+	                           "heat",           "threads",        NULL};
 	PyObject *positions_object, *triangles_object, *matrices_object, *heads_object, *tails_object;
 	PyObject *alpha = NULL, *visibility = NULL, *normal_cos_max = NULL, *max_influences = NULL, *min_weight = NULL;
 	PyObject *smoothing_iterations = NULL, *smoothing_length = NULL, *by_length = NULL, *smoothing_thickness = NULL;
-	PyObject *facing = NULL, *heat = NULL;
-	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOO|$OOOOOOOOOOO:auto_weights", keywords, &positions_object,
+	PyObject *facing = NULL, *heat = NULL, *threads = NULL;
+	if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOOO|$OOOOOOOOOOOO:auto_weights", keywords, &positions_object,
 	                                 &triangles_object, &matrices_object, &heads_object, &tails_object, &alpha,
 	                                 &visibility, &normal_cos_max, &max_influences, &min_weight,
 	                                 &smoothing_iterations, &smoothing_length, &by_length, &smoothing_thickness, &facing,
-	                                 &heat))
+	                                 &heat, &threads))
 		return NULL;
 	lvp_py__call call;
 	lvp_auto_weights_options options = lvp_auto_weights_default_options();
@@ -890,6 +890,7 @@ static PyObject *lvp_py__auto_weights(PyObject *module, PyObject *args, PyObject
 	    lvp_py__parse_bool(&call, by_length, "by_length", &options.by_length) != 0 ||
 	    lvp_py__parse_bool(&call, facing, "facing", &options.facing) != 0 ||
 	    lvp_py__parse_bool(&call, heat, "heat", &options.heat) != 0 ||
+	    lvp_py__parse_int(&call, threads, "threads", &options.thread_count) != 0 ||
 	    lvp_py__take_mesh(&call, &positions, &triangles, positions_object, triangles_object, "positions", &vertex_count,
 	                      &triangle_count) != 0 ||
 	    lvp_py__take_skeleton(&call, &skeleton, matrices_object, heads_object, tails_object, false) != 0)
@@ -1505,7 +1506,7 @@ static PyMethodDef lvp_py__functions[] = {
     {"auto_weights", LVP_PY__KEYWORDS(lvp_py__auto_weights), METH_VARARGS | METH_KEYWORDS,
      "auto_weights(positions, triangles, rest_matrices, heads, tails, *, alpha=2.0, visibility='NORMAL', "
      "normal_cos_max=0.0, max_influences=4, min_weight=0.01, smoothing_iterations=0, smoothing_length=0.0, "
-     "by_length=True, smoothing_thickness=0.0, facing=False, heat=False) "
+     "by_length=True, smoothing_thickness=0.0, facing=False, heat=False, threads=1) "
      "-> (offsets, bones, values)\n"
      "Automatic skinning weights (paper 5.1) as compressed rows."},
     {NULL, NULL, 0, NULL},

@@ -30,22 +30,24 @@
  * reach of its sources (each edge costing its length over half the depth at the shallower of its ends, up
  * to LVP__SCREENED_REACH), with no weight beyond; where the weight at the rim of that patch comes out above
  * LVP__SCREENED_RIM, the patch grows and is solved again. So a bone costs what its skin and its blends
- * cost, not the whole mesh, and every solve is on one thread in a fixed order: the same bits on any
- * thread count.
+ * cost, not the whole mesh. Each bone is solved on one thread, the same wherever it runs, and the rows are
+ * gathered bone after bone: the same bits on any thread count.
  */
 #include "diffusion.h"
+#include "threads.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
-/* How far a bone's patch reaches from its sources at first: where its weight has fallen by about e^-7 (1e-3),
- * forty times below heat weights' cut (weights.c). */
-#define LVP__SCREENED_REACH 7.0
+/* How far a bone's patch reaches from its sources at first: where its weight has fallen by about e^-6
+ * (2.5e-3), ten times below heat weights' cut (weights.c). */
+#define LVP__SCREENED_REACH 6.0
 /* A weight above this at the rim of a bone's patch (where the solve takes it as zero beyond) grows the patch
  * by LVP__SCREENED_GROWTH more of the reach and solves again: the solve on a patch differs from the whole
  * mesh's by about its largest weight on the rim, so the weights kept (LVP__SCREENED_KEPT and up) are the
  * whole mesh's to within about this. */
-#define LVP__SCREENED_RIM 1e-3
+#define LVP__SCREENED_RIM 2.5e-3
 #define LVP__SCREENED_GROWTH 3.0
 #define LVP__SCREENED_GROWTHS 8 /* at most, past which the weights beyond the rim are left at zero */
 #define LVP__SCREENED_KEPT 1e-4
@@ -85,6 +87,10 @@ typedef struct lvp__patch {
 	lvp__queued *heap; /* Dijkstra's queue: a vertex is queued again when a shorter way to it is found */
 	int32_t heap_count;
 	double *x, *r, *z, *p, *q, *b;
+	/* The system over the patch alone, rebuilt when it grows: each vertex's neighbours in it (their places)
+	 * and couplings, and its diagonal. */
+	int32_t *local_offsets, *local_columns;
+	double *local_coupling, *local_diagonal;
 } lvp__patch;
 
 /* Where neighbour j sits in vertex k's sorted list, or -1. */
@@ -230,17 +236,32 @@ static void lvp__grow_patch(const lvp__screened *system, const float *positions,
 	}
 }
 
-/* q = A v over the patch (zero outside it). */
-static void lvp__apply(const lvp__screened *system, const lvp__patch *patch, const double *v, double *q)
+/* The patch's own system (lvp__patch), from the whole mesh's. */
+static void lvp__localize(const lvp__screened *system, lvp__patch *patch)
 {
+	int32_t written = 0;
 	for (int32_t i = 0; i < patch->count; ++i) {
 		int32_t k = patch->vertices[i];
-		double sum = system->diagonal[k] * v[i];
+		patch->local_offsets[i] = written;
+		patch->local_diagonal[i] = system->diagonal[k];
 		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e) {
 			int32_t s = patch->slot[system->neighbours[e]];
-			if (s >= 0)
-				sum -= system->coupling[e] * v[s];
+			if (s >= 0) {
+				patch->local_columns[written] = s;
+				patch->local_coupling[written++] = system->coupling[e];
+			}
 		}
+	}
+	patch->local_offsets[patch->count] = written;
+}
+
+/* q = A v over the patch (zero outside it). */
+static void lvp__apply(const lvp__patch *patch, const double *v, double *q)
+{
+	for (int32_t i = 0; i < patch->count; ++i) {
+		double sum = patch->local_diagonal[i] * v[i];
+		for (int32_t e = patch->local_offsets[i]; e < patch->local_offsets[i + 1]; ++e)
+			sum -= patch->local_coupling[e] * v[patch->local_columns[e]];
 		q[i] = sum;
 	}
 }
@@ -262,21 +283,21 @@ static double lvp__largest_abs(const double *a, int32_t count)
 }
 
 /* Conjugate gradients with the diagonal as preconditioner, from the patch's x, against its b. */
-static void lvp__solve_patch(const lvp__screened *system, lvp__patch *patch)
+static void lvp__solve_patch(lvp__patch *patch)
 {
 	int32_t count = patch->count;
 	double *x = patch->x, *r = patch->r, *z = patch->z, *p = patch->p, *q = patch->q, *b = patch->b;
-	lvp__apply(system, patch, x, q);
+	lvp__apply(patch, x, q);
 	for (int32_t i = 0; i < count; ++i) {
 		r[i] = b[i] - q[i];
-		z[i] = r[i] / system->diagonal[patch->vertices[i]];
+		z[i] = r[i] / patch->local_diagonal[i];
 		p[i] = z[i];
 	}
 	double rz = lvp__dot_n(r, z, count);
 	for (int iteration = 0; iteration < LVP__SCREENED_MAX_ITERATIONS; ++iteration) {
 		if (!(lvp__largest_abs(z, count) > LVP__SCREENED_TOLERANCE))
 			break;
-		lvp__apply(system, patch, p, q);
+		lvp__apply(patch, p, q);
 		double pq = lvp__dot_n(p, q, count);
 		if (!(pq > 0.0))
 			break;
@@ -284,7 +305,7 @@ static void lvp__solve_patch(const lvp__screened *system, lvp__patch *patch)
 		for (int32_t i = 0; i < count; ++i) {
 			x[i] += alpha * p[i];
 			r[i] -= alpha * q[i];
-			z[i] = r[i] / system->diagonal[patch->vertices[i]];
+			z[i] = r[i] / patch->local_diagonal[i];
 		}
 		double next = lvp__dot_n(r, z, count), beta = next / rz;
 		rz = next;
@@ -335,7 +356,8 @@ static int32_t lvp__solve_bone(const lvp__screened *system, const float *positio
 			if (growth == 0)
 				patch->x[at] = (double)shares[s];
 		}
-		lvp__solve_patch(system, patch);
+		lvp__localize(system, patch);
+		lvp__solve_patch(patch);
 		if (growth == LVP__SCREENED_GROWTHS || patch->count == system->n || !lvp__rim_too_high(system, patch))
 			break;
 	}
@@ -352,22 +374,163 @@ static int32_t lvp__solve_bone(const lvp__screened *system, const float *positio
 	return kept;
 }
 
+/* A worker's scratch (one bone's patch at a time) and what its bones gave, in the order it solved them. */
+typedef struct lvp__screened_worker {
+	lvp__patch patch;
+	int32_t *solved_vertices; /* each bone's weights: (vertex, weight) pairs, bone after bone */
+	float *solved_values;
+	int64_t solved, capacity;
+	void *memory;
+} lvp__screened_worker;
+
+/* Where bone i's weights lie: in worker `worker`'s pairs from `first`, `count` of them. */
+typedef struct lvp__bone_weights {
+	int32_t worker, count;
+	int64_t first;
+} lvp__bone_weights;
+
+typedef struct lvp__screened_work {
+	const lvp__screened *system;
+	const float *positions;
+	const int32_t *source_offsets, *source_vertices; /* each bone's sources, and their shares */
+	const float *source_shares;
+	int32_t bone_count;
+	atomic_int next_bone, next_worker;
+	atomic_bool failed;
+	lvp__bone_weights *weights; /* per bone */
+	lvp__screened_worker workers[LVP_MAX_THREADS];
+} lvp__screened_work;
+
+static bool lvp__worker_alloc(lvp__screened_worker *worker, int32_t n, int32_t entries)
+{
+	size_t doubles = 8 * (size_t)n + (size_t)entries, queued = (size_t)entries + (size_t)n + 1;
+	size_t ints = 3 * (size_t)n + 1 + (size_t)entries;
+	unsigned char *memory =
+	    malloc(sizeof(double) * doubles + sizeof(lvp__queued) * queued + sizeof(int32_t) * ints);
+	if (!memory)
+		return false;
+	lvp__patch *patch = &worker->patch;
+	worker->memory = memory;
+	double *d = (double *)memory;
+	patch->cost = d, patch->x = d + n, patch->r = d + 2 * (size_t)n, patch->z = d + 3 * (size_t)n;
+	patch->p = d + 4 * (size_t)n, patch->q = d + 5 * (size_t)n, patch->b = d + 6 * (size_t)n;
+	patch->local_diagonal = d + 7 * (size_t)n;
+	patch->local_coupling = d + 8 * (size_t)n;
+	patch->heap = (lvp__queued *)(d + doubles);
+	int32_t *i = (int32_t *)(patch->heap + queued);
+	patch->vertices = i, patch->slot = i + n, patch->local_offsets = i + 2 * (size_t)n;
+	patch->local_columns = i + 3 * (size_t)n + 1;
+	for (int32_t k = 0; k < n; ++k) {
+		patch->slot[k] = -1;
+		patch->cost[k] = INFINITY;
+	}
+	patch->count = 0;
+	return true;
+}
+
+static void lvp__worker_free(lvp__screened_worker *worker)
+{
+	free(worker->memory);
+	free(worker->solved_vertices);
+	free(worker->solved_values);
+	memset(worker, 0, sizeof(*worker));
+}
+
+/* Room in the worker's pairs for `more`; false when memory runs out. */
+static bool lvp__reserve(lvp__screened_worker *worker, int64_t more)
+{
+	if (worker->solved + more <= worker->capacity)
+		return true;
+	int64_t capacity = 2 * worker->capacity > worker->solved + more ? 2 * worker->capacity : worker->solved + more;
+	int32_t *vertices = realloc(worker->solved_vertices, sizeof(int32_t) * (size_t)capacity);
+	if (vertices)
+		worker->solved_vertices = vertices;
+	float *values = realloc(worker->solved_values, sizeof(float) * (size_t)capacity);
+	if (values)
+		worker->solved_values = values;
+	if (!vertices || !values)
+		return false;
+	worker->capacity = capacity;
+	return true;
+}
+
+/* One worker: its scratch, then bones taken one at a time until none is left (any thread may solve any
+ * bone: each bone's solve is the same wherever it runs). */
+static void lvp__screened_task(void *context, int32_t begin, int32_t end)
+{
+	lvp__screened_work *work = context;
+	const lvp__screened *system = work->system;
+	for (int32_t item = begin; item < end; ++item) {
+		int32_t index = atomic_fetch_add(&work->next_worker, 1);
+		lvp__screened_worker *worker = &work->workers[index];
+		if (!lvp__worker_alloc(worker, system->n, system->offsets[system->n])) {
+			atomic_store(&work->failed, true);
+			continue;
+		}
+		for (;;) {
+			int32_t bone = atomic_fetch_add(&work->next_bone, 1);
+			if (bone >= work->bone_count || atomic_load(&work->failed))
+				break;
+			int32_t first = work->source_offsets[bone], count = work->source_offsets[bone + 1] - first;
+			if (count == 0)
+				continue;
+			if (!lvp__reserve(worker, system->n)) {
+				atomic_store(&work->failed, true);
+				break;
+			}
+			int32_t kept = lvp__solve_bone(system, work->positions, &worker->patch, work->source_vertices + first,
+			                               work->source_shares + first, count,
+			                               worker->solved_vertices + worker->solved,
+			                               worker->solved_values + worker->solved);
+			work->weights[bone] = (lvp__bone_weights){index, kept, worker->solved};
+			worker->solved += kept;
+		}
+		free(worker->memory); /* the scratch; the pairs stay until the rows are made */
+		worker->memory = NULL;
+		memset(&worker->patch, 0, sizeof(worker->patch));
+	}
+}
+
+/* Inserts bone's weight w at vertex k into its row, kept sorted by decreasing weight (ties: the lower bone,
+ * inserted first) and `stride` long. */
+static void lvp__insert_weight(lvp__diffusion *rows, int32_t k, int32_t bone, float w)
+{
+	int32_t stride = rows->stride, length = rows->counts[k];
+	int64_t at = (int64_t)k * stride;
+	if (length == stride && !(w > rows->values[at + length - 1]))
+		return;
+	int32_t place = length < stride ? length++ : length - 1;
+	while (place > 0 && rows->values[at + place - 1] < w) {
+		rows->values[at + place] = rows->values[at + place - 1];
+		rows->bones[at + place] = rows->bones[at + place - 1];
+		--place;
+	}
+	rows->values[at + place] = w;
+	rows->bones[at + place] = bone;
+	rows->counts[k] = length;
+}
+
 bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const int32_t *triangles,
                              int32_t vertex_count, int32_t triangle_count, const double *screening,
-                             const double *depths)
+                             const double *depths, int32_t thread_count)
 {
 	int32_t n = vertex_count, bones = rows->bone_count, stride = rows->stride;
 	int32_t entries = rows->neighbour_offsets[n];
 	size_t sources = (size_t)n * (size_t)stride + 1; /* a row's bones are its vertex's sources */
-	double *doubles = malloc(sizeof(double) * ((size_t)entries + 11 * (size_t)n + 1));
-	int32_t *ints = malloc(sizeof(int32_t) * ((size_t)entries + 4 * (size_t)n + 2 * (size_t)bones + 2 + sources));
-	float *floats = malloc(sizeof(float) * (sources + (size_t)n));
-	lvp__queued *heap = malloc(sizeof(lvp__queued) * ((size_t)entries + (size_t)n + 1));
-	if (!doubles || !ints || !floats || !heap) {
+	double *doubles = malloc(sizeof(double) * ((size_t)entries + 4 * (size_t)n + 1));
+	int32_t *ints = malloc(sizeof(int32_t) * ((size_t)entries + 2 * (size_t)bones + 2 + sources));
+	float *source_shares = malloc(sizeof(float) * sources);
+	lvp__screened_work *work = calloc(1, sizeof(lvp__screened_work));
+	lvp__bone_weights *weights = calloc((size_t)bones + 1, sizeof(lvp__bone_weights));
+	lvp__pool *pool = NULL;
+	bool ok = doubles && ints && source_shares && work && weights &&
+	          lvp__pool_create(&pool, thread_count) == lvp_success;
+	if (!ok) {
 		free(doubles);
 		free(ints);
-		free(floats);
-		free(heap);
+		free(source_shares);
+		free(work);
+		free(weights);
 		return false;
 	}
 	lvp__screened system = {.n = n, .offsets = rows->neighbour_offsets, .neighbours = rows->neighbours};
@@ -376,31 +539,15 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 	system.screen = system.diagonal + n;
 	system.rate = system.screen + n;
 	double *area = system.rate + n;
-	lvp__patch patch = {0};
-	patch.cost = area + n;
-	patch.x = patch.cost + n;
-	patch.r = patch.x + n;
-	patch.z = patch.r + n;
-	patch.p = patch.z + n;
-	patch.q = patch.p + n;
-	patch.b = patch.q + n;
-	patch.heap = heap;
 	int32_t *edge_count = ints; /* entries */
-	patch.vertices = edge_count + entries;
-	patch.slot = patch.vertices + n;
-	int32_t *out_vertices = patch.slot + n;    /* n: one bone's weights */
-	int32_t *source_offsets = out_vertices + n; /* bones + 1 */
+	int32_t *source_offsets = edge_count + entries; /* bones + 1 */
 	int32_t *cursor = source_offsets + bones + 1;
 	int32_t *source_vertices = cursor + bones;
-	float *source_shares = floats, *out_values = floats + sources;
 
 	lvp__assemble(&system, positions, triangles, triangle_count, area, edge_count);
 	lvp__finish_diagonal(&system, area, screening);
-	for (int32_t k = 0; k < n; ++k) {
+	for (int32_t k = 0; k < n; ++k)
 		system.rate[k] = depths[k] > 0.0 ? 2.0 / depths[k] : INFINITY;
-		patch.slot[k] = -1;
-		patch.cost[k] = INFINITY;
-	}
 	/* Each bone's sources: the vertices whose rows name it, with their shares. */
 	memset(source_offsets, 0, sizeof(int32_t) * ((size_t)bones + 1));
 	for (int32_t k = 0; k < n; ++k)
@@ -415,36 +562,30 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 			source_vertices[at] = k;
 			source_shares[at] = rows->values[(int64_t)k * stride + j];
 		}
-	/* The solves, one bone after the other, each vertex's row gathered as they come (the rows are free:
+	/* The solves, on the pool's threads, each bone wherever; then the rows, bone after bone (the rows are free:
 	 * the sources were copied out). */
-	for (int32_t k = 0; k < n; ++k)
+	work->system = &system;
+	work->positions = positions;
+	work->source_offsets = source_offsets;
+	work->source_vertices = source_vertices;
+	work->source_shares = source_shares;
+	work->bone_count = bones;
+	work->weights = weights;
+	atomic_init(&work->next_bone, 0);
+	atomic_init(&work->next_worker, 0);
+	atomic_init(&work->failed, false);
+	int32_t workers = thread_count < 1 ? 1 : thread_count;
+	lvp__parallel_for(pool, lvp__screened_task, work, workers, 1);
+	ok = !atomic_load(&work->failed);
+	for (int32_t k = 0; ok && k < n; ++k)
 		rows->counts[k] = 0;
-	for (int32_t bone = 0; bone < bones; ++bone) {
-		int32_t first = source_offsets[bone], count = source_offsets[bone + 1] - first;
-		if (count == 0)
-			continue;
-		int32_t kept = lvp__solve_bone(&system, positions, &patch, source_vertices + first, source_shares + first,
-		                               count, out_vertices, out_values);
-		for (int32_t i = 0; i < kept; ++i) {
-			int32_t k = out_vertices[i];
-			int64_t at = (int64_t)k * stride;
-			int32_t length = rows->counts[k];
-			float w = out_values[i];
-			/* Keep the row sorted by decreasing weight (ties: the lower bone, met first), `stride` long. */
-			if (length == stride && !(w > rows->values[at + length - 1]))
-				continue;
-			int32_t place = length < stride ? length++ : length - 1;
-			while (place > 0 && rows->values[at + place - 1] < w) {
-				rows->values[at + place] = rows->values[at + place - 1];
-				rows->bones[at + place] = rows->bones[at + place - 1];
-				--place;
-			}
-			rows->values[at + place] = w;
-			rows->bones[at + place] = bone;
-			rows->counts[k] = length;
-		}
+	for (int32_t bone = 0; ok && bone < bones; ++bone) {
+		const lvp__screened_worker *worker = &work->workers[weights[bone].worker];
+		for (int32_t i = 0; i < weights[bone].count; ++i)
+			lvp__insert_weight(rows, worker->solved_vertices[weights[bone].first + i], bone,
+			                   worker->solved_values[weights[bone].first + i]);
 	}
-	for (int32_t k = 0; k < n; ++k) {
+	for (int32_t k = 0; ok && k < n; ++k) {
 		int64_t at = (int64_t)k * stride;
 		double sum = 0.0;
 		for (int32_t j = 0; j < rows->counts[k]; ++j)
@@ -452,9 +593,13 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 		for (int32_t j = 0; j < rows->counts[k]; ++j)
 			rows->values[at + j] = (float)(rows->values[at + j] / sum);
 	}
+	for (int32_t w = 0; w < workers; ++w)
+		lvp__worker_free(&work->workers[w]);
+	lvp__pool_destroy(pool);
 	free(doubles);
 	free(ints);
-	free(floats);
-	free(heap);
-	return true;
+	free(source_shares);
+	free(work);
+	free(weights);
+	return ok;
 }

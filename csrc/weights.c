@@ -47,6 +47,7 @@ lvp_auto_weights_options lvp_auto_weights_default_options(void)
 	options.smoothing_length = 0.0f;
 	options.smoothing_thickness = 0.0f;
 	options.heat = 0;
+	options.thread_count = 1;
 	return options;
 }
 
@@ -104,6 +105,10 @@ static lvp_result lvp__check_options(const lvp_auto_weights_options *o, lvp_diag
 		                 "options.smoothing_length is %g; it is a distance in the mesh's units, 0 (use "
 		                 "smoothing_iterations) or above.",
 		                 (double)o->smoothing_length);
+	if (o->thread_count < 1 || o->thread_count > LVP_MAX_THREADS)
+		return lvp__fail(r_diag, lvp_error_invalid_option, "options.thread_count", -1,
+		                 "options.thread_count is %d; use 1 to %d threads (default 1).", (int)o->thread_count,
+		                 LVP_MAX_THREADS);
 	if (o->heat != 0 && o->heat != 1)
 		return lvp__fail(r_diag, lvp_error_invalid_option, "options.heat", -1,
 		                 "options.heat is %d; use 0 (the weights of 5.1, smoothed as the options say) or 1 (bone "
@@ -575,7 +580,7 @@ static void lvp__heat_normals(float *r_normals, const float *outward, const floa
  * a vertex that no bone's heat reaches (no source on its piece of skin) takes its row by 5.1, the rigid
  * fallback when it sees no bone. Returns false when memory runs out. */
 static bool lvp__heat_weights(lvp__diffusion *rows, const lvp__weights_context *ctx, const int32_t *triangles,
-                              int32_t vertex_count, int32_t triangle_count)
+                              int32_t vertex_count, int32_t triangle_count, int32_t thread_count)
 {
 	size_t n = (size_t)vertex_count;
 	double *screening = malloc(sizeof(double) * 2 * (n + 1));
@@ -596,7 +601,7 @@ static bool lvp__heat_weights(lvp__diffusion *rows, const lvp__weights_context *
 		rows->counts[k] = lvp__heat_sources(rows->bones + (int64_t)k * stride, rows->values + (int64_t)k * stride,
 		                                    &screening[k], &depths[k], &heat, k, stride);
 	bool ok = lvp__diffusion_screened(rows, ctx->positions, triangles, vertex_count, triangle_count, screening,
-	                                  depths);
+	                                  depths, thread_count);
 	free(screening);
 	free(normals);
 	lvp__weights_context raw = *ctx;
@@ -657,7 +662,7 @@ static bool lvp__smooth_weights(lvp__diffusion *smooth, lvp__weights_context *ct
 	if (!lvp__diffusion_init(smooth, triangles, vertex_count, triangle_count, ctx->bone_count, stride))
 		return false;
 	if (options->heat)
-		return lvp__heat_weights(smooth, ctx, triangles, vertex_count, triangle_count);
+		return lvp__heat_weights(smooth, ctx, triangles, vertex_count, triangle_count, options->thread_count);
 	/* The raw rows keep more bones than the output, so that the blend of a joint survives the diffusion. */
 	lvp__weights_context raw = *ctx;
 	raw.max_influences = stride;

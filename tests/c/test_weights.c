@@ -889,7 +889,8 @@ static void test_smoothing_by_thickness_is_local(void)
  * bone's stay one), each bone holds the middle of
  * its segment, and an arm beside another piece (a thicker arm: no edge joins them) is weighted bit for bit
  * as alone, since a bone's heat flows along edges only. The horned body's hooked horn, which sees no bone
- * from its tip, is weighted through its skin: every row as the contract says. */
+ * from its tip, is weighted through its skin: every row as the contract says, the same bits on three threads
+ * as on one. */
 static void test_heat_blends_by_the_skin_s_depth(void)
 {
 	builder *b = malloc(sizeof(builder)), *fine = malloc(sizeof(builder)), *alone = malloc(sizeof(builder));
@@ -946,7 +947,15 @@ static void test_heat_blends_by_the_skin_s_depth(void)
 	o.heat = 1;
 	result horned = compute(alone, &o);
 	check_rows(alone, &horned, &o);
+	/* The bones solved on three threads: the same bits. */
+	o.thread_count = 3;
+	result threaded = compute(alone, &o);
+	int32_t total = horned.offsets[alone->vertex_count];
+	CHECK(memcmp(horned.offsets, threaded.offsets, sizeof(int32_t) * ((size_t)alone->vertex_count + 1)) == 0);
+	CHECK(memcmp(horned.bones, threaded.bones, sizeof(int32_t) * (size_t)total) == 0);
+	CHECK(memcmp(horned.values, threaded.values, sizeof(float) * (size_t)total) == 0);
 	result_free(&horned);
+	result_free(&threaded);
 	free(b);
 	free(fine);
 	free(alone);
@@ -1207,6 +1216,17 @@ static void test_error_paths_name_the_argument(void)
 		bad.smoothing_thickness = bad_thickness[i];
 		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
 		            lvp_error_invalid_option, "options.smoothing_thickness", -1);
+	}
+	bad = o;
+	bad.heat = 2;
+	CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d, lvp_error_invalid_option,
+	            "options.heat", -1);
+	const int32_t bad_threads[2] = {0, LVP_MAX_THREADS + 1};
+	for (int i = 0; i < 2; ++i) {
+		bad = o;
+		bad.thread_count = bad_threads[i];
+		CHECK_ERROR(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, &bad, &d), &d,
+		            lvp_error_invalid_option, "options.thread_count", -1);
 	}
 	/* NULL options are the defaults */
 	CHECK_OK(lvp_auto_weights(offsets, bones, values, cap, p, n, t, f, &s, NULL, &d), d);

@@ -1018,6 +1018,9 @@ static void fuzz_run(const uint8_t *data, size_t size)
 		auto_options.smoothing_length = auto_options.alpha;
 	else if (smoothing == 3)
 		auto_options.smoothing_iterations = (auto_flags & 64) ? -1 : LVP_MAX_SMOOTHING_ITERATIONS;
+	/* Bone heat, on one thread or two, from two more bits of the same flags. */
+	auto_options.heat = (auto_flags >> 1) & 1;
+	auto_options.thread_count = (auto_flags & 4) ? 2 : 1;
 	const lvp_auto_weights_options *auto_used = (auto_flags & 1) ? NULL : &auto_options;
 	int64_t bound = lvp_auto_weights_bound(vertex_count, bone_count, auto_used);
 	int32_t *auto_offsets = fuzz_alloc((size_t)c.vertex_count + 1, sizeof(int32_t));

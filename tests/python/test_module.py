@@ -340,7 +340,11 @@ class TestGeometry(unittest.TestCase):
         self.assertNotEqual(list(sharp[2]), list(by_length[2]))
         by_thickness = _lvp.auto_weights(*arguments, alpha=16.0, smoothing_thickness=1.0)
         self.assertNotEqual(list(sharp[2]), list(by_thickness[2]))
-        for offsets, bones, values in (smooth, by_thickness):
+        heat = _lvp.auto_weights(*arguments, facing=True, heat=True)
+        self.assertNotEqual(list(sharp[2]), list(heat[2]))
+        self.assertEqual([list(part) for part in heat],
+                         [list(part) for part in _lvp.auto_weights(*arguments, facing=True, heat=True, threads=2)])
+        for offsets, bones, values in (smooth, by_thickness, heat):
             for vertex in range(tube.vertex_count):
                 row = values[offsets[vertex]:offsets[vertex + 1]]
                 self.assertAlmostEqual(sum(row), 1.0, places=5, msg=f'vertex {vertex}')
@@ -925,6 +929,7 @@ class TestErrors(unittest.TestCase):
         self.assertValueErrorNames('smoothing_length', _lvp.auto_weights, **arguments, smoothing_length=-0.5)
         self.assertValueErrorNames('smoothing_thickness', _lvp.auto_weights, **arguments, smoothing_thickness=-1.0)
         self.assertValueErrorNames('smoothing_thickness', _lvp.auto_weights, **arguments, smoothing_thickness=17.0)
+        self.assertValueErrorNames('threads', _lvp.auto_weights, **arguments, heat=True, threads=0)
 
     def binding_arguments(self, tube):
         return {'rest_positions': tube.positions, 'triangles': tube.triangles, 'weight_offsets': tube.weight_offsets,

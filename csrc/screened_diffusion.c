@@ -51,10 +51,11 @@
 #define LVP__SCREENED_GROWTH 3.0
 #define LVP__SCREENED_GROWTHS 8 /* at most, past which the weights beyond the rim are left at zero */
 #define LVP__SCREENED_KEPT 1e-4
-/* Conjugate gradients stop when no vertex's residual over its diagonal (the change of its weight that
- * would answer it alone) is above this (the weights then within a few 1e-4 of the exact solve's), or after this many iterations (a bound that ordinary meshes never
- * reach). Residuals are compared vertex by vertex, not by their sum of squares: a vertex on its bone has a
- * screening millions of times its neighbours', and would hide their residuals in any norm. */
+/* Conjugate gradients stop when no vertex's residual over its diagonal (the change of its weight that would
+ * answer it alone) is above this (the weights then within a few 1e-4 of the exact solve's), or after this many
+ * iterations (a bound that ordinary meshes never reach). Residuals are compared vertex by vertex, not by their
+ * sum of squares: a vertex on its bone has a screening millions of times its neighbours', and would hide their
+ * residuals in any norm. */
 #define LVP__SCREENED_TOLERANCE 1e-5
 #define LVP__SCREENED_MAX_ITERATIONS 4000
 
@@ -160,8 +161,9 @@ static void lvp__assemble(lvp__screened *system, const float *positions, const i
 			system->coupling[e] /= (double)edge_count[e];
 }
 
-/* The screening of every vertex (D_k = 2 area_k H_k, at most its couplings' sum) and the diagonal. A vertex that no coupling and no
- * area ties to the rest keeps its sources as they are (any positive screening gives that). */
+/* The screening of every vertex (D_k = 2 area_k H_k, at most its couplings' sum) and the diagonal. A vertex
+ * that no coupling and no area ties to the rest keeps its sources as they are (any positive screening gives
+ * that). */
 static void lvp__finish_diagonal(lvp__screened *system, const double *area, const double *screening)
 {
 	for (int32_t k = 0; k < system->n; ++k) {

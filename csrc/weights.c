@@ -255,6 +255,14 @@ static bool lvp__facing_trust(float *r_trust, const float *positions, const floa
 	return true;
 }
 
+/* The NORMAL test: whether the path `diff` (of squared length d2) from a vertex to its closest point on a bone
+ * leaves through the skin, its angle with the vertex's unit outward normal n above the option's. A vertex on
+ * the bone sees it. */
+static inline bool lvp__normal_hides(const lvp__weights_context *ctx, lvp__vec3 n, lvp__vec3 diff, double d2)
+{
+	return d2 > 0.0 && lvp__dot(diff, n) > ctx->normal_cos_max * sqrt(d2); /* cos(path, n) = <diff, n> / d */
+}
+
 /* Whether the straight path from vertex k at p to its closest point on bone i stays inside the body. */
 static bool lvp__path_is_inside(const lvp__weights_context *ctx, int32_t k, lvp__vec3 p, int32_t bone)
 {
@@ -404,11 +412,8 @@ static int32_t lvp__vertex_weights(int32_t *r_bones, float *r_values, const lvp_
 		double d2 = lvp__dot(diff, diff);
 		if (d2 < closest_d2)
 			closest_d2 = d2, closest = i;
-		if (normal_test && d2 > 0.0) {
-			double along = lvp__dot(diff, n); /* |n| = 1: cos(path, n) = along / d */
-			if (along > ctx->normal_cos_max * sqrt(d2))
-				continue;
-		}
+		if (normal_test && lvp__normal_hides(ctx, n, diff, d2))
+			continue;
 		double counted2 = d2 > bone->floor2 ? d2 : bone->floor2;
 		if (ctx->facing_trust) {
 			double share = lvp__facing_share(n, ctx->facing_trust[k], diff, sqrt(d2));
@@ -516,8 +521,7 @@ static int32_t lvp__heat_sources(int32_t *r_bones, float *r_values, double *r_sc
 		int32_t bone = distances[j].bone;
 		if (normal_test) {
 			lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(&ctx->bones[bone], p), p);
-			double d2 = lvp__dot(diff, diff);
-			if (d2 > 0.0 && lvp__dot(diff, n) > ctx->normal_cos_max * sqrt(d2))
+			if (lvp__normal_hides(ctx, n, diff, lvp__dot(diff, diff)))
 				continue;
 		} else if (ctx->visibility == LVP_VISIBILITY_EXACT && !lvp__path_is_inside(ctx, k, p, bone)) {
 			continue;

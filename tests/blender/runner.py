@@ -126,7 +126,20 @@ class LoadError(unittest.TestCase):
 class Result(unittest.TextTestResult):
     results_file = None
 
+    def module_seconds(self):
+        """Seconds spent per test module, set-up included: where the run's time budget goes."""
+        return getattr(self, "_module_seconds", {})
+
+    def _charge_module(self, test):
+        # Everything since the last test ended (a class's or a module's set-up) goes to the test that starts.
+        now = time.monotonic()
+        module = type(test).__module__
+        seconds = self.__dict__.setdefault("_module_seconds", {})
+        seconds[module] = seconds.get(module, 0.0) + now - getattr(self, "_last_mark", now)
+        self._last_mark = now
+
     def startTest(self, test):
+        self._charge_module(test)
         lvp_helpers = sys.modules.get("lvp_helpers")
         if lvp_helpers is not None:
             del lvp_helpers.VOLUME_DISAGREEMENTS[:]
@@ -150,6 +163,7 @@ class Result(unittest.TextTestResult):
         self.passed = getattr(self, "passed", 0) + 1
 
     def stopTest(self, test):
+        self._charge_module(test)
         super().stopTest(test)
         self.stream.flush()
         sys.stdout.flush()
@@ -222,8 +236,12 @@ def main():
     runner = unittest.TextTestRunner(stream=sys.stdout, verbosity=1 if args.quiet else 2,
                                      failfast=args.failfast, resultclass=Result)
     start = time.monotonic()
+    Result._last_mark = start
     result = runner.run(suite)
     elapsed = time.monotonic() - start
+    slowest = sorted(result.module_seconds().items(), key=lambda item: -item[1])[:12]
+    if slowest and not args.list:
+        print("[runner] slowest modules: " + ", ".join("%s %.0f s" % item for item in slowest))
 
     if os.environ.get("LVP_KEEP_TMP") == "1":
         print("[runner] kept %s" % tmp)

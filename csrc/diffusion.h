@@ -115,6 +115,32 @@ bool lvp__diffusion_blend(lvp__diffusion *diffusion, const float *positions, int
 bool lvp__diffusion_blend_by_thickness(lvp__diffusion *diffusion, const float *positions, int32_t vertex_count,
                                        const double *distances, const double *depths, double share);
 
+/* Aggregation multigrid over one symmetric system sum_j -c_ij x_j + d_i x_i (screened_multigrid.c): one
+ * cycle is bone heat's preconditioner. Level 0 is the caller's system (borrowed; offsets/columns/coupling
+ * its rows' off-diagonal entries), each next level the one above summed over aggregates of neighbours. */
+#define LVP__MULTIGRID_MAX_LEVELS 16
+typedef struct lvp__multigrid_level {
+	int32_t n;
+	int32_t *offsets, *columns;
+	double *coupling, *diagonal, *inverse; /* inverse: 1 / diagonal */
+	int32_t *aggregate; /* each vertex's aggregate at the next level; NULL on the coarsest */
+	double *x, *b;      /* the level's solution and right-hand side in a cycle from the level above */
+	double *r, *y;      /* the residual of that and its correction (the second cycle) */
+	double *t;          /* scratch */
+} lvp__multigrid_level;
+typedef struct lvp__multigrid {
+	lvp__multigrid_level levels[LVP__MULTIGRID_MAX_LEVELS];
+	int32_t level_count;
+	double *factor; /* the coarsest level's dense Cholesky factor, or NULL (then it is swept) */
+} lvp__multigrid;
+/* Builds the levels over the caller's system (kept, not copied: it must outlive the grid). False when
+ * memory runs out (nothing kept). */
+bool lvp__multigrid_build(lvp__multigrid *grid, int32_t n, const int32_t *offsets, const int32_t *columns,
+                          const double *coupling, const double *diagonal);
+/* z = one cycle applied to r (a symmetric positive definite approximation of the system's inverse). */
+void lvp__multigrid_apply(lvp__multigrid *grid, const double *r, double *z);
+void lvp__multigrid_free(lvp__multigrid *grid);
+
 /* Replaces the rows by bone heat's weights (Baran and Popovic 2007; screened_diffusion.c): each bone's weight
  * solves -(1/4) Laplacian(w) + H w = H p, p its share of each vertex's row as filled (the vertex's nearest
  * bones, evenly), H = screening[k]; depths[k], the vertex's distance to its nearest bone, bounds how far a

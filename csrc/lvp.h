@@ -606,9 +606,10 @@ int64_t lvp_auto_weights_bound(int32_t vertex_count, int32_t bone_count, const l
  * over about half the skin's depth: millimetres on a finger, a hand's width at a hip, whatever the mesh's
  * resolution. Where the skin lies closer to its bone than its edges are long, the screening is held to the
  * vertex's couplings to its neighbours, so that no blend is narrower than an edge. Each bone is solved (by
- * conjugate gradients) on the skin within reach of its sources, grown while its weight at the rim is above
- * 2.5e-3: a bone costs what its skin does. Weights below 0.025 are dropped and those up to 0.05 ramp from 0
- * (heat weights' own cut), then max_influences and min_weight prune as above. Weight flows only along
+ * conjugate gradients under a multigrid preconditioner) on the skin within reach of its sources, grown
+ * while its weight at the rim is above 2.5e-3: a bone costs what its skin does. Weights below 0.025 are
+ * dropped and those up to 0.05 ramp from 0 (heat weights' own cut), then max_influences and min_weight
+ * prune as above. Weight flows only along
  * edges: a piece, or a part of the skin, where no vertex sees its nearest bone gets no heat, and its
  * vertices take their rows by 5.1 unsmoothed (alpha and by_length count there alone; the rigid fallback
  * where they see no bone). The smoothing options are not used. */

@@ -15,7 +15,8 @@
  * The Laplacian is the cotangent one over Meyer's mixed areas, scaled as Blender scales it (each edge's
  * cotangents over the number of triangles on it; the factor 1/4 above), so the blend is as wide as heat
  * weights'. Multiplied by each vertex's area the system is symmetric and positive definite (the stiffness
- * of linear elements plus the screening), which conjugate gradients solve. The obtuse angles' negative
+ * of linear elements plus the screening), which conjugate gradients solve, preconditioned by aggregation
+ * multigrid (screened_multigrid.c). The obtuse angles' negative
  * cotangents count as they are: taken as zero, the voxel-remeshed hands (right angles across every quad's
  * diagonal) blended wider than heat weights and folded through themselves at the fist a quarter more.
  *
@@ -67,6 +68,7 @@ typedef struct lvp__screened {
 	double *diagonal;                     /* sum_j c_kj + D_k */
 	double *screen;                       /* D_k */
 	double *rate;                         /* per vertex, how fast weight falls off there: 2 / depth */
+	double *reach_cost;                   /* per neighbour entry, the reach its edge spends (lvp__grow_patch) */
 } lvp__screened;
 
 typedef struct lvp__queued {
@@ -209,11 +211,24 @@ static lvp__queued lvp__heap_pop(lvp__patch *patch)
 	return top;
 }
 
+/* Each edge's cost to the reach: its length times the lower rate of its two ends (a vertex on its bone,
+ * screened without end, holds its own weight but not its neighbours'). */
+static void lvp__reach_costs(lvp__screened *system, const float *positions)
+{
+	for (int32_t k = 0; k < system->n; ++k) {
+		lvp__vec3 at = lvp__load(positions + 3 * (int64_t)k);
+		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e) {
+			int32_t j = system->neighbours[e];
+			double rate = system->rate[j] < system->rate[k] ? system->rate[j] : system->rate[k];
+			system->reach_cost[e] = lvp__length(lvp__sub(lvp__load(positions + 3 * (int64_t)j), at)) * rate;
+		}
+	}
+}
+
 /* Grows the patch to every vertex within `reach` of the bone's sources (queued at cost 0): Dijkstra over
- * the edges, an edge costing its length times the lower rate of its two ends (a vertex on its bone, screened
- * without end, holds its own weight but not its neighbours'). Vertices new to the patch start with
- * no weight; those in it keep theirs. */
-static void lvp__grow_patch(const lvp__screened *system, const float *positions, lvp__patch *patch, double reach)
+ * the edges at their reach costs. Vertices new to the patch start with no weight; those in it keep
+ * theirs. */
+static void lvp__grow_patch(const lvp__screened *system, lvp__patch *patch, double reach)
 {
 	while (patch->heap_count > 0) {
 		lvp__queued top = lvp__heap_pop(patch);
@@ -225,11 +240,9 @@ static void lvp__grow_patch(const lvp__screened *system, const float *positions,
 			patch->x[patch->count] = 0.0;
 			patch->vertices[patch->count++] = k;
 		}
-		lvp__vec3 at = lvp__load(positions + 3 * (int64_t)k);
 		for (int32_t e = system->offsets[k]; e < system->offsets[k + 1]; ++e) {
 			int32_t j = system->neighbours[e];
-			double rate = system->rate[j] < system->rate[k] ? system->rate[j] : system->rate[k];
-			double cost = top.cost + lvp__length(lvp__sub(lvp__load(positions + 3 * (int64_t)j), at)) * rate;
+			double cost = top.cost + system->reach_cost[e];
 			if (cost <= reach && cost < patch->cost[j]) {
 				patch->cost[j] = cost;
 				lvp__heap_push(patch, j, cost);
@@ -276,28 +289,35 @@ static double lvp__dot_n(const double *a, const double *b, int32_t count)
 	return sum;
 }
 
-static double lvp__largest_abs(const double *a, int32_t count)
+/* The largest residual over its diagonal: the change of weight that would answer a vertex's residual alone. */
+static double lvp__largest_change(const lvp__patch *patch, const double *r)
 {
 	double largest = 0.0;
-	for (int32_t i = 0; i < count; ++i)
-		largest = fabs(a[i]) > largest ? fabs(a[i]) : largest;
+	for (int32_t i = 0; i < patch->count; ++i) {
+		double change = fabs(r[i] / patch->local_diagonal[i]);
+		largest = change > largest ? change : largest;
+	}
 	return largest;
 }
 
-/* Conjugate gradients with the diagonal as preconditioner, from the patch's x, against its b. */
-static void lvp__solve_patch(lvp__patch *patch)
+/* Conjugate gradients from the patch's x against its b, preconditioned by a cycle of multigrid over the
+ * patch (screened_multigrid.c). False when memory runs out. */
+static bool lvp__solve_patch(lvp__patch *patch)
 {
 	int32_t count = patch->count;
 	double *x = patch->x, *r = patch->r, *z = patch->z, *p = patch->p, *q = patch->q, *b = patch->b;
+	lvp__multigrid grid;
+	if (!lvp__multigrid_build(&grid, count, patch->local_offsets, patch->local_columns, patch->local_coupling,
+	                          patch->local_diagonal))
+		return false;
 	lvp__apply(patch, x, q);
-	for (int32_t i = 0; i < count; ++i) {
+	for (int32_t i = 0; i < count; ++i)
 		r[i] = b[i] - q[i];
-		z[i] = r[i] / patch->local_diagonal[i];
-		p[i] = z[i];
-	}
+	lvp__multigrid_apply(&grid, r, z);
+	memcpy(p, z, sizeof(double) * (size_t)count);
 	double rz = lvp__dot_n(r, z, count);
 	for (int iteration = 0; iteration < LVP__SCREENED_MAX_ITERATIONS; ++iteration) {
-		if (!(lvp__largest_abs(z, count) > LVP__SCREENED_TOLERANCE))
+		if (!(lvp__largest_change(patch, r) > LVP__SCREENED_TOLERANCE))
 			break;
 		lvp__apply(patch, p, q);
 		double pq = lvp__dot_n(p, q, count);
@@ -307,13 +327,15 @@ static void lvp__solve_patch(lvp__patch *patch)
 		for (int32_t i = 0; i < count; ++i) {
 			x[i] += alpha * p[i];
 			r[i] -= alpha * q[i];
-			z[i] = r[i] / patch->local_diagonal[i];
 		}
+		lvp__multigrid_apply(&grid, r, z);
 		double next = lvp__dot_n(r, z, count), beta = next / rz;
 		rz = next;
 		for (int32_t i = 0; i < count; ++i)
 			p[i] = z[i] + beta * p[i];
 	}
+	lvp__multigrid_free(&grid);
+	return true;
 }
 
 /* Whether a vertex on the patch's rim (a neighbour outside it) has a weight above LVP__SCREENED_RIM: the
@@ -331,9 +353,19 @@ static bool lvp__rim_too_high(const lvp__screened *system, const lvp__patch *pat
 	return false;
 }
 
+/* Leaves the patch empty for the next bone. */
+static void lvp__clear_patch(lvp__patch *patch)
+{
+	for (int32_t i = 0; i < patch->count; ++i) {
+		patch->slot[patch->vertices[i]] = -1;
+		patch->cost[patch->vertices[i]] = INFINITY;
+	}
+	patch->count = 0;
+}
+
 /* The weights of one bone, its sources `sources` (count of them): into `out` as (vertex, weight) pairs
- * above LVP__SCREENED_KEPT, returning how many (the patch's size at most). */
-static int32_t lvp__solve_bone(const lvp__screened *system, const float *positions, lvp__patch *patch,
+ * above LVP__SCREENED_KEPT, returning how many (the patch's size at most), or -1 when memory runs out. */
+static int32_t lvp__solve_bone(const lvp__screened *system, lvp__patch *patch,
                                const int32_t *sources, const float *shares, int32_t count, int32_t *out_vertices,
                                float *out_values)
 {
@@ -347,7 +379,7 @@ static int32_t lvp__solve_bone(const lvp__screened *system, const float *positio
 			patch->cost[sources[s]] = 0.0;
 			lvp__heap_push(patch, sources[s], 0.0);
 		}
-		lvp__grow_patch(system, positions, patch, reach);
+		lvp__grow_patch(system, patch, reach);
 		for (int32_t i = 0; i < patch->count; ++i)
 			patch->b[i] = 0.0;
 		for (int32_t s = 0; s < count; ++s) {
@@ -359,20 +391,21 @@ static int32_t lvp__solve_bone(const lvp__screened *system, const float *positio
 				patch->x[at] = (double)shares[s];
 		}
 		lvp__localize(system, patch);
-		lvp__solve_patch(patch);
+		if (!lvp__solve_patch(patch)) {
+			lvp__clear_patch(patch);
+			return -1;
+		}
 		if (growth == LVP__SCREENED_GROWTHS || patch->count == system->n || !lvp__rim_too_high(system, patch))
 			break;
 	}
 	int32_t kept = 0;
 	for (int32_t i = 0; i < patch->count; ++i) {
-		int32_t k = patch->vertices[i];
 		if (patch->x[i] > LVP__SCREENED_KEPT) {
-			out_vertices[kept] = k;
+			out_vertices[kept] = patch->vertices[i];
 			out_values[kept++] = (float)patch->x[i];
 		}
-		patch->slot[k] = -1;
-		patch->cost[k] = INFINITY;
 	}
+	lvp__clear_patch(patch);
 	return kept;
 }
 
@@ -393,7 +426,6 @@ typedef struct lvp__bone_weights {
 
 typedef struct lvp__screened_work {
 	const lvp__screened *system;
-	const float *positions;
 	const int32_t *source_offsets, *source_vertices; /* each bone's sources, and their shares */
 	const float *source_shares;
 	int32_t bone_count;
@@ -480,10 +512,14 @@ static void lvp__screened_task(void *context, int32_t begin, int32_t end)
 				atomic_store(&work->failed, true);
 				break;
 			}
-			int32_t kept = lvp__solve_bone(system, work->positions, &worker->patch, work->source_vertices + first,
+			int32_t kept = lvp__solve_bone(system, &worker->patch, work->source_vertices + first,
 			                               work->source_shares + first, count,
 			                               worker->solved_vertices + worker->solved,
 			                               worker->solved_values + worker->solved);
+			if (kept < 0) {
+				atomic_store(&work->failed, true);
+				break;
+			}
 			work->weights[bone] = (lvp__bone_weights){index, kept, worker->solved};
 			worker->solved += kept;
 		}
@@ -519,7 +555,7 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 	int32_t n = vertex_count, bones = rows->bone_count, stride = rows->stride;
 	int32_t entries = rows->neighbour_offsets[n];
 	size_t sources = (size_t)n * (size_t)stride + 1; /* a row's bones are its vertex's sources */
-	double *doubles = malloc(sizeof(double) * ((size_t)entries + 4 * (size_t)n + 1));
+	double *doubles = malloc(sizeof(double) * (2 * (size_t)entries + 4 * (size_t)n + 1));
 	int32_t *ints = malloc(sizeof(int32_t) * ((size_t)entries + 2 * (size_t)bones + 2 + sources));
 	float *source_shares = malloc(sizeof(float) * sources);
 	lvp__screened_work *work = calloc(1, sizeof(lvp__screened_work));
@@ -541,6 +577,7 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 	system.screen = system.diagonal + n;
 	system.rate = system.screen + n;
 	double *area = system.rate + n;
+	system.reach_cost = area + n;
 	int32_t *edge_count = ints; /* entries */
 	int32_t *source_offsets = edge_count + entries; /* bones + 1 */
 	int32_t *cursor = source_offsets + bones + 1;
@@ -550,6 +587,7 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 	lvp__finish_diagonal(&system, area, screening);
 	for (int32_t k = 0; k < n; ++k)
 		system.rate[k] = depths[k] > 0.0 ? 2.0 / depths[k] : INFINITY;
+	lvp__reach_costs(&system, positions);
 	/* Each bone's sources: the vertices whose rows name it, with their shares. */
 	memset(source_offsets, 0, sizeof(int32_t) * ((size_t)bones + 1));
 	for (int32_t k = 0; k < n; ++k)
@@ -567,7 +605,6 @@ bool lvp__diffusion_screened(lvp__diffusion *rows, const float *positions, const
 	/* The solves, on the pool's threads, each bone wherever; then the rows, bone after bone (the rows are free:
 	 * the sources were copied out). */
 	work->system = &system;
-	work->positions = positions;
 	work->source_offsets = source_offsets;
 	work->source_vertices = source_vertices;
 	work->source_shares = source_shares;

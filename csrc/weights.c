@@ -21,6 +21,7 @@
 #include "diffusion.h"
 #include "lvp_internal.h"
 
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 
@@ -127,6 +128,8 @@ typedef struct lvp__bone_segment {
 	double inverse_length2; /* 1 / |axis|^2, 0 for a zero-length bone */
 	double length2;
 	double floor2; /* squared distance floor, see LVP__DISTANCE_FLOOR */
+	lvp__vec3 middle; /* the ball around the bone: its middle and half its length */
+	double half_length;
 } lvp__bone_segment;
 
 static inline lvp__vec3 lvp__closest_on_bone(const lvp__bone_segment *bone, lvp__vec3 p)
@@ -488,6 +491,17 @@ static double lvp__distance_to_bone(double *r_straight, const lvp__weights_conte
 	return distance;
 }
 
+/* Vertex k's distance to bone i as bone heat measures it (lvp__heat_sources). */
+static double lvp__heat_distance(const lvp__weights_context *ctx, int32_t i, lvp__vec3 p, lvp__vec3 n, int32_t k)
+{
+	const lvp__bone_segment *bone = &ctx->bones[i];
+	lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
+	double d2 = lvp__dot(diff, diff), distance = sqrt(d2 > bone->floor2 ? d2 : bone->floor2);
+	if (ctx->facing_trust)
+		distance /= lvp__facing_share(n, ctx->facing_trust[k], diff, sqrt(d2));
+	return distance;
+}
+
 /* Vertex k's sources for bone heat (HEAT in lvp.h; screened_diffusion.c), as Blender finds them: its distance
  * to the nearest bone with a length (over the facing share with options.facing), and the bones within a
  * ten-thousandth of it that the visibility test lets it see, shared evenly, into r_bones / r_values (at most
@@ -499,20 +513,35 @@ static int32_t lvp__heat_sources(int32_t *r_bones, float *r_values, double *r_sc
 	lvp__vec3 p = lvp__load(ctx->positions + 3 * (int64_t)k);
 	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
 	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
-	double nearest = INFINITY;
+	/* A bone's distance is at least the distance to the ball around it (a facing share only lengthens it): a
+	 * bone whose ball lies beyond a ten-thousandth past the nearest distance measured so far can be neither
+	 * the nearest nor a source, and is not measured. The bone whose ball is nearest is measured first. */
 	lvp__candidate *distances = ctx->heap;
-	int32_t count = 0;
+	int32_t count = 0, first = -1;
 	for (int32_t i = 0; i < ctx->bone_count; ++i) {
 		const lvp__bone_segment *bone = &ctx->bones[i];
 		if (bone->length2 == 0.0)
 			continue;
-		lvp__vec3 diff = lvp__sub(lvp__closest_on_bone(bone, p), p);
-		double d2 = lvp__dot(diff, diff), distance = sqrt(d2 > bone->floor2 ? d2 : bone->floor2);
-		if (ctx->facing_trust)
-			distance /= lvp__facing_share(n, ctx->facing_trust[k], diff, sqrt(d2));
-		distances[count].key = distance;
+		double to_ball = lvp__length(lvp__sub(bone->middle, p)) - bone->half_length;
+		distances[count].key = to_ball;
 		distances[count++].bone = i;
-		nearest = distance < nearest ? distance : nearest;
+		if (first < 0 || to_ball < distances[first].key)
+			first = count - 1;
+	}
+	double nearest = INFINITY;
+	if (first >= 0) {
+		nearest = lvp__heat_distance(ctx, distances[first].bone, p, n, k);
+		distances[first].key = nearest;
+	}
+	for (int32_t j = 0; j < count; ++j) {
+		if (j == first)
+			continue;
+		if (distances[j].key > nearest * (1.0 + 2e-4)) {
+			distances[j].key = INFINITY; /* not a source, by the bound */
+			continue;
+		}
+		distances[j].key = lvp__heat_distance(ctx, distances[j].bone, p, n, k);
+		nearest = distances[j].key < nearest ? distances[j].key : nearest;
 	}
 	int32_t sources = 0;
 	for (int32_t j = 0; j < count && sources < room; ++j) {
@@ -580,6 +609,48 @@ static void lvp__heat_normals(float *r_normals, const float *outward, const floa
 	}
 }
 
+/* The sources of every vertex, on the pool's threads: each worker takes blocks of vertices until none is
+ * left, with its own scratch (each vertex's sources are its own, wherever they are found). */
+#define LVP__SOURCES_BLOCK 512
+typedef struct lvp__sources_work {
+	const lvp__weights_context *ctx;
+	lvp__diffusion *rows;
+	double *screening, *depths;
+	int32_t vertex_count;
+	atomic_int next_block;
+	atomic_bool failed;
+} lvp__sources_work;
+
+static void lvp__sources_task(void *context, int32_t begin, int32_t end)
+{
+	lvp__sources_work *work = context;
+	int32_t bones = work->ctx->bone_count, stride = work->rows->stride;
+	for (int32_t item = begin; item < end; ++item) {
+		lvp__weights_context mine = *work->ctx;
+		mine.heap = malloc(sizeof(lvp__candidate) * ((size_t)bones + 1));
+		mine.blockers = malloc(sizeof(int32_t) * ((size_t)bones + 1));
+		if (!mine.heap || !mine.blockers) {
+			atomic_store(&work->failed, true);
+		} else {
+			for (int32_t i = 0; i < bones; ++i)
+				mine.blockers[i] = -1;
+			for (;;) {
+				int32_t first = atomic_fetch_add(&work->next_block, 1) * LVP__SOURCES_BLOCK;
+				if (first >= work->vertex_count)
+					break;
+				int32_t last = work->vertex_count - first < LVP__SOURCES_BLOCK ? work->vertex_count
+				                                                               : first + LVP__SOURCES_BLOCK;
+				for (int32_t k = first; k < last; ++k)
+					work->rows->counts[k] = lvp__heat_sources(
+					    work->rows->bones + (int64_t)k * stride, work->rows->values + (int64_t)k * stride,
+					    &work->screening[k], &work->depths[k], &mine, k, stride);
+			}
+		}
+		free(mine.heap);
+		free(mine.blockers);
+	}
+}
+
 /* The rows of bone heat (HEAT in lvp.h): each vertex's sources, the screened diffusion, heat weights' cut;
  * a vertex that no bone's heat reaches (no source on its piece of skin) takes its row by 5.1, the rigid
  * fallback when it sees no bone. Returns false when memory runs out. */
@@ -600,11 +671,19 @@ static bool lvp__heat_weights(lvp__diffusion *rows, const lvp__weights_context *
 		lvp__heat_normals(normals, ctx->normals, ctx->positions, vertex_count, triangles, triangle_count);
 		heat.normals = normals;
 	}
-	int32_t stride = rows->stride;
-	for (int32_t k = 0; k < vertex_count; ++k)
-		rows->counts[k] = lvp__heat_sources(rows->bones + (int64_t)k * stride, rows->values + (int64_t)k * stride,
-		                                    &screening[k], &depths[k], &heat, k, stride);
-	bool ok = lvp__diffusion_screened(rows, ctx->positions, triangles, vertex_count, triangle_count, screening,
+	int32_t stride = rows->stride, workers = thread_count < 1 ? 1 : thread_count;
+	lvp__pool *pool = NULL;
+	lvp__sources_work work = {.ctx = &heat, .rows = rows, .screening = screening, .depths = depths,
+	                          .vertex_count = vertex_count};
+	atomic_init(&work.next_block, 0);
+	atomic_init(&work.failed, false);
+	bool ok = lvp__pool_create(&pool, workers) == lvp_success;
+	if (ok) {
+		lvp__parallel_for(pool, lvp__sources_task, &work, workers, 1);
+		lvp__pool_destroy(pool);
+		ok = !atomic_load(&work.failed);
+	}
+	ok = ok && lvp__diffusion_screened(rows, ctx->positions, triangles, vertex_count, triangle_count, screening,
 	                                  depths, thread_count);
 	free(screening);
 	free(normals);
@@ -765,6 +844,8 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 		bone->length2 = lvp__dot(bone->axis, bone->axis);
 		bone->inverse_length2 = bone->length2 > 0.0 ? 1.0 / bone->length2 : 0.0;
 		bone->floor2 = LVP__DISTANCE_FLOOR * LVP__DISTANCE_FLOOR * bone->length2;
+		bone->middle = lvp__add(bone->head, lvp__scale(bone->axis, 0.5));
+		bone->half_length = 0.5 * sqrt(bone->length2);
 	}
 
 	lvp__bvh bvh = {0};

@@ -126,16 +126,18 @@ class LoadError(unittest.TestCase):
 class Result(unittest.TextTestResult):
     results_file = None
 
-    def module_seconds(self):
-        """Seconds spent per test module, set-up included: where the run's time budget goes."""
-        return getattr(self, "_module_seconds", {})
+    def seconds(self, by):
+        """Seconds spent per test module (by="module") or per test (by="test"), set-up included: where the
+        run's time budget goes."""
+        return self.__dict__.get("_seconds_by_" + by, {})
 
     def _charge_module(self, test):
         # Everything since the last test ended (a class's or a module's set-up) goes to the test that starts.
         now = time.monotonic()
-        module = type(test).__module__
-        seconds = self.__dict__.setdefault("_module_seconds", {})
-        seconds[module] = seconds.get(module, 0.0) + now - getattr(self, "_last_mark", now)
+        spent = now - getattr(self, "_last_mark", now)
+        for by, key in (("module", type(test).__module__), ("test", rerun_name(test))):
+            seconds = self.__dict__.setdefault("_seconds_by_" + by, {})
+            seconds[key] = seconds.get(key, 0.0) + spent
         self._last_mark = now
 
     def startTest(self, test):
@@ -239,9 +241,10 @@ def main():
     Result._last_mark = start
     result = runner.run(suite)
     elapsed = time.monotonic() - start
-    slowest = sorted(result.module_seconds().items(), key=lambda item: -item[1])[:12]
-    if slowest and not args.list:
-        print("[runner] slowest modules: " + ", ".join("%s %.0f s" % item for item in slowest))
+    for by, count in (("module", 12), ("test", 12)):
+        slowest = sorted(result.seconds(by).items(), key=lambda item: -item[1])[:count]
+        if slowest and not args.list:
+            print("[runner] slowest %ss: %s" % (by, ", ".join("%s %.0f s" % item for item in slowest)))
 
     if os.environ.get("LVP_KEEP_TMP") == "1":
         print("[runner] kept %s" % tmp)

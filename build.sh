@@ -109,15 +109,44 @@ cmd_build() {
 
 # ---- tests --------------------------------------------------------------------------------
 
+# sanitized_archive COMPILER: the core and the tests' support code compiled once with the C tests' flags
+# (sanitized, warnings as errors), the files side by side on every core, into
+# $BUILD/tests/liblvp-COMPILER.a; compiled again only when a source, a header or this file changed.
+sanitized_archive() {
+	local compiler="$1"
+	local archive="$BUILD/tests/liblvp-$compiler.a" objects="$BUILD/tests/objects-$compiler"
+	if [ -f "$archive" ] &&
+		[ -z "$(find "$ROOT/csrc" "$ROOT/tests/c/support" "$ROOT/build.sh" -newer "$archive" -print -quit)" ]; then
+		return 0
+	fi
+	rm -rf "$objects" "$archive"
+	mkdir -p "$objects"
+	local src kind pid pids=() failed=0 jobs
+	jobs="$(nproc)"
+	for src in $(core_sources) $(support_sources); do
+		case "$src" in "$ROOT/csrc/"*) kind=core ;; *) kind=support ;; esac
+		"$compiler" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
+			-c "$src" -o "$objects/$kind-$(basename "${src%.c}").o" &
+		pids+=($!)
+		if [ ${#pids[@]} -ge "$jobs" ]; then
+			wait "${pids[0]}" || failed=1
+			pids=("${pids[@]:1}")
+		fi
+	done
+	for pid in "${pids[@]}"; do wait "$pid" || failed=1; done
+	[ "$failed" = 0 ] && ar rcs "$archive" "$objects"/*.o
+}
+
 # build_c_test COMPILER NAME OUT: tests/c/NAME.c with the core, sanitized, warnings as errors,
 # into $BUILD/tests/OUT. Its callers test its status: they run inside `||`, where set -e does not
 # stop at a failed compile, and the binary of the last build would run instead.
 build_c_test() {
 	local compiler="$1" name="$2" out="$3"
 	mkdir -p "$BUILD/tests"
-	# shellcheck disable=SC2046
+	rm -f "$BUILD/tests/$out"
+	sanitized_archive "$compiler" || return 1
 	"$compiler" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-		$(core_sources) $(support_sources) "$ROOT/tests/c/$name.c" -o "$BUILD/tests/$out" -lm -lgmp
+		"$ROOT/tests/c/$name.c" "$BUILD/tests/liblvp-$compiler.a" -o "$BUILD/tests/$out" -lm -lgmp
 }
 
 run_c_tests() {

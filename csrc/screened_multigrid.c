@@ -169,8 +169,8 @@ static bool lvp__level_vectors(lvp__multigrid_level *level, bool finest)
 	level->inverse = malloc(sizeof(double) * n);
 	if (!level->t || !level->inverse)
 		return false;
-	for (int32_t i = 0; i < level->n; ++i)
-		level->inverse[i] = 1.0 / level->diagonal[i];
+	for (int32_t i = 0; i < level->n; ++i) /* a vertex tied to nothing (degenerate skin) is left at zero */
+		level->inverse[i] = level->diagonal[i] > 0.0 ? 1.0 / level->diagonal[i] : 0.0;
 	if (finest)
 		return true;
 	level->x = malloc(sizeof(double) * n);

@@ -16,9 +16,9 @@
  * cotangents over the number of triangles on it; the factor 1/4 above), so the blend is as wide as heat
  * weights'. Multiplied by each vertex's area the system is symmetric and positive definite (the stiffness
  * of linear elements plus the screening), which conjugate gradients solve, preconditioned by aggregation
- * multigrid (screened_multigrid.c). The obtuse angles' negative
- * cotangents count as they are: taken as zero, the voxel-remeshed hands (right angles across every quad's
- * diagonal) blended wider than heat weights and folded through themselves at the fist a quarter more.
+ * multigrid (screened_multigrid.c). The obtuse angles' negative cotangents count as they are: taken as
+ * zero, the voxel-remeshed hands (right angles across every quad's diagonal) blended wider than heat
+ * weights and folded through themselves at the fist a quarter more.
  *
  * Where the skin lies closer to its bone than its edges are long (a coarse hand's palm, a finger of a few
  * rings), heat weights screen each vertex so hard that it keeps its own bone's weight whatever its

@@ -514,8 +514,9 @@ static int32_t lvp__heat_sources(int32_t *r_bones, float *r_values, double *r_sc
 	lvp__vec3 n = ctx->normals ? lvp__load(ctx->normals + 3 * (int64_t)k) : lvp__v(0.0, 0.0, 0.0);
 	bool normal_test = ctx->visibility == LVP_VISIBILITY_NORMAL && (n.x != 0.0 || n.y != 0.0 || n.z != 0.0);
 	/* A bone's distance is at least the distance to the ball around it (a facing share only lengthens it): a
-	 * bone whose ball lies beyond a ten-thousandth past the nearest distance measured so far can be neither
-	 * the nearest nor a source, and is not measured. The bone whose ball is nearest is measured first. */
+	 * bone whose ball lies farther than the nearest distance measured so far, by more than the sources'
+	 * ten-thousandth (twice that, against rounding), can be neither the nearest nor a source, and is not
+	 * measured. The bone whose ball is nearest is measured first. */
 	lvp__candidate *distances = ctx->heap;
 	int32_t count = 0, first = -1;
 	for (int32_t i = 0; i < ctx->bone_count; ++i) {

@@ -114,19 +114,19 @@ cmd_build() {
 # $BUILD/tests/liblvp-COMPILER.a; compiled again only when a source, a header or this file changed.
 sanitized_archive() {
 	local compiler="$1"
-	local archive="$BUILD/tests/liblvp-$compiler.a" objects="$BUILD/tests/objects-$compiler"
+	local archive="$BUILD/tests/liblvp-$compiler.a" object_dir="$BUILD/tests/objects-$compiler"
 	if [ -f "$archive" ] &&
 		[ -z "$(find "$ROOT/csrc" "$ROOT/tests/c/support" "$ROOT/build.sh" -newer "$archive" -print -quit)" ]; then
 		return 0
 	fi
-	rm -rf "$objects" "$archive"
-	mkdir -p "$objects"
+	rm -rf "$object_dir" "$archive"
+	mkdir -p "$object_dir"
 	local src kind pid pids=() failed=0 jobs
 	jobs="$(nproc)"
 	for src in $(core_sources) $(support_sources); do
 		case "$src" in "$ROOT/csrc/"*) kind=core ;; *) kind=support ;; esac
 		"$compiler" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-			-c "$src" -o "$objects/$kind-$(basename "${src%.c}").o" &
+			-c "$src" -o "$object_dir/$kind-$(basename "${src%.c}").o" &
 		pids+=($!)
 		if [ ${#pids[@]} -ge "$jobs" ]; then
 			wait "${pids[0]}" || failed=1
@@ -134,7 +134,7 @@ sanitized_archive() {
 		fi
 	done
 	for pid in "${pids[@]}"; do wait "$pid" || failed=1; done
-	[ "$failed" = 0 ] && ar rcs "$archive" "$objects"/*.o
+	[ "$failed" = 0 ] && ar rcs "$archive" "$object_dir"/*.o
 }
 
 # build_c_test COMPILER NAME OUT: tests/c/NAME.c with the core, sanitized, warnings as errors,

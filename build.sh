@@ -109,12 +109,17 @@ cmd_build() {
 
 # ---- tests --------------------------------------------------------------------------------
 
+sanitized_archive_path() { printf '%s\n' "$BUILD/tests/liblvp-$(basename "$1").a"; }
+
 # sanitized_archive COMPILER: the core and the tests' support code compiled once with the C tests' flags
 # (sanitized, warnings as errors), the files side by side on every core, into
-# $BUILD/tests/liblvp-COMPILER.a; compiled again only when a source, a header or this file changed.
+# $BUILD/tests/liblvp-NAME.a (NAME the compiler's file name); compiled again only when a source, a header
+# or this file changed.
 sanitized_archive() {
 	local compiler="$1"
-	local archive="$BUILD/tests/liblvp-$compiler.a" object_dir="$BUILD/tests/objects-$compiler"
+	local archive object_dir
+	archive="$(sanitized_archive_path "$compiler")"
+	object_dir="$BUILD/tests/objects-$(basename "$compiler")"
 	if [ -f "$archive" ] &&
 		[ -z "$(find "$ROOT/csrc" "$ROOT/tests/c/support" "$ROOT/build.sh" -newer "$archive" -print -quit)" ]; then
 		return 0
@@ -146,7 +151,7 @@ build_c_test() {
 	rm -f "$BUILD/tests/$out"
 	sanitized_archive "$compiler" || return 1
 	"$compiler" "${CFLAGS_COMMON[@]}" "${CFLAGS_SANITIZE[@]}" -Werror -pthread -I"$ROOT/csrc" -I"$ROOT/tests/c" \
-		"$ROOT/tests/c/$name.c" "$BUILD/tests/liblvp-$compiler.a" -o "$BUILD/tests/$out" -lm -lgmp
+		"$ROOT/tests/c/$name.c" "$(sanitized_archive_path "$compiler")" -o "$BUILD/tests/$out" -lm -lgmp
 }
 
 run_c_tests() {

@@ -50,10 +50,10 @@ void lvp__multigrid_free(lvp__multigrid *grid)
 	memset(grid, 0, sizeof(*grid));
 }
 
-/* Each vertex's aggregate at the next level, into level->aggregate; returns how many aggregates (or -1
- * when memory runs out). First, in order, each vertex whose neighbours are all free starts an aggregate
- * with them; then each vertex left joins the first-formed aggregate among those its most strongly coupled
- * formed neighbours belong to; a vertex with no such neighbour starts its own. */
+/* Each vertex's aggregate at the next level, into level->aggregate; returns how many aggregates. First, in
+ * order, each vertex whose neighbours are all free starts an aggregate with them; then each vertex left
+ * joins the first-pass aggregate of its most strongly coupled neighbour in one (the first such neighbour on
+ * a tie); a vertex with no such neighbour starts its own. */
 static int32_t lvp__aggregate(lvp__multigrid_level *level)
 {
 	int32_t n = level->n, count = 0;
@@ -253,16 +253,28 @@ failed:
 	return false;
 }
 
+/* `start` plus vertex i's couplings times its neighbours' x, added in order. */
+static inline double lvp__add_coupled(const lvp__multigrid_level *level, const double *x, int32_t i, double start)
+{
+	double sum = start;
+	for (int32_t e = level->offsets[i]; e < level->offsets[i + 1]; ++e)
+		sum += level->coupling[e] * x[level->columns[e]];
+	return sum;
+}
+
+/* Vertex i's residual b - A x on the level. */
+static inline double lvp__residual(const lvp__multigrid_level *level, const double *b, const double *x, int32_t i)
+{
+	return lvp__add_coupled(level, x, i, b[i] - level->diagonal[i] * x[i]);
+}
+
 /* Gauss-Seidel over the level, x updated in place against b: forward (first to last) or backward. */
 static void lvp__sweep(const lvp__multigrid_level *level, const double *b, double *x, bool forward)
 {
 	int32_t n = level->n;
 	for (int32_t s = 0; s < n; ++s) {
 		int32_t i = forward ? s : n - 1 - s;
-		double sum = b[i];
-		for (int32_t e = level->offsets[i]; e < level->offsets[i + 1]; ++e)
-			sum += level->coupling[e] * x[level->columns[e]];
-		x[i] = sum * level->inverse[i];
+		x[i] = lvp__add_coupled(level, x, i, b[i]) * level->inverse[i];
 	}
 }
 
@@ -308,19 +320,11 @@ static void lvp__cycle(lvp__multigrid *grid, int32_t l, const double *b, double 
 	memset(x, 0, sizeof(double) * (size_t)level->n);
 	lvp__sweep(level, b, x, true);
 	memset(coarse->b, 0, sizeof(double) * (size_t)coarse->n);
-	for (int32_t i = 0; i < level->n; ++i) {
-		double residual = b[i] - level->diagonal[i] * x[i];
-		for (int32_t e = level->offsets[i]; e < level->offsets[i + 1]; ++e)
-			residual += level->coupling[e] * x[level->columns[e]];
-		coarse->b[level->aggregate[i]] += residual;
-	}
+	for (int32_t i = 0; i < level->n; ++i)
+		coarse->b[level->aggregate[i]] += lvp__residual(level, b, x, i);
 	lvp__cycle(grid, l + 1, coarse->b, coarse->x);
-	for (int32_t i = 0; i < coarse->n; ++i) {
-		double residual = coarse->b[i] - coarse->diagonal[i] * coarse->x[i];
-		for (int32_t e = coarse->offsets[i]; e < coarse->offsets[i + 1]; ++e)
-			residual += coarse->coupling[e] * coarse->x[coarse->columns[e]];
-		coarse->r[i] = residual;
-	}
+	for (int32_t i = 0; i < coarse->n; ++i)
+		coarse->r[i] = lvp__residual(coarse, coarse->b, coarse->x, i);
 	lvp__cycle(grid, l + 1, coarse->r, coarse->y);
 	for (int32_t i = 0; i < level->n; ++i)
 		x[i] += coarse->x[level->aggregate[i]] + coarse->y[level->aggregate[i]];

@@ -131,7 +131,7 @@ class Result(unittest.TextTestResult):
         run's time budget goes."""
         return self.__dict__.get("_seconds_by_" + by, {})
 
-    def _charge_module(self, test):
+    def _charge_time(self, test):
         # Everything since the last test ended (a class's or a module's set-up) goes to the test that starts.
         now = time.monotonic()
         spent = now - getattr(self, "_last_mark", now)
@@ -141,7 +141,7 @@ class Result(unittest.TextTestResult):
         self._last_mark = now
 
     def startTest(self, test):
-        self._charge_module(test)
+        self._charge_time(test)
         lvp_helpers = sys.modules.get("lvp_helpers")
         if lvp_helpers is not None:
             del lvp_helpers.VOLUME_DISAGREEMENTS[:]
@@ -165,7 +165,7 @@ class Result(unittest.TextTestResult):
         self.passed = getattr(self, "passed", 0) + 1
 
     def stopTest(self, test):
-        self._charge_module(test)
+        self._charge_time(test)
         super().stopTest(test)
         self.stream.flush()
         sys.stdout.flush()

@@ -312,10 +312,11 @@ bone) and write them into the deforming bones' vertex groups, replacing their we
         name="Visibility Test",
         description="How a bone hidden from a vertex (behind the surface) is detected",
         items=(
-            ('NORMAL', "Normal", "The paper's fast test: the angle between the path to the bone and the normal"),
-            ('EXACT', "Exact", "The path to the bone is tested against the mesh (slower, exact)"),
+            ('EXACT', "Exact", "The path to the bone is tested against the mesh, as heat weights test it"),
+            ('NORMAL', "Normal", "The paper's fast test: the angle between the path to the bone and the normal "
+             "(the normal then counts toward Facing Distance only as far as the triangles around agree with it)"),
         ),
-        default='NORMAL',
+        default='EXACT',
     )
     alpha: FloatProperty(
         name="Falloff",

@@ -518,7 +518,9 @@ typedef struct lvp_auto_weights_options {
 	                           1 - t (1 - (1.001 + cos) / 2), t the least cosine (at least 0) between
 	                           the vertex normal and its triangles' normals, 0 at a vertex on an edge
 	                           that is not two triangles' (a fin, an open border, whose skin faces no
-	                           side). Default 0 (the paper's distance) */
+	                           side). With LVP_VISIBILITY_EXACT t = 1 everywhere, as heat weights count it:
+	                           that test sees the paths from such skin to a bone it does not cover leave
+	                           the body. Default 0 (the paper's distance) */
 	lvp_visibility visibility;
 	float normal_cos_max;   /* NORMAL test: bone i is hidden from vertex k when the unit path
 	                           from k to its closest point on bone i has cos(path, outward

@@ -854,9 +854,14 @@ lvp_result lvp_auto_weights(int32_t *r_offsets, int32_t *r_bones, float *r_value
 		double volume = 0.0;
 		lvp_vertex_normals(normals, positions, vertex_count, triangles, triangle_count, NULL);
 		lvp_mesh_volume(&volume, positions, vertex_count, triangles, triangle_count, NULL);
-		/* Judged while the vertex normals are wound as the triangles' are. */
-		if (facing_trust &&
-		    !lvp__facing_trust(facing_trust, positions, normals, vertex_count, triangles, triangle_count)) {
+		/* Judged while the vertex normals are wound as the triangles' are. The exact test sees what the trust
+		 * stands in for (the paths from a fin or a rim to the bone it does not cover leave the body): with it
+		 * the normal counts wholly, as heat weights count it. */
+		if (facing_trust && options->visibility == LVP_VISIBILITY_EXACT) {
+			for (size_t k = 0; k < n; ++k)
+				facing_trust[k] = 1.0f;
+		} else if (facing_trust &&
+		           !lvp__facing_trust(facing_trust, positions, normals, vertex_count, triangles, triangle_count)) {
 			free(memory);
 			return lvp__fail(r_diag, lvp_error_out_of_memory, "positions", -1,
 			                 "could not allocate the edges of %d triangles to judge which way the skin faces; "

@@ -79,7 +79,7 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 #define ADDON_BLEND_WIDTH 0.9
 
 /* How the weights are made: the core's defaults (the paper's weights), or what the add-on's Auto Weights asks
- * with Method: Distance (falloff 16 by distance alone, not by the bones' lengths, measured along the skin's
+ * (with its Visibility Test: Exact) with Method: Distance (falloff 16 by distance alone, not by the bones' lengths, measured along the skin's
  * normal, 4 influences of at least 1 %, smoothed over ADDON_BLEND_WIDTH times the flesh's thickness: lvp.h,
  * SMOOTHING BY THICKNESS) or with its default Method: Bone Heat (lvp.h, HEAT). */
 typedef enum { PAPER, DISTANCE, HEAT } weights_method;
@@ -132,8 +132,8 @@ static void run_case(bench_case *c, int32_t cores)
 	double one = frame_time(c, 1, skinned, posed, &stats, &bind1);
 	double all = frame_time(c, cores, skinned, posed, &stats, &bind_all);
 	double normal = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, PAPER);
-	double heat = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, HEAT);
-	double smoothed = auto_weights_time(rig, LVP_VISIBILITY_NORMAL, DISTANCE);
+	double heat = auto_weights_time(rig, LVP_VISIBILITY_EXACT, HEAT); /* the add-on's defaults */
+	double smoothed = auto_weights_time(rig, LVP_VISIBILITY_EXACT, DISTANCE);
 	double exact = n <= 200000 ? auto_weights_time(rig, LVP_VISIBILITY_EXACT, PAPER) : NAN;
 	double before = 100.0 * (stats.volume_before - stats.volume_rest) / stats.volume_rest;
 	double after = 100.0 * (stats.volume_after - stats.volume_rest) / stats.volume_rest;

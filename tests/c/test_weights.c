@@ -1057,6 +1057,50 @@ static void test_facing_distance_gives_skin_to_the_bone_beneath(void)
 	free(b);
 }
 
+/* Facing Distance on a coarse tube (six sides: each vertex normal 30 degrees from its faces' normals), a bone on
+ * its axis and one off to the side: with no visibility test the normal counts as far as the triangles around
+ * agree with it (cos 30 degrees), with the exact test wholly, as heat weights count it. The weights of the ring
+ * in the middle against the formula of lvp.h (options.facing), for both. */
+static void test_facing_counts_wholly_with_the_exact_test(void)
+{
+	builder *b = malloc(sizeof(builder));
+	memset(b, 0, sizeof(*b));
+	double centres[21][3];
+	for (int i = 0; i < 21; ++i)
+		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
+	int32_t first = add_tube(b, (const double(*)[3])centres, 21, 0.3, 6, y_axis);
+	add_bone(b, 0, 0, 0, 0, 0, 2);
+	add_bone(b, 0.2, 0, 0.5, 0.2, 0, 1.5);
+	const double closest[2][3] = {{0.0, 0.0, 1.0}, {0.2, 0.0, 1.0}};
+	const lvp_visibility tests[2] = {LVP_VISIBILITY_NONE, LVP_VISIBILITY_EXACT};
+	const double trusts[2] = {cos(PI / 6.0), 1.0};
+	float side_weight[2] = {0.0f, 0.0f};
+	for (int m = 0; m < 2; ++m) {
+		lvp_auto_weights_options o = options_with(tests[m]);
+		o.alpha = 16.0f, o.by_length = 0, o.facing = 1, o.max_influences = 0, o.min_weight = 1e-6f;
+		result r = compute(b, &o);
+		check_rows(b, &r, &o);
+		for (int a = 0; a < 6; ++a) {
+			int32_t v = first + 10 * 6 + a;
+			const float *p = b->positions + 3 * v;
+			double radial = hypot(p[0], p[1]), n[3] = {p[0] / radial, p[1] / radial, 0.0}, weight[2];
+			for (int i = 0; i < 2; ++i) {
+				double toward[3] = {closest[i][0] - p[0], closest[i][1] - p[1], closest[i][2] - p[2]};
+				double distance = sqrt(toward[0] * toward[0] + toward[1] * toward[1] + toward[2] * toward[2]);
+				double share = 0.5 * (1.001 - (toward[0] * n[0] + toward[1] * n[1] + toward[2] * n[2]) / distance);
+				weight[i] = pow((1.0 - trusts[m] * (1.0 - share)) / distance, 16.0);
+			}
+			CHECK_NEAR(weight_of(&r, v, 1), weight[1] / (weight[0] + weight[1]), 2e-3);
+		}
+		side_weight[m] = weight_of(&r, first + 10 * 6 + 1, 1); /* 60 degrees round from the side bone */
+		result_free(&r);
+	}
+	printf("  facing, the vertex 60 degrees from the side bone: its weight %.3f with no test, %.3f exact\n",
+	       (double)side_weight[0], (double)side_weight[1]);
+	CHECK(side_weight[0] > 0.5f && side_weight[1] < 0.5f); /* the trust decides which bone the vertex is */
+	free(b);
+}
+
 /* ---- sizes --------------------------------------------------------------------------------------- */
 
 static void test_bound(void)
@@ -1253,6 +1297,7 @@ int main(void)
 	RUN(test_a_sliver_s_ends_share_one_row);
 	RUN(test_heat_blends_by_the_skin_s_depth);
 	RUN(test_facing_distance_gives_skin_to_the_bone_beneath);
+	RUN(test_facing_counts_wholly_with_the_exact_test);
 	RUN(test_bound);
 	RUN(test_capacity_too_small_is_an_error);
 	RUN(test_error_paths_name_the_argument);

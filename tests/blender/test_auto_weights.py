@@ -5,8 +5,8 @@ on the same mesh.
 
 What must hold with the operator's defaults (Method: Bone Heat, lvp.h HEAT), at the hard pose, crouching and
 with the legs spread (real_cases.pose_rigify_human, pose_rigify_human_legs), on the voxel body and as far as
-each class says on the bodies grown from metaballs and by the Skin modifier, decimated, of a female build (at
-two voxel sizes) and a heavy one with no gap between the legs (issue 43):
+each class says on the bodies grown from metaballs and by the Skin modifier, decimated, at other voxel sizes, of a
+female build and a heavy one with no gap between the legs (issue 43):
 
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
@@ -318,6 +318,33 @@ class TestFinerFemaleHuman(TestRigifyHuman):
     the legs spread (51 pairs against 42) and each thigh's skin through itself in 8 pairs where heat weights'
     crossed in 2."""
     body_arguments = {"build": "female", "voxel_size": real_cases.BODY_VOXEL * 0.95}
+
+
+class TestCoarserFemaleHuman(TestRigifyHuman):
+    """The female body remeshed coarser (1.1 times the voxel, 3,794 vertices): 193 / 260 / 29 crossing pairs (heat
+    weights 197 / 252 / 32, moved by up to half a millimetre 196 / 252 / 30). Not met (issue 43): crouching, the
+    left thigh's own skin (the thigh on the belly) crosses in 7 pairs where heat weights' crosses in 4 (rows
+    within 0.01-0.03 of heat weights' there, less the fifth bone Max Influences 4 leaves out: the pairs that cross
+    there change by dozens, 45 new and 37 gone, between the two)."""
+    body_arguments = {"build": "female", "voxel_size": real_cases.BODY_VOXEL * 1.1}
+    thigh_poses = ("hard", "spread")
+
+
+class TestCoarserHuman(TestRigifyHuman):
+    """The voxel body remeshed coarser and finer (1.1 and 0.9 times the voxel, 3,766 and 5,650 vertices)."""
+    body_arguments = {"voxel_size": real_cases.BODY_VOXEL * 1.1}
+
+
+class TestFinerHuman(TestCoarserHuman):
+    body_arguments = {"voxel_size": real_cases.BODY_VOXEL * 0.9}
+
+
+class TestDecimatedFemaleHuman(TestRigifyHuman):
+    """The female body decimated to 0.3 of its faces: 109 / 178 / 11 crossing pairs (heat weights 107 / 180 / 12).
+    Not met (issue 43): crouching, the right thigh's own skin crosses in 6 pairs where heat weights' crosses in
+    5."""
+    body_arguments = {"build": "female", "decimated": 0.3}
+    thigh_poses = ("hard", "spread")
 
 
 class TestNoGapHuman(TestRigifyHuman):

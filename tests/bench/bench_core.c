@@ -79,9 +79,9 @@ static double frame_time(const bench_case *c, int32_t threads, float *const skin
 #define ADDON_BLEND_WIDTH 0.9
 
 /* How the weights are made: the core's defaults (the paper's weights), or what the add-on's Auto Weights asks
- * (with its Visibility Test: Exact) with Method: Distance (falloff 16 by distance alone, not by the bones' lengths, measured along the skin's
- * normal, 4 influences of at least 1 %, smoothed over ADDON_BLEND_WIDTH times the flesh's thickness: lvp.h,
- * SMOOTHING BY THICKNESS) or with its default Method: Bone Heat (lvp.h, HEAT). */
+ * with its Visibility Test, Exact, and Method: Distance (falloff 16 by distance alone, not by the bones'
+ * lengths, measured along the skin's normal, 4 influences of at least 1 %, smoothed over ADDON_BLEND_WIDTH
+ * times the flesh's thickness: lvp.h, SMOOTHING BY THICKNESS) or its default Method: Bone Heat (lvp.h, HEAT). */
 typedef enum { PAPER, DISTANCE, HEAT } weights_method;
 
 static double auto_weights_time(const test_rig *rig, lvp_visibility visibility, weights_method method)

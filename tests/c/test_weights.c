@@ -1017,6 +1017,21 @@ static void test_a_sliver_s_ends_share_one_row(void)
 
 /* ---- the distance along the skin's normal -------------------------------------------------------- */
 
+/* A closed tube of radius 0.3 and `around` sides along z in [0, 2] (21 rings 0.1 apart) into b (emptied
+ * first), bone 0 on its axis and bone 1 inside it near the +x side, x = 0.2 from z = 0.5 to 1.5. Returns the
+ * tube's first vertex. */
+static int32_t make_tube_with_side_bone(builder *b, int around)
+{
+	memset(b, 0, sizeof(*b));
+	double centres[21][3];
+	for (int i = 0; i < 21; ++i)
+		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
+	int32_t first = add_tube(b, (const double(*)[3])centres, 21, 0.3, around, y_axis);
+	add_bone(b, 0, 0, 0, 0, 0, 2);
+	add_bone(b, 0.2, 0, 0.5, 0.2, 0, 1.5);
+	return first;
+}
+
 /* options.facing: a tube around bone 0 on its axis, bone 1 inside it near the +x side (a hip's bone
  * close under the skin above a thigh's, deeper). By the straight distance, bone 1 takes the skin out to
  * 70.5 degrees either side of +x; measured along the normal, only the skin that faces away from it
@@ -1025,13 +1040,7 @@ static void test_a_sliver_s_ends_share_one_row(void)
 static void test_facing_distance_gives_skin_to_the_bone_beneath(void)
 {
 	builder *b = malloc(sizeof(builder));
-	memset(b, 0, sizeof(*b));
-	double centres[21][3];
-	for (int i = 0; i < 21; ++i)
-		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
-	add_tube(b, (const double(*)[3])centres, 21, 0.3, 16, y_axis);
-	add_bone(b, 0, 0, 0, 0, 0, 2);
-	add_bone(b, 0.2, 0, 0.5, 0.2, 0, 1.5);
+	make_tube_with_side_bone(b, 16);
 	lvp_auto_weights_options o = options_with(LVP_VISIBILITY_NORMAL);
 	o.alpha = 16.0f;
 	o.by_length = 0;
@@ -1064,13 +1073,7 @@ static void test_facing_distance_gives_skin_to_the_bone_beneath(void)
 static void test_facing_counts_wholly_with_the_exact_test(void)
 {
 	builder *b = malloc(sizeof(builder));
-	memset(b, 0, sizeof(*b));
-	double centres[21][3];
-	for (int i = 0; i < 21; ++i)
-		centres[i][0] = 0.0, centres[i][1] = 0.0, centres[i][2] = 0.1 * i;
-	int32_t first = add_tube(b, (const double(*)[3])centres, 21, 0.3, 6, y_axis);
-	add_bone(b, 0, 0, 0, 0, 0, 2);
-	add_bone(b, 0.2, 0, 0.5, 0.2, 0, 1.5);
+	int32_t first = make_tube_with_side_bone(b, 6);
 	const double closest[2][3] = {{0.0, 0.0, 1.0}, {0.2, 0.0, 1.0}};
 	const lvp_visibility tests[2] = {LVP_VISIBILITY_NONE, LVP_VISIBILITY_EXACT};
 	const double trusts[2] = {cos(PI / 6.0), 1.0};

@@ -45,6 +45,7 @@ typedef struct lvp__clearance_pass {
 	float *to;              /* and writes */
 	const uint8_t *kept;    /* per vertex, or NULL: shares a smoothing pass neither reads nor changes */
 	bool keep_floors;       /* averaging lowers shares, never raises one */
+	const int32_t *near;    /* the vertices a smoothing pass walks (lvp__near_low_shares) */
 } lvp__clearance_pass;
 
 /* The offset of dynamic vertex k: where the steps put it, less where the skinning did. */
@@ -509,6 +510,25 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	free(size);
 	free(group_of);
 	free(vertex_group);
+	/* The smoothing's neighbour lists turned round: for each vertex, the vertices whose passes read it. */
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	int32_t entries = smoothing->offsets[n];
+	contact->reader_offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
+	contact->readers = lvp__calloc((size_t)entries + 1, sizeof(int32_t), &ok);
+	contact->near = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
+	contact->near_ring = lvp__calloc((size_t)n, 1, &ok);
+	if (!ok)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+		                 "could not allocate the clearance search of %d vertices.", (int)n);
+	for (int32_t e = 0; e < entries; ++e)
+		++contact->reader_offsets[smoothing->neighbours[e] + 1];
+	for (int32_t k = 0; k < n; ++k)
+		contact->reader_offsets[k + 1] += contact->reader_offsets[k];
+	int32_t *cursor = contact->near; /* reused: the next free slot of each vertex's readers */
+	memcpy(cursor, contact->reader_offsets, sizeof(int32_t) * (size_t)n);
+	for (int32_t k = 0; k < n; ++k)
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+			contact->readers[cursor[smoothing->neighbours[e]]++] = k;
 	return lvp_success;
 }
 
@@ -516,7 +536,7 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
 {
 	lvp__contact *contact = &binding->contact;
 	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)binding->dynamic.vertex_count * LVP__SEARCH_WORK);
-	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false, NULL};
 	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
 	if (!again) /* a new frame: nothing searched yet */
 		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
@@ -567,7 +587,7 @@ static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic.vertices[v];
+		int32_t k = pass->near[v];
 		bool kept = pass->kept && pass->kept[k];
 		float least = pass->from[k];
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
@@ -590,7 +610,7 @@ static void lvp__average_range(void *context, int32_t begin, int32_t end)
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
-		int32_t k = binding->dynamic.vertices[v];
+		int32_t k = pass->near[v];
 		double sum = 0.0, count = 0.0;
 		if (!(pass->kept && pass->kept[k])) {
 			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
@@ -628,11 +648,47 @@ static void lvp__apply_range(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* Into contact.near (returning their number), the dynamic vertices within as many rings of a share below
+ * 1 as the smoothing has passes, those first: a pass changes a share only where a share it reads differs
+ * from 1 (a slope from 1s, and a weighted mean of 1s summed in one order, are 1 exactly), so the shares of
+ * the others stay 1. The rings are walked backwards through the neighbour lists (contact.readers): the
+ * vertices whose passes read a vertex of the ring before. */
+static int32_t lvp__near_low_shares(lvp_binding *binding, const float *shares)
+{
+	lvp__contact *contact = &binding->contact;
+	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
+	int32_t count = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		contact->near_ring[k] = shares[k] < 1.0f ? 0 : UINT8_MAX;
+		if (shares[k] < 1.0f)
+			contact->near[count++] = k;
+	}
+	for (int32_t first = 0, ring = 1; ring <= LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++ring) {
+		int32_t last = count;
+		for (int32_t i = first; i < last; ++i) {
+			int32_t j = contact->near[i];
+			for (int32_t e = contact->reader_offsets[j]; e < contact->reader_offsets[j + 1]; ++e) {
+				int32_t k = contact->readers[e];
+				if (dynamic[k] && contact->near_ring[k] == UINT8_MAX) {
+					contact->near_ring[k] = (uint8_t)ring;
+					contact->near[count++] = k;
+				}
+			}
+		}
+		first = last;
+	}
+	return count;
+}
+
 void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors)
 {
-	int32_t count = binding->dynamic.vertex_count;
+	int32_t count = lvp__near_low_shares(binding, shares);
 	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
-	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors};
+	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors, binding->contact.near};
+	/* The vertices past the rings, which the last ring reads, hold 1 in both. */
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+		scratch[binding->dynamic.vertices[v]] = shares[binding->dynamic.vertices[v]];
 	/* First no share more than the slope above a neighbour's (each pass reaches one ring further;
 	 * none rises), then averaged. An even number of passes leaves the result in `shares`. */
 	for (int i = 0; i < LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++i) {
@@ -649,7 +705,7 @@ bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 {
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
-	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false};
+	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false, NULL};
 	lvp__parallel_for(pool, lvp__share_range, &pass, count, LVP__SHARE_GRAIN);
 	bool any = false;
 	for (int32_t v = 0; v < count && !any; ++v)

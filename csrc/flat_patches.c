@@ -10,6 +10,11 @@
  * their normals' cones are fitted before each search, to the positions it sees, for the subtrees the
  * correction moves (the only ones searched).
  *
+ * Two subtrees that share an edge and whose cones together fit under 90 degrees are such a patch too: the
+ * pairs between them are passed over as well (most pairs of nodes the traversal meets are neighbours on the
+ * skin, their boxes overlapping along the edges they share). Which triangles lie across each subtree's
+ * edges is found once with the rest.
+ *
  * The cones bound: a leaf's axis is the mean of its triangles' unit normals and its half angle the widest
  * of them from it; an inner node's axis is the mean of its children's and its half angle the widest of
  * (angle between the axes + the child's half angle). Patches are the hierarchy's subtrees, compact on the
@@ -22,6 +27,10 @@
 /* A cone counts as flat when its half angle is below 90 degrees by more than float rounding of the normals
  * can move it: its cosine above this. */
 #define LVP__FLAT_COSINE 1e-3f
+
+/* The same for two cones together: the cosine of the sum of their axes' angle and half angles above minus this,
+ * the cosine of twice the margin above. */
+#define LVP__FLAT_TOGETHER_COSINE 0.999998
 
 /* Triangles around a vertex, at most, whose pairs are looked at for shared edges. */
 #define LVP__FAN_TRIANGLES 32
@@ -84,6 +93,73 @@ static bool lvp__leaf_connected(const lvp__bvh *bvh, const lvp__bvh_node *leaf)
 	return true;
 }
 
+static int lvp__compare_positions(const void *a, const void *b)
+{
+	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
+	return (x > y) - (x < y);
+}
+
+/* contact.across: for each edge between positions p and q whose deepest common node is `common`, q is
+ * across the edges of every node from p's leaf up to below `common`, and p of those from q's. Counted
+ * first (cursor NULL: into counts), then written at cursor. */
+static void lvp__add_across(const lvp__contact *contact, const int32_t *edges, int32_t edge_count, int32_t *counts,
+                            int32_t *cursor)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	for (int32_t e = 0; e < edge_count; ++e) {
+		for (int side = 0; side < 2; ++side) {
+			int32_t from = edges[3 * e + side], to = edges[3 * e + 1 - side], common = edges[3 * e + 2];
+			for (int32_t node = contact->leaf_of[bvh->triangles[from].source]; node >= 0 && node != common;
+			     node = bvh->parents[node]) {
+				if (cursor)
+					contact->across[cursor[node]++] = to;
+				else
+					counts[node]++;
+			}
+		}
+	}
+}
+
+/* contact.across and across_offsets from the edges found (each from both its corners: each node's list is
+ * sorted and its repeats dropped). */
+static bool lvp__find_across(lvp__contact *contact, const int32_t *edges, int32_t edge_count)
+{
+	int32_t nodes = contact->bvh.node_count;
+	bool ok = true;
+	int32_t *counts = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
+	contact->across_offsets = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
+	if (!ok) {
+		free(counts);
+		return false;
+	}
+	lvp__add_across(contact, edges, edge_count, counts, NULL);
+	int64_t total = 0;
+	for (int32_t i = 0; i < nodes; ++i) {
+		contact->across_offsets[i] = (int32_t)total;
+		total += counts[i];
+	}
+	contact->across_offsets[nodes] = (int32_t)total;
+	contact->across = total < INT32_MAX ? lvp__calloc((size_t)total + 1, sizeof(int32_t), &ok) : NULL;
+	if (!contact->across) {
+		free(counts);
+		return false;
+	}
+	memcpy(counts, contact->across_offsets, sizeof(int32_t) * (size_t)nodes);
+	lvp__add_across(contact, edges, edge_count, NULL, counts);
+	free(counts);
+	int32_t kept = 0;
+	for (int32_t i = 0; i < nodes; ++i) {
+		int32_t begin = contact->across_offsets[i], end = contact->across_offsets[i + 1];
+		qsort(contact->across + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_positions);
+		contact->across_offsets[i] = kept;
+		for (int32_t j = begin; j < end; ++j)
+			if (j == begin || contact->across[j] != contact->across[j - 1])
+				contact->across[kept++] = contact->across[j];
+	}
+	contact->across_offsets[nodes] = kept;
+	return true;
+}
+
 /* The deepest node whose range holds leaf-order positions p < q, from the leaf holding p. */
 static int32_t lvp__common_node(const lvp__bvh *bvh, const int32_t *range, int32_t leaf, int32_t q)
 {
@@ -106,10 +182,15 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t *range = lvp__calloc((size_t)nodes * 2, sizeof(int32_t), &ok);
 	int32_t *position = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	uint8_t *children_meet = lvp__calloc((size_t)nodes, 1, &ok);
-	if (!ok) {
-		free(range);
+	/* Each edge between two triangles, found from each of its corners: two positions and their common node. */
+	int64_t edge_room = 2 * (int64_t)binding->triangle_count * 3;
+	int32_t *edges = edge_room < INT32_MAX / 3 ? lvp__calloc((size_t)edge_room * 3 + 1, sizeof(int32_t), &ok) : NULL;
+	int32_t edge_count = 0;
+	contact->node_range = range;
+	if (!ok || !edges) {
 		free(position);
 		free(children_meet);
+		free(edges);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
 		                 "could not allocate the contact test's patches of %d triangles.", (int)binding->triangle_count);
 	}
@@ -133,8 +214,14 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 					continue;
 				int32_t first = p < q ? p : q, second = p < q ? q : p;
 				int32_t node = lvp__common_node(bvh, range, contact->leaf_of[bvh->triangles[first].source], second);
-				if (node >= 0)
+				if (node >= 0) {
 					children_meet[node] = 1;
+					if (edge_count < edge_room) { /* past that (edges of many triangles), some pairs stay unculled */
+						edges[3 * edge_count] = first;
+						edges[3 * edge_count + 1] = second;
+						edges[3 * edge_count++ + 2] = node;
+					}
+				}
 			}
 		}
 	}
@@ -146,9 +233,13 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 			contact->connected[index] = children_meet[index] && contact->connected[node->index] &&
 			                            contact->connected[node->index + 1];
 	}
-	free(range);
 	free(position);
 	free(children_meet);
+	ok = lvp__find_across(contact, edges, edge_count);
+	free(edges);
+	if (!ok)
+		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
+		                 "could not allocate the contact test's patches of %d triangles.", (int)binding->triangle_count);
 	return lvp_success;
 }
 
@@ -241,4 +332,32 @@ void lvp__fit_flat_patches(lvp__contact *contact, lvp__pool *pool)
 	for (int32_t i = 0; i < contact->dynamic_node_count; ++i)
 		if (contact->bvh.nodes[contact->dynamic_nodes[i]].count == 0)
 			lvp__fit_cone(contact, contact->dynamic_nodes[i]);
+}
+
+bool lvp__flat_together(const void *context, int32_t a, int32_t b)
+{
+	const lvp__contact *contact = context;
+	if (!contact->node_dynamic[a] || !contact->node_dynamic[b] || !contact->flat[a] || !contact->flat[b])
+		return false;
+	/* The two cones fit in one under 90 degrees (less the margin of LVP__FLAT_COSINE) when the angle between
+	 * their axes and their two half angles sum to under 180 degrees (less twice the margin). */
+	const float *x = contact->cones + LVP__CONE_FLOATS * (int64_t)a, *y = contact->cones + LVP__CONE_FLOATS * (int64_t)b;
+	double c = (double)x[0] * y[0] + (double)x[1] * y[1] + (double)x[2] * y[2];
+	c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
+	double s = sqrt(1.0 - c * c);
+	double c1 = c * x[3] - s * x[4], s1 = s * x[3] + c * x[4]; /* the axes' angle plus a's half angle */
+	double c2 = c1 * y[3] - s1 * y[4], s2 = s1 * y[3] + c1 * y[4]; /* plus b's */
+	if (!(s1 >= 0.0 && s2 > 0.0 && c2 > -LVP__FLAT_TOGETHER_COSINE))
+		return false;
+	/* Some triangle across a's edges lies in b: the first at or past b's range's start, below its end. */
+	int32_t lo = contact->node_range[2 * b], hi = contact->node_range[2 * b + 1];
+	int32_t first = contact->across_offsets[a], last = contact->across_offsets[a + 1];
+	while (first < last) {
+		int32_t middle = first + (last - first) / 2;
+		if (contact->across[middle] < lo)
+			first = middle + 1;
+		else
+			last = middle;
+	}
+	return first < contact->across_offsets[a + 1] && contact->across[first] < hi;
 }

@@ -257,13 +257,14 @@ static bool lvp__box_may_hold(void *context, const float lo[3], const float hi[3
 static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
 {
 	lvp__clearance_search *search = context;
-	if (!lvp__box_may_hold(search, triangle->lo, triangle->hi))
+	/* Its own triangles meet it, which is no contact: most of what a vertex's search visits, passed over
+	 * before the box. */
+	if (triangle->vertices[0] == search->vertex || triangle->vertices[1] == search->vertex ||
+	    triangle->vertices[2] == search->vertex || !lvp__box_may_hold(search, triangle->lo, triangle->hi))
 		return false;
 	lvp__vec3 x[3];
 	double ahead = 0.0, gap2 = 0.0;
 	for (int i = 0; i < 3; ++i) {
-		if (triangle->vertices[i] == search->vertex) /* its own triangles meet it, which is no contact */
-			return false;
 		x[i] = lvp__sub(lvp__load(triangle->corners[i]), search->from);
 		ahead = lvp__max_d(ahead, lvp__dot(x[i], search->direction));
 	}

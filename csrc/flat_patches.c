@@ -93,36 +93,82 @@ static bool lvp__leaf_connected(const lvp__bvh *bvh, const lvp__bvh_node *leaf)
 	return true;
 }
 
+/* The deepest node whose range holds leaf-order positions p < q, from the leaf holding p. */
+static int32_t lvp__common_node(const lvp__bvh *bvh, const int32_t *range, int32_t leaf, int32_t q)
+{
+	int32_t node = leaf;
+	while (node >= 0 && !(range[2 * node] <= q && q < range[2 * node + 1]))
+		node = bvh->parents[node];
+	return node;
+}
+
+/* What a walk over the edges between triangles records (lvp__walk_edges): the nodes whose two children
+ * meet, or per node the triangles across its edges, counted (cursor NULL) or written at cursor. */
+typedef struct lvp__edge_sink {
+	uint8_t *children_meet;
+	int32_t *counts, *cursor;
+} lvp__edge_sink;
+
+/* Each edge between two triangles of the hierarchy, at positions p and q: the deepest node holding both
+ * is where two children meet, and q lies across the edges of every node from p's leaf up to below that
+ * node (p across those from q's). An edge is taken from the lesser of its two corners, or from the other
+ * where that one is the pole of a fan of more than LVP__FAN_TRIANGLES triangles (not looked at from:
+ * an edge between two poles is not found, which leaves a patch unculled, never a crossing unseen). */
+static void lvp__walk_edges(lvp__contact *contact, const lvp__mesh *mesh, int32_t vertex_count, const int32_t *position,
+                            const lvp__edge_sink *sink)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	const int32_t *range = contact->node_range, *offsets = mesh->vertex_corner_offsets;
+	for (int32_t k = 0; k < vertex_count; ++k) {
+		if (offsets[k + 1] - offsets[k] > LVP__FAN_TRIANGLES)
+			continue;
+		for (int32_t c = offsets[k]; c < offsets[k + 1]; ++c) {
+			int32_t p = position[mesh->vertex_triangles[c]];
+			for (int32_t d = c + 1; d < offsets[k + 1] && p >= 0; ++d) {
+				int32_t q = position[mesh->vertex_triangles[d]];
+				if (q < 0 || !lvp__share_edge(bvh->triangles[p].vertices, bvh->triangles[q].vertices))
+					continue;
+				/* The edge's other corner: the corner of p other than k that q holds too. */
+				int32_t other = -1;
+				for (int i = 0; i < 3; ++i) {
+					int32_t v = bvh->triangles[p].vertices[i];
+					const int32_t *b = bvh->triangles[q].vertices;
+					if (v != k && (v == b[0] || v == b[1] || v == b[2]))
+						other = v;
+				}
+				if (other >= 0 && other < k && offsets[other + 1] - offsets[other] <= LVP__FAN_TRIANGLES)
+					continue; /* taken from that corner */
+				int32_t first = p < q ? p : q, second = p < q ? q : p;
+				int32_t common = lvp__common_node(bvh, range, contact->leaf_of[bvh->triangles[first].source], second);
+				if (common < 0)
+					continue;
+				if (sink->children_meet)
+					sink->children_meet[common] = 1;
+				for (int side = 0; side < 2 && sink->counts; ++side) {
+					int32_t from = side ? second : first, to = side ? first : second;
+					for (int32_t node = contact->leaf_of[bvh->triangles[from].source]; node >= 0 && node != common;
+					     node = bvh->parents[node]) {
+						if (sink->cursor)
+							contact->across[sink->cursor[node]++] = to;
+						else
+							sink->counts[node]++;
+					}
+				}
+			}
+		}
+	}
+}
+
 static int lvp__compare_positions(const void *a, const void *b)
 {
 	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
 	return (x > y) - (x < y);
 }
 
-/* contact.across: for each edge between positions p and q whose deepest common node is `common`, q is
- * across the edges of every node from p's leaf up to below `common`, and p of those from q's. Counted
- * first (cursor NULL: into counts), then written at cursor. */
-static void lvp__add_across(const lvp__contact *contact, const int32_t *edges, int32_t edge_count, int32_t *counts,
-                            int32_t *cursor)
-{
-	const lvp__bvh *bvh = &contact->bvh;
-	for (int32_t e = 0; e < edge_count; ++e) {
-		for (int side = 0; side < 2; ++side) {
-			int32_t from = edges[3 * e + side], to = edges[3 * e + 1 - side], common = edges[3 * e + 2];
-			for (int32_t node = contact->leaf_of[bvh->triangles[from].source]; node >= 0 && node != common;
-			     node = bvh->parents[node]) {
-				if (cursor)
-					contact->across[cursor[node]++] = to;
-				else
-					counts[node]++;
-			}
-		}
-	}
-}
-
-/* contact.across and across_offsets from the edges found (each from both its corners: each node's list is
- * sorted and its repeats dropped). */
-static bool lvp__find_across(lvp__contact *contact, const int32_t *edges, int32_t edge_count)
+/* contact.across and across_offsets: counted by one walk over the edges, written by another, then each
+ * node's list sorted and its repeats dropped (a triangle across two edges of one node). */
+static bool lvp__find_across(lvp__contact *contact, const lvp__mesh *mesh, int32_t vertex_count,
+                             const int32_t *position)
 {
 	int32_t nodes = contact->bvh.node_count;
 	bool ok = true;
@@ -132,7 +178,8 @@ static bool lvp__find_across(lvp__contact *contact, const int32_t *edges, int32_
 		free(counts);
 		return false;
 	}
-	lvp__add_across(contact, edges, edge_count, counts, NULL);
+	lvp__edge_sink sink = {NULL, counts, NULL};
+	lvp__walk_edges(contact, mesh, vertex_count, position, &sink);
 	int64_t total = 0;
 	for (int32_t i = 0; i < nodes; ++i) {
 		contact->across_offsets[i] = (int32_t)total;
@@ -145,7 +192,8 @@ static bool lvp__find_across(lvp__contact *contact, const int32_t *edges, int32_
 		return false;
 	}
 	memcpy(counts, contact->across_offsets, sizeof(int32_t) * (size_t)nodes);
-	lvp__add_across(contact, edges, edge_count, NULL, counts);
+	sink.cursor = counts;
+	lvp__walk_edges(contact, mesh, vertex_count, position, &sink);
 	free(counts);
 	int32_t kept = 0;
 	for (int32_t i = 0; i < nodes; ++i) {
@@ -160,83 +208,39 @@ static bool lvp__find_across(lvp__contact *contact, const int32_t *edges, int32_
 	return true;
 }
 
-/* The deepest node whose range holds leaf-order positions p < q, from the leaf holding p. */
-static int32_t lvp__common_node(const lvp__bvh *bvh, const int32_t *range, int32_t leaf, int32_t q)
-{
-	int32_t node = leaf;
-	while (node >= 0 && !(range[2 * node] <= q && q < range[2 * node + 1]))
-		node = bvh->parents[node];
-	return node;
-}
-
 lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	lvp__contact *contact = &binding->contact;
 	const lvp__bvh *bvh = &contact->bvh;
-	const lvp__mesh *mesh = &binding->mesh;
 	int32_t nodes = bvh->node_count;
 	bool ok = true;
 	contact->connected = lvp__calloc((size_t)nodes, 1, &ok);
 	contact->flat = lvp__calloc((size_t)nodes, 1, &ok);
 	contact->cones = lvp__calloc((size_t)nodes * LVP__CONE_FLOATS, sizeof(float), &ok);
-	int32_t *range = lvp__calloc((size_t)nodes * 2, sizeof(int32_t), &ok);
+	contact->node_range = lvp__calloc((size_t)nodes * 2, sizeof(int32_t), &ok);
 	int32_t *position = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	uint8_t *children_meet = lvp__calloc((size_t)nodes, 1, &ok);
-	/* Each edge between two triangles, found from each of its corners: two positions and their common node. */
-	int64_t edge_room = 2 * (int64_t)binding->triangle_count * 3;
-	int32_t *edges = edge_room < INT32_MAX / 3 ? lvp__calloc((size_t)edge_room * 3 + 1, sizeof(int32_t), &ok) : NULL;
-	int32_t edge_count = 0;
-	contact->node_range = range;
-	if (!ok || !edges) {
-		free(position);
-		free(children_meet);
-		free(edges);
-		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
-		                 "could not allocate the contact test's patches of %d triangles.", (int)binding->triangle_count);
-	}
-	lvp__node_ranges(bvh, range);
-	for (int32_t t = 0; t < binding->triangle_count; ++t)
-		position[t] = -1;
-	for (int32_t i = 0; i < bvh->triangle_count; ++i)
-		position[bvh->triangles[i].source] = i;
-	/* Two children meet where an edge has a triangle on each side of their parent's split: the deepest
-	 * node holding both triangles of each edge (found from each of its two corners). A corner of more than
-	 * LVP__FAN_TRIANGLES triangles (the pole of a fan) is not looked at from: its edges are found from their
-	 * other corners, or not at all, which leaves a patch unculled, never a crossing unseen. */
-	for (int32_t k = 0; k < binding->vertex_count; ++k) {
-		if (mesh->vertex_corner_offsets[k + 1] - mesh->vertex_corner_offsets[k] > LVP__FAN_TRIANGLES)
-			continue;
-		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
-			int32_t p = position[mesh->vertex_triangles[c]];
-			for (int32_t d = c + 1; d < mesh->vertex_corner_offsets[k + 1] && p >= 0; ++d) {
-				int32_t q = position[mesh->vertex_triangles[d]];
-				if (q < 0 || !lvp__share_edge(bvh->triangles[p].vertices, bvh->triangles[q].vertices))
-					continue;
-				int32_t first = p < q ? p : q, second = p < q ? q : p;
-				int32_t node = lvp__common_node(bvh, range, contact->leaf_of[bvh->triangles[first].source], second);
-				if (node >= 0) {
-					children_meet[node] = 1;
-					if (edge_count < edge_room) { /* past that (edges of many triangles), some pairs stay unculled */
-						edges[3 * edge_count] = first;
-						edges[3 * edge_count + 1] = second;
-						edges[3 * edge_count++ + 2] = node;
-					}
-				}
-			}
+	if (ok) {
+		lvp__node_ranges(bvh, contact->node_range);
+		for (int32_t t = 0; t < binding->triangle_count; ++t)
+			position[t] = -1;
+		for (int32_t i = 0; i < bvh->triangle_count; ++i)
+			position[bvh->triangles[i].source] = i;
+		/* Two children meet where an edge has a triangle on each side of their parent's split. */
+		lvp__edge_sink sink = {children_meet, NULL, NULL};
+		lvp__walk_edges(contact, &binding->mesh, binding->vertex_count, position, &sink);
+		for (int32_t index = nodes - 1; index >= 0; --index) {
+			const lvp__bvh_node *node = &bvh->nodes[index];
+			if (node->count > 0)
+				contact->connected[index] = lvp__leaf_connected(bvh, node);
+			else
+				contact->connected[index] = children_meet[index] && contact->connected[node->index] &&
+				                            contact->connected[node->index + 1];
 		}
-	}
-	for (int32_t index = nodes - 1; index >= 0; --index) {
-		const lvp__bvh_node *node = &bvh->nodes[index];
-		if (node->count > 0)
-			contact->connected[index] = lvp__leaf_connected(bvh, node);
-		else
-			contact->connected[index] = children_meet[index] && contact->connected[node->index] &&
-			                            contact->connected[node->index + 1];
+		ok = lvp__find_across(contact, &binding->mesh, binding->vertex_count, position);
 	}
 	free(position);
 	free(children_meet);
-	ok = lvp__find_across(contact, edges, edge_count);
-	free(edges);
 	if (!ok)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
 		                 "could not allocate the contact test's patches of %d triangles.", (int)binding->triangle_count);

@@ -388,10 +388,6 @@ typedef struct lvp__contact {
 	float *cones;              /* per node: the cone of its triangles' normals at the last fit */
 	uint8_t *flat;             /* per node: connected, and its cone under 90 degrees: none of its
 	                              triangles can cross another of them */
-	int32_t *node_range;       /* per node: its triangles' positions in the hierarchy, [2 i, 2 i + 1) */
-	int32_t *across_offsets;   /* per node + 1 into across: */
-	int32_t *across;           /* the positions of the triangles outside the node that share an edge with
-	                              one inside it, ascending (flat_patches.c) */
 	int32_t *group_offsets;    /* clearance.c: vertices near each other, searched together (CSR over */
 	int32_t *group_vertices;   /* group_count groups; a vertex in no triangle of the hierarchy in none) */
 	int32_t group_count;
@@ -885,9 +881,6 @@ lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
  * last fitted (a node with a child not listed is not flat: only listed nodes are searched for crossings,
  * and the others' cones are not fitted). */
 void lvp__fit_flat_patches(lvp__contact *contact, lvp__pool *pool);
-/* Whether two different nodes' triangles, as last fitted, are one flat patch together: both listed and
- * connected, sharing an edge, with one cone under 90 degrees (lvp__bvh_nodes_apart, context the contact). */
-bool lvp__flat_together(const void *contact, int32_t a, int32_t b);
 
 /* clearance.c */
 /* contact.group_offsets and group_vertices (after the hierarchy and contact.leaf_of are built). */

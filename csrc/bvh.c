@@ -657,10 +657,9 @@ static inline void lvp__visit_if_overlapping(const lvp__bvh_triangle *a, const l
 }
 
 /* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes overlap. */
-static void lvp__overlaps_from(const lvp__bvh *bvh, const lvp__bvh_self_test *test, int32_t first_a, int32_t first_b,
-                               lvp__bvh_visit_pair visit, void *context)
+static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, int32_t first_a,
+                               int32_t first_b, lvp__bvh_visit_pair visit, void *context)
 {
-	const uint8_t *marked = test->marked, *skipped = test->skipped;
 	/* Pairs of nodes to visit, (a, a) standing for the pairs within a. A pop pushes at most three
 	 * pairs, each one level deeper on one side; a pair's two depths sum to less than 2 * 72. */
 	int32_t stack[2 * 4 * 2 * LVP__BVH_STACK];
@@ -687,7 +686,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const lvp__bvh_self_test *te
 			stack[top++] = left, stack[top++] = right;
 			continue;
 		}
-		if (!lvp__nodes_overlap(na, nb) || (test->apart && test->apart(test->apart_context, a, b)))
+		if (!lvp__nodes_overlap(na, nb))
 			continue;
 		if (na->count > 0 && nb->count > 0) {
 			for (int32_t i = na->index; i < na->index + na->count; ++i)
@@ -709,7 +708,7 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const lvp__bvh_self_test *te
 
 typedef struct lvp__overlap_tasks {
 	const lvp__bvh *bvh;
-	const lvp__bvh_self_test *test;
+	const uint8_t *marked, *skipped;
 	lvp__bvh_visit_pair visit;
 	void *context;
 	const int32_t *first, *second; /* the pairs of nodes of the phase running */
@@ -719,13 +718,13 @@ static void lvp__overlap_task(void *context, int32_t begin, int32_t end)
 {
 	const lvp__overlap_tasks *tasks = context;
 	for (int32_t i = begin; i < end; ++i)
-		lvp__overlaps_from(tasks->bvh, tasks->test, tasks->first[i], tasks->second[i], tasks->visit, tasks->context);
+		lvp__overlaps_from(tasks->bvh, tasks->marked, tasks->skipped, tasks->first[i], tasks->second[i], tasks->visit,
+		                   tasks->context);
 }
 
-void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const lvp__bvh_self_test *test, lvp__pool *pool,
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, lvp__pool *pool,
                             lvp__bvh_visit_pair visit, void *context)
 {
-	const uint8_t *skipped = test->skipped;
 	if (bvh->triangle_count == 0)
 		return;
 	/* The subtrees LVP__BVH_TASK_DEPTH levels down (or leaves above that) share no triangle, so they
@@ -753,7 +752,7 @@ void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const lvp__bvh_self_test *test,
 		stack[top++] = n->index + 1, stack[top++] = depth + 1;
 		stack[top++] = n->index, stack[top++] = depth + 1;
 	}
-	lvp__overlap_tasks tasks = {bvh, test, visit, context, subtrees, subtrees};
+	lvp__overlap_tasks tasks = {bvh, marked, skipped, visit, context, subtrees, subtrees};
 	lvp__parallel_for(pool, lvp__overlap_task, &tasks, subtree_count, 1);
 	for (int depth = LVP__BVH_TASK_DEPTH - 1; depth >= 0; --depth) {
 		tasks.first = lefts[depth];

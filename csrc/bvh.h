@@ -86,23 +86,13 @@ void lvp__bvh_overlapping(const lvp__bvh *bvh, const float lo[3], const float hi
 typedef bool (*lvp__bvh_box_test)(void *context, const float lo[3], const float hi[3]);
 void lvp__bvh_search(const lvp__bvh *bvh, lvp__bvh_box_test may_hold, lvp__bvh_visit visit, void *context);
 
-/* What a traversal of the tree against itself may pass over, each when not NULL: pairs of nodes neither
- * of which is `marked`; the pairs within a node `skipped` marks (a subtree whose triangles the caller
- * knows cannot meet each other); the pairs between two different nodes whose boxes overlap for which
- * apart(apart_context, a, b) is true (two subtrees the caller knows cannot meet each other). */
-typedef bool (*lvp__bvh_nodes_apart)(const void *context, int32_t a, int32_t b);
-typedef struct lvp__bvh_self_test {
-	const uint8_t *marked, *skipped;
-	lvp__bvh_nodes_apart apart;
-	const void *apart_context;
-} lvp__bvh_self_test;
-
-/* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap and that
- * `test` does not pass over, by a traversal of the tree against itself, on the pool's threads (NULL:
- * this one) in phases whose concurrent calls never share a triangle: a visit may write what belongs to
- * either of its two triangles, nothing else. */
+/* Calls visit(context, a, b) once for every pair of different triangles whose boxes overlap, one of
+ * them under a marked node when `marked` is not NULL, and not both under one node marked in `skipped`
+ * (when not NULL: subtrees whose triangles the caller knows cannot meet each other), by a traversal of
+ * the tree against itself, on the pool's threads (NULL: this one) in phases whose concurrent calls never
+ * share a triangle: a visit may write what belongs to either of its two triangles, nothing else. */
 typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b);
-void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const lvp__bvh_self_test *test, lvp__pool *pool,
+void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, lvp__pool *pool,
                             lvp__bvh_visit_pair visit, void *context);
 
 /* r_marked (node_count): per node, whether a triangle under it has a corner marked in vertex_marked;

@@ -521,8 +521,8 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
 			lvp__fit_flat_patches(contact,
 			                      LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
-			lvp__bvh_self_test test = {contact->moved_nodes, contact->flat, lvp__flat_together, contact};
-			lvp__bvh_self_overlaps(&contact->bvh, &test, LVP__POOL_FOR(binding, f), lvp__visit_pair, (void *)pass);
+			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
+			                       lvp__visit_pair, (void *)pass);
 			/* Pairs along the skinning's own crossing are left when they are all there is and the count
 			 * holds (the top of this file); else they are kept apart as any. */
 			bool any_new = false, any_shifted = false;
@@ -802,9 +802,6 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->connected);
 	free(contact->cones);
 	free(contact->flat);
-	free(contact->node_range);
-	free(contact->across_offsets);
-	free(contact->across);
 	free(contact->group_offsets);
 	free(contact->group_vertices);
 	memset(contact, 0, sizeof(*contact));

@@ -10,11 +10,6 @@
  * their normals' cones are fitted before each search, to the positions it sees, for the subtrees the
  * correction moves (the only ones searched).
  *
- * Two subtrees that share an edge and whose cones together fit under 90 degrees are such a patch too: the
- * pairs between them are passed over as well (most pairs of nodes the traversal meets are neighbours on the
- * skin, their boxes overlapping along the edges they share). Which triangles lie across each subtree's
- * edges is found once with the rest.
- *
  * The cones bound: a leaf's axis is the mean of its triangles' unit normals and its half angle the widest
  * of them from it; an inner node's axis is the mean of its children's and its half angle the widest of
  * (angle between the axes + the child's half angle). Patches are the hierarchy's subtrees, compact on the
@@ -27,10 +22,6 @@
 /* A cone counts as flat when its half angle is below 90 degrees by more than float rounding of the normals
  * can move it: its cosine above this. */
 #define LVP__FLAT_COSINE 1e-3f
-
-/* The same for two cones together: the cosine of the sum of their axes' angle and half angles above minus this,
- * the cosine of twice the margin above. */
-#define LVP__FLAT_TOGETHER_COSINE 0.999998
 
 /* Triangles around a vertex, at most, whose pairs are looked at for shared edges. */
 #define LVP__FAN_TRIANGLES 32
@@ -102,148 +93,62 @@ static int32_t lvp__common_node(const lvp__bvh *bvh, const int32_t *range, int32
 	return node;
 }
 
-/* What a walk over the edges between triangles records (lvp__walk_edges): the nodes whose two children
- * meet, or per node the triangles across its edges, counted (cursor NULL) or written at cursor. */
-typedef struct lvp__edge_sink {
-	uint8_t *children_meet;
-	int32_t *counts, *cursor;
-} lvp__edge_sink;
-
-/* Each edge between two triangles of the hierarchy, at positions p and q: the deepest node holding both
- * is where two children meet, and q lies across the edges of every node from p's leaf up to below that
- * node (p across those from q's). An edge is taken from the lesser of its two corners, or from the other
- * where that one is the pole of a fan of more than LVP__FAN_TRIANGLES triangles (not looked at from:
- * an edge between two poles is not found, which leaves a patch unculled, never a crossing unseen). */
-static void lvp__walk_edges(lvp__contact *contact, const lvp__mesh *mesh, int32_t vertex_count, const int32_t *position,
-                            const lvp__edge_sink *sink)
-{
-	const lvp__bvh *bvh = &contact->bvh;
-	const int32_t *range = contact->node_range, *offsets = mesh->vertex_corner_offsets;
-	for (int32_t k = 0; k < vertex_count; ++k) {
-		if (offsets[k + 1] - offsets[k] > LVP__FAN_TRIANGLES)
-			continue;
-		for (int32_t c = offsets[k]; c < offsets[k + 1]; ++c) {
-			int32_t p = position[mesh->vertex_triangles[c]];
-			for (int32_t d = c + 1; d < offsets[k + 1] && p >= 0; ++d) {
-				int32_t q = position[mesh->vertex_triangles[d]];
-				if (q < 0 || !lvp__share_edge(bvh->triangles[p].vertices, bvh->triangles[q].vertices))
-					continue;
-				/* The edge's other corner: the corner of p other than k that q holds too. */
-				int32_t other = -1;
-				for (int i = 0; i < 3; ++i) {
-					int32_t v = bvh->triangles[p].vertices[i];
-					const int32_t *b = bvh->triangles[q].vertices;
-					if (v != k && (v == b[0] || v == b[1] || v == b[2]))
-						other = v;
-				}
-				if (other >= 0 && other < k && offsets[other + 1] - offsets[other] <= LVP__FAN_TRIANGLES)
-					continue; /* taken from that corner */
-				int32_t first = p < q ? p : q, second = p < q ? q : p;
-				int32_t common = lvp__common_node(bvh, range, contact->leaf_of[bvh->triangles[first].source], second);
-				if (common < 0)
-					continue;
-				if (sink->children_meet)
-					sink->children_meet[common] = 1;
-				for (int side = 0; side < 2 && sink->counts; ++side) {
-					int32_t from = side ? second : first, to = side ? first : second;
-					for (int32_t node = contact->leaf_of[bvh->triangles[from].source]; node >= 0 && node != common;
-					     node = bvh->parents[node]) {
-						if (sink->cursor)
-							contact->across[sink->cursor[node]++] = to;
-						else
-							sink->counts[node]++;
-					}
-				}
-			}
-		}
-	}
-}
-
-static int lvp__compare_positions(const void *a, const void *b)
-{
-	int32_t x = *(const int32_t *)a, y = *(const int32_t *)b;
-	return (x > y) - (x < y);
-}
-
-/* contact.across and across_offsets: counted by one walk over the edges, written by another, then each
- * node's list sorted and its repeats dropped (a triangle across two edges of one node). */
-static bool lvp__find_across(lvp__contact *contact, const lvp__mesh *mesh, int32_t vertex_count,
-                             const int32_t *position)
-{
-	int32_t nodes = contact->bvh.node_count;
-	bool ok = true;
-	int32_t *counts = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
-	contact->across_offsets = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
-	if (!ok) {
-		free(counts);
-		return false;
-	}
-	lvp__edge_sink sink = {NULL, counts, NULL};
-	lvp__walk_edges(contact, mesh, vertex_count, position, &sink);
-	int64_t total = 0;
-	for (int32_t i = 0; i < nodes; ++i) {
-		contact->across_offsets[i] = (int32_t)total;
-		total += counts[i];
-	}
-	contact->across_offsets[nodes] = (int32_t)total;
-	contact->across = total < INT32_MAX ? lvp__calloc((size_t)total + 1, sizeof(int32_t), &ok) : NULL;
-	if (!contact->across) {
-		free(counts);
-		return false;
-	}
-	memcpy(counts, contact->across_offsets, sizeof(int32_t) * (size_t)nodes);
-	sink.cursor = counts;
-	lvp__walk_edges(contact, mesh, vertex_count, position, &sink);
-	free(counts);
-	int32_t kept = 0;
-	for (int32_t i = 0; i < nodes; ++i) {
-		int32_t begin = contact->across_offsets[i], end = contact->across_offsets[i + 1];
-		qsort(contact->across + begin, (size_t)(end - begin), sizeof(int32_t), lvp__compare_positions);
-		contact->across_offsets[i] = kept;
-		for (int32_t j = begin; j < end; ++j)
-			if (j == begin || contact->across[j] != contact->across[j - 1])
-				contact->across[kept++] = contact->across[j];
-	}
-	contact->across_offsets[nodes] = kept;
-	return true;
-}
-
 lvp_result lvp__flat_patches_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	lvp__contact *contact = &binding->contact;
 	const lvp__bvh *bvh = &contact->bvh;
+	const lvp__mesh *mesh = &binding->mesh;
 	int32_t nodes = bvh->node_count;
 	bool ok = true;
 	contact->connected = lvp__calloc((size_t)nodes, 1, &ok);
 	contact->flat = lvp__calloc((size_t)nodes, 1, &ok);
 	contact->cones = lvp__calloc((size_t)nodes * LVP__CONE_FLOATS, sizeof(float), &ok);
-	contact->node_range = lvp__calloc((size_t)nodes * 2, sizeof(int32_t), &ok);
+	int32_t *range = lvp__calloc((size_t)nodes * 2, sizeof(int32_t), &ok);
 	int32_t *position = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	uint8_t *children_meet = lvp__calloc((size_t)nodes, 1, &ok);
-	if (ok) {
-		lvp__node_ranges(bvh, contact->node_range);
-		for (int32_t t = 0; t < binding->triangle_count; ++t)
-			position[t] = -1;
-		for (int32_t i = 0; i < bvh->triangle_count; ++i)
-			position[bvh->triangles[i].source] = i;
-		/* Two children meet where an edge has a triangle on each side of their parent's split. */
-		lvp__edge_sink sink = {children_meet, NULL, NULL};
-		lvp__walk_edges(contact, &binding->mesh, binding->vertex_count, position, &sink);
-		for (int32_t index = nodes - 1; index >= 0; --index) {
-			const lvp__bvh_node *node = &bvh->nodes[index];
-			if (node->count > 0)
-				contact->connected[index] = lvp__leaf_connected(bvh, node);
-			else
-				contact->connected[index] = children_meet[index] && contact->connected[node->index] &&
-				                            contact->connected[node->index + 1];
-		}
-		ok = lvp__find_across(contact, &binding->mesh, binding->vertex_count, position);
-	}
-	free(position);
-	free(children_meet);
-	if (!ok)
+	if (!ok) {
+		free(range);
+		free(position);
+		free(children_meet);
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
 		                 "could not allocate the contact test's patches of %d triangles.", (int)binding->triangle_count);
+	}
+	lvp__node_ranges(bvh, range);
+	for (int32_t t = 0; t < binding->triangle_count; ++t)
+		position[t] = -1;
+	for (int32_t i = 0; i < bvh->triangle_count; ++i)
+		position[bvh->triangles[i].source] = i;
+	/* Two children meet where an edge has a triangle on each side of their parent's split: the deepest
+	 * node holding both triangles of each edge (found from each of its two corners). A corner of more than
+	 * LVP__FAN_TRIANGLES triangles (the pole of a fan) is not looked at from: its edges are found from their
+	 * other corners, or not at all, which leaves a patch unculled, never a crossing unseen. */
+	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		if (mesh->vertex_corner_offsets[k + 1] - mesh->vertex_corner_offsets[k] > LVP__FAN_TRIANGLES)
+			continue;
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+			int32_t p = position[mesh->vertex_triangles[c]];
+			for (int32_t d = c + 1; d < mesh->vertex_corner_offsets[k + 1] && p >= 0; ++d) {
+				int32_t q = position[mesh->vertex_triangles[d]];
+				if (q < 0 || !lvp__share_edge(bvh->triangles[p].vertices, bvh->triangles[q].vertices))
+					continue;
+				int32_t first = p < q ? p : q, second = p < q ? q : p;
+				int32_t node = lvp__common_node(bvh, range, contact->leaf_of[bvh->triangles[first].source], second);
+				if (node >= 0)
+					children_meet[node] = 1;
+			}
+		}
+	}
+	for (int32_t index = nodes - 1; index >= 0; --index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		if (node->count > 0)
+			contact->connected[index] = lvp__leaf_connected(bvh, node);
+		else
+			contact->connected[index] = children_meet[index] && contact->connected[node->index] &&
+			                            contact->connected[node->index + 1];
+	}
+	free(range);
+	free(position);
+	free(children_meet);
 	return lvp_success;
 }
 
@@ -336,32 +241,4 @@ void lvp__fit_flat_patches(lvp__contact *contact, lvp__pool *pool)
 	for (int32_t i = 0; i < contact->dynamic_node_count; ++i)
 		if (contact->bvh.nodes[contact->dynamic_nodes[i]].count == 0)
 			lvp__fit_cone(contact, contact->dynamic_nodes[i]);
-}
-
-bool lvp__flat_together(const void *context, int32_t a, int32_t b)
-{
-	const lvp__contact *contact = context;
-	if (!contact->node_dynamic[a] || !contact->node_dynamic[b] || !contact->flat[a] || !contact->flat[b])
-		return false;
-	/* The two cones fit in one under 90 degrees (less the margin of LVP__FLAT_COSINE) when the angle between
-	 * their axes and their two half angles sum to under 180 degrees (less twice the margin). */
-	const float *x = contact->cones + LVP__CONE_FLOATS * (int64_t)a, *y = contact->cones + LVP__CONE_FLOATS * (int64_t)b;
-	double c = (double)x[0] * y[0] + (double)x[1] * y[1] + (double)x[2] * y[2];
-	c = c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c);
-	double s = sqrt(1.0 - c * c);
-	double c1 = c * x[3] - s * x[4], s1 = s * x[3] + c * x[4]; /* the axes' angle plus a's half angle */
-	double c2 = c1 * y[3] - s1 * y[4], s2 = s1 * y[3] + c1 * y[4]; /* plus b's */
-	if (!(s1 >= 0.0 && s2 > 0.0 && c2 > -LVP__FLAT_TOGETHER_COSINE))
-		return false;
-	/* Some triangle across a's edges lies in b: the first at or past b's range's start, below its end. */
-	int32_t lo = contact->node_range[2 * b], hi = contact->node_range[2 * b + 1];
-	int32_t first = contact->across_offsets[a], last = contact->across_offsets[a + 1];
-	while (first < last) {
-		int32_t middle = first + (last - first) / 2;
-		if (contact->across[middle] < lo)
-			first = middle + 1;
-		else
-			last = middle;
-	}
-	return first < contact->across_offsets[a + 1] && contact->across[first] < hi;
 }

@@ -323,8 +323,7 @@
  *   outside the ball of the nearest skin found so far, and searches a triangle's edges and inside
  *   only where their distance could bring it nearer), a traversal of the hierarchy against
  *   itself per check (passing over each subtree whose triangles form one connected patch with every
- *   normal within 90 degrees of one axis: such a height field cannot cross itself; and each pair of
- *   subtrees that share an edge and form one such patch together), and the volume
+ *   normal within 90 degrees of one axis: such a height field cannot cross itself), and the volume
  *   restored again after each fade and check; refits in between visit the triangles around moving
  *   vertices only (PERFORMANCE, BENCHMARKS.md).
  *
@@ -352,7 +351,7 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 250 bytes a triangle, and 50 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
+ *   hierarchy, about 220 bytes a triangle, and 50 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the
  *   workers watch for the next one for about a tenth of a millisecond before they sleep.

@@ -9,6 +9,8 @@ positions and triangles: what an animator sees, not only the volume.
 - creases added: edges whose dihedral angle grows by more than 30 degrees over plain skinning's;
 - roughness of the correction: per vertex, |offset - mean offset of its edge neighbours|, and the largest
   offset, both in mean rest edge lengths;
+- shards: how much further out of its neighbours' surface the correction leaves a vertex than plain skinning
+  does (a vertex pushed out of, or held back from, its neighbours' surface), in the same unit;
 - popping across an animation: the largest change of an offset from one frame to the next, against the
   largest motion of the skin (plain skinning) between them;
 - a weld map: vertices at the same rest position are one point of the skin.
@@ -323,6 +325,48 @@ def roughness(offsets, mesh):
     return worst / unit, largest / unit, worst_vertex
 
 
+def _normals_and_lifts(points, mesh):
+    """Per vertex (a dict), its unit normal (the area-weighted normal of its triangles) and its lift: its position
+    less the mean of its edge neighbours'."""
+    result = {}
+    for vertex in mesh.vertices:
+        around = mesh.neighbours[vertex]
+        if not around:
+            continue
+        normal = [0.0, 0.0, 0.0]
+        for index in mesh.triangles_around[vertex]:
+            a, b, c = mesh.welded_triangles[index]
+            area = _cross(_sub(points[b], points[a]), _sub(points[c], points[a]))
+            normal = [normal[k] + area[k] for k in range(3)]
+        size = _length(normal)
+        if not size > 0.0:
+            continue
+        mean = [sum(points[n][k] for n in around) / len(around) for k in range(3)]
+        result[vertex] = ([x / size for x in normal], _sub(points[vertex], mean))
+    return result
+
+
+def shard(plain_positions, positions, mesh):
+    """(largest, vertex): how much further out of its neighbours' surface the correction leaves a vertex than plain
+    skinning leaves it, in mean rest edge lengths: per vertex, its height off its neighbours' surface (its position
+    less its neighbours' mean, along plain skinning's normal there, unsigned) with the correction less the same
+    with plain skinning (QUALITY.md, Folds: a shard is a single vertex pushed out of, or held back from, its
+    neighbours' surface). Never more than the roughness: the two heights differ by the offsets' roughness along
+    that normal at most. A smooth bulge reads near zero; where a correction presses a fold of plain skinning flat
+    its offsets are rough (they undo the fold's) while the surface is smoother than plain skinning's, and the fold
+    reads below zero."""
+    plain = _normals_and_lifts(points_of(plain_positions), mesh)
+    now = points_of(positions)
+    worst, worst_vertex = -math.inf, -1
+    for vertex, (normal, plain_lift) in plain.items():
+        around = mesh.neighbours[vertex]
+        mean = [sum(now[n][k] for n in around) / len(around) for k in range(3)]
+        value = abs(_dot(_sub(now[vertex], mean), normal)) - abs(_dot(plain_lift, normal))
+        if value > worst:
+            worst, worst_vertex = value, vertex
+    return (worst / mesh.mean_rest_edge_length if worst_vertex >= 0 else 0.0), worst_vertex
+
+
 def offset_change_ratio(offsets_before, offsets, plain_before, plain):
     """How far the correction jumps between two frames of a smooth motion: the largest change of a vertex's offset
     over the largest motion of a vertex of plain skinning between them (0 when the skin did not move). A
@@ -403,7 +447,7 @@ def measure_pose(mesh, plain_positions, corrected):
     more pairs cross than in plain skinning ("added crossings", negative when fewer: QUALITY.md asks for none),
     the pairs that do not cross in plain skinning ("new crossings"), those of these that are not plain
     skinning's own crossing moved ("new contacts", new_contact_pairs), the creases added, the roughness, the
-    largest offset and the crack."""
+    largest offset, the shard and the crack."""
     triangles = mesh.triangles
     plain_pairs = crossing_pairs(plain_positions, mesh)
     result = {"plain": {"volume": volume_change(mesh.rest, plain_positions, triangles),
@@ -419,5 +463,6 @@ def measure_pose(mesh, plain_positions, corrected):
                         "new crossings": len(new_pairs),
                         "new contacts": len(new_contact_pairs(plain_positions, new_pairs, mesh)),
                         "creases": len(creases_added(plain_positions, positions, mesh)),
-                        "roughness": rough, "largest_offset": largest, "crack": crack(offsets, mesh)}
+                        "roughness": rough, "largest_offset": largest, "crack": crack(offsets, mesh),
+                        "shard": shard(plain_positions, positions, mesh)[0]}
     return result

@@ -98,16 +98,18 @@ class TestBodyFamily(unittest.TestCase):
                         got = measured[label]
                         case = "%s, bent %.0f %%, %s" % (name, 100 * amount, label)
                         print("\n    %-62s %5d vertices: volume %+.4f %% (plain %+.2f %%), crossing pairs %d "
-                              "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f"
+                              "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f, shard %.2f"
                               % (case, len(body.data.vertices), 100 * got["volume"],
                                  100 * measured["plain"]["volume"], got["crossings"],
                                  measured["plain"]["crossings"], got["new crossings"], got["creases"],
-                                 edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"]))
+                                 edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"],
+                                 got["shard"] / got["largest_offset"]))
                         self.assertLess(abs(got["volume"]), 0.005, case)
                         if label == "kept apart":
                             self.assertEqual(got["new contacts"], 0, case)
                             self.assertLessEqual(got["added crossings"], 0, case)
                         self.assertLessEqual(got["roughness"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
+                        self.assertLessEqual(got["shard"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
                         self.assertLessEqual(got["creases"], edges / EDGES_PER_CREASE, case)
 
     def test_fold_over_at_150_degrees(self):
@@ -151,13 +153,15 @@ class TestBodyFamily(unittest.TestCase):
                 folded, plain = measured["fold-over"], measured["plain"]
                 edges = len(mesh.interior_edges())
                 print("\n    %-26s 150 degrees, Fold-Over: volume %+.4f %% (plain %+.2f %%), crossing pairs %d (plain %d), "
-                      "creases %d (%.0f allowed), roughness %.2f"
+                      "creases %d (%.0f allowed), roughness %.2f, shard %.2f"
                       % (name, 100 * folded["volume"], 100 * plain["volume"], folded["crossings"], plain["crossings"],
-                         folded["creases"], edges / EDGES_PER_CREASE, folded["roughness"] / folded["largest_offset"]))
+                         folded["creases"], edges / EDGES_PER_CREASE, folded["roughness"] / folded["largest_offset"],
+                         folded["shard"] / folded["largest_offset"]))
                 self.assertGreater(plain["crossings"], 100, "the pose folds skin through skin")
                 self.assertLess(abs(folded["volume"]), 0.005, name)
                 self.assertLessEqual(folded["crossings"], plain["crossings"] / 2, name)
                 self.assertLessEqual(folded["roughness"], ROUGHNESS_OF_LARGEST * folded["largest_offset"], name)
+                self.assertLessEqual(folded["shard"], ROUGHNESS_OF_LARGEST * folded["largest_offset"], name)
                 if name not in CREASES_NOT_MET_AT_150:
                     self.assertLessEqual(folded["creases"], edges / EDGES_PER_CREASE, name)
 

@@ -105,17 +105,23 @@ class TestFoldOverHand(unittest.TestCase):
             row[variant]["roughness"], row[variant]["largest"], _vertex = quality.roughness(row[variant]["offsets"],
                                                                                            cls.mesh)
             row[variant]["creases"] = len(quality.creases_added(plain, positions, cls.mesh))
+            row[variant]["shard"] = quality.shard(plain, positions, cls.mesh)[0]
         row["plain crossings"], row["plain joint crossings"] = len(plain_pairs), cls.joint_crossings(plain_pairs)
         print("\n    frame %2d: crossing pairs plain %3d (%3d at joints), VP %3d (%3d), VP+fold %3d (%3d); "
-              "volume with fold %+.3f %%, roughness %.2f of the largest offset, %d creases"
+              "volume with fold %+.3f %%, roughness %.2f and shard %.2f of the largest offset, %d creases"
               % (frame, row["plain crossings"], row["plain joint crossings"], row["vp"]["crossings"],
                  row["vp"]["joint crossings"], row["fold"]["crossings"], row["fold"]["joint crossings"],
-                 100 * row["fold"]["volume"], cls.roughness_share(row["fold"]), row["fold"]["creases"]), end="")
+                 100 * row["fold"]["volume"], cls.roughness_share(row["fold"]), cls.shard_share(row["fold"]),
+                 row["fold"]["creases"]), end="")
         return row
 
     @staticmethod
     def roughness_share(measured):
         return measured["roughness"] / measured["largest"] if measured["largest"] > 0.0 else 0.0
+
+    @staticmethod
+    def shard_share(measured):
+        return measured["shard"] / measured["largest"] if measured["largest"] > 0.0 else 0.0
 
     def few(self, key, share):
         """A share of plain skinning's crossing pairs (`key`) at the fist."""
@@ -202,9 +208,13 @@ class TestFoldOverHand(unittest.TestCase):
         # skin pressed within the crease's window (0.28-0.63 mean edge lengths off its neighbours' mean) and
         # relaxed with the rings around it, beside a bulge that smoothing leaves lower (1.0-2.1 edge lengths);
         # 0.22-0.26 before the relaxation, with 126 creases at the fist.
+        # No shard either way (surface_quality.shard: no vertex further out of its neighbours' surface than plain
+        # skinning leaves it by more than a quarter of the largest offset).
         for row in self.measured:
             self.assertLessEqual(self.roughness_share(row["fold"]), 0.31, "frame %d" % row["frame"])
             self.assertLessEqual(self.roughness_share(row["vp"]), 0.25, "frame %d" % row["frame"])
+            for variant in ("vp", "fold"):
+                self.assertLessEqual(self.shard_share(row[variant]), 0.25, "frame %d, %s" % (row["frame"], variant))
 
     def test_few_creases_where_skin_is_pressed(self):
         # QUALITY.md: a crease is an edge whose dihedral angle grows by more than 30 degrees over plain

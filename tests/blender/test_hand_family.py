@@ -69,15 +69,17 @@ class TestHandFamily(unittest.TestCase):
                     kept, viewport = measured["kept apart"], measured["viewport"]
                     label = "%s, %s" % (name, pose)
                     print("\n    %-24s %-21s %5d vertices: volume %+.4f %%, crossing pairs %d (plain %d, new %d; "
-                          "without Keep Skin Apart %d new), creases %d (%d without; %.0f allowed), roughness %.2f"
+                          "without Keep Skin Apart %d new), creases %d (%d without; %.0f allowed), roughness %.2f, "
+                          "shard %.2f"
                           % (name, pose, len(obj.data.vertices), 100 * kept["volume"], kept["crossings"],
                              measured["plain"]["crossings"], kept["new crossings"], viewport["new crossings"],
                              kept["creases"], viewport["creases"], edges / EDGES_PER_CREASE,
-                             kept["roughness"] / kept["largest_offset"]))
+                             kept["roughness"] / kept["largest_offset"], kept["shard"] / kept["largest_offset"]))
                     self.assertLess(abs(kept["volume"]), 0.005, label)
                     self.assertEqual(kept["new contacts"], 0, label)
                     self.assertLessEqual(kept["added crossings"], 0, label)
                     self.assertLessEqual(kept["roughness"], ROUGHNESS_OF_LARGEST * kept["largest_offset"], label)
+                    self.assertLessEqual(kept["shard"], ROUGHNESS_OF_LARGEST * kept["largest_offset"], label)
                     self.assertLessEqual(kept["creases"], edges / EDGES_PER_CREASE, label)
 
     def test_fold_over_halves_the_crossings(self):
@@ -114,8 +116,9 @@ class TestHandFamily(unittest.TestCase):
                     folded, plain = measured["fold-over"], measured["plain"]["crossings"]
                     alone = measured["fold-over alone"]
                     print("\n    %-24s %-21s Fold-Over: crossing pairs %d (plain %d), creases %d (%d without Keep Skin "
-                          "Apart), roughness %.2f" % (name, pose, folded["crossings"], plain, folded["creases"],
-                                                     alone["creases"], folded["roughness"] / folded["largest_offset"]))
+                          "Apart), roughness %.2f, shard %.2f"
+                          % (name, pose, folded["crossings"], plain, folded["creases"], alone["creases"],
+                             folded["roughness"] / folded["largest_offset"], folded["shard"] / folded["largest_offset"]))
                     self.assertLess(abs(folded["volume"]), 0.005, label)
                     self.assertLessEqual(folded["creases"] - alone["creases"], edges / EDGES_PER_CREASE, label)
                     if decimated is None:
@@ -123,6 +126,7 @@ class TestHandFamily(unittest.TestCase):
                     if name not in FOLD_OVER_ROUGH:
                         self.assertLessEqual(folded["roughness"], ROUGHNESS_OF_LARGEST * folded["largest_offset"],
                                              label)
+                    self.assertLessEqual(folded["shard"], ROUGHNESS_OF_LARGEST * folded["largest_offset"], label)
 
 
 if __name__ == "__main__":

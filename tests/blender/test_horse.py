@@ -136,17 +136,19 @@ class TestHorseSurface(helpers.AddonTestCase):
 
     def surface_of_every_action(self, obj, rig):
         """{action name: ((largest new contacts, largest added crossings), largest creases added, largest
-        roughness over the largest offset)} over every frame of each action, each frame's status checked."""
+        roughness over the largest offset)} over every frame of each action, each frame's status checked; and
+        self.shards, {action name: the largest shard over the largest offset} (surface_quality.shard)."""
         mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
         self.creases_allowed = len(mesh.interior_edges()) / 300.0
         scene = bpy.context.scene
         result = {}
+        self.shards = {}
         for action in sorted(bpy.data.actions, key=lambda action: action.name):
             rig.animation_data.action = action
             first, last = (int(round(frame)) for frame in action.frame_range)
             new_contacts = creases = 0
             added = []  # per frame
-            rough = 0.0
+            rough = shard = 0.0
             for frame in range(first, last + 1):
                 scene.frame_set(frame)
                 self.assertEqual(self.status_of(obj), ('INFO', "Correcting"), "%s, frame %d" % (action.name, frame))
@@ -158,10 +160,12 @@ class TestHorseSurface(helpers.AddonTestCase):
                 creases = max(creases, shown["creases"])
                 if shown["largest_offset"] > 0.0:
                     rough = max(rough, shown["roughness"] / shown["largest_offset"])
+                    shard = max(shard, shown["shard"] / shown["largest_offset"])
             print("    %-22s new contacts %d, crossing pairs at most %+d against plain skinning, creases added %d "
-                  "(%.1f allowed), roughness %.2f of the largest offset"
-                  % (action.name, new_contacts, max(added), creases, self.creases_allowed, rough))
+                  "(%.1f allowed), roughness %.2f and shard %.2f of the largest offset"
+                  % (action.name, new_contacts, max(added), creases, self.creases_allowed, rough, shard))
             result[action.name] = ((new_contacts, max(added)), creases, rough)
+            self.shards[action.name] = shard
         return result
 
     def test_every_frame_of_every_action(self):
@@ -174,6 +178,8 @@ class TestHorseSurface(helpers.AddonTestCase):
         for name, (_crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
             self.assertLessEqual(rough, 0.25, "%s: roughness against the largest offset" % name)
+        for name, shard in self.shards.items():
+            self.assertLessEqual(shard, 0.25, "%s: a shard against the largest offset" % name)
 
     def test_every_frame_of_every_action_with_keep_skin_apart(self):
         """Keeping skin apart, the correction fades where the skin comes near other skin (the tail on the rump in
@@ -191,6 +197,8 @@ class TestHorseSurface(helpers.AddonTestCase):
             self.assertLessEqual(added, 0, "%s: more crossing pairs than plain skinning" % name)
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
             self.assertLessEqual(rough, 0.25, "%s: roughness against the largest offset" % name)
+        for name, shard in self.shards.items():
+            self.assertLessEqual(shard, 0.25, "%s: a shard against the largest offset" % name)
 
 
 class TestLowPolyHorseSurface(TestHorseSurface):
@@ -226,6 +234,8 @@ class TestLowPolyHorseSurface(TestHorseSurface):
         obj, rig = self.low_poly_scene()
         for name, (_crossings, _creases, rough) in self.surface_of_every_action(obj, rig).items():
             self.assertLessEqual(rough, self.COARSE_ROUGHNESS, "%s: roughness against the largest offset" % name)
+        for name, shard in self.shards.items():
+            self.assertLessEqual(shard, 0.25, "%s: a shard against the largest offset" % name)
 
     def test_every_frame_of_every_action_with_keep_skin_apart(self):
         obj, rig = self.low_poly_scene()
@@ -235,6 +245,8 @@ class TestLowPolyHorseSurface(TestHorseSurface):
             self.assertLessEqual(added, 0, "%s: more crossing pairs than plain skinning" % name)
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
             self.assertLessEqual(rough, self.COARSE_ROUGHNESS, "%s: roughness against the largest offset" % name)
+        for name, shard in self.shards.items():
+            self.assertLessEqual(shard, 0.25, "%s: a shard against the largest offset" % name)
 
 
 class TestHorseBake(test_bake.CommandTestCase):

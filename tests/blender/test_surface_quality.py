@@ -6,6 +6,7 @@ which must measure exactly as its welded self. No add-on involved: these tests h
 """
 
 import math
+import random
 import unittest
 
 import real_cases
@@ -192,6 +193,49 @@ class TestRoughness(unittest.TestCase):
         rough, largest, vertex = quality.roughness(offsets, self.mesh)
         self.assertEqual(vertex, 10 * self.SIZE + 12)
         self.assertGreater(rough, 0.8 / self.mesh.mean_rest_edge_length)
+
+
+class TestShards(unittest.TestCase):
+    """shard: how much further out of its neighbours' surface the correction leaves a vertex than plain skinning."""
+    SIZE = 21
+
+    def setUp(self):
+        self.points, self.triangles = grid(self.SIZE)
+        self.mesh = quality.WeldedMesh(self.points, self.triangles)
+        self.unit = self.mesh.mean_rest_edge_length
+        self.centre = 10 * self.SIZE + 10
+
+    def lifted(self, points, vertex, height):
+        return [(x, y, z + (height if i == vertex else 0.0)) for i, (x, y, z) in enumerate(points)]
+
+    def test_a_vertex_pushed_out_is_a_shard(self):
+        value, vertex = quality.shard(self.points, self.lifted(self.points, self.centre, 0.8), self.mesh)
+        self.assertEqual(vertex, self.centre)
+        self.assertAlmostEqual(value, 0.8 / self.unit, places=6)
+
+    def test_a_smooth_bulge_is_none(self):
+        bulge = [(x, y, 2.0 * math.exp(-((x - 10) ** 2 + (y - 10) ** 2) / 18.0)) for x, y, _z in self.points]
+        value, _vertex = quality.shard(self.points, bulge, self.mesh)
+        self.assertLess(value, 0.15 / self.unit)
+
+    def test_never_more_than_the_roughness(self):
+        generator = random.Random(46)
+        bumpy = [(x + 0.2 * generator.random(), y + 0.2 * generator.random(), 0.3 * math.sin(x) * math.cos(y))
+                 for x, y, _z in self.points]
+        moved = [tuple(c + 0.3 * generator.random() for c in point) for point in bumpy]
+        value, _vertex = quality.shard(bumpy, moved, self.mesh)
+        rough = quality.roughness(quality.offsets_between(bumpy, moved), self.mesh)[0]
+        self.assertGreater(value, 0.0)
+        self.assertLessEqual(value, rough + 1e-12)
+
+    def test_a_fold_pressed_flat_is_none(self):
+        # Plain skinning leaves a vertex folded 0.8 out of the surface; the correction puts it back: its offset is
+        # as rough as a spike, its surface smoother than plain skinning's.
+        folded = self.lifted(self.points, self.centre, 0.8)
+        offsets = quality.offsets_between(folded, self.points)
+        self.assertAlmostEqual(quality.roughness(offsets, self.mesh)[0], 0.8 / self.unit, places=6)
+        value, _vertex = quality.shard(folded, self.points, self.mesh)
+        self.assertLessEqual(value, 0.0)
 
 
 class TestPopping(unittest.TestCase):

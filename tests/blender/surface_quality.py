@@ -325,43 +325,39 @@ def roughness(offsets, mesh):
     return worst / unit, largest / unit, worst_vertex
 
 
-def _normals_and_lifts(points, mesh):
-    """Per vertex (a dict), its unit normal (the area-weighted normal of its triangles) and its lift: its position
-    less the mean of its edge neighbours'."""
-    result = {}
+def shard(plain_positions, positions, mesh):
+    """(largest, vertex): how much further out of its neighbours' surface the correction leaves a vertex than plain
+    skinning leaves it, in mean rest edge lengths: per vertex, its height off its neighbours' surface (its position
+    less the mean of its edge neighbours', along plain skinning's normal there, unsigned) with the correction less
+    the same with plain skinning (QUALITY.md, Folds: a shard is a single vertex pushed out of, or held back from,
+    its neighbours' surface). Never more than the roughness: the two heights differ by at most the offsets'
+    roughness along that normal. A smooth bulge reads near zero; where a correction presses a fold of plain
+    skinning flat its offsets are rough (they undo the fold's) while the surface is smoother than plain
+    skinning's, and the fold reads below zero."""
+    plain, now = points_of(plain_positions), points_of(positions)
+    # Each welded triangle's area vector in plain skinning; a vertex's normal is the sum of its triangles'.
+    areas = [_cross(_sub(plain[b], plain[a]), _sub(plain[c], plain[a])) for a, b, c in mesh.welded_triangles]
+    worst, worst_vertex = -math.inf, -1
     for vertex in mesh.vertices:
         around = mesh.neighbours[vertex]
         if not around:
             continue
-        normal = [0.0, 0.0, 0.0]
+        nx = ny = nz = 0.0
         for index in mesh.triangles_around[vertex]:
-            a, b, c = mesh.welded_triangles[index]
-            area = _cross(_sub(points[b], points[a]), _sub(points[c], points[a]))
-            normal = [normal[k] + area[k] for k in range(3)]
-        size = _length(normal)
+            area = areas[index]
+            nx, ny, nz = nx + area[0], ny + area[1], nz + area[2]
+        size = math.sqrt(nx * nx + ny * ny + nz * nz)
         if not size > 0.0:
             continue
-        mean = [sum(points[n][k] for n in around) / len(around) for k in range(3)]
-        result[vertex] = ([x / size for x in normal], _sub(points[vertex], mean))
-    return result
-
-
-def shard(plain_positions, positions, mesh):
-    """(largest, vertex): how much further out of its neighbours' surface the correction leaves a vertex than plain
-    skinning leaves it, in mean rest edge lengths: per vertex, its height off its neighbours' surface (its position
-    less its neighbours' mean, along plain skinning's normal there, unsigned) with the correction less the same
-    with plain skinning (QUALITY.md, Folds: a shard is a single vertex pushed out of, or held back from, its
-    neighbours' surface). Never more than the roughness: the two heights differ by the offsets' roughness along
-    that normal at most. A smooth bulge reads near zero; where a correction presses a fold of plain skinning flat
-    its offsets are rough (they undo the fold's) while the surface is smoother than plain skinning's, and the fold
-    reads below zero."""
-    plain = _normals_and_lifts(points_of(plain_positions), mesh)
-    now = points_of(positions)
-    worst, worst_vertex = -math.inf, -1
-    for vertex, (normal, plain_lift) in plain.items():
-        around = mesh.neighbours[vertex]
-        mean = [sum(now[n][k] for n in around) / len(around) for k in range(3)]
-        value = abs(_dot(_sub(now[vertex], mean), normal)) - abs(_dot(plain_lift, normal))
+        count = len(around)
+        p, q = plain[vertex], now[vertex]
+        plain_lift = (p[0] * nx + p[1] * ny + p[2] * nz) * count
+        lift = (q[0] * nx + q[1] * ny + q[2] * nz) * count
+        for n in around:
+            a, b = plain[n], now[n]
+            plain_lift -= a[0] * nx + a[1] * ny + a[2] * nz
+            lift -= b[0] * nx + b[1] * ny + b[2] * nz
+        value = (abs(lift) - abs(plain_lift)) / (count * size)
         if value > worst:
             worst, worst_vertex = value, vertex
     return (worst / mesh.mean_rest_edge_length if worst_vertex >= 0 else 0.0), worst_vertex

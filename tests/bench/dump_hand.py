@@ -2,10 +2,12 @@
 """Dumps the project's hand (tests/blender/real_cases.hand) as the add-on binds and corrects it: the
 arguments of _lvp.Binding and, at frames 12, 16 and 21, those of Binding.correct (the positions entering
 Volume Preservation, the bones' matrices and the settings), for bench_keep_apart.py to replay outside
-Blender. Run by Blender 3.4 with the add-on built (./build.sh package):
+Blender. With --tube, the 100,096-vertex tube of tests/blender/bench.py instead, bending from 0 to 90
+degrees over frames 1 to 20 as the bench plays it, at frames 10, 15 and 20 (45, 67 and 90 degrees). Run by
+Blender 3.4 with the add-on built (./build.sh package):
 
     LVP_REPO=$PWD LVP_ADDON_DIR=$PWD/dist/local_volume_preservation \
-        blender -b --factory-startup -noaudio --python tests/bench/dump_hand.py -- OUT.pickle
+        blender -b --factory-startup -noaudio --python tests/bench/dump_hand.py -- OUT.pickle [--tube]
 """
 import os
 import pickle
@@ -16,13 +18,26 @@ import bpy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "blender"))
+import bench  # noqa: E402
 import lvp_helpers as helpers  # noqa: E402
 import real_cases  # noqa: E402
 
 FRAMES = (12, 16, 21)
+TUBE_FRAMES = (10, 15, 20)
+TUBE_VERTICES = 100_000
 
 
-def main(out_path):
+def tube():
+    """(mesh, rig): the tube of tests/blender/bench.py, bending as the bench bends it."""
+    helpers.reset_scene()
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 40
+    rig = helpers.two_bone_armature("BenchRig")
+    helpers.keyframe_bend(rig, {1: 0.0, 20: 90.0, 40: 0.0})
+    return bench.dense_character("Tube", rig, round(TUBE_VERTICES / bench.AROUND)), rig
+
+
+def main(out_path, use_tube):
     addon = helpers.enable_addon(check_volumes=False)
     real_lvp = addon.bindings._lvp
     bind_calls = []
@@ -52,10 +67,11 @@ def main(out_path):
         return original(obj, bound, rest_positions, fold_over, keep_apart)
 
     addon.live._core_correction = recording
-    obj, rig = real_cases.hand()
+    obj, _rig = tube() if use_tube else real_cases.hand()
+    bpy.context.view_layer.update()
     helpers.select_only(obj)
     bpy.ops.object.lvp_add()
-    for frame in FRAMES:
+    for frame in TUBE_FRAMES if use_tube else FRAMES:
         bpy.context.scene.frame_set(frame)
         bpy.context.view_layer.update()
         helpers.evaluated_positions(obj)
@@ -68,4 +84,5 @@ def main(out_path):
     print("dumped %d vertices, frames %s to %s" % (len(args[0]) // 3, sorted(frames), out_path))
 
 
-main(sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else "hand.pickle")
+ARGUMENTS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+main(next((a for a in ARGUMENTS if not a.startswith("--")), "hand.pickle"), "--tube" in ARGUMENTS)

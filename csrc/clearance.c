@@ -649,12 +649,14 @@ static void lvp__apply_range(void *context, int32_t begin, int32_t end)
 	}
 }
 
-/* Into contact.near (returning their number), the dynamic vertices within as many rings of a share below
- * 1 as the smoothing has passes, those first: a pass changes a share only where a share it reads differs
- * from 1 (a slope from 1s, and a weighted mean of 1s summed in one order, are 1 exactly), so the shares of
- * the others stay 1. The rings are walked backwards through the neighbour lists (contact.readers): the
+/* Into contact.near, ring by ring, the dynamic vertices within as many rings of a share below 1 as the
+ * smoothing has passes (ring 0: those below 1), and into r_ring_ends[r] how many lie within r rings: a pass
+ * changes a share only where a share it reads differs from 1 (a slope from 1s, and a weighted mean of 1s
+ * summed in one order, are 1 exactly), so after p passes only the shares within p rings can differ from 1,
+ * and the others stay 1. The rings are walked backwards through the neighbour lists (contact.readers): the
  * vertices whose passes read a vertex of the ring before. */
-static int32_t lvp__near_low_shares(lvp_binding *binding, const float *shares)
+static void lvp__near_low_shares(lvp_binding *binding, const float *shares,
+                                 int32_t r_ring_ends[LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES + 1])
 {
 	lvp__contact *contact = &binding->contact;
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
@@ -665,6 +667,7 @@ static int32_t lvp__near_low_shares(lvp_binding *binding, const float *shares)
 		if (shares[k] < 1.0f)
 			contact->near[count++] = k;
 	}
+	r_ring_ends[0] = count;
 	for (int32_t first = 0, ring = 1; ring <= LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++ring) {
 		int32_t last = count;
 		for (int32_t i = first; i < last; ++i) {
@@ -678,21 +681,24 @@ static int32_t lvp__near_low_shares(lvp_binding *binding, const float *shares)
 			}
 		}
 		first = last;
+		r_ring_ends[ring] = count;
 	}
-	return count;
 }
 
 void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors)
 {
-	int32_t count = lvp__near_low_shares(binding, shares);
-	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
+	int32_t ring_ends[LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES + 1];
+	lvp__near_low_shares(binding, shares, ring_ends);
 	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors, binding->contact.near};
-	/* The vertices past the rings, which the last ring reads, hold 1 in both. */
+	/* The vertices past the rings a pass walks, which its last ring reads, hold 1 in both. */
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
 		scratch[binding->dynamic.vertices[v]] = shares[binding->dynamic.vertices[v]];
 	/* First no share more than the slope above a neighbour's (each pass reaches one ring further;
-	 * none rises), then averaged. An even number of passes leaves the result in `shares`. */
+	 * none rises), then averaged. An even number of passes leaves the result in `shares`. Pass i
+	 * changes the rings up to i + 1 only. */
 	for (int i = 0; i < LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES; ++i) {
+		int32_t count = ring_ends[i + 1];
+		lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)count * LVP__SHARE_WORK);
 		lvp__parallel_for(pool, i < LVP__SLOPE_PASSES ? lvp__slope_range : lvp__average_range, &pass, count,
 		                  LVP__SHARE_GRAIN);
 		float *read = pass.to;

@@ -99,7 +99,7 @@ class TestRigifyHuman(SurfaceCase):
 
     def fold_over_at(self, amount, label):
         """Fold-Over Prevention with Keep Skin Apart at pose_rigify_human(amount): the measures, after checking that
-        the correction ran, restored the volume and left fewer crossing pairs than plain skinning and no shard."""
+        the correction ran, restored the volume and left no more crossing pairs than plain skinning and no shard."""
         real_cases.pose_rigify_human(self.rig, amount)
         self.body.lvp.fold_over = True
         try:
@@ -129,7 +129,7 @@ class TestRigifyHuman(SurfaceCase):
         # its own until they shared the plane of the bone the arm hangs from. Now 0.27 (README), at the back of
         # the knees, where the press takes the skin that plain skinning folded back onto the contact plane: the
         # offsets there undo the fold's roughness, and the surface is smoother than plain skinning's (the roughest
-        # vertex 0.15 mean edge lengths off its neighbours' surface, 0.64 in plain skinning), so no shard. At most
+        # vertex 0.15 mean edge lengths from its neighbours' mean, 0.64 in plain skinning), so no shard. At most
         # one crease per 300 edges: 36 (46 allowed); 92 while the pressed skin's relaxation stopped at skin its
         # bones carry rigidly (the upper arm's two DEF bones) and the map was faded on the convex side of a joint
         # too (the buttock, across the raised hip's plane; foldover.c).

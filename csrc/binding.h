@@ -383,7 +383,7 @@ typedef struct lvp__contact {
 	int32_t *reader_offsets;   /* vertex_count + 1 into readers: */
 	int32_t *readers;          /* the vertices whose smoothing neighbours hold each vertex (clearance.c) */
 	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks */
-	uint8_t *near_ring;        /* scratch, vertex_count: their rings from a share below 1 */
+	uint8_t *near_seen;        /* scratch, vertex_count: listed in near this smoothing */
 	uint8_t *connected;        /* per node of the hierarchy: its triangles are one patch (flat_patches.c) */
 	float *cones;              /* per node: the cone of its triangles' normals at the last fit */
 	uint8_t *flat;             /* per node: connected, and its cone under 90 degrees: none of its

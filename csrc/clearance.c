@@ -517,7 +517,7 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->reader_offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
 	contact->readers = lvp__calloc((size_t)entries + 1, sizeof(int32_t), &ok);
 	contact->near = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
-	contact->near_ring = lvp__calloc((size_t)n, 1, &ok);
+	contact->near_seen = lvp__calloc((size_t)n, 1, &ok);
 	if (!ok)
 		return lvp__fail(r_diag, lvp_error_out_of_memory, "binding", -1,
 		                 "could not allocate the clearance search of %d vertices.", (int)n);
@@ -663,7 +663,7 @@ static void lvp__near_low_shares(lvp_binding *binding, const float *shares,
 	int32_t count = 0;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t k = binding->dynamic.vertices[v];
-		contact->near_ring[k] = shares[k] < 1.0f ? 0 : UINT8_MAX;
+		contact->near_seen[k] = shares[k] < 1.0f;
 		if (shares[k] < 1.0f)
 			contact->near[count++] = k;
 	}
@@ -674,8 +674,8 @@ static void lvp__near_low_shares(lvp_binding *binding, const float *shares,
 			int32_t j = contact->near[i];
 			for (int32_t e = contact->reader_offsets[j]; e < contact->reader_offsets[j + 1]; ++e) {
 				int32_t k = contact->readers[e];
-				if (dynamic[k] && contact->near_ring[k] == UINT8_MAX) {
-					contact->near_ring[k] = (uint8_t)ring;
+				if (dynamic[k] && !contact->near_seen[k]) {
+					contact->near_seen[k] = 1;
 					contact->near[count++] = k;
 				}
 			}

@@ -798,7 +798,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->reader_offsets);
 	free(contact->readers);
 	free(contact->near);
-	free(contact->near_ring);
+	free(contact->near_seen);
 	free(contact->connected);
 	free(contact->cones);
 	free(contact->flat);

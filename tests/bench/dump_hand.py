@@ -29,11 +29,7 @@ TUBE_VERTICES = 100_000
 
 def tube():
     """(mesh, rig): the tube of tests/blender/bench.py, bending as the bench bends it."""
-    helpers.reset_scene()
-    scene = bpy.context.scene
-    scene.frame_start, scene.frame_end = 1, 40
-    rig = helpers.two_bone_armature("BenchRig")
-    helpers.keyframe_bend(rig, {1: 0.0, 20: 90.0, 40: 0.0})
+    rig = bench.bending_scene(20)
     return bench.dense_character("Tube", rig, round(TUBE_VERTICES / bench.AROUND)), rig
 
 

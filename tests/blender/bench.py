@@ -62,6 +62,17 @@ def dense_character(name, rig, rings):
     return obj
 
 
+def bending_scene(half):
+    """The rig of the bench, its joint bending from 0 degrees at frame 1 to 90 at `half` and back at 2 * half, in a
+    new scene of those frames."""
+    scene = helpers.reset_scene()
+    scene.frame_start = 1
+    scene.frame_end = 2 * half
+    rig = helpers.two_bone_armature("BenchRig")
+    helpers.keyframe_bend(rig, {1: 0.0, half: 90.0, 2 * half: 0.0})
+    return rig
+
+
 def set_correction(addon, on):
     """Registers or unregisters the add-on's handlers: with them off, the modifier's node group still
     runs (and adds the offsets last written), but nothing is corrected or written."""
@@ -83,13 +94,10 @@ def time_frames(scene, frames):
 def main():
     arguments = parse_arguments()
     addon = helpers.enable_addon(check_volumes=False)
-    scene = helpers.reset_scene()
     half = max(2, arguments.frames // 2)
-    scene.frame_start = 1
-    scene.frame_end = 2 * half
     rings = max(16, round(arguments.vertices / AROUND))
-    rig = helpers.two_bone_armature("BenchRig")
-    helpers.keyframe_bend(rig, {1: 0.0, half: 90.0, 2 * half: 0.0})
+    rig = bending_scene(half)
+    scene = bpy.context.scene
 
     setups = {}
     setups["armature"] = dense_character("ArmatureOnly", rig, rings)

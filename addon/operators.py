@@ -341,8 +341,9 @@ bone) and write them into the deforming bones' vertex groups, replacing their we
     )
     max_influences: IntProperty(
         name="Max Influences",
-        description="Keep at most this many bones per vertex (0: all)",
-        default=4, min=0, max=32,
+        description="Keep at most this many bones per vertex (0: all, as With Automatic Weights does; 4 for "
+        "game engines that take four)",
+        default=0, min=0, max=32,
     )
     min_weight: FloatProperty(
         name="Min Weight",

@@ -11,7 +11,8 @@ female build and a heavy one with no gap between the legs (issue 43):
 - weights are continuous: the largest change of a bone's weight across an edge, and its 99th percentile,
   are no larger than with heat weights;
 - plain skinning loses at most 1.1 times the volume it loses with heat weights, and crosses itself at most
-  1.1 times as much;
+  1.1 times as much, in all and joint by joint (which two limbs' skins cross, by the skin heat weights give
+  each), so that a joint's crossings are not hidden by another's;
 - the skin of a thigh crosses itself (triangles that are the thigh's skin, by the largest sum of heat weights
   over their corners, as the core segments the mesh: the same skin for every weighting) no more often than
   with heat weights: where the thigh's weights reach up into the buttock and the belly, raising the leg folds
@@ -65,24 +66,24 @@ def limb(name):
     return re.sub(r"\.\d{3}$", "", name)
 
 
-def crossings_within_one_bone(pairs, mesh, rows):
-    """{limb: the crossing pairs whose two triangles are both that limb's skin}. A triangle is the skin of the limb
-    with the largest sum of weights over its corners, as the core segments the mesh (lvp.h, SEGMENTATION): a
-    triangle in the middle of a blend, half pelvis and half thigh, is the joint's skin, not one limb's."""
+def crossings_by_joint(pairs, mesh, rows):
+    """{(limb, limb): the crossing pairs between those two limbs' skins}, the two names sorted; (limb, limb) with one
+    name twice: that limb's skin crossing itself. A triangle is the skin of the limb with the largest sum of weights
+    over its corners, as the core segments the mesh (lvp.h, SEGMENTATION): a triangle in the middle of a blend,
+    half pelvis and half thigh, is the joint's skin, not one limb's."""
 
     def bone_of(triangle):
         sums = {}
         for vertex in mesh.welded_triangles[triangle]:
             for name, weight in rows[vertex].items():
                 sums[limb(name)] = sums.get(limb(name), 0.0) + weight
-        return max(sorted(sums), key=sums.get) if sums else None
+        return max(sorted(sums), key=sums.get) if sums else "(no bone)"
 
-    within = {}
+    joints = {}
     for first, second in pairs:
-        bone = bone_of(first)
-        if bone is not None and bone == bone_of(second):
-            within[bone] = within.get(bone, 0) + 1
-    return within
+        joint = tuple(sorted((bone_of(first), bone_of(second))))
+        joints[joint] = joints.get(joint, 0) + 1
+    return joints
 
 
 def edge_jumps(mesh, rows):
@@ -143,6 +144,7 @@ class TestRigifyHuman(unittest.TestCase):
     crossing_poses = poses
     thigh_poses = poses
     continuous_as_heat = True  # the largest change across an edge, and its 99th percentile, at most heat weights'
+    joints_not_met = ()  # (pose, limb, limb): joints crossing more than 1.1 times heat weights' here (see the class)
 
     @classmethod
     def setUpClass(cls):
@@ -178,7 +180,7 @@ class TestRigifyHuman(unittest.TestCase):
             # same skin, so that a triangle half the pelvis's and half the thigh's counts alike for all.
             measured[name] = {"volume": quality.volume_change(cls.mesh.rest, posed, cls.mesh.triangles),
                               "crossings": len(pairs),
-                              "within one bone": crossings_within_one_bone(pairs, cls.mesh, cls.heat_rows)}
+                              "by joint": crossings_by_joint(pairs, cls.mesh, cls.heat_rows)}
         real_cases.pose_rigify_human(cls.rig, 0.0)
         return measured
 
@@ -225,6 +227,21 @@ class TestRigifyHuman(unittest.TestCase):
             most = max(self.heat(lambda m: m[name]["crossings"]))
             self.assertLessEqual(auto[name]["crossings"], 1.1 * most, "%s: %s" % (name, self.summary()))
 
+    def test_each_joint_crosses_itself_no_more_than_with_heat_weights(self):
+        # Joint by joint (which two limbs' skins cross, by the skin heat weights give each), so that a joint's
+        # crossings are not hidden by another's: at most 1.1 times heat weights'. A thigh against itself is held
+        # to heat weights' own count below.
+        over = []
+        for name in self.poses:
+            auto = self.measured["auto"][name]["by joint"]
+            for joint, count in sorted(auto.items()):
+                if (name,) + joint in self.joints_not_met or (joint[0] == joint[1] and "thigh" in joint[0]):
+                    continue
+                most = max(self.heat(lambda m: m[name]["by joint"].get(joint, 0)))
+                if count > 1.1 * most:
+                    over.append("%s, %s: %d pairs, heat weights at most %d" % (name, joint, count, most))
+        self.assertFalse(over, self.summary())
+
     def test_a_thigh_crosses_itself_no_more_than_with_heat_weights(self):
         if not self.thigh_poses:
             self.skipTest("not met on this body (issue 43): see the class")
@@ -233,8 +250,8 @@ class TestRigifyHuman(unittest.TestCase):
         self.assertTrue(thighs, "Rigify's thigh bones")
         for name in self.thigh_poses:
             for thigh in thighs:
-                most = max(self.heat(lambda m: m[name]["within one bone"].get(thigh, 0)))
-                self.assertLessEqual(auto[name]["within one bone"].get(thigh, 0), most,
+                most = max(self.heat(lambda m: m[name]["by joint"].get((thigh, thigh), 0)))
+                self.assertLessEqual(auto[name]["by joint"].get((thigh, thigh), 0), most,
                                      "%s, %s: %s" % (name, thigh, self.summary()))
 
     def test_volume_preservation_on_these_weights(self):
@@ -274,18 +291,21 @@ class TestRigifyHuman(unittest.TestCase):
 
 class TestMetaballHuman(TestRigifyHuman):
     """The same metarig's body grown from metaballs (irregular triangles, and slivers: vertices a millimetre
-    apart among edges of 1.7 cm). Plain skinning: -2.90 % / -2.24 % of the volume at the hard pose and crouching
-    (heat weights -2.84 % / -2.17 %), 188 / 116 crossing pairs (205 / 136), none with the legs spread (1).
-    Method: Distance crossed itself in 4 pairs with the legs spread, at the side of the hip."""
+    apart among edges of 1.7 cm). Plain skinning: -2.87 % / -2.18 % of the volume at the hard pose and crouching
+    (heat weights -2.84 % / -2.17 %), 194 / 134 crossing pairs (205 / 136), 1 with the legs spread (0-1).
+    Method: Distance crossed itself in 4 pairs with the legs spread, at the side of the hip. Not met (issue 43):
+    crouching, the right pelvis's own skin, at the front of the crotch, crosses in 8 pairs where heat weights'
+    crosses in up to 3."""
     body_arguments = {"metaball_resolution": 0.02}
+    joints_not_met = (("crouch", "DEF-pelvis.R", "DEF-pelvis.R"),)
 
 
 class TestSkinModifierHuman(TestRigifyHuman):
-    """The same metarig's body made by the Skin modifier along the bones, subdivided twice: 258 / 241 crossing
-    pairs at the hard pose and crouching (heat weights 259 / 239), -5.63 % / -3.39 % of the volume (-5.61 % /
+    """The same metarig's body made by the Skin modifier along the bones, subdivided twice: 258 / 237 crossing
+    pairs at the hard pose and crouching (heat weights 259 / 239), -5.62 % / -3.48 % of the volume (-5.61 % /
     -3.49 %). Method: Distance crossed itself in 306 pairs at the hard pose, where the raised shoulder's skin
-    folded through itself, and lost 1.29x the volume crouching. Not met (issue 43), by 0.003 % of the volume:
-    with the legs spread this body loses a little with either weights, -0.08 % against heat weights' -0.07 %
+    folded through itself, and lost 1.29x the volume crouching. Not met (issue 43), by 0.04 % of the volume:
+    with the legs spread this body loses a little with either weights, -0.11 % against heat weights' -0.07 %
     (moved: -0.06 % and -0.05 %; the other bodies gain 3-9 %)."""
     body_arguments = {"skin_subdivisions": 2}
     gain_poses = ()
@@ -294,7 +314,7 @@ class TestSkinModifierHuman(TestRigifyHuman):
 class TestDecimatedHuman(TestRigifyHuman):
     """The voxel body decimated to 0.3 of its faces (1,392 vertices: long, thin triangles beside small ones, as
     game meshes have): 116 / 143 / 6 crossing pairs at the hard pose, crouching and with the legs spread (heat
-    weights 116 / 141 / 12), -6.21 % / -5.07 % of the volume (-6.38 % / -5.38 %). Method: Distance lost 1.39x
+    weights 116 / 141 / 12), -6.31 % / -5.25 % of the volume (-6.38 % / -5.38 %). Method: Distance lost 1.39x
     heat weights' volume crouching, its graph diffusion carrying weight the whole length of a long edge in one
     step. Not met (issue 43): the largest change across an edge is 0.97 (heat weights 0.90, and as much on the
     body moved), at an edge of 15 cm across the joint of the shin's two B-Bones, where heat weights take each
@@ -307,7 +327,7 @@ class TestDecimatedHuman(TestRigifyHuman):
 
 class TestFemaleHuman(TestRigifyHuman):
     """The voxel body of a female build (real_cases.BODY_BUILDS): hips wider than the shoulders, a narrow waist,
-    breasts on Rigify's DEF-breast bones, thighs that meet at the crotch (4,576 vertices): -3.62 % / -3.44 % of
+    breasts on Rigify's DEF-breast bones, thighs that meet at the crotch (4,576 vertices): -3.73 % / -3.68 % of
     the volume at the hard pose and crouching (heat weights -3.76 % / -3.63 %), 213 / 288 / 19 crossing pairs
     (217 / 289 / 23; with the legs spread 42 on the body moved by a tenth of a millimetre). Blender 3.4, 4.3
     and 5.2 alike."""
@@ -318,17 +338,20 @@ class TestFinerFemaleHuman(TestRigifyHuman):
     """The female body remeshed a little finer (voxels of 0.95 times the size, 5,006 vertices), where the weights
     with the paper's normal test (Visibility Test: Normal) crossed 1.21 times as often as heat weights with the
     legs spread (51 pairs against 42), and the thighs' own skin in 8 pairs over the three poses where heat
-    weights' crossed in 2 (now 43 pairs, and 2)."""
+    weights' crossed in 2 (now 43 pairs, and 2). Not met (issue 43): crouching, the right pelvis's own skin
+    crosses in 3 pairs where heat weights' crosses in up to 2."""
     body_arguments = {"build": "female", "voxel_size": real_cases.BODY_VOXEL * 0.95}
+    joints_not_met = (("crouch", "DEF-pelvis.R", "DEF-pelvis.R"),)
 
 
 class TestCoarserFemaleHuman(TestRigifyHuman):
-    """The female body remeshed coarser (1.1 times the voxel, 3,794 vertices): 193 / 260 / 29 crossing pairs (heat
+    """The female body remeshed coarser (1.1 times the voxel, 3,794 vertices): 193 / 256 / 29 crossing pairs (heat
     weights 197 / 252 / 32, moved by up to half a millimetre 196 / 252 / 30). Not met (issue 43): crouching, the
-    left thigh's own skin (the thigh on the belly) crosses in 7 pairs where heat weights' crosses in 4 (rows
-    within 0.01-0.03 of heat weights' there, less the fifth bone Max Influences 4 leaves out: the pairs that cross
-    there change by dozens, 45 new and 37 gone, between the two)."""
+    left thigh's own skin (the thigh on the belly) crosses in 7 pairs where heat weights' crosses in 4 (the pairs
+    that cross there change by dozens between the two weightings); with the legs spread, the left pelvis's skin
+    against the left thigh's in 17 pairs where heat weights' cross in up to 15 (1.13x)."""
     body_arguments = {"build": "female", "voxel_size": real_cases.BODY_VOXEL * 1.1}
+    joints_not_met = (("spread", "DEF-pelvis.L", "DEF-thigh.L"),)
     thigh_poses = ("hard", "spread")
 
 
@@ -338,23 +361,30 @@ class TestCoarserHuman(TestRigifyHuman):
 
 
 class TestFinerHuman(TestCoarserHuman):
+    """Not met (issue 43): crouching, the right pelvis's skin against the right thigh's crosses in 61 pairs where
+    heat weights' cross in up to 51 (1.20x)."""
     body_arguments = {"voxel_size": real_cases.BODY_VOXEL * 0.9}
+    joints_not_met = (("crouch", "DEF-pelvis.R", "DEF-thigh.R"),)
 
 
 class TestDecimatedFemaleHuman(TestRigifyHuman):
-    """The female body decimated to 0.3 of its faces: 109 / 178 / 11 crossing pairs (heat weights 107 / 180 / 12)
+    """The female body decimated to 0.3 of its faces: 109 / 175 / 11 crossing pairs (heat weights 107 / 180 / 12)
     on Blender 3.4. Not met (issue 43): crouching, the right thigh's own skin crosses in 6 pairs where heat
-    weights' crosses in 5; and on Blender 4.3 and 5.2, whose Decimate leaves other triangles, with the legs spread
-    17 pairs against 14 (1.21x)."""
+    weights' crosses in 5; at the hard pose the left shin's own skin in 4 pairs where heat weights' crosses in 3;
+    and on Blender 4.3 and 5.2, whose Decimate leaves other triangles, with the legs spread 17 pairs against 14
+    (1.21x; the right pelvis's skin against the right thigh's 13 against 10), and on 5.2 crouching that joint in
+    30 pairs against 25."""
     body_arguments = {"build": "female", "decimated": 0.3}
+    joints_not_met = (("hard", "DEF-shin.L", "DEF-shin.L"), ("crouch", "DEF-pelvis.R", "DEF-thigh.R"),
+                      ("spread", "DEF-pelvis.R", "DEF-thigh.R"))
     thigh_poses = ("hard", "spread")
     crossing_poses = ("hard", "crouch")
 
 
 class TestNoGapHuman(TestRigifyHuman):
     """The voxel body of a heavy build with no gap between the legs (5,050 vertices): the thighs press on each
-    other from the crotch to the middle of the thigh, so that each thigh's skin meets the other's at rest: -3.75 %
-    / -3.48 % of the volume at the hard pose and crouching (heat weights -3.78 % / -3.64 %), 281 / 331 / 66
+    other from the crotch to the middle of the thigh, so that each thigh's skin meets the other's at rest: -3.67 %
+    / -3.51 % of the volume at the hard pose and crouching (heat weights -3.78 % / -3.64 %), 281 / 330 / 66
     crossing pairs (284 / 331 / 68); the largest change across an edge 0.78 (0.79), its 99th percentile 0.471
     (0.474)."""
     body_arguments = {"build": "no gap"}

@@ -227,7 +227,7 @@ class TestRigifyHuman(unittest.TestCase):
             most = max(self.heat(lambda m: m[name]["crossings"]))
             self.assertLessEqual(auto[name]["crossings"], 1.1 * most, "%s: %s" % (name, self.summary()))
 
-    def test_each_joint_crosses_itself_no_more_than_with_heat_weights(self):
+    def test_each_joint_crosses_no_more_than_with_heat_weights(self):
         # Joint by joint (which two limbs' skins cross, by the skin heat weights give each), so that a joint's
         # crossings are not hidden by another's: at most 1.1 times heat weights'. A thigh against itself is held
         # to heat weights' own count below.

@@ -83,23 +83,23 @@ class TestHandFamily(unittest.TestCase):
                     self.assertLessEqual(kept["creases"], edges / EDGES_PER_CREASE, label)
 
     def test_fold_over_halves_the_crossings(self):
-        """Fold-Over Prevention with Keep Skin Apart (what renders with Fold-Over get): the volume kept, at most
-        half of plain skinning's crossing pairs, three quarters closed and at the fist (issue 46), Keep Skin Apart
-        adding at most one crease per 300 edges to Fold-Over's own, roughness at most a quarter of the largest
-        offset but on FOLD_OVER_ROUGH, and on every hand no shard (surface_quality.shard, a quarter of the largest
-        offset: 0.08-0.18 on 3.4, where the roughness reads up to 0.35). Measured on 3.4 and 5.2, the voxel hands:
-        no pair left where plain skinning has 21-310, roughness 0.12-0.20 (the coarse one's aside). Keep Skin Apart shortens only what it can part: on
-        the stubby hand at the fist, the skin that fold-over holds in the thumb's web meets the index's fingertip,
-        which the skinning already pushed into it; shortening the skin beside it to nothing parted none of those
-        pairs and added 42 creases to Fold-Over's 22. The web held in place then stood out of the skin around it,
+        """Fold-Over Prevention with Keep Skin Apart (what renders with Fold-Over get): the volume kept, at most half of
+        plain skinning's crossing pairs, three quarters closed and at the fist (issue 46), Keep Skin Apart adding at
+        most one crease per 300 edges to Fold-Over's own, roughness at most a quarter of the largest offset but on
+        FOLD_OVER_ROUGH, and on every hand no shard (surface_quality.shard, a quarter of the largest offset: 0.08-0.18
+        on 3.4, where the roughness reads up to 0.35). Measured on 3.4 and 5.2, the voxel hands: no pair left where
+        plain skinning has 21-310, roughness 0.12-0.20 (the coarse one's aside). Keep Skin Apart shortens only what it
+        can part: on the stubby hand at the fist, the skin that fold-over holds in the thumb's web meets the index's
+        fingertip, which the skinning already pushed into it; shortening the skin beside it to nothing parted none of
+        those pairs and added 42 creases to Fold-Over's 22. The web held in place then stood out of the skin around it,
         shortened because it met a third skin (roughness 0.45): now it comes down with that skin, the skinning's
-        crossing in it not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's
-        19). Not held yet: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs (the
-        little finger's tip folded onto its first phalanx, which is no joint's contact plane, and long triangles of
-        one phalanx crossing each other), and so is not asserted there; roughness 0.29 on the coarse hand three
-        quarters closed (1,850 vertices: README asks Smoothing 10 of meshes this coarse), 0.21-0.35 on the decimated
-        ones, where fold-over presses one vertex on the crease's line as far as the skinning carried it across and
-        its neighbours, across the plane at rest, much less."""
+        crossing in it not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's 19).
+        Not held yet: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs (the little
+        finger's tip folded onto its first phalanx, which is no joint's contact plane, and long triangles of one phalanx
+        crossing each other), and so is not asserted there; roughness 0.29 on the coarse hand three quarters closed
+        (1,850 vertices: README asks Smoothing 10 of meshes this coarse), 0.21-0.35 on the decimated ones, where
+        fold-over presses one vertex on the crease's line as far as the skinning carried it across and its neighbours,
+        across the plane at rest, much less."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 obj, mesh = self.corrected_hand(voxel_size, shape, decimated)

@@ -187,6 +187,7 @@ static double lvp__distance2_to_triangle(const lvp__vec3 x[3])
  * diameter, narrowed as it drops. */
 typedef struct lvp__clearance_search {
 	lvp__vec3 from, direction;
+	float from_f[3], direction_f[3]; /* the same in floats, for lvp__certainly_behind */
 	int32_t vertex;
 	double least;
 	float lo[3], hi[3];
@@ -254,13 +255,31 @@ static bool lvp__box_may_hold(void *context, const float lo[3], const float hi[3
 	return !lvp__outside_search(search, lo, hi) && !lvp__outside_ball(search, lo, hi);
 }
 
+/* Whether every corner of the triangle lies behind the vertex's tangent plane, <x, d> < 0, by a margin (a
+ * hundred-thousandth of the corner's distance) far past the float rounding of this test (a few
+ * ten-millionths of it): then no point of the triangle lies in front of the vertex. Most of the skin a search finds is the vertex's own surface
+ * around it; this passes over what lies behind it in floats, before the tests in doubles, which would pass
+ * over it too. */
+static inline bool lvp__certainly_behind(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
+{
+	for (int i = 0; i < 3; ++i) {
+		float x = triangle->corners[i][0] - search->from_f[0], y = triangle->corners[i][1] - search->from_f[1],
+		      z = triangle->corners[i][2] - search->from_f[2];
+		float ahead = x * search->direction_f[0] + y * search->direction_f[1] + z * search->direction_f[2];
+		if (!(ahead < -1e-5f * (fabsf(x) + fabsf(y) + fabsf(z))))
+			return false;
+	}
+	return true;
+}
+
 static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangle)
 {
 	lvp__clearance_search *search = context;
 	/* Its own triangles meet it, which is no contact: most of what a vertex's search visits, passed over
 	 * before the box. */
 	if (triangle->vertices[0] == search->vertex || triangle->vertices[1] == search->vertex ||
-	    triangle->vertices[2] == search->vertex || !lvp__box_may_hold(search, triangle->lo, triangle->hi))
+	    triangle->vertices[2] == search->vertex || lvp__certainly_behind(search, triangle) ||
+	    !lvp__box_may_hold(search, triangle->lo, triangle->hi))
 		return false;
 	lvp__vec3 x[3];
 	double ahead = 0.0, gap2 = 0.0;
@@ -329,6 +348,10 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	contact->clearance_reach[k] = (float)reach;
 	search->from = lvp__load(pass->positions + 3 * k);
 	search->direction = lvp__scale(offset, 1.0 / length);
+	for (int axis = 0; axis < 3; ++axis) {
+		search->from_f[axis] = pass->positions[3 * k + axis];
+		search->direction_f[axis] = (float)lvp__axis(search->direction, axis);
+	}
 	search->vertex = k;
 	search->least = reach;
 	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * reach));

@@ -461,6 +461,9 @@ typedef struct lvp__smoothing {
 	                             multiplies its offset by (the other half is the vertex's own) */
 	int32_t *movable;         /* scratch, vertex_count: the dynamic vertices that can move, which the
 	                             passes walk (lvp__smooth_offsets) */
+	int32_t tie_count;        /* clusters of two or more vertices tied into one point (smoothing_ties.c) */
+	int32_t *tie_offsets;     /* tie_count+1: each cluster's members in tie_members */
+	int32_t *tie_members;
 } lvp__smoothing;
 
 struct lvp_binding {
@@ -841,8 +844,14 @@ lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* smoothing_ties.c */
 /* Gives the vertices that one neighbour dominates in binding.smoothing the neighbours of the cluster
- * they form with it, so that a pass averages them as one point. */
+ * they form with it, so that a pass averages them as one point, and lists those clusters
+ * (smoothing.tie_offsets, tie_members). */
 lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* The offsets (step.positions against `positions`, the input points) of each cluster's members
+ * replaced by their mean, but for the clusters with a member fold-over holds (fold.held): what moved
+ * them one by one (the volume steps through the map) moves them as one point again. A member the map
+ * left static is made dynamic when the mean moves it. */
+void lvp__move_ties_as_one(lvp_binding *binding, const float *positions);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
  * neighbours'; with whatever_the_map, every dynamic vertex that fold-over does not hold moves, its map

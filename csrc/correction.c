@@ -1208,8 +1208,20 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}
 	stats->folded_vertices = 0;
-	if (options->fold_over && binding->mode == LVP_MODE_LOCAL)
+	if (options->fold_over && binding->mode == LVP_MODE_LOCAL) {
 		lvp__prevent_fold_over(binding, options, positions, rest_positions, totals, stats);
+		/* Vertices the smoothing ties into one point, which fold-over's steps moved one by one, move
+		 * as one point again, but for those it holds on a contact plane (smoothing_ties.c); the volume
+		 * their mean takes is restored through the map as fold-over restores it, which moves them a
+		 * little apart again, by far less. */
+		if (binding->smoothing.tie_count > 0) {
+			lvp__move_ties_as_one(binding, positions);
+			lvp__measure_positions(binding, rest_positions, totals);
+			stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
+			lvp__move_ties_as_one(binding, positions);
+			lvp__measure_positions(binding, rest_positions, totals);
+		}
+	}
 	stats->shortened_vertices = 0;
 	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {

@@ -208,7 +208,13 @@
  *   volume missing); the volume the relaxation took is restored after them, through the map and
  *   then along the offsets smoothed once more (so that it does not rise where the map peaks beside
  *   a contact), what that carries across pressed back and relaxed in turn, and what that takes
- *   restored through the map once more (what it carries across pressed back). Limits: bones
+ *   restored through the map once more (what it carries across pressed back). Last, vertices the
+ *   smoothing ties into one point (OFFSET SMOOTHING), which the steps moved one by one, take their
+ *   mean offset, the volume that takes is restored through the map, and they take their mean again;
+ *   a cluster with a member held on a contact plane keeps the places the press gave it. The ends of a
+ *   metaball body's short edges parted by a share of the offsets and turned their thin triangles on
+ *   edge (knees and elbows at 150 degrees: creases added 49 -> 37 of 13,740 edges; meshes without
+ *   such edges are unchanged). Limits: bones
  *   without a joint between them (a fingertip on the palm, a thumb on the index), two parts of
  *   one bone's flesh and the joints of one B-Bone are not separated; at the edge of the skin
  *   pressed onto the plane the skin beside it may cross it; where two bones lie on top of each

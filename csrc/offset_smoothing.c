@@ -102,6 +102,8 @@ void lvp__smoothing_free(lvp__smoothing *smoothing)
 	free(smoothing->shares);
 	free(smoothing->halves);
 	free(smoothing->movable);
+	free(smoothing->tie_offsets);
+	free(smoothing->tie_members);
 }
 
 typedef struct lvp__smoothing_pass {

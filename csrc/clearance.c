@@ -257,9 +257,9 @@ static bool lvp__box_may_hold(void *context, const float lo[3], const float hi[3
 
 /* Whether every corner of the triangle lies behind the vertex's tangent plane, <x, d> < 0, by a margin (a
  * hundred-thousandth of the corner's distance) far past the float rounding of this test (a few
- * ten-millionths of it): then no point of the triangle lies in front of the vertex. Most of the skin a search finds is the vertex's own surface
- * around it; this passes over what lies behind it in floats, before the tests in doubles, which would pass
- * over it too. */
+ * ten-millionths of it): then no point of the triangle lies in front of the vertex. Most of the skin a
+ * search finds is the vertex's own surface around it; this passes over what lies behind it in floats,
+ * before the tests in doubles, which would pass over it too. */
 static inline bool lvp__certainly_behind(const lvp__clearance_search *search, const lvp__bvh_triangle *triangle)
 {
 	for (int i = 0; i < 3; ++i) {

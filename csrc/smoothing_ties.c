@@ -269,9 +269,11 @@ void lvp__move_ties_as_one(lvp_binding *binding, const float *positions)
 		if (held)
 			continue;
 		double mean[3] = {0.0, 0.0, 0.0};
-		for (int32_t i = first; i < last; ++i)
+		for (int32_t i = first; i < last; ++i) {
+			int32_t k = smoothing->tie_members[i];
 			for (int c = 0; c < 3; ++c)
-				mean[c] += (double)work[3 * smoothing->tie_members[i] + c] - positions[3 * smoothing->tie_members[i] + c];
+				mean[c] += (double)work[3 * k + c] - positions[3 * k + c];
+		}
 		bool moves = false;
 		for (int c = 0; c < 3; ++c) {
 			mean[c] /= (double)(last - first);

@@ -438,7 +438,8 @@ static void test_fold_over_moves_tied_vertices_as_one(void)
 			++twins;
 			double d2 = 0.0;
 			for (int c = 0; c < 3; ++c) {
-				double d = ((double)corrected[3 * a + c] - skinned[3 * a + c]) - ((double)corrected[3 * b + c] - skinned[3 * b + c]);
+				double d = ((double)corrected[3 * a + c] - skinned[3 * a + c]) -
+				           ((double)corrected[3 * b + c] - skinned[3 * b + c]);
 				d2 += d * d;
 			}
 			apart = fmax(apart, sqrt(d2));

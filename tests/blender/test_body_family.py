@@ -55,11 +55,10 @@ FOLDED_BODIES = {
     "female voxel body": ({"build": "female"}, None),
 }
 # Bodies whose creases at 150 degrees with Fold-Over are not held yet (test_fold_over_at_150_degrees), measured on
-# 3.4: the finer metaball body 127 where 81 are allowed, the coarse one 20 where 19.9 are. 98 of the finer body's
-# 127 border a needle (its polygonization leaves 262 edges under a twentieth of the mean), most of them made by
-# the first press (179 before any relaxation): a needle whose two near corners fold-over presses by different
-# amounts (one pressed, its neighbour a hair across the region's border or the plane's window not) turns on edge,
-# and the relaxation, which presses the pressed skin back each pass, leaves 126.
+# 3.4, 4.3 and 5.2: the finer metaball body 127 where 81 are allowed, the coarse one 20 where 19.9 are. 98 of the
+# finer body's 127 border a needle (its polygonization leaves 262 edges under a twentieth of the mean); right after
+# the first press it has 179 creases, 52 of them at a needle: the relaxations after it smooth the others away while
+# those at needles grow (BENCHMARKS.md, "vertices tied into one point").
 CREASES_NOT_MET_AT_150 = ("metaballs, 0.015", "metaballs, 0.03 (coarse)")
 
 

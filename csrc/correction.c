@@ -1215,8 +1215,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		 * their mean takes is restored through the map as fold-over restores it, which moves them a
 		 * little apart again, by far less. */
 		if (binding->smoothing.tie_count > 0) {
-			lvp__move_ties_as_one(binding, positions);
-			lvp__measure_positions(binding, rest_positions, totals);
+			lvp__move_ties_as_one(binding, positions); /* the step measures the positions it starts from */
 			stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 			lvp__move_ties_as_one(binding, positions);
 			lvp__measure_positions(binding, rest_positions, totals);

@@ -48,10 +48,8 @@ BODY_FAMILY = {
 # body, the family's metaball bodies at three densities and its Skin modifier body, a female build
 FOLDED_BODIES = {
     "voxel body": ({}, None),
-    "metaballs, 0.02": ({"metaball_resolution": 0.02}, None),
-    "metaballs, 0.015": ({"metaball_resolution": 0.015}, None),
-    "metaballs, 0.03 (coarse)": ({"metaball_resolution": 0.03}, COARSE_SMOOTHING),
-    "Skin modifier, subdivided twice": ({"skin_subdivisions": 2}, None),
+    **{name: BODY_FAMILY[name] for name in ("metaballs, 0.02", "metaballs, 0.015", "metaballs, 0.03 (coarse)",
+                                            "Skin modifier, subdivided twice")},
     "female voxel body": ({"build": "female"}, None),
 }
 # Bodies whose creases at 150 degrees with Fold-Over are not held yet (test_fold_over_at_150_degrees), measured on

@@ -100,9 +100,8 @@ class TestHandFamily(unittest.TestCase):
         111 on 3.4, 28 of 85 and 28 of 114 on 4.3 and 5.2; on 3.4 31 and 29 while the vertices the smoothing ties into
         one point were averaged after fold-over even where it held them on a contact plane, smoothing_ties.c);
         roughness 0.29 on the coarse hand three quarters closed (1,850 vertices: README asks Smoothing 10 of meshes
-        this coarse), 0.21-0.35 on the decimated ones, where
-        fold-over presses one vertex on the crease's line as far as the skinning carried it across and its neighbours,
-        across the plane at rest, much less."""
+        this coarse), 0.21-0.35 on the decimated ones, where fold-over presses one vertex on the crease's line as far
+        as the skinning carried it across and its neighbours, across the plane at rest, much less."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 obj, mesh = self.corrected_hand(voxel_size, shape, decimated)

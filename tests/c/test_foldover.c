@@ -419,14 +419,8 @@ static void test_fold_over_moves_tied_vertices_as_one(void)
 	int64_t plain = test_count_intersecting_pairs(skinned, rig.triangles, rig.triangle_count), pairs = -1;
 	double volume_error = INFINITY;
 	fold_limb_into(corrected, &rig, posed, skinned, NULL, &pairs, &volume_error);
-	double largest = 0.0, apart = 0.0, turned = 0.0;
+	double largest = test_largest_distance(corrected, skinned, n), apart = 0.0, turned = 0.0;
 	int32_t twins = 0, thin_turned = 0;
-	for (int32_t k = 0; k < n; ++k) {
-		double offset[3];
-		for (int c = 0; c < 3; ++c)
-			offset[c] = (double)corrected[3 * k + c] - skinned[3 * k + c];
-		largest = fmax(largest, sqrt(offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2]));
-	}
 	/* The twin of a vertex: the vertex straight above it by a fiftieth of the ring spacing. */
 	double spacing = 4.0 / 15.0;
 	for (int32_t a = 0; a < n; ++a)

@@ -56,6 +56,7 @@ void lvp_free(lvp_binding *binding)
 	lvp__contact_free(&binding->contact);
 	lvp__part_volumes_free(&binding->parts);
 	lvp__smoothing_free(&binding->smoothing);
+	lvp__smoothing_free(&binding->relaxation);
 	lvp__step_free(&binding->step);
 	free(binding);
 }

@@ -461,7 +461,8 @@ typedef struct lvp__smoothing {
 	                             multiplies its offset by (the other half is the vertex's own) */
 	int32_t *movable;         /* scratch, vertex_count: the dynamic vertices that can move, which the
 	                             passes walk (lvp__smooth_offsets) */
-	int32_t tie_count;        /* clusters of two or more vertices tied into one point (smoothing_ties.c) */
+	int32_t tie_count;        /* clusters of two or more vertices tied into one point (smoothing_ties.c;
+	                             listed for binding.smoothing only) */
 	int32_t *tie_offsets;     /* tie_count+1: each cluster's members in tie_members */
 	int32_t *tie_members;
 } lvp__smoothing;
@@ -495,7 +496,9 @@ struct lvp_binding {
 	lvp__fold fold;
 	lvp__contact contact;
 	lvp__part_volumes parts;
-	lvp__smoothing smoothing;
+	lvp__smoothing smoothing;  /* the offsets' smoothing passes */
+	lvp__smoothing relaxation; /* fold-over's relaxation of pressed skin (lvp__relax_pressed): the same
+	                              weights, tied by mean value weights */
 	lvp__step step;
 };
 
@@ -839,14 +842,18 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
 /* offset_smoothing.c */
-/* The neighbour lists of the smoothing passes (binding.smoothing), from the sorted triangles. */
+/* The neighbour lists of the smoothing passes (binding.smoothing) and of fold-over's relaxation
+ * (binding.relaxation), from the sorted triangles. */
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* smoothing_ties.c */
-/* Gives the vertices that one neighbour dominates in binding.smoothing the neighbours of the cluster
- * they form with it, so that a pass averages them as one point, and lists those clusters
- * (smoothing.tie_offsets, tie_members). */
-lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* Gives the vertices that one neighbour dominates in `smoothing` the neighbours of the cluster they
+ * form with it, so that a pass averages them as one point, and with list_ties lists those clusters
+ * (smoothing.tie_offsets, tie_members). Which neighbour dominates is decided on tie_shares (per entry
+ * of smoothing's lists), or on smoothing.shares when NULL; the cluster's neighbours weigh by
+ * smoothing.shares. */
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares, bool list_ties,
+                              lvp_diagnostic *r_diag);
 /* The offsets (step.positions against `positions`, the input points) of each cluster's members
  * replaced by their mean, but for the clusters with a member fold-over holds (fold.held): what moved
  * them one by one (the volume steps through the map) moves them as one point again. A member the map
@@ -855,8 +862,8 @@ void lvp__move_ties_as_one(lvp_binding *binding, const float *positions);
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
  * neighbours'; with whatever_the_map, every dynamic vertex that fold-over does not hold moves, its map
- * zero or not (fold-over's relaxation, lvp__relax_pressed). The volume is not restored here;
- * step.smoothing_offsets is left holding the smoothed offsets. */
+ * zero or not, over binding.relaxation's lists (fold-over's relaxation, lvp__relax_pressed). The volume
+ * is not restored here; step.smoothing_offsets is left holding the smoothed offsets. */
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map);
 /* step.smoothing_offsets of the dynamic vertices: their offsets as they are (step.positions less
  * positions), for steps along them (lvp__restore_smoothed) without smoothing. */

@@ -1117,6 +1117,24 @@ static int32_t lvp__volume_step_at_contacts(lvp_binding *binding, const lvp_fram
 	return lvp__correct_volumes(binding, options, rest_positions, totals, &ignored, false);
 }
 
+/* The volume fold-over's last relaxation took, restored: through the map faded at the contacts, as
+ * the rounds restore it, but that step moves each vertex by its volume gradient, largest where the
+ * fold squeezes the skin least, and beside the contacts, where no smoothing follows, one vertex came
+ * out of it well ahead of its neighbours (the coarse metaball body's knee at 150 degrees: 0.44 edge
+ * lengths out of their surface). So the step itself, from where the relaxation left the skin, is
+ * smoothed as the frame's offsets are (the held skin still), and the volume that takes restored along
+ * the smoothed step. */
+static int32_t lvp__restore_relaxed(lvp_binding *binding, const lvp_frame_options *options,
+                                    const float *rest_positions, const lvp__region_sums *totals)
+{
+	float *relaxed = binding->fold.saved;
+	memcpy(relaxed, binding->step.positions, sizeof(float) * 3 * (size_t)binding->vertex_count);
+	int32_t steps = lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
+	lvp__smooth_offsets(binding, relaxed, options->smoothing_passes, false);
+	lvp__measure_sums(binding, rest_positions, totals);
+	return steps + lvp__restore_smoothed(binding, options, rest_positions, totals);
+}
+
 /* Fold-over prevention (paper 5.4): the contact test, then the extra volume step with the moved
  * vertices held on the contact surface (which turns the compression into a bulge); the bulge may
  * push other vertices across, so the two alternate a few rounds, each moved vertex staying held.
@@ -1155,14 +1173,15 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		 * was, the rim it put on the plane met the free skin beside it at an angle, creases along the
 		 * contact line (the flanks of a thigh that its calf presses, the sides of a finger at the
 		 * fist). The volume that relaxation takes comes back through the map once more, where the
-		 * contacts faded it, so little crosses again, and what does is pressed back. */
+		 * contacts faded it, so little crosses again, that step smoothed (lvp__restore_relaxed), and
+		 * what crosses is pressed back. */
 		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 		lvp__smooth_offsets(binding, positions, relax_passes, false);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
 		if (lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes)) {
-			stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
+			stats->iterations += lvp__restore_relaxed(binding, options, rest_positions, totals);
 			stats->folded_vertices += lvp__fold_over(binding, rest_positions);
 		}
 	}

@@ -200,15 +200,17 @@
  *   (docs/method.md, foldover.c). After each contact test the pressed skin is relaxed under the
  *   contact (options.smoothing_passes passes, none at 0): it and the skin within that many rings
  *   of it take one smoothing pass (whatever their map: skin its bones carry rigidly beside pressed
- *   skin follows it, instead of a step at the map's border), and whatever that carries across a
- *   plane is pressed back, so
+ *   skin follows it, instead of a step at the map's border; weighted by mean value weights, which
+ *   tie the ends of any edge much shorter than those around it, a needle's, into one point), and
+ *   whatever that carries across a plane is pressed back, so
  *   the pressed patch meets the free skin around it without a crease. Contact test and volume
  *   step alternate up to 4 more rounds; a round that would move a vertex more than twice as far
  *   as the correction before it is undone and ends them (the frame keeps its contacts, a little
  *   volume missing); the volume the relaxation took is restored after them, through the map and
  *   then along the offsets smoothed once more (so that it does not rise where the map peaks beside
  *   a contact), what that carries across pressed back and relaxed in turn, and what that takes
- *   restored through the map once more (what it carries across pressed back). Last, vertices the
+ *   restored through the map once more, that step smoothed and the volume this takes restored
+ *   along it (what it carries across pressed back). Last, vertices the
  *   smoothing ties into one point (OFFSET SMOOTHING), which the steps moved one by one, take their
  *   mean offset, the volume that takes is restored through the map, and they take their mean again;
  *   a cluster with a member held on a contact plane keeps the places the press gave it. The ends of a

@@ -24,6 +24,9 @@
  * that fold-over holds on a contact plane keeps the places fold-over gave its members: each is where
  * the press let it be, and a mean pulled one off its plane into the skin across (a decimated hand at
  * the fist: one vertex moved a fifth of an edge, five crossing pairs of plain skinning's back).
+ *
+ * Fold-over's relaxation has clusters of its own (offset_smoothing.c, binding.relaxation), decided on
+ * mean value weights, which tie the ends of any edge much shorter than those around it, a needle's too.
  */
 #include "binding.h"
 
@@ -88,11 +91,11 @@ static bool lvp__list_members(lvp__clusters *clusters, const lvp__smoothing *smo
 	return true;
 }
 
-/* The shares of the members of cluster `root` to what is outside it, summed per neighbouring vertex,
- * or per neighbouring cluster when by_cluster, into clusters->keys and clusters->sums, in the order the
- * members' lists name them; returns how many. */
-static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *smoothing, int32_t root,
-                                bool by_cluster)
+/* The shares (per entry of smoothing's lists) of the members of cluster `root` to what is outside it,
+ * summed per neighbouring vertex, or per neighbouring cluster when by_cluster, into clusters->keys and
+ * clusters->sums, in the order the members' lists name them; returns how many. */
+static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *smoothing, const float *shares,
+                                int32_t root, bool by_cluster)
 {
 	int32_t count = 0;
 	for (int32_t m = clusters->first[root]; m < clusters->first[root + 1]; ++m) {
@@ -108,24 +111,24 @@ static int32_t lvp__sum_outside(lvp__clusters *clusters, const lvp__smoothing *s
 				clusters->keys[count] = key;
 				clusters->sums[count++] = 0.0;
 			}
-			clusters->sums[i] += smoothing->shares[e];
+			clusters->sums[i] += shares[e];
 		}
 	}
 	return count;
 }
 
 /* One round, decided on the clusters as the round found them: each that gives more than half of its
- * shares to one neighbouring cluster (and has another neighbour) is joined with it, the lower root
- * staying, unless together they would have more than LVP__CLUSTER_MOST members. Returns how many
- * clusters were joined to another. */
-static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smoothing)
+ * shares (tie_shares) to one neighbouring cluster (and has another neighbour) is joined with it, the
+ * lower root staying, unless together they would have more than LVP__CLUSTER_MOST members. Returns how
+ * many clusters were joined to another. */
+static int32_t lvp__tie_round(lvp__clusters *clusters, const lvp__smoothing *smoothing, const float *tie_shares)
 {
 	int32_t n = clusters->count;
 	for (int32_t root = 0; root < n; ++root) {
 		clusters->joins[root] = -1;
 		if (lvp__size_of(clusters, root) == 0)
 			continue;
-		int32_t count = lvp__sum_outside(clusters, smoothing, root, true), heaviest = 0;
+		int32_t count = lvp__sum_outside(clusters, smoothing, tie_shares, root, true), heaviest = 0;
 		const int32_t *keys = clusters->keys;
 		const double *sums = clusters->sums;
 		double total = 0.0;
@@ -165,7 +168,7 @@ static int32_t lvp__list_of(lvp__clusters *clusters, const lvp__smoothing *smoot
 		}
 		return count;
 	}
-	int32_t count = lvp__sum_outside(clusters, smoothing, root, false);
+	int32_t count = lvp__sum_outside(clusters, smoothing, smoothing->shares, root, false);
 	for (int32_t i = 0; neighbours && i < count; ++i) {
 		neighbours[i] = clusters->keys[i];
 		shares[i] = (float)clusters->sums[i];
@@ -222,7 +225,8 @@ static bool lvp__list_ties(lvp__smoothing *smoothing, const lvp__clusters *clust
 	return true;
 }
 
-lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares, bool list_ties,
+                              lvp_diagnostic *r_diag)
 {
 	int32_t n = binding->vertex_count;
 	bool ok = true;
@@ -238,13 +242,13 @@ lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 	}
 	int32_t joined = 0, round_joined = 1;
 	while (ok && round_joined > 0) {
-		ok = lvp__list_members(&clusters, &binding->smoothing);
-		round_joined = ok ? lvp__tie_round(&clusters, &binding->smoothing) : 0;
+		ok = lvp__list_members(&clusters, smoothing);
+		round_joined = ok ? lvp__tie_round(&clusters, smoothing, tie_shares ? tie_shares : smoothing->shares) : 0;
 		joined += round_joined;
 	}
 	if (ok && joined > 0)
-		ok = lvp__list_members(&clusters, &binding->smoothing) && lvp__relist(&binding->smoothing, &clusters) &&
-		     lvp__list_ties(&binding->smoothing, &clusters);
+		ok = lvp__list_members(&clusters, smoothing) && lvp__relist(smoothing, &clusters) &&
+		     (!list_ties || lvp__list_ties(smoothing, &clusters));
 	free(clusters.parent);
 	free(clusters.first);
 	free(clusters.members);

@@ -200,9 +200,9 @@
  *   (docs/method.md, foldover.c). After each contact test the pressed skin is relaxed under the
  *   contact (options.smoothing_passes passes, none at 0): it and the skin within that many rings
  *   of it take one smoothing pass (whatever their map: skin its bones carry rigidly beside pressed
- *   skin follows it, instead of a step at the map's border; weighted by mean value weights, which
- *   tie the ends of any edge much shorter than those around it, a needle's, into one point), and
- *   whatever that carries across a plane is pressed back, so
+ *   skin follows it, instead of a step at the map's border; the ends of any edge much shorter than
+ *   those around it, a needle's, tied into one point, as mean value weights decide), and whatever
+ *   that carries across a plane is pressed back, so
  *   the pressed patch meets the free skin around it without a crease. Contact test and volume
  *   step alternate up to 4 more rounds; a round that would move a vertex more than twice as far
  *   as the correction before it is undone and ends them (the frame keeps its contacts, a little

@@ -56,8 +56,9 @@ static float lvp__cotangent_share(const float *rest, const int32_t triangle[3], 
  * grows as the edge kj shortens, whatever the angle across it. tan(theta / 2) = |a x b| / (|a| |b| + <a, b>)
  * for the edges a (to j) and b leaving k. A triangle of no area weighs as the bound does (a straight angle: k
  * on the line between the others; a zero angle: nothing); an edge of no length counts as a millionth of the
- * mesh's mean edge (`unit`). */
-static float lvp__mean_value_share(const float *rest, const int32_t triangle[3], int32_t k, int32_t j, double unit)
+ * triangle's other edge at k, so that it ties j to k outright, and one with both edges at k of no length
+ * weighs nothing. */
+static float lvp__mean_value_share(const float *rest, const int32_t triangle[3], int32_t k, int32_t j)
 {
 	int32_t l = triangle[0] != k && triangle[0] != j ? triangle[0]
 	          : (triangle[1] != k && triangle[1] != j ? triangle[1] : triangle[2]);
@@ -65,8 +66,8 @@ static float lvp__mean_value_share(const float *rest, const int32_t triangle[3],
 	lvp__vec3 a = lvp__sub(lvp__load(rest + 3 * (int64_t)j), at), b = lvp__sub(lvp__load(rest + 3 * (int64_t)l), at);
 	double la = lvp__length(a), lb = lvp__length(b);
 	double sine = lvp__length(lvp__cross(a, b)), below = la * lb + lvp__dot(a, b);
-	double half_tangent = below > 1e-12 * la * lb ? sine / below : 1e6;
-	return (float)(fmin(half_tangent, 1e6) * (la + lb) / fmax(la, 1e-6 * unit));
+	double half_tangent = below > 1e-12 * la * lb ? sine / below : 1e6, edges = la + lb;
+	return edges > 0.0 ? (float)(fmin(half_tangent, 1e6) * edges / fmax(la, 1e-6 * edges)) : 0.0f;
 }
 
 /* What the passes read besides the final lists: smoothing.halves from their shares, fixed at bind so that
@@ -89,31 +90,15 @@ static lvp_result lvp__prepare_passes(lvp_binding *binding, lvp__smoothing *smoo
 	return lvp_success;
 }
 
-/* The mesh's mean edge at rest (each triangle's edges, those inside the surface twice), 1 when it has none. */
-static double lvp__mean_rest_edge(const lvp_binding *binding)
-{
-	double total = 0.0;
-	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		const int32_t *v = binding->mesh.triangles + 3 * (int64_t)t;
-		for (int i = 0; i < 3; ++i)
-			total += lvp__length(lvp__sub(lvp__load(binding->rest_positions + 3 * (int64_t)v[i]),
-			                              lvp__load(binding->rest_positions + 3 * (int64_t)v[(i + 1) % 3])));
-	}
-	double mean = binding->triangle_count > 0 ? total / (3.0 * binding->triangle_count) : 0.0;
-	return mean > 0.0 ? mean : 1.0;
-}
-
 /* One smoothing's lists, each neighbour's share (lvp__cotangent_share) summed over the triangles it shares
  * with the vertex, and its ties: decided on the same shares, or with tie_by_mean_value on the triangles'
- * mean value weights (lvp__mean_value_share, in units of the mean edge), which are listed alongside and
- * dropped after. */
+ * mean value weights (lvp__mean_value_share), which are listed alongside and dropped after. */
 static lvp_result lvp__build_lists(lvp_binding *binding, lvp__smoothing *smoothing, bool tie_by_mean_value,
                                    lvp_diagnostic *r_diag)
 {
 	const lvp__mesh *mesh = &binding->mesh;
 	int32_t n = binding->vertex_count;
 	int64_t corners = mesh->vertex_corner_offsets[n];
-	double unit = tie_by_mean_value ? lvp__mean_rest_edge(binding) : 1.0;
 	bool ok = true;
 	smoothing->offsets = lvp__calloc((size_t)n + 1, sizeof(int32_t), &ok);
 	smoothing->neighbours = lvp__calloc((size_t)(2 * corners) + 1, sizeof(int32_t), &ok);
@@ -140,7 +125,7 @@ static lvp_result lvp__build_lists(lvp_binding *binding, lvp__smoothing *smoothi
 					smoothing->neighbours[written++] = j;
 				smoothing->shares[e] += lvp__cotangent_share(rest, triangle, k, j);
 				if (tie_shares)
-					tie_shares[e] += lvp__mean_value_share(rest, triangle, k, j, unit);
+					tie_shares[e] += lvp__mean_value_share(rest, triangle, k, j);
 			}
 		}
 		smoothing->offsets[k + 1] = written;

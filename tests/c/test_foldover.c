@@ -475,6 +475,18 @@ static twinned_fold fold_twinned_cylinder(float gap)
 	return result;
 }
 
+/* What both folds of twinned cylinders must show: every twin pair found, at most an eighth of plain skinning's
+ * crossing pairs left, the volume restored, the twins' offsets at most `apart_most` of the largest apart, and
+ * at most 4 thin triangles turned on edge. */
+static void check_twins_kept_together(twinned_fold fold, double apart_most)
+{
+	CHECK(fold.twins == 16 * 7);
+	CHECK(fold.plain > 0 && fold.pairs >= 0 && fold.pairs <= fold.plain / 8);
+	CHECK(fabs(fold.volume_error) < 0.005);
+	CHECK(fold.apart < apart_most);
+	CHECK(fold.turned <= 4);
+}
+
 /* A twin ring 2 % of the ring spacing above every odd ring (test_offset_smoothing.c: the twins' short edges
  * tie each pair into one point). The presses and the volume steps after them move each vertex on its own; a
  * twin pair left with offsets that differ by a share of them turns the thin triangles between the twins on
@@ -485,12 +497,7 @@ static twinned_fold fold_twinned_cylinder(float gap)
  * restored, and fold-over still removes plain skinning's crossings (3 of its 96 pairs are left). */
 static void test_fold_over_moves_tied_vertices_as_one(void)
 {
-	twinned_fold fold = fold_twinned_cylinder(0.02f);
-	CHECK(fold.twins == 16 * 7);
-	CHECK(fold.plain > 0 && fold.pairs >= 0 && fold.pairs <= fold.plain / 8);
-	CHECK(fabs(fold.volume_error) < 0.005);
-	CHECK(fold.apart < 0.05);
-	CHECK(fold.turned <= 4);
+	check_twins_kept_together(fold_twinned_cylinder(0.02f), 0.05);
 }
 
 /* The twins 15 % of the ring spacing apart: needles, whose short edges (a fifth of the ring's) the offsets'
@@ -501,12 +508,7 @@ static void test_fold_over_moves_tied_vertices_as_one(void)
  * 21-23 such triangles (25-27 before). */
 static void test_relaxation_keeps_short_edges_whole(void)
 {
-	twinned_fold fold = fold_twinned_cylinder(0.15f);
-	CHECK(fold.twins == 16 * 7);
-	CHECK(fold.plain > 0 && fold.pairs >= 0 && fold.pairs <= fold.plain / 8);
-	CHECK(fabs(fold.volume_error) < 0.005);
-	CHECK(fold.apart < 0.08);
-	CHECK(fold.turned <= 4);
+	check_twins_kept_together(fold_twinned_cylinder(0.15f), 0.08);
 }
 
 int main(void)

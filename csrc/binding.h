@@ -498,7 +498,8 @@ struct lvp_binding {
 	lvp__part_volumes parts;
 	lvp__smoothing smoothing;  /* the offsets' smoothing passes */
 	lvp__smoothing relaxation; /* fold-over's relaxation of pressed skin (lvp__relax_pressed): the same
-	                              weights, tied by mean value weights */
+	                              weights, tied by mean value weights; built at the first frame with
+	                              fold-over (lvp__relaxation_begin) */
 	lvp__step step;
 };
 
@@ -842,9 +843,11 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
 /* offset_smoothing.c */
-/* The neighbour lists of the smoothing passes (binding.smoothing) and of fold-over's relaxation
- * (binding.relaxation), from the sorted triangles. */
+/* The neighbour lists of the smoothing passes (binding.smoothing), from the sorted triangles. */
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
+/* Those of fold-over's relaxation (binding.relaxation), built at the first frame that asks for
+ * fold-over: a binding that never does has no use for them. */
+lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* smoothing_ties.c */
 /* Gives the vertices that one neighbour dominates in `smoothing` the neighbours of the cluster they

@@ -1387,6 +1387,8 @@ lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *bindin
 	}
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL && (result = lvp__contact_begin(binding, r_diag)))
 		return result;
+	if (options->fold_over && binding->mode == LVP_MODE_LOCAL && (result = lvp__relaxation_begin(binding, r_diag)))
+		return result;
 	stats.worst_region = -1;
 	stats.given_up_region = -1;
 	stats.volume_rest = rest_positions ? lvp__volume_of(binding, rest_positions) : binding->rest_volume;

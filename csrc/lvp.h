@@ -359,7 +359,9 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 220 bytes a triangle, and 50 bytes a vertex; lvp_error_out_of_memory when that fails). With options.thread_count > 1 a binding keeps that many
+ *   hierarchy, about 220 bytes a triangle, and 50 bytes a vertex) and at the first with fold_over
+ *   (FOLD-OVER: its relaxation's neighbour lists, about 130 bytes a vertex); lvp_error_out_of_memory
+ *   when that fails. With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the
  *   workers watch for the next one for about a tenth of a millisecond before they sleep.
@@ -679,7 +681,7 @@ typedef struct lvp_binding lvp_binding; /* opaque */
 
 /* Binds a mesh to its skeleton and weights at rest: validates everything, segments the mesh,
  * builds the correction map, the region borders and every rest-side constant, and allocates
- * all per-frame work memory. In LVP_MODE_GLOBAL, weights and skeleton may be NULL (bone_count
+ * all per-frame work memory (but keep_apart's and fold_over's, THREADS AND MEMORY). In LVP_MODE_GLOBAL, weights and skeleton may be NULL (bone_count
  * 0) unless the map needs them (ORGANIC, RUBBER, BOUNDARY_FADE need them; UNIFORM and PAINTED
  * do not). The inputs are copied: the caller may free them after the call.
  * On success *r_binding receives a binding to release with lvp_free(). */
@@ -794,7 +796,8 @@ typedef struct lvp_frame_stats {
  * frame's un-skinned positions (shape keys), against which volumes are then compared.
  * Outputs (vertex_count*3 each, at least one non-NULL): r_positions, the corrected positions
  * (may be the same buffer as positions), and r_offsets, corrected minus input.
- * r_stats may be NULL. No allocation; O(1) stack. */
+ * r_stats may be NULL. No allocation but at the first frame with keep_apart or with fold_over
+ * (THREADS AND MEMORY); O(1) stack. */
 lvp_result lvp_correct(float *r_positions, float *r_offsets, lvp_binding *binding, const float *positions,
                        const float *bone_matrices, const float *rest_positions, const lvp_frame_options *options,
                        lvp_frame_stats *r_stats, lvp_diagnostic *r_diag);

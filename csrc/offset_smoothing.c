@@ -137,8 +137,19 @@ static lvp_result lvp__build_lists(lvp_binding *binding, lvp__smoothing *smoothi
 
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
-	lvp_result result = lvp__build_lists(binding, &binding->smoothing, false, r_diag);
-	return result ? result : lvp__build_lists(binding, &binding->relaxation, true, r_diag);
+	return lvp__build_lists(binding, &binding->smoothing, false, r_diag);
+}
+
+lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
+{
+	if (binding->relaxation.offsets)
+		return lvp_success;
+	lvp_result result = lvp__build_lists(binding, &binding->relaxation, true, r_diag);
+	if (result) { /* nothing half built is taken for built at the next frame */
+		lvp__smoothing_free(&binding->relaxation);
+		memset(&binding->relaxation, 0, sizeof(binding->relaxation));
+	}
+	return result;
 }
 
 void lvp__smoothing_free(lvp__smoothing *smoothing)

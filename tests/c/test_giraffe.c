@@ -306,9 +306,10 @@ static void test_restoring_the_whole_mesh(void)
 /* lvp_correct keeps work from frame to frame (the dynamic set, while the same bones move), so
  * a frame's result must not depend on the frames before it: an animation played on one
  * binding gives, frame by frame, bit for bit what a fresh binding gives for that frame alone.
- * The frames change which bones move, turn fold-over on (which adds dynamic vertices), pass a
- * frame rest (a shape key), scale a bone to zero (its region is skipped) and, at the end, set a
- * map without the deformation weighting (lvp_set_map), which moves vertices no bone bends. */
+ * The frames change which bones move, turn fold-over on (which adds dynamic vertices and, at its
+ * first frame, builds its relaxation's lists), pass a frame rest (a shape key), scale a bone to
+ * zero (its region is skipped) and, at the end, set a map without the deformation weighting
+ * (lvp_set_map), which moves vertices no bone bends. */
 typedef struct animation_frame {
 	const char *bone;
 	float degrees;

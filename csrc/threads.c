@@ -154,13 +154,19 @@ void lvp__parallel_for(lvp__pool *pool, lvp__task task, void *context, int32_t i
 	}
 	int32_t chunk_count = (int32_t)(((int64_t)item_count + grain - 1) / grain);
 	pthread_mutex_lock(&pool->lock);
+	/* A worker that joined the last loop after the caller had run all of it (it woke late) may
+	 * still be between its join and its claim: it must leave before the fields below change, or
+	 * it could pair this loop's chunk count with the last loop's task and context (whose stack may
+	 * be gone), or run a chunk of this loop before next_chunk is reset and that chunk again after
+	 * (tests/c/test_threads.c). Workers join only under the lock, so once none is joined none
+	 * reads these fields before they are all set. */
+	while (pool->joined > 0)
+		pthread_cond_wait(&pool->left, &pool->lock);
 	pool->task = task;
 	pool->context = context;
 	pool->item_count = item_count;
 	pool->grain = grain;
 	pool->chunk_count = chunk_count;
-	/* A worker that joined the loop before this one and has not left yet may claim a chunk of this
-	 * one: the claim (an acquire) reads this store (a release, after the fields and the count). */
 	atomic_store(&pool->chunks_done, 0);
 	atomic_store(&pool->next_chunk, 0);
 	atomic_fetch_add(&pool->generation, 1);

@@ -681,10 +681,11 @@ typedef struct lvp_binding lvp_binding; /* opaque */
 
 /* Binds a mesh to its skeleton and weights at rest: validates everything, segments the mesh,
  * builds the correction map, the region borders and every rest-side constant, and allocates
- * all per-frame work memory (but keep_apart's and fold_over's, THREADS AND MEMORY). In LVP_MODE_GLOBAL, weights and skeleton may be NULL (bone_count
- * 0) unless the map needs them (ORGANIC, RUBBER, BOUNDARY_FADE need them; UNIFORM and PAINTED
- * do not). The inputs are copied: the caller may free them after the call.
- * On success *r_binding receives a binding to release with lvp_free(). */
+ * all per-frame work memory (but keep_apart's and fold_over's, THREADS AND MEMORY). In
+ * LVP_MODE_GLOBAL, weights and skeleton may be NULL (bone_count 0) unless the map needs them
+ * (ORGANIC, RUBBER, BOUNDARY_FADE need them; UNIFORM and PAINTED do not). The inputs are
+ * copied: the caller may free them after the call. On success *r_binding receives a binding to
+ * release with lvp_free(). */
 lvp_result lvp_bind(lvp_binding **r_binding, const float *rest_positions, int32_t vertex_count,
                     const int32_t *triangles, int32_t triangle_count, const lvp_weights *weights,
                     const lvp_skeleton *skeleton, const lvp_bind_options *options, lvp_diagnostic *r_diag);

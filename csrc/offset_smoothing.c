@@ -145,11 +145,15 @@ lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	if (binding->relaxation.offsets)
 		return lvp_success;
 	lvp_result result = lvp__build_lists(binding, &binding->relaxation, true, r_diag);
-	if (result) { /* nothing half built is taken for built at the next frame */
-		lvp__smoothing_free(&binding->relaxation);
-		memset(&binding->relaxation, 0, sizeof(binding->relaxation));
-	}
-	return result;
+	if (!result)
+		return lvp_success;
+	/* nothing half built is taken for built at the next frame */
+	lvp__smoothing_free(&binding->relaxation);
+	memset(&binding->relaxation, 0, sizeof(binding->relaxation));
+	if (result != lvp_error_out_of_memory)
+		return result;
+	return lvp__fail(r_diag, result, "binding", -1, "could not allocate fold-over's relaxation of %d vertices.",
+	                 (int)binding->vertex_count);
 }
 
 void lvp__smoothing_free(lvp__smoothing *smoothing)

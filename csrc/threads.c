@@ -8,9 +8,9 @@
  * A frame runs dozens of loops of a millisecond or less, with a little serial work between them.
  * Waking a sleeping thread costs tens of microseconds, so a worker that finished a loop first
  * watches for the next one for a while (LVP__WATCH_SPINS) before it sleeps; chunks are claimed
- * with one atomic add, not a lock. The lock guards only the loop's start and end: a worker joins
- * a loop under it, and the caller does not set up the next loop before every worker that joined
- * has left, so no worker ever claims a chunk of a loop other than the one it read.
+ * with one atomic add, not a lock. The lock guards only the loop's start: a worker joins and
+ * leaves a loop under it, and the caller does not set up the next loop before every worker that
+ * joined has left, so no worker ever claims a chunk of a loop other than the one it read.
  */
 #include "threads.h"
 
@@ -174,15 +174,12 @@ void lvp__parallel_for(lvp__pool *pool, lvp__task task, void *context, int32_t i
 		pthread_cond_broadcast(&pool->wake);
 	pthread_mutex_unlock(&pool->lock);
 	lvp__run_chunks(pool);
-	/* The last chunks are being run by workers: a chunk's time at most. */
+	/* The last chunks are being run by workers: a chunk's time at most. A worker still in this loop
+	 * after them reads only its chunk count, and the next loop waits for it to leave. */
 	for (int spin = 0; atomic_load_explicit(&pool->chunks_done, memory_order_acquire) < chunk_count; ++spin) {
 		if (spin < LVP__WATCH_SPINS)
 			lvp__cpu_relax();
 		else
 			sched_yield();
 	}
-	pthread_mutex_lock(&pool->lock);
-	while (pool->joined > 0)
-		pthread_cond_wait(&pool->left, &pool->lock);
-	pthread_mutex_unlock(&pool->lock);
 }

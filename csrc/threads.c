@@ -8,9 +8,9 @@
  * A frame runs dozens of loops of a millisecond or less, with a little serial work between them.
  * Waking a sleeping thread costs tens of microseconds, so a worker that finished a loop first
  * watches for the next one for a while (LVP__WATCH_SPINS) before it sleeps; chunks are claimed
- * with one atomic add, not a lock. The lock guards only the loop's start: a worker joins and
- * leaves a loop under it, and the caller does not set up the next loop before every worker that
- * joined has left, so no worker ever claims a chunk of a loop other than the one it read.
+ * with one atomic add, not a lock. The lock guards only a loop's set-up and the workers' joining
+ * and leaving it: the caller does not set up the next loop before every worker that joined the
+ * last has left, so no worker ever claims a chunk of a loop other than the one it read.
  */
 #include "threads.h"
 

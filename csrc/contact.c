@@ -117,6 +117,8 @@ typedef struct lvp__contact_pass {
 	 * moved. Then every pair is kept apart whatever it is, and the rest of the round asks no more
 	 * which (which pairs a thread has seen when it reads this changes nothing that is kept). */
 	atomic_bool *new_contact;
+	/* A later round: per vertex, moved since its triangles were last tested (lvp__visit_later_pair). */
+	const uint8_t *changed;
 } lvp__contact_pass;
 
 /* One triangle's search: its corners, corrected and skinned, its box, and the least share of the
@@ -332,8 +334,33 @@ static void lvp__visit_pair(void *context, const lvp__bvh_triangle *a, const lvp
 	contact->skinned_pair_count[a->source] += search.crossed_skinned;
 }
 
-/* Later rounds: the triangles around the vertices shortened in the round before, each against the
- * tree (each writes its own limit only). */
+/* A later round: a pair of triangles whose boxes overlap, when one of them has a corner moved since it was
+ * last tested (pass->changed; the traversal calls only pairs under a node holding such a triangle) and one has
+ * a corner whose triangles this round tests (contact.moved): each of those takes the pair's share. A pair
+ * neither of whose triangles moved since was tested where it is now, and kept apart: a round tests the corners
+ * the round before shortened, and the rounds end with one that shortens nothing. The share is the pair's,
+ * whichever triangle comes first (the crossing tests and the bisection take the two alike), so each limit is
+ * what a search from its own triangle finds. */
+static void lvp__visit_later_pair(void *context, const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
+{
+	const lvp__contact_pass *pass = context;
+	lvp__contact *contact = &pass->binding->contact;
+	bool tests_a = lvp__any_marked(contact->moved, a->vertices), tests_b = lvp__any_marked(contact->moved, b->vertices);
+	if (!(tests_a || tests_b) ||
+	    !(lvp__any_marked(pass->changed, a->vertices) || lvp__any_marked(pass->changed, b->vertices)) ||
+	    lvp__share_corner(a->vertices, b->vertices))
+		return;
+	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
+	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
+	lvp__visit_candidate(&search, b);
+	if (tests_a)
+		contact->limit[a->source] = fminf(contact->limit[a->source], search.limit);
+	if (tests_b)
+		contact->limit[b->source] = fminf(contact->limit[b->source], search.limit);
+}
+
+/* A later round's triangles that the hierarchy leaves out (no area at rest) with a corner to test, each
+ * against the tree (each writes its own limit only). */
 static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 {
 	const lvp__contact_pass *pass = context;
@@ -341,8 +368,7 @@ static void lvp__search_loop(void *context, int32_t begin, int32_t end)
 	lvp__contact *contact = &binding->contact;
 	for (int32_t t = begin; t < end; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
-		contact->limit[t] = 1.0f;
-		if (!lvp__any_marked(contact->moved, corners))
+		if (contact->leaf_of[t] >= 0 || !lvp__any_marked(contact->moved, corners))
 			continue;
 		const float *const moved[3] = {binding->step.positions + 3 * (int64_t)corners[0],
 		                               binding->step.positions + 3 * (int64_t)corners[1],
@@ -442,6 +468,8 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->skinned_pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->changed = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->tested_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
@@ -537,7 +565,16 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = fminf(contact->limit[t], contact->shifted_limit[t]);
 		} else {
-			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, (void *)pass, f, LVP__GRAIN);
+			/* The round after a shortening tests the pairs of the corners it moved; a first round of
+			 * tests again (after the shares were smoothed), those the caller marked changed. */
+			lvp__contact_pass later = *pass;
+			later.changed = round == 0 ? contact->changed : contact->moved;
+			for (int32_t t = 0; t < f; ++t)
+				contact->limit[t] = 1.0f;
+			lvp__bvh_mark(&contact->bvh, later.changed, contact->moved_nodes);
+			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, NULL, LVP__POOL_FOR(binding, f),
+			                       lvp__visit_later_pair, &later);
+			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, &later, f, LVP__GRAIN);
 		}
 		/* Each corner of a crossing keeps the square of the share the pair allows: a pair that barely
 		 * crosses is barely shortened (the result follows the pose without a jump), a deeper one a
@@ -644,7 +681,7 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		return;
 	lvp__refit_dynamic(binding, positions);
 	atomic_bool new_contact = false;
-	lvp__contact_pass pass = {binding, positions, &new_contact};
+	lvp__contact_pass pass = {binding, positions, &new_contact, NULL};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		if (!lvp__any_marked(held, corners) || !lvp__crosses_at(&pass, corners))
@@ -726,7 +763,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
 	atomic_bool new_contact = false;
-	lvp__contact_pass pass = {binding, positions, &new_contact};
+	lvp__contact_pass pass = {binding, positions, &new_contact, NULL};
 	/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
 	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
 	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices
@@ -734,16 +771,23 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 	 * make it cross, so the smoothed patch is tested again, and what that shortens smoothed in turn. */
 	bool shortening = lvp__shorten_rounds(binding, &pass, corrected, true);
 	for (int retest = 0; shortening && retest < LVP__CONTACT_RETESTS; ++retest) {
+		/* The corners the rounds moved and did not test (their last round shortened), and the shares
+		 * the others were tested at. */
+		memcpy(contact->changed, contact->moved, (size_t)n);
+		memcpy(contact->tested_scale, scale, sizeof(float) * (size_t)n);
 		lvp__smooth_shares(binding, scale, next, pinned, true);
 		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
 		bool raised = lvp__raise_pinned_crossing(binding, &pass);
 		if (raised)
 			lvp__place_shortened(binding, positions, corrected);
-		/* What the next round tests: the corners shortened, and those raised back (contact.moved). */
+		/* What the next round tests: the corners shortened, and those raised back (contact.moved); the
+		 * pairs it tests, those with a corner the smoothing or the raising moved (contact.changed). */
 		for (int32_t v = 0; v < dynamic_count; ++v) {
 			int32_t k = dynamic[v];
-			contact->moved[k] = scale[k] < 1.0f || (raised && contact->moved[k]);
+			bool raised_here = raised && contact->moved[k];
+			contact->changed[k] = contact->changed[k] || raised_here || scale[k] != contact->tested_scale[k];
+			contact->moved[k] = scale[k] < 1.0f || raised_here;
 		}
 		shortening = lvp__shorten_rounds(binding, &pass, corrected, false);
 	}
@@ -787,6 +831,8 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->refit_nodes);
 	free(contact->leaf_of);
 	free(contact->moved);
+	free(contact->changed);
+	free(contact->tested_scale);
 	free(contact->shortened);
 	free(contact->pinned);
 	free(contact->scale);

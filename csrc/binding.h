@@ -357,10 +357,12 @@ typedef struct lvp__contact {
 	float *limit;              /* per triangle, this round: the share of the offsets that keeps it apart
 	                              from every triangle it crosses and did not cross skinned (1: none) */
 	uint8_t *moved;            /* per vertex: its triangles are tested this round */
-	uint8_t *changed;          /* per vertex, a later round: moved since its triangles were last tested (the
-	                              pairs tested have a triangle with such a corner; contact.c) */
+	uint8_t *changed;          /* per vertex, a test after the shares were smoothed: moved since its
+	                              triangles were last tested (the pairs tested have a triangle with such a
+	                              corner; contact.c) */
 	float *tested_scale;       /* per vertex: its scale when its triangles were last tested */
-	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is (lvp__bvh_mark) */
+	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is tested, or (a later
+	                              round) has a corner that moved since it was (lvp__bvh_mark) */
 	int32_t *leaf_of;          /* per triangle: the leaf of the hierarchy that holds it (-1: none, no area) */
 	int32_t *dynamic_nodes;    /* this attempt: the nodes with a triangle around a dynamic vertex, the
 	                              last first (what a refit between the skinning and the correction visits) */

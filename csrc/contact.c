@@ -520,9 +520,9 @@ static bool lvp__crosses_no_more(const lvp_binding *binding)
 }
 
 /* Rounds of shortening (contact.scale, step.positions placed by it): the first tests every pair of
- * triangles one of which moved (`every_pair`) or the triangles around contact.moved, each later
- * one the triangles around the corners the round before shortened. Returns whether it shortened
- * any offset. */
+ * triangles one of which moved (`every_pair`), or the pairs with a corner in contact.changed, the
+ * triangles around contact.moved taking their limits; each later one the pairs around the corners
+ * the round before shortened. Returns whether it shortened any offset. */
 static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *pass, const float *corrected,
                                 bool every_pair)
 {

@@ -345,17 +345,16 @@ static void lvp__visit_later_pair(void *context, const lvp__bvh_triangle *a, con
 {
 	const lvp__contact_pass *pass = context;
 	lvp__contact *contact = &pass->binding->contact;
-	bool tests_a = lvp__any_marked(contact->moved, a->vertices), tests_b = lvp__any_marked(contact->moved, b->vertices);
-	if (!(tests_a || tests_b) ||
-	    !(lvp__any_marked(pass->changed, a->vertices) || lvp__any_marked(pass->changed, b->vertices)) ||
+	/* A corner that changed is one this round tests (the changed corners are among contact.moved). */
+	if (!(lvp__any_marked(pass->changed, a->vertices) || lvp__any_marked(pass->changed, b->vertices)) ||
 	    lvp__share_corner(a->vertices, b->vertices))
 		return;
 	const float *const corners[3] = {a->corners[0], a->corners[1], a->corners[2]};
 	lvp__triangle_search search = lvp__search_of(pass, a->vertices, corners);
 	lvp__visit_candidate(&search, b);
-	if (tests_a)
+	if (lvp__any_marked(contact->moved, a->vertices))
 		contact->limit[a->source] = fminf(contact->limit[a->source], search.limit);
-	if (tests_b)
+	if (lvp__any_marked(contact->moved, b->vertices))
 		contact->limit[b->source] = fminf(contact->limit[b->source], search.limit);
 }
 

@@ -169,13 +169,18 @@ run_one() {
 	fi
 
 	local results="$RUN_TMP/results-${label//[^A-Za-z0-9.]/_}"
-	rm -f "$results"
+	rm -f "$results" "$results.fault"
+	touch "$RUN_TMP/started-$label"
 	log "Blender $label: ${cmd[*]}"
 	local rc=0 start=$SECONDS
-	timeout --kill-after=30 "${LVP_BLENDER_TIMEOUT:-1800}" "${cmd[@]}" -b --factory-startup -noaudio \
-		--python-exit-code 1 --python "$HERE/runner.py" -- \
-		--expect-version "$expect" --rerun "$rerun" --results "$results" \
-		${runner_args[@]+"${runner_args[@]}"} ${names[@]+"${names[@]}"} || rc=$?
+	# A core file on a crash (where the kernel writes one to the working directory), for crash_report's backtrace.
+	(
+		ulimit -c unlimited 2>/dev/null || true
+		exec timeout --kill-after=30 "${LVP_BLENDER_TIMEOUT:-1800}" "${cmd[@]}" -b --factory-startup -noaudio \
+			--python-exit-code 1 --python "$HERE/runner.py" -- \
+			--expect-version "$expect" --rerun "$rerun" --results "$results" \
+			${runner_args[@]+"${runner_args[@]}"} ${names[@]+"${names[@]}"}
+	) || rc=$?
 	[ "$list" = 1 ] && return $rc
 
 	local summary="" passed=0 failed=0 skipped=0
@@ -206,6 +211,7 @@ run_one() {
 			failed_lines+=("$rerun $current    # Blender $label timed out in it")
 		else
 			failed_lines+=("$rerun $current    # Blender $label died in it (status $rc)")
+			crash_report "$label" "$results.fault"
 		fi
 		;;
 	*)
@@ -220,6 +226,37 @@ run_one() {
 	log "Blender $label: $passed passed, $failed failed, $skipped skipped ($((SECONDS - start)) s)"
 }
 
+# crash_report LABEL FAULT_FILE: where a Blender that died was (every thread's Python stack, from runner.py's
+# faulthandler, and the crashed thread's native frames), kept for the end of the output with the failing test,
+# so that a crash seen once on CI can be traced from its log.
+crash_reports=()
+crash_report() {
+	local label="$1" fault="$2" report
+	report="Blender $label crashed; Python's stacks (faulthandler):"$'\n'
+	if [ -s "$fault" ]; then report+="$(head -n 40 "$fault")"; else report+="    (none written)"; fi
+	# The native frames, from a core file the kernel left in this directory (the crash file Blender 3.4 writes
+	# has none). Only after a crash, so gdb is installed only then.
+	local core
+	core="$(find . -maxdepth 1 -name 'core*' -type f -newer "$RUN_TMP/started-$label" 2>/dev/null | head -n 1)"
+	if [ -n "$core" ] && [ "$label" = 3.4 ] && ensure_packages gdb >/dev/null 2>&1; then
+		# The thread whose stack holds the signal handler, from the frame the last handler was called on (the
+		# first ones are faulthandler's and Blender's own, raising the signal again).
+		report+=$'\n'"The crashed thread's native frames (gdb, $core):"$'\n'
+		local frames
+		frames="$(gdb -q -batch -ex 'thread apply all bt 40' -ex 'info sharedlibrary' /usr/bin/blender "$core" 2>/dev/null)"
+		report+="$(awk <<<"$frames" '
+			function flush() { if (had && !done) { printf "%s", frames; done = 1 } }
+			/^Thread / { flush(); frames = ""; had = 0 }
+			/<signal handler called>/ { frames = ""; had = 1; next }
+			had && /^#/ { frames = frames substr($0, 1, 200) "\n" }
+			END { flush() }' | head -n 16)"
+		# Where the add-on's module was loaded (its frames have no names: the packaged module is stripped).
+		report+=$'\n'"$(grep '_lvp' <<<"$frames" | cut -c1-200)"
+	fi
+	[ -z "$core" ] || rm -f "$core"
+	crash_reports+=("$report")
+}
+
 for sel in "${selectors[@]}"; do
 	run_one "$sel" || true
 done
@@ -228,6 +265,9 @@ done
 if [ ${#failed_lines[@]} -gt 0 ]; then
 	printf '\n\033[31mFAILED\033[0m headless-Blender tests; rerun one alone with:\n' >&2
 	printf '    %s\n' "${failed_lines[@]}" >&2
+	for report in ${crash_reports[@]+"${crash_reports[@]}"}; do
+		printf '\n%s\n' "$report" >&2
+	done
 fi
 echo "blender: $total_passed passed, $total_failed failed, $total_skipped skipped"
 [ ${#failed_lines[@]} -eq 0 ] && [ "$blender_failures" = 0 ]

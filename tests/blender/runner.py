@@ -174,7 +174,10 @@ class Result(unittest.TextTestResult):
 def main():
     args = parse_args(blender_argv())
     sys.dont_write_bytecode = True  # no __pycache__ in tests/blender
-    faulthandler.enable()
+    # On a crash, every thread's Python stack: beside the results, where run.sh finds it and prints it with the
+    # failing test at the end of its output (the one part of a long CI log sure to be read).
+    fault_file = open(args.results + ".fault", "w") if args.results else sys.stderr
+    faulthandler.enable(file=fault_file, all_threads=True)
 
     import bpy  # noqa: E402  (only inside Blender)
 

@@ -637,14 +637,14 @@ static float lvp__node_half_area(const lvp__bvh_node *node)
 
 static inline bool lvp__nodes_overlap(const lvp__bvh_node *a, const lvp__bvh_node *b)
 {
-	return !(a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
-	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
+	return !((a->lo[0] > b->hi[0]) | (a->hi[0] < b->lo[0]) | (a->lo[1] > b->hi[1]) | (a->hi[1] < b->lo[1]) |
+	         (a->lo[2] > b->hi[2]) | (a->hi[2] < b->lo[2]));
 }
 
 static inline bool lvp__triangles_overlap(const lvp__bvh_triangle *a, const lvp__bvh_triangle *b)
 {
-	return !(a->lo[0] > b->hi[0] || a->hi[0] < b->lo[0] || a->lo[1] > b->hi[1] || a->hi[1] < b->lo[1] ||
-	         a->lo[2] > b->hi[2] || a->hi[2] < b->lo[2]);
+	return !((a->lo[0] > b->hi[0]) | (a->hi[0] < b->lo[0]) | (a->lo[1] > b->hi[1]) | (a->hi[1] < b->lo[1]) |
+	         (a->lo[2] > b->hi[2]) | (a->hi[2] < b->lo[2]));
 }
 
 /* visit(context, a, b) when the two triangles' boxes overlap: most pairs of two leaves' triangles do
@@ -656,21 +656,33 @@ static inline void lvp__visit_if_overlapping(const lvp__bvh_triangle *a, const l
 		visit(context, a, b);
 }
 
+/* Pushes the pair of nodes (a, b) for lvp__overlaps_from when it may hold a pair to visit: one of them marked
+ * (when `marked` is given), and for two different nodes, boxes that overlap. Tested here rather than when
+ * the pair is taken, so that pairs that hold nothing are never pushed (most of a traversal's pairs). */
+static inline void lvp__push_pair(int32_t *stack, int *top, const lvp__bvh *bvh, const uint8_t *marked, int32_t a,
+                                  int32_t b)
+{
+	if (marked && !marked[a] && !marked[b])
+		return;
+	if (a != b && !lvp__nodes_overlap(&bvh->nodes[a], &bvh->nodes[b]))
+		return;
+	stack[(*top)++] = a;
+	stack[(*top)++] = b;
+}
+
 /* The pairs of triangles under nodes a and b (under a alone when a == b) whose boxes overlap. */
 static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, int32_t first_a,
                                int32_t first_b, lvp__bvh_visit_pair visit, void *context)
 {
-	/* Pairs of nodes to visit, (a, a) standing for the pairs within a. A pop pushes at most three
-	 * pairs, each one level deeper on one side; a pair's two depths sum to less than 2 * 72. */
+	/* Pairs of nodes to visit, (a, a) standing for the pairs within a, each pushed only when it may hold a
+	 * pair to visit (lvp__push_pair). A pop pushes at most three pairs, each one level deeper on one side;
+	 * a pair's two depths sum to less than 2 * 72. */
 	int32_t stack[2 * 4 * 2 * LVP__BVH_STACK];
 	int top = 0;
-	stack[top++] = first_a;
-	stack[top++] = first_b;
+	lvp__push_pair(stack, &top, bvh, marked, first_a, first_b);
 	while (top > 0) {
 		int32_t b = stack[--top], a = stack[--top];
 		const lvp__bvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
-		if (marked && !marked[a] && !marked[b])
-			continue;
 		if (a == b) {
 			if (skipped && skipped[a])
 				continue;
@@ -681,13 +693,11 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, const
 				continue;
 			}
 			int32_t left = na->index, right = left + 1;
-			stack[top++] = left, stack[top++] = left;
-			stack[top++] = right, stack[top++] = right;
-			stack[top++] = left, stack[top++] = right;
+			lvp__push_pair(stack, &top, bvh, marked, left, left);
+			lvp__push_pair(stack, &top, bvh, marked, right, right);
+			lvp__push_pair(stack, &top, bvh, marked, left, right);
 			continue;
 		}
-		if (!lvp__nodes_overlap(na, nb))
-			continue;
 		if (na->count > 0 && nb->count > 0) {
 			for (int32_t i = na->index; i < na->index + na->count; ++i)
 				for (int32_t j = nb->index; j < nb->index + nb->count; ++j)
@@ -698,8 +708,8 @@ static void lvp__overlaps_from(const lvp__bvh *bvh, const uint8_t *marked, const
 		bool split_a = nb->count > 0 || (na->count == 0 && lvp__node_half_area(na) >= lvp__node_half_area(nb));
 		const lvp__bvh_node *split = split_a ? na : nb;
 		int32_t other = split_a ? b : a;
-		stack[top++] = split->index, stack[top++] = other;
-		stack[top++] = split->index + 1, stack[top++] = other;
+		lvp__push_pair(stack, &top, bvh, marked, split->index, other);
+		lvp__push_pair(stack, &top, bvh, marked, split->index + 1, other);
 	}
 }
 

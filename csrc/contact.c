@@ -468,6 +468,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->skinned_pair_count = lvp__calloc((size_t)binding->triangle_count, sizeof(int32_t), &ok);
 	contact->moved = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->changed = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->settled = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
 	contact->tested_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -790,6 +791,12 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		}
 		shortening = lvp__shorten_rounds(binding, &pass, corrected, false);
 	}
+	/* The rounds ended with one that found every pair it tested apart: each pair is apart where the
+	 * vertices now are (a pair it did not test moved by no corner since it was found apart), and a check
+	 * of these positions would shorten nothing. */
+	contact->settled_apart = !shortening;
+	if (contact->settled_apart)
+		memcpy(contact->settled, binding->step.positions, sizeof(float) * 3 * (size_t)n);
 	int32_t shortened = 0;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
@@ -817,6 +824,13 @@ int32_t lvp__shortened_count(const lvp_binding *binding)
 	return count;
 }
 
+bool lvp__still_where_kept_apart(const lvp_binding *binding)
+{
+	const lvp__contact *contact = &binding->contact;
+	return contact->settled_apart &&
+	       memcmp(contact->settled, binding->step.positions, sizeof(float) * 3 * (size_t)binding->vertex_count) == 0;
+}
+
 void lvp__contact_free(lvp__contact *contact)
 {
 	lvp__bvh_free(&contact->bvh);
@@ -831,6 +845,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->leaf_of);
 	free(contact->moved);
 	free(contact->changed);
+	free(contact->settled);
 	free(contact->tested_scale);
 	free(contact->shortened);
 	free(contact->pinned);

@@ -237,13 +237,14 @@ crash_report() {
 	# The native frames, from a core file the kernel left in this directory (the crash file Blender 3.4 writes
 	# has none). Only after a crash, so gdb is installed only then.
 	local core
-	core="$(find . -maxdepth 1 -name 'core*' -type f -newer "$RUN_TMP/started-$label" 2>/dev/null | head -n 1)"
+	core="$(find . -maxdepth 1 -name 'core*' -type f -newer "$RUN_TMP/started-$label" 2>/dev/null | head -n 1 || true)"
 	if [ -n "$core" ] && [ "$label" = 3.4 ] && ensure_packages gdb >/dev/null 2>&1; then
 		# The thread whose stack holds the signal handler, from the frame the last handler was called on (the
 		# first ones are faulthandler's and Blender's own, raising the signal again).
 		report+=$'\n'"The crashed thread's native frames (gdb, $core):"$'\n'
 		local frames
-		frames="$(gdb -q -batch -ex 'thread apply all bt 40' -ex 'info sharedlibrary' /usr/bin/blender "$core" 2>/dev/null)"
+		frames="$(gdb -q -batch -ex 'thread apply all bt 40' -ex 'info sharedlibrary' /usr/bin/blender "$core" 2>/dev/null ||
+			true)"
 		report+="$(awk <<<"$frames" '
 			function flush() { if (had && !done) { printf "%s", frames; done = 1 } }
 			/^Thread / { flush(); frames = ""; had = 0 }
@@ -251,7 +252,7 @@ crash_report() {
 			had && /^#/ { frames = frames substr($0, 1, 200) "\n" }
 			END { flush() }' | head -n 16)"
 		# Where the add-on's module was loaded (its frames have no names: the packaged module is stripped).
-		report+=$'\n'"$(grep '_lvp' <<<"$frames" | cut -c1-200)"
+		report+=$'\n'"$(grep '_lvp' <<<"$frames" | cut -c1-200 || true)"
 	fi
 	[ -z "$core" ] || rm -f "$core"
 	crash_reports+=("$report")

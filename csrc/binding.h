@@ -382,7 +382,7 @@ typedef struct lvp__contact {
 	int32_t crossed;           /* the last lvp__keep_skin_apart: triangles its first round found crossing
 	                              anew (each kept apart since) */
 	float *settled;            /* vertex_count*3: where the last lvp__keep_skin_apart left step.positions,
-	                              when its last round found every pair it tested apart (settled_apart) */
+	                              when its last round shortened nothing (settled_apart) */
 	bool settled_apart;
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
 	                              skinning (clearance.c; INFINITY: none near) */
@@ -899,8 +899,8 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 void lvp__fade_map_where_shortened(lvp_binding *binding);
 /* The dynamic vertices shortened by any lvp__keep_skin_apart of this frame. */
 int32_t lvp__shortened_count(const lvp_binding *binding);
-/* Whether step.positions are where the last lvp__keep_skin_apart left them, all its pairs found apart
- * there: another check would shorten nothing (a restore after a fade that moved no vertex). */
+/* Whether step.positions are where the last lvp__keep_skin_apart left them, its last round shortening
+ * nothing there: another check would shorten nothing (a restore after a fade that moved no vertex). */
 bool lvp__still_where_kept_apart(const lvp_binding *binding);
 void lvp__contact_free(lvp__contact *contact);
 

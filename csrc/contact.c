@@ -791,9 +791,9 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		}
 		shortening = lvp__shorten_rounds(binding, &pass, corrected, false);
 	}
-	/* The rounds ended with one that found every pair it tested apart: each pair is apart where the
-	 * vertices now are (a pair it did not test moved by no corner since it was found apart), and a check
-	 * of these positions would shorten nothing. */
+	/* The rounds ended with one that shortened nothing: no pair it tested is one to shorten where the
+	 * vertices now are, nor any it did not test (no corner of it moved since a round found it so), and a
+	 * check of these positions would shorten nothing. */
 	contact->settled_apart = !shortening;
 	if (contact->settled_apart)
 		memcpy(contact->settled, binding->step.positions, sizeof(float) * 3 * (size_t)n);

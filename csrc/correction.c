@@ -1260,7 +1260,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			lvp__fade_map_where_shortened(binding);
 			stats->iterations += lvp__restore_after_fade(binding, options, positions, rest_positions, totals);
 			if (lvp__still_where_kept_apart(binding))
-				break; /* the restore moved no vertex (the volume was within tolerance) */
+				break; /* the restore moved no vertex: the check before left nothing to shorten there */
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);

@@ -298,8 +298,8 @@
  *   crossing away; those shares are smoothed the same way but
  *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
- *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain skinning already passes skin through skin (a
- *   fist's creases), offsets of a hundredth of an edge move that intersection by a fraction of a
+ *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain
+ *   skinning already passes skin through skin (a fist's creases), offsets of a hundredth of an edge move that intersection by a fraction of a
  *   triangle and change which pairs it passes through: when every pair a check finds crossing anew lies
  *   along the skinning's own crossing (some triangle around one of the two crosses, in `positions`,
  *   some triangle around the other) and the moved skin crosses no more pairs than the skinning does

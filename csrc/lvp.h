@@ -302,9 +302,9 @@
  *   skinning already passes skin through skin (a fist's creases), offsets of a hundredth of an edge
  *   move that intersection by a fraction of a triangle and change which pairs it passes through: when
  *   every pair a check finds crossing anew lies along the skinning's own crossing (some triangle
- *   around one of the two crosses, in `positions`, some triangle around the other) and the moved skin crosses no more pairs than the skinning does
- *   (counted over the pairs with a moved triangle that the check visits, which holds every pair crossing
- *   after the correction), nothing is shortened. Vertices fold-over put on a contact surface keep
+ *   around one of the two crosses, in `positions`, some triangle around the other) and the moved skin
+ *   crosses no more pairs than the skinning does (counted over the pairs with a moved triangle that the
+ *   check visits, which holds every pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface keep
  *   their place in each patch of them where the skinned triangles cross skin (fold-over undid that
  *   crossing; moving them back would bring it back); the other patches are shortened as any, and a
  *   pair with such a corner that no shortening of its other corners parts keeps its offsets (taking

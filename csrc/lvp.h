@@ -298,17 +298,17 @@
  *   crossing away; those shares are smoothed the same way but
  *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
- *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain
- *   skinning already passes skin through skin (a fist's creases), offsets of a hundredth of an edge
- *   move that intersection by a fraction of a triangle and change which pairs it passes through: when
- *   every pair a check finds crossing anew lies along the skinning's own crossing (some triangle
- *   around one of the two crosses, in `positions`, some triangle around the other) and the moved skin
- *   crosses no more pairs than the skinning does (counted over the pairs with a moved triangle that the
- *   check visits, which holds every pair crossing after the correction), nothing is shortened.
- *   Vertices fold-over put on a contact surface keep their place in each patch of them where the
- *   skinned triangles cross skin (fold-over undid that crossing; moving them back would bring it
- *   back); the other patches are shortened as any, and a pair with such a corner that no shortening of its other corners parts keeps its offsets (taking
- *   them would part nothing and leave a step beside the held skin); where the skin around such a
+ *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain skinning
+ *   already passes skin through skin (a fist's creases), offsets of a hundredth of an edge move that
+ *   intersection by a fraction of a triangle and change which pairs it passes through: when every pair a
+ *   check finds crossing anew lies along the skinning's own crossing (some triangle around one of the two
+ *   crosses, in `positions`, some triangle around the other) and the moved skin crosses no more pairs than
+ *   the skinning does (counted over the pairs with a moved triangle that the check visits, which holds every
+ *   pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface
+ *   keep their place in each patch of them where the skinned triangles cross skin (fold-over undid that
+ *   crossing; moving them back would bring it back); the other patches are shortened as any, and a pair with
+ *   such a corner that no shortening of its other corners parts keeps its offsets (taking them would part
+ *   nothing and leave a step beside the held skin); where the skin around such a
  *   patch is shortened, the patch comes down with it as the shares are smoothed, and goes back up
  *   whole where one of its triangles then crosses skin (the crossing fold-over undid). It never
  *   gives up: a pose that folds the skin everywhere costs more (the 100k chain of the bench bent at

@@ -989,8 +989,8 @@ static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_optio
 	return steps;
 }
 
-/* The volume that fading or shortening offsets took, restored again: along the offsets as they are
- * (the shape the smoothing and the fade gave them, each growing as little as it was faded), or with
+/* The volume that the crossing test's shortening took, restored again: along the offsets as they are
+ * (the shape the smoothing and the fade gave them, each growing as little as it was shortened), or with
  * fold-over through the map, which fold-over faded at its contacts: growing along the offsets, the
  * skin beside a contact would be pushed back through it, a crossing of the skinning's own that no
  * test of new crossings sees. */
@@ -1008,8 +1008,31 @@ static int32_t lvp__restore_after_fade(lvp_binding *binding, const lvp_frame_opt
 	return lvp__restore_smoothed(binding, options, rest_positions, totals);
 }
 
+/* The volume a fade at the clearances took (clearance.c), restored along the faded offsets smoothed as
+ * the frame's offsets are (lvp__smooth_offsets, the frame's passes). The fade multiplies the offsets by
+ * shares that rise by up to LVP__SHARE_SLOPE a ring, and grown as they were, the offsets kept that slope
+ * as roughness, about that share of their size on top of their own: where skin lies against skin over a
+ * wide patch (an arm hanging against the chest, a calf on a thigh) the faded skin's rim stood out of
+ * the skin around it. Smoothed, the faded offsets rise a little towards the skin they approach; the next
+ * fade takes that back, and after the last the crossing test (whose restores are not smoothed: each
+ * would push again what the test just shortened). */
+static int32_t lvp__restore_fade_smoothed(lvp_binding *binding, const lvp_frame_options *options,
+                                          const float *positions, const float *rest_positions,
+                                          const lvp__region_sums *totals)
+{
+	lvp__movable_regions(binding);
+	lvp__measure_positions(binding, rest_positions, totals);
+	if (options->smoothing_passes > 0) {
+		lvp__smooth_offsets(binding, positions, options->smoothing_passes, false);
+		lvp__measure_sums(binding, rest_positions, totals);
+	} else {
+		lvp__take_offsets(binding, positions);
+	}
+	return lvp__restore_smoothed(binding, options, rest_positions, totals);
+}
+
 /* Keeping skin apart: the offsets that near other skin in front of them fade (clearance.c), and
- * the volume they no longer carry is restored along the others (lvp__restore_smoothed), a few
+ * the volume they no longer carry is restored along the others (lvp__restore_fade_smoothed), a few
  * rounds, as restoring grows the faded offsets too. */
 static int32_t lvp__restore_short_of_contact(lvp_binding *binding, const lvp_frame_options *options,
                                              const float *positions, const float *rest_positions,
@@ -1020,7 +1043,7 @@ static int32_t lvp__restore_short_of_contact(lvp_binding *binding, const lvp_fra
 		lvp__measure_clearance(binding, positions, cycle > 0);
 		if (!lvp__fade_at_clearance(binding, positions))
 			break;
-		steps += lvp__restore_after_fade(binding, options, positions, rest_positions, totals);
+		steps += lvp__restore_fade_smoothed(binding, options, positions, rest_positions, totals);
 	}
 	return steps;
 }

@@ -289,8 +289,9 @@
  *   its clearance is kept; a longer one m is cut to h - h^2 / 4m, h half the clearance (the skin
  *   opposite may come as far), which joins it smoothly and never reaches h. The shares kept are
  *   smoothed over the rings around (none more than 0.2 above a neighbour's, then averaged), the map
- *   faded by them, and the volume they no longer carry restored along the other offsets, up to 3
- *   rounds. Then every pair of triangles (sharing no corner) that still crosses after the correction
+ *   faded by them, the faded offsets smoothed as the frame's are (smoothing_passes: the shares' slope
+ *   stood out as a rim of the faded skin), and the volume they no longer carry restored along them, up
+ *   to 3 rounds. Then every pair of triangles (sharing no corner) that still crosses after the correction
  *   but not in `positions` is found (a bounding volume hierarchy over the triangles, built at the first
  *   such frame, fitted to `positions` once a frame and after that only where skin moves), and the
  *   offsets of its corners are shortened to the square of the share of them at which the pair stops

@@ -431,6 +431,23 @@ def pose_rigify_human_legs(rig, kind):
     return _leg_angles(rig)
 
 
+def pose_rigify_human_arms_down(rig, degrees=80.0):
+    """Both upper arms lowered from Rigify's rest (62 degrees from hanging straight down) by `degrees` about their
+    FK controls' Z axis, the rest of the body at rest: at 60 an upper arm hangs 17 degrees from vertical beside
+    the chest, at 80 it is turned past that into the side of the chest, where plain skinning passes the arm's skin
+    through the chest's. Returns {"arm.L", "arm.R": degrees of the upper arm from straight down}."""
+    pose_rigify_human(rig, 0.0)
+    down = (0.0, 0.0, -1.0)
+    for side in ("L", "R"):
+        _turn_towards(rig, "upper_arm_fk." + side, 'Z', degrees, "DEF-upper_arm.%s.001" % side, down)
+    bpy.context.view_layer.update()
+    angles = {}
+    for side in ("L", "R"):
+        bone = rig.pose.bones["DEF-upper_arm.%s.001" % side]
+        angles["arm." + side] = math.degrees((bone.tail - bone.head).angle(Vector(down)))
+    return angles
+
+
 def pose_rigify_human_folded(rig, degrees=150.0):
     """Knees and elbows bent to `degrees` measured between the DEF bones (real_cases.bend_angle), from rest, the
     rest of the body straight: Rigify's rest pose already bends them a little, so each FK control is turned until

@@ -137,13 +137,15 @@ class TestBodyFamily(unittest.TestCase):
         through the chest's). With the add-on's defaults and with Keep Skin Apart, the measures of the hard poses:
         the volume kept, with Keep Skin Apart no new contact and no more crossing pairs than plain skinning, at most
         one crease per 300 edges, roughness and shards at most a quarter of the largest offset, but on
-        ROUGH_AGAINST_THE_BODY. The decimated body with its arms against the chest reads 0.27-0.29 (its largest
-        offset a fifth of an edge: the patch of skin the arms move ends on skin whose bones all stay, and the
-        offsets rise from nothing there within an edge or two). Keep Skin Apart's fade multiplied the offsets by
-        shares that rise a fifth a ring, and grown as they were, the faded rim stood out of the skin around it:
-        roughness 0.26 on the Skin modifier body and 0.30 on the coarse metaball body with the arms against the
-        chest, 0.35 on the decimated one (shard 0.26), before the faded offsets were smoothed as the frame's are
-        (correction.c, lvp__restore_fade_smoothed)."""
+        ROUGH_AGAINST_THE_BODY: with their arms against the chest the decimated body reads 0.22-0.29 and the Skin
+        modifier body subdivided once 0.30 with the defaults (0.24 with Keep Skin Apart) on 3.4 and 4.3 (their
+        largest offset a fifth of an edge: the patch of skin the arms move ends on skin whose bones all stay, and
+        the offsets rise from nothing there within an edge or two). Measured on 3.4 and 4.3, the others: with
+        Keep Skin Apart roughness 0.05-0.20, shards at most 0.15, at most 7 creases. Keep Skin Apart's fade
+        multiplied the offsets by shares that rise a fifth a ring, and grown as they were, the faded rim stood
+        out of the skin around it: roughness 0.26 on the Skin modifier body and 0.30 on the coarse metaball body
+        with the arms against the chest, 0.35 on the decimated one (shard 0.26), before the faded offsets were
+        smoothed as the frame's are (correction.c, lvp__restore_fade_smoothed)."""
         for name, (built_by, smoothing) in PRESSED_BODIES.items():
             with self.subTest(body=name):
                 helpers.reset_scene()

@@ -96,39 +96,53 @@ class TestBodyFamily(unittest.TestCase):
             corrected[label] = helpers.evaluated_positions(body)
         return helpers.uncorrected_positions(body), corrected
 
+    def bound_body(self, built_by, smoothing):
+        """(body, rig, its welded mesh, its interior edges): real_cases.rigify_human(**built_by) with Volume Preservation
+        added, at Smoothing `smoothing` (None: the add-on's default)."""
+        helpers.reset_scene()
+        body, rig = real_cases.rigify_human(**built_by)
+        mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
+        helpers.select_only(body)
+        self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+        if smoothing is not None:
+            body.lvp.smoothing = smoothing
+        return body, rig, mesh, len(mesh.interior_edges())
+
+    def check_pose(self, body, mesh, edges, case, rough_held=True, angles=None):
+        """The measures at the rig's current pose, printed and held, with the defaults and with Keep Skin Apart: the
+        volume kept, with Keep Skin Apart no new contact and no more crossing pairs than plain skinning, roughness
+        (when rough_held) and shards at most a quarter of the largest offset, at most one crease per 300 edges.
+        Returns quality.measure_pose's measures."""
+        plain, corrected = self.measure(body)
+        measured = quality.measure_pose(mesh, plain, corrected)
+        for which in corrected:
+            got = measured[which]
+            label = "%s, %s" % (case, which)
+            print("\n    %-62s %5d vertices: volume %+.4f %% (plain %+.2f %%), crossing pairs %d "
+                  "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f, shard %.2f%s"
+                  % (label, len(body.data.vertices), 100 * got["volume"], 100 * measured["plain"]["volume"],
+                     got["crossings"], measured["plain"]["crossings"], got["new crossings"], got["creases"],
+                     edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"],
+                     got["shard"] / got["largest_offset"],
+                     " %s" % {joint: round(degrees) for joint, degrees in angles.items()} if angles else ""))
+            self.assertLess(abs(got["volume"]), 0.005, label)
+            if which == "kept apart":
+                self.assertEqual(got["new contacts"], 0, label)
+                self.assertLessEqual(got["added crossings"], 0, label)
+            if rough_held:
+                self.assertLessEqual(got["roughness"], ROUGHNESS_OF_LARGEST * got["largest_offset"], label)
+            self.assertLessEqual(got["shard"], ROUGHNESS_OF_LARGEST * got["largest_offset"], label)
+            self.assertLessEqual(got["creases"], edges / EDGES_PER_CREASE, label)
+        return measured
+
     def test_smooth_at_hard_poses(self):
         for name, (built_by, smoothing) in BODY_FAMILY.items():
             with self.subTest(body=name):
-                helpers.reset_scene()
-                body, rig = real_cases.rigify_human(**built_by)
+                body, rig, mesh, edges = self.bound_body(built_by, smoothing)
                 self.assertEqual(real_cases.open_edge_count(body.data), 0)
-                mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
-                edges = len(mesh.interior_edges())
-                helpers.select_only(body)
-                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
-                if smoothing is not None:
-                    body.lvp.smoothing = smoothing
                 for amount in AMOUNTS:
                     real_cases.pose_rigify_human(rig, amount)
-                    plain, corrected = self.measure(body)
-                    measured = quality.measure_pose(mesh, plain, corrected)
-                    for label in corrected:
-                        got = measured[label]
-                        case = "%s, bent %.0f %%, %s" % (name, 100 * amount, label)
-                        print("\n    %-62s %5d vertices: volume %+.4f %% (plain %+.2f %%), crossing pairs %d "
-                              "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f, shard %.2f"
-                              % (case, len(body.data.vertices), 100 * got["volume"],
-                                 100 * measured["plain"]["volume"], got["crossings"],
-                                 measured["plain"]["crossings"], got["new crossings"], got["creases"],
-                                 edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"],
-                                 got["shard"] / got["largest_offset"]))
-                        self.assertLess(abs(got["volume"]), 0.005, case)
-                        if label == "kept apart":
-                            self.assertEqual(got["new contacts"], 0, case)
-                            self.assertLessEqual(got["added crossings"], 0, case)
-                        self.assertLessEqual(got["roughness"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
-                        self.assertLessEqual(got["shard"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
-                        self.assertLessEqual(got["creases"], edges / EDGES_PER_CREASE, case)
+                    self.check_pose(body, mesh, edges, "%s, bent %.0f %%" % (name, 100 * amount))
 
     def test_against_the_body(self):
         """Skin pressed on the body's own skin (issue 46): crouching (hips raised 100 degrees, knees bent 130: the
@@ -148,40 +162,13 @@ class TestBodyFamily(unittest.TestCase):
         smoothed as the frame's are (correction.c, lvp__restore_fade_smoothed)."""
         for name, (built_by, smoothing) in PRESSED_BODIES.items():
             with self.subTest(body=name):
-                helpers.reset_scene()
-                body, rig = real_cases.rigify_human(**built_by)
-                mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
-                edges = len(mesh.interior_edges())
-                helpers.select_only(body)
-                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
-                if smoothing is not None:
-                    body.lvp.smoothing = smoothing
+                body, rig, mesh, edges = self.bound_body(built_by, smoothing)
                 for pose_name, pose in PRESSED_POSES.items():
                     angles = pose(rig)
-                    plain, corrected = self.measure(body)
-                    measured = quality.measure_pose(mesh, plain, corrected)
+                    measured = self.check_pose(body, mesh, edges, "%s, %s" % (name, pose_name),
+                                               (name, pose_name) not in ROUGH_AGAINST_THE_BODY, angles)
                     if pose_name == "arms against the chest":
                         self.assertGreater(measured["plain"]["crossings"], 50, "the arms pass into the chest")
-                    for label in corrected:
-                        got = measured[label]
-                        case = "%s, %s, %s" % (name, pose_name, label)
-                        print("\n    %-62s %5d vertices: volume %+.4f %% (plain %+.2f %%), crossing pairs %d "
-                              "(plain %d, new %d), creases %d (%.0f allowed), roughness %.2f, shard %.2f %s"
-                              % (case, len(body.data.vertices), 100 * got["volume"],
-                                 100 * measured["plain"]["volume"], got["crossings"],
-                                 measured["plain"]["crossings"], got["new crossings"], got["creases"],
-                                 edges / EDGES_PER_CREASE, got["roughness"] / got["largest_offset"],
-                                 got["shard"] / got["largest_offset"],
-                                 {joint: round(degrees) for joint, degrees in angles.items()}))
-                        self.assertLess(abs(got["volume"]), 0.005, case)
-                        if label == "kept apart":
-                            self.assertEqual(got["new contacts"], 0, case)
-                            self.assertLessEqual(got["added crossings"], 0, case)
-                        if (name, pose_name) not in ROUGH_AGAINST_THE_BODY:
-                            self.assertLessEqual(got["roughness"], ROUGHNESS_OF_LARGEST * got["largest_offset"],
-                                                 case)
-                        self.assertLessEqual(got["shard"], ROUGHNESS_OF_LARGEST * got["largest_offset"], case)
-                        self.assertLessEqual(got["creases"], edges / EDGES_PER_CREASE, case)
 
     def test_fold_over_at_150_degrees(self):
         """Knees and elbows bent to 150 degrees (real_cases.pose_rigify_human_folded): the calf lies on the back of the
@@ -216,13 +203,7 @@ class TestBodyFamily(unittest.TestCase):
         squeezed volume goes back as a rounder knee."""
         for name, (built_by, smoothing) in FOLDED_BODIES.items():
             with self.subTest(body=name):
-                helpers.reset_scene()
-                body, rig = real_cases.rigify_human(**built_by)
-                mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
-                helpers.select_only(body)
-                self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
-                if smoothing is not None:
-                    body.lvp.smoothing = smoothing
+                body, rig, mesh, edges = self.bound_body(built_by, smoothing)
                 angles = real_cases.pose_rigify_human_folded(rig, 150.0)
                 for joint, degrees in angles.items():
                     self.assertAlmostEqual(degrees, 150.0, delta=0.5, msg=joint)
@@ -234,7 +215,6 @@ class TestBodyFamily(unittest.TestCase):
                 measured = quality.measure_pose(mesh, helpers.uncorrected_positions(body),
                                                 {"fold-over": helpers.evaluated_positions(body)})
                 folded, plain = measured["fold-over"], measured["plain"]
-                edges = len(mesh.interior_edges())
                 print("\n    %-26s 150 degrees, Fold-Over: volume %+.4f %% (plain %+.2f %%), crossing pairs %d (plain %d), "
                       "creases %d (%.0f allowed), roughness %.2f, shard %.2f"
                       % (name, 100 * folded["volume"], 100 * plain["volume"], folded["crossings"], plain["crossings"],

@@ -128,9 +128,9 @@
  *   inside a blend, a bending bone that is the ninth of its row and the eighth of its neighbours',
  *   the joints of a B-Bone that carry it alike to float noise) takes the mean of its neighbours'
  *   map instead, so no vertex is held back from the skin that moves around it; at bind, likewise, a
- *   vertex whose ORGANIC or RUBBER map is zero (a bone's line through it, or its whole row one bone's)
- *   while more than half of the corners around it are not takes their mean. Every map is as smooth
- *   over the surface as the weights are.
+ *   vertex whose ORGANIC map is zero though its row blends bones (a bone's line through it) while more
+ *   than half of the corners around it are not takes their mean. Every map is as smooth over the
+ *   surface as the weights are.
  *
  * GROUPS (one multiplier for several bones)
  *

@@ -125,8 +125,9 @@ static void lvp__area_weights(lvp_binding *binding)
  * tests asleep, Keep Skin Apart on: roughness 0.50 of the largest offset, at the one vertex of 309 that a bone's
  * line passes through). A vertex whose row is one bone's stays still, as lvp.h promises of skin one bone carries:
  * filled too, the mocap bodies' volume before correction read 1e-6 off the positions' (test_mocap_characters).
- * A painted map is the artist's, and the boundary fade is zero by design. All pits are found before any is
- * filled, so the result does not depend on the vertices' order. */
+ * The rubber map is zero only where a row is one bone's, a painted map is the artist's, and the boundary fade
+ * is zero by design: only the organic map is filled. All pits are found before any is filled, so the result
+ * does not depend on the vertices' order. */
 static lvp_result lvp__fill_map_pits(lvp_binding *binding, lvp_diagnostic *r_diag)
 {
 	int32_t n = binding->vertex_count;
@@ -217,7 +218,7 @@ lvp_result lvp__build_map(lvp_binding *binding, const lvp_map_options *map, lvp_
 	}
 	for (int32_t k = 0; k < n; ++k)
 		binding->map.gamma[k] = isfinite(largest) ? (float)exp(binding->map.log_gamma[k] - largest) : 0.0f;
-	if (map->map == LVP_MAP_ORGANIC || map->map == LVP_MAP_RUBBER) {
+	if (map->map == LVP_MAP_ORGANIC) { /* the only computed map that is zero where a row blends bones */
 		result = lvp__fill_map_pits(binding, r_diag);
 		if (result)
 			return result;

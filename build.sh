@@ -154,20 +154,24 @@ build_c_test() {
 		"$ROOT/tests/c/$name.c" "$(sanitized_archive_path "$compiler")" -o "$BUILD/tests/$out" -lm -lgmp
 }
 
+# C_TESTS_FAILED: the names of the C tests that failed in the last run_c_tests.
+C_TESTS_FAILED=()
 run_c_tests() {
 	ensure_packages gcc libc6-dev libgmp-dev
 	local failed=0
+	C_TESTS_FAILED=()
 	for test_src in "$ROOT"/tests/c/test_*.c; do
 		local name
 		name="$(basename "${test_src%.c}")"
 		log "C test $name"
 		if ! build_c_test "$CC" "$name" "$name" || ! (cd "$ROOT/tests" && "$BUILD/tests/$name"); then
 			printf '\033[31mFAILED\033[0m %s; rerun alone: ./build.sh test-c %s\n' "$name" "$name" >&2
+			C_TESTS_FAILED+=("$name")
 			failed=1
 		fi
 	done
-	run_fuzz_regressions_clang || failed=1
-	run_threads_tsan || failed=1
+	run_fuzz_regressions_clang || { C_TESTS_FAILED+=("test_fuzz_regressions (clang)"); failed=1; }
+	run_threads_tsan || { C_TESTS_FAILED+=("test_threads (ThreadSanitizer)"); failed=1; }
 	return $failed
 }
 
@@ -214,15 +218,20 @@ run_module_tests() {
 	PYTHONPATH="$BUILD" /usr/bin/python3 -m unittest discover -s "$ROOT/tests/python" -t "$ROOT/tests/python" -v
 }
 
+# The failed stages are named again at the end: a CI log often keeps only its tail, after the Blender
+# tests, and the C or platform tests' own failure lines are far above it.
 cmd_test() {
-	local failed=0
-	run_c_tests || failed=1
-	run_module_tests || failed=1
-	run_platform_tests || failed=1
+	local failed=()
+	run_c_tests || failed+=("C tests: ${C_TESTS_FAILED[*]}")
+	run_module_tests || failed+=("Python module tests (rerun: bash -c 'source ./build.sh; run_module_tests')")
+	run_platform_tests || failed+=("platform tests (rerun: ./build.sh test-platforms)")
 	if [ -x "$ROOT/tests/blender/run.sh" ]; then
-		"$ROOT/tests/blender/run.sh" || failed=1
+		"$ROOT/tests/blender/run.sh" || failed+=("Blender tests (see the FAILED lines above)")
 	fi
-	if [ "$failed" != 0 ]; then die "some tests failed (see above)"; fi
+	if [ ${#failed[@]} -gt 0 ]; then
+		printf '    %s\n' "${failed[@]}" >&2
+		die "some tests failed: ${#failed[@]} stage(s), listed above"
+	fi
 	log "all tests passed"
 }
 

@@ -224,7 +224,7 @@ cmd_test() {
 	local failed=()
 	run_c_tests || failed+=("C tests: ${C_TESTS_FAILED[*]}")
 	run_module_tests || failed+=("Python module tests (rerun: bash -c 'source ./build.sh; run_module_tests')")
-	run_platform_tests || failed+=("platform tests (rerun: ./build.sh test-platforms)")
+	run_platform_tests || failed+=("platform tests: ${PLATFORM_PARTS_FAILED[*]} (rerun: ./build.sh test-platforms PART)")
 	if [ -x "$ROOT/tests/blender/run.sh" ]; then
 		"$ROOT/tests/blender/run.sh" || failed+=("Blender tests (see the FAILED lines above)")
 	fi

@@ -307,11 +307,14 @@ KERNEL32.dll and msvcrt.dll only" pe_is_x64_dll_exporting_init "$(platform_modul
 
 # run_platform_tests [PART...]: builds the modules and packages (platforms.sh), then runs the parts
 # (all by default), each timed.
+# PLATFORM_PARTS_FAILED: the parts that failed in the last run_platform_tests.
+PLATFORM_PARTS_FAILED=()
 run_platform_tests() {
 	local parts=("$@") failed=0
+	PLATFORM_PARTS_FAILED=()
 	[ ${#parts[@]} -gt 0 ] || parts=("${PLATFORM_TEST_PARTS[@]}")
 	platform_tests_setup
-	build_platform_modules && build_platform_packages || return 1
+	build_platform_modules && build_platform_packages || { PLATFORM_PARTS_FAILED+=("building"); return 1; }
 	for part in "${parts[@]}"; do
 		local started=$SECONDS
 		case "$part" in
@@ -322,7 +325,7 @@ run_platform_tests() {
 		c-windows) test_part_c_windows ;;
 		c-arm64) test_part_c_arm64 ;;
 		*) die "unknown part '$part' (${PLATFORM_TEST_PARTS[*]})" ;;
-		esac || failed=1
+		esac || { failed=1; PLATFORM_PARTS_FAILED+=("$part"); }
 		log "platforms: $part took $((SECONDS - started)) s"
 	done
 	return $failed

@@ -56,7 +56,15 @@ ensure_packages() {
 		as_root env DEBIAN_FRONTEND=noninteractive apt-get update -q >&2
 		APT_UPDATED=1
 	fi
-	as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+	# Once more after a fresh update when the archive fails to deliver (a mirror changing under the lists,
+	# a dropped connection): a fresh CI machine installs everything, and one such failure fails a stage.
+	as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}" >&2 ||
+		{
+			log "installing ${missing[*]} failed; updating the package lists and trying once more"
+			sleep 10
+			as_root env DEBIAN_FRONTEND=noninteractive apt-get update -q >&2
+			as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+		}
 }
 
 core_sources() {

@@ -69,7 +69,8 @@ ensure_zig() {
 	command -v npm >/dev/null || ensure_packages npm
 	log "installing Zig from npm ($ZIG_PACKAGE, into $prefix)"
 	mkdir -p "$prefix"
-	npm install --prefix "$prefix" --no-save --no-audit --no-fund --no-package-lock "$ZIG_PACKAGE" >&2
+	npm install --prefix "$prefix" --no-save --no-audit --no-fund --no-package-lock "$ZIG_PACKAGE" >&2 ||
+		{ sleep 10 && npm install --prefix "$prefix" --no-save --no-audit --no-fund --no-package-lock "$ZIG_PACKAGE" >&2; }
 	[ -x "$ZIG" ] || die "npm installed $ZIG_PACKAGE but $ZIG is not there"
 }
 

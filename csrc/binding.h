@@ -192,6 +192,10 @@ typedef struct lvp__frame_map {
 	int32_t *fill;            /* scratch: the holes in the moving skin this frame (frame_map.c) */
 	float *fill_gamma;        /* scratch: per vertex walked, the map it takes when still in moving
 	                             skin, else -1 (lvp__fill_holes) */
+	int32_t *rim;             /* the moving skin's rim this frame, rim_count vertices: dynamic, the
+	                             bind map lets them move and this frame's does not, beside vertices
+	                             it moves (lvp__feather_rim) */
+	int32_t rim_count;
 	/* vertex_class and vertex_dynamic are the frame map's for the current skin classes and map;
 	 * lvp__frame_map_stale clears it when something else changes one of them. */
 	bool current;

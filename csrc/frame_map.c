@@ -254,34 +254,36 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 	return hold;
 }
 
-/* Whether vertex k lies in a hole or a bay of the moving skin: the map lets it move (its bind map
- * is not zero) and the classes of the bones that reach it do not, while most of its neighbours
- * are dynamic. Rows keep their strongest bones (reach.c), so where many bones overlap (a torso
- * between four legs) the bone that bends can be the ninth of one vertex and the eighth of its
- * neighbours: left still while they move, the vertex would stay where skinning put it, a dimple
- * in the bulge, and the smoothing would pull the skin around it further out. Decided by the
- * classes alone, as the dynamic flags are, from the flags before any hole is filled. */
-static bool lvp__is_hole(const lvp_binding *binding, int32_t k)
+/* Whether vertex k borders the moving skin: the map lets it move (its bind map is not zero) and the
+ * classes of the bones that reach it do not, while a neighbour is dynamic. It may lie in a hole or a
+ * bay of the moving skin: rows keep their strongest bones (reach.c), so where many bones overlap (a
+ * torso between four legs) the bone that bends can be the ninth of one vertex and the eighth of its
+ * neighbours; left still while they move, the vertex would stay where skinning put it, a dimple in
+ * the bulge, and the smoothing would pull the skin around it further out (lvp__fill_holes). Or on
+ * the moving skin's rim, where the weight of a bone that moves runs out, which the smoothing feathers
+ * (offset_smoothing.c, lvp__feather_rim). Decided by the classes alone, as the dynamic flags are,
+ * from the flags before any is made dynamic. */
+static bool lvp__borders_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	if (binding->frame_map.vertex_dynamic[k] || !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
 		return false;
-	int32_t dynamic = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
 	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
-		dynamic += binding->frame_map.vertex_dynamic[smoothing->neighbours[e]];
-	return 2 * dynamic > count;
+		if (binding->frame_map.vertex_dynamic[smoothing->neighbours[e]])
+			return true;
+	return false;
 }
 
-/* Finds the holes of the moving skin (lvp__is_hole), all decided before any is made dynamic, and
- * makes them dynamic. Returns whether there are any: the classes' loop compared each vertex's flag
- * by its classes alone, so a hole made dynamic is a change it did not see (and one that was a hole
- * the frame before, and is still, one it did). */
+/* Finds the vertices that border the moving skin (lvp__borders_moving_skin), all decided before any
+ * is made dynamic, and makes them dynamic. Returns whether there are any: the classes' loop compared
+ * each vertex's flag by its classes alone, so one made dynamic is a change it did not see (and one
+ * that bordered it the frame before, and still does, one it did). */
 static bool lvp__find_holes(lvp_binding *binding)
 {
 	lvp__frame_map *frame_map = &binding->frame_map;
 	int32_t count = 0;
 	for (int32_t k = 0; k < binding->vertex_count; ++k)
-		if (lvp__is_hole(binding, k))
+		if (lvp__borders_moving_skin(binding, k))
 			frame_map->fill[count++] = k;
 	for (int32_t i = 0; i < count; ++i)
 		frame_map->vertex_dynamic[frame_map->fill[i]] = 1;
@@ -309,7 +311,7 @@ static bool lvp__bones_alike(const lvp_binding *binding, int32_t k)
 }
 
 /* Whether dynamic vertex k is still by this frame's map while most of its neighbours move: a hole
- * (lvp__is_hole), or a vertex whose bones fall into several classes that carry it alike to float
+ * or a bay (lvp__borders_moving_skin), or a vertex whose bones fall into several classes that carry it alike to float
  * noise (lvp__bones_alike), so its a_k is zero. Read before any of a pass of lvp__fill_holes is
  * filled. */
 static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
@@ -377,6 +379,27 @@ static void lvp__fill_holes(lvp_binding *binding, const int32_t *vertices, int32
 	}
 }
 
+/* frame_map.rim: among `vertices` (NULL: all `count` vertices), those still by this frame's map though
+ * their bind map lets them move, beside a vertex the map moves. Listed before anything fades the map
+ * (fold-over's contacts, Keep Skin Apart): only where the moving skin ends. */
+static void lvp__list_rim(lvp_binding *binding, const int32_t *vertices, int32_t count)
+{
+	const lvp__smoothing *smoothing = &binding->smoothing;
+	lvp__frame_map *frame_map = &binding->frame_map;
+	frame_map->rim_count = 0;
+	for (int32_t v = 0; v < count; ++v) {
+		int32_t k = vertices ? vertices[v] : v;
+		if (!frame_map->vertex_dynamic[k] || frame_map->gamma[k] > 0.0f ||
+		    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+			continue;
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
+			if (frame_map->gamma[smoothing->neighbours[e]] > 0.0f) {
+				frame_map->rim[frame_map->rim_count++] = k;
+				break;
+			}
+	}
+}
+
 /* This frame's map (the bind map times the deformation weighting a_k of lvp.h), and which
  * vertices are dynamic (binding.h). */
 void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
@@ -404,6 +427,7 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 		lvp__parallel_for(LVP__POOL_FOR(binding, binding->dynamic.vertex_count), lvp__frame_map_dynamic_loop,
 		                  &context, binding->dynamic.vertex_count, LVP__GRAIN);
 		lvp__fill_holes(binding, binding->dynamic.vertices, binding->dynamic.vertex_count);
+		lvp__list_rim(binding, binding->dynamic.vertices, binding->dynamic.vertex_count);
 		return;
 	}
 	int32_t chunks = (n + LVP__GRAIN - 1) / LVP__GRAIN;
@@ -414,6 +438,7 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 		if (binding->frame_map.chunk_changed[i] || any_hole)
 			lvp__dynamic_set_stale(binding);
 	lvp__fill_holes(binding, NULL, n);
+	lvp__list_rim(binding, NULL, n);
 	binding->frame_map.current = true;
 }
 
@@ -457,6 +482,7 @@ bool lvp__frame_map_alloc(lvp_binding *binding)
 	frame_map->chunk_changed = lvp__calloc(n / LVP__GRAIN + 1, sizeof(uint8_t), &ok);
 	frame_map->fill = lvp__calloc(n + 1, sizeof(int32_t), &ok);
 	frame_map->fill_gamma = lvp__calloc(n + 1, sizeof(float), &ok);
+	frame_map->rim = lvp__calloc(n + 1, sizeof(int32_t), &ok);
 	return ok;
 }
 
@@ -470,4 +496,5 @@ void lvp__frame_map_free(lvp__frame_map *frame_map)
 	free(frame_map->chunk_changed);
 	free(frame_map->fill);
 	free(frame_map->fill_gamma);
+	free(frame_map->rim);
 }

@@ -266,7 +266,12 @@
  *   neighbouring cluster is joined with it, at bind) are averaged as one, over the cluster's
  *   neighbours outside it, so they follow their ring at the pace of any vertex. The volume the passes took is then restored along the smoothed offsets
  *   themselves, each part's growing by one factor (what they cannot restore goes through the map),
- *   so the shape the passes gave is kept: more passes, smoother offsets. Restoring each region
+ *   so the shape the passes gave is kept: more passes, smoother offsets. The passes move only what
+ *   the map moves, so where the moving skin ends (the weight of a bone that moves runs out) the
+ *   offsets would rise from nothing to their neighbours' within one edge; after the passes, each
+ *   vertex on that rim that its bind map lets move, but not this frame's map, takes half the mean
+ *   of its neighbours' offsets (fold-over's held vertices aside; the rim is found before anything
+ *   fades the map), so the offsets fall off over one edge more. Restoring each region
  *   (LVP_RESTORE_EACH_REGION, or a frame whose bones scale), steps 1-3 restore it. On a hand
  *   closing into a fist, 6 passes (the add-on's default) with equal weights: creases added
  *   111 -> 29, offsets' roughness 0.15 -> 0.06 of the largest, crossing pairs 253 -> 227; on a

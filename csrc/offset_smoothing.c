@@ -266,6 +266,37 @@ static int32_t lvp__list_movable(lvp_binding *binding, lvp__smoothing *smoothing
 	return count;
 }
 
+/* The rim of the moving skin (frame_map.rim: vertices the bind map lets move that this frame's map
+ * does not, beside ones it moves), but for vertices fold-over holds, takes half the mean of its
+ * neighbours' offsets (those outside the dynamic set counting with none). The passes move only what
+ * the map moves, and without it the offsets rose from nothing to their neighbours' within one edge, a
+ * cliff that on a coarse mesh is a large share of the moving patch. Written into `from` (the passes'
+ * result) after every rim vertex is computed from the passes' result alone (in `to`), so in any order. */
+static void lvp__feather_rim(lvp_binding *binding, lvp__smoothing_pass *pass)
+{
+	const lvp__smoothing *smoothing = pass->smoothing;
+	const lvp__frame_map *frame_map = &binding->frame_map;
+	const uint8_t *dynamic = frame_map->vertex_dynamic;
+	float *result = (float *)pass->from, *scratch = pass->to;
+	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
+		int32_t k = frame_map->rim[i], first = smoothing->offsets[k], last = smoothing->offsets[k + 1];
+		double sum[3] = {0.0, 0.0, 0.0};
+		for (int32_t e = first; e < last; ++e) {
+			int32_t j = smoothing->neighbours[e];
+			if (dynamic[j])
+				for (int c = 0; c < 3; ++c)
+					sum[c] += result[3 * j + c];
+		}
+		for (int c = 0; c < 3; ++c)
+			scratch[3 * k + c] = last > first ? (float)(0.5 * sum[c] / (double)(last - first)) : result[3 * k + c];
+	}
+	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
+		int32_t k = frame_map->rim[i];
+		if (!binding->fold.held[k])
+			memcpy(result + 3 * k, scratch + 3 * k, 3 * sizeof(float));
+	}
+}
+
 void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map)
 {
 	int32_t count = binding->dynamic.vertex_count;
@@ -280,5 +311,7 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 		pass.to = (float *)pass.from;
 		pass.from = read;
 	}
+	if (!whatever_the_map)
+		lvp__feather_rim(binding, &pass);
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__put_offsets, &pass, count, LVP__GRAIN);
 }

@@ -218,8 +218,9 @@ class TestLowPolyHorseSurface(TestHorseSurface):
     most one crease added per 300 edges (3.1 allowed: 2 at most on 3.4, 3 on lay_to_idle on 5.2, whose importer
     and Decimate give a slightly different mesh).
 
-    Roughness is held to COARSE_ROUGHNESS of the largest offset, not a quarter: with Keep Skin Apart 0.14-0.27 on
-    every action on 3.4 (Turn_Left the 0.27; 0.19-0.24 without), 0.15-0.24 on 5.2; 0.29 on lay_to_idle while the
+    Roughness is held to COARSE_ROUGHNESS of the largest offset, not a quarter: with Keep Skin Apart 0.14-0.23 on
+    every action on 3.4 (0.19-0.23 without; Turn_Left 0.27 before the smoothing feathered the rim of the moving
+    skin, offset_smoothing.c), 0.15-0.24 on 5.2; 0.29 on lay_to_idle while the
     offsets each fade left were restored unsmoothed (at its frame 20, the top of a bulge four edges across on the
     rump), and up to 0.50 on 5.2's mesh while one vertex that a bone's line passes through was left still among
     skin that moves (map.c, lvp__fill_map_pits). On a mesh this coarse the measure reads its normals as much as

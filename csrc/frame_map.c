@@ -311,9 +311,9 @@ static bool lvp__bones_alike(const lvp_binding *binding, int32_t k)
 }
 
 /* Whether dynamic vertex k is still by this frame's map while most of its neighbours move: a hole
- * or a bay (lvp__borders_moving_skin), or a vertex whose bones fall into several classes that carry it alike to float
- * noise (lvp__bones_alike), so its a_k is zero. Read before any of a pass of lvp__fill_holes is
- * filled. */
+ * or a bay (lvp__borders_moving_skin), or a vertex whose bones fall into several classes that carry
+ * it alike to float noise (lvp__bones_alike), so its a_k is zero. Read before any of a pass of
+ * lvp__fill_holes is filled. */
 static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;

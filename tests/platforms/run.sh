@@ -305,10 +305,10 @@ KERNEL32.dll and msvcrt.dll only" pe_is_x64_dll_exporting_init "$(platform_modul
 
 # ---- all of them ----------------------------------------------------------------------------------
 
-# run_platform_tests [PART...]: builds the modules and packages (platforms.sh), then runs the parts
-# (all by default), each timed.
 # PLATFORM_PARTS_FAILED: the parts that failed in the last run_platform_tests.
 PLATFORM_PARTS_FAILED=()
+# run_platform_tests [PART...]: builds the modules and packages (platforms.sh), then runs the parts
+# (all by default), each timed.
 run_platform_tests() {
 	local parts=("$@") failed=0
 	PLATFORM_PARTS_FAILED=()

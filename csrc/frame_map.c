@@ -77,6 +77,13 @@ static inline void lvp__displacement(float r_d[3], const lvp_binding *binding, i
 	r_d[2] = m[8] * p[0] + m[9] * p[1] + m[10] * p[2] + m[11];
 }
 
+/* Vertex k's bind map as the frame map starts from it: gamma_k times its area weight (map.c,
+ * lvp__area_weights). Zero where no frame can move the vertex. */
+static inline float lvp__bind_gamma(const lvp_binding *binding, int32_t k)
+{
+	return binding->map.gamma[k] * binding->map.area_weight[k];
+}
+
 /* a_k of lvp.h for rest point p moved by `count` bones with the given weights: how far apart
  * they would carry it (the weighted mean distance of each bone's image from their blend). */
 #define LVP__SPREAD_KEPT 16
@@ -159,7 +166,7 @@ static float lvp__vertex_spread(const lvp_binding *binding, const float *p, int3
 /* This frame's map at vertex k of the given class (lvp__vertex_class). */
 static inline float lvp__frame_gamma(const lvp_binding *binding, const float *rest, int32_t k, int32_t vertex_class)
 {
-	float gamma = binding->map.gamma[k] * binding->map.area_weight[k]; /* map.c, lvp__area_weights */
+	float gamma = lvp__bind_gamma(binding, k);
 	if (!binding->map.options.deformation_weighted)
 		return gamma;
 	if (!(gamma > 0.0f) || (vertex_class >= 0 && !binding->reach.own))
@@ -178,7 +185,7 @@ static inline float lvp__frame_gamma(const lvp_binding *binding, const float *re
  * at, by the joints that began to bend since. */
 static bool lvp__map_may_move(const lvp_binding *binding, int32_t k, int32_t vertex_class)
 {
-	if (!(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+	if (!(lvp__bind_gamma(binding, k) > 0.0f))
 		return false;
 	if (!binding->map.options.deformation_weighted || vertex_class < 0)
 		return true;
@@ -266,7 +273,7 @@ bool lvp__rigid_vertices_hold(const lvp_binding *binding, const float *positions
 static bool lvp__borders_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
-	if (binding->frame_map.vertex_dynamic[k] || !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+	if (binding->frame_map.vertex_dynamic[k] || !(lvp__bind_gamma(binding, k) > 0.0f))
 		return false;
 	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
 		if (binding->frame_map.vertex_dynamic[smoothing->neighbours[e]])
@@ -318,8 +325,7 @@ static bool lvp__still_in_moving_skin(const lvp_binding *binding, int32_t k)
 {
 	const lvp__smoothing *smoothing = &binding->smoothing;
 	const float *gamma = binding->frame_map.gamma;
-	if (!binding->frame_map.vertex_dynamic[k] || gamma[k] > 0.0f ||
-	    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+	if (!binding->frame_map.vertex_dynamic[k] || gamma[k] > 0.0f || !(lvp__bind_gamma(binding, k) > 0.0f))
 		return false;
 	int32_t moving = 0, count = smoothing->offsets[k + 1] - smoothing->offsets[k];
 	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
@@ -389,8 +395,7 @@ static void lvp__list_rim(lvp_binding *binding, const int32_t *vertices, int32_t
 	frame_map->rim_count = 0;
 	for (int32_t v = 0; v < count; ++v) {
 		int32_t k = vertices ? vertices[v] : v;
-		if (!frame_map->vertex_dynamic[k] || frame_map->gamma[k] > 0.0f ||
-		    !(binding->map.gamma[k] * binding->map.area_weight[k] > 0.0f))
+		if (!frame_map->vertex_dynamic[k] || frame_map->gamma[k] > 0.0f || !(lvp__bind_gamma(binding, k) > 0.0f))
 			continue;
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e)
 			if (frame_map->gamma[smoothing->neighbours[e]] > 0.0f) {
@@ -407,7 +412,7 @@ void lvp__build_frame_map(lvp_binding *binding, const float *rest_positions)
 	int32_t n = binding->vertex_count;
 	if (binding->mode != LVP_MODE_LOCAL) {
 		for (int32_t k = 0; k < n; ++k)
-			binding->frame_map.gamma[k] = binding->map.gamma[k] * binding->map.area_weight[k];
+			binding->frame_map.gamma[k] = lvp__bind_gamma(binding, k);
 		memset(binding->frame_map.vertex_dynamic, 1, (size_t)n);
 		return;
 	}

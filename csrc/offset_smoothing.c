@@ -288,7 +288,7 @@ static void lvp__feather_rim(lvp_binding *binding, lvp__smoothing_pass *pass)
 					sum[c] += result[3 * j + c];
 		}
 		for (int c = 0; c < 3; ++c)
-			scratch[3 * k + c] = last > first ? (float)(0.5 * sum[c] / (double)(last - first)) : result[3 * k + c];
+			scratch[3 * k + c] = (float)(0.5 * sum[c] / (double)(last - first)); /* listed for a neighbour */
 	}
 	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
 		int32_t k = frame_map->rim[i];

@@ -227,14 +227,13 @@ run_one() {
 	log "Blender $label: $passed passed, $failed failed, $skipped skipped ($((SECONDS - start)) s)"
 }
 
-# crash_report LABEL FAULT_FILE: where a Blender that died was (every thread's Python stack, from runner.py's
-# faulthandler, and the crashed thread's native frames), kept for the end of the output with the failing test,
-# so that a crash seen once on CI can be traced from its log.
+# crash_report LABEL FAULT_FILE: where a Blender that died was (the crashed thread's native frames, from its
+# core file, and every thread's Python stack, from runner.py's faulthandler), kept for the end of the output
+# with the failing test, so that a crash seen once on CI can be traced from its log. The crashed thread's
+# Python stack comes last: a log cut to its last lines still shows it.
 crash_reports=()
 crash_report() {
-	local label="$1" fault="$2" report
-	report="Blender $label crashed; Python's stacks (faulthandler):"$'\n'
-	if [ -s "$fault" ]; then report+="$(head -n 40 "$fault")"; else report+="    (none written)"; fi
+	local label="$1" fault="$2" report="Blender $label crashed."
 	# The native frames, from a core file the kernel left in this directory (the crash file Blender 3.4 writes
 	# has none). Only after a crash, so gdb is installed only then.
 	local core
@@ -251,11 +250,20 @@ crash_report() {
 			/^Thread / { flush(); frames = ""; had = 0 }
 			/<signal handler called>/ { frames = ""; had = 1; next }
 			had && /^#/ { frames = frames substr($0, 1, 200) "\n" }
-			END { flush() }' | head -n 16)"
+			END { flush() }' | head -n 8)"
 		# Where the add-on's module was loaded (its frames have no names: the packaged module is stripped).
 		report+=$'\n'"$(grep '_lvp' <<<"$frames" | cut -c1-200 || true)"
 	fi
 	[ -z "$core" ] || rm -f "$core"
+	if [ -s "$fault" ]; then
+		# faulthandler writes a block per thread, the crashed one headed "Current thread", innermost call first.
+		report+=$'\n'"The other threads' Python stacks (faulthandler):"$'\n'
+		report+="$(awk '/^Current thread/ { skip = 1 } skip && /^$/ { skip = 0; next } !skip' "$fault" | head -n 16)"
+		report+=$'\n'"The crashed thread's Python stack (faulthandler):"$'\n'
+		report+="$(awk '/^Current thread/ { on = 1 } on && /^$/ { exit } on' "$fault" | head -n 24)"
+	else
+		report+=$'\n'"    (faulthandler wrote no Python stack)"
+	fi
 	crash_reports+=("$report")
 }
 
@@ -264,12 +272,14 @@ for sel in "${selectors[@]}"; do
 done
 
 [ "$list" = 1 ] && exit 0
+# The crash reports before the failed tests' names, which end the output: a log cut to its last lines keeps
+# the names and as much of the reports as fits.
 if [ ${#failed_lines[@]} -gt 0 ]; then
-	printf '\n\033[31mFAILED\033[0m headless-Blender tests; rerun one alone with:\n' >&2
-	printf '    %s\n' "${failed_lines[@]}" >&2
 	for report in ${crash_reports[@]+"${crash_reports[@]}"}; do
 		printf '\n%s\n' "$report" >&2
 	done
+	printf '\n\033[31mFAILED\033[0m headless-Blender tests; rerun one alone with:\n' >&2
+	printf '    %s\n' "${failed_lines[@]}" >&2
 fi
 echo "blender: $total_passed passed, $total_failed failed, $total_skipped skipped"
 [ ${#failed_lines[@]} -eq 0 ] && [ "$blender_failures" = 0 ]

@@ -19,6 +19,8 @@
 # then $BLENDER when set.
 # Every failing test is printed with the command that reruns it alone, e.g.
 #   tests/blender/run.sh --blender 4.3 test_modifier.TestLive.test_frame_set
+# A Blender that dies in a test is reported (its stacks) and started again after that test, so the rest of
+# the suite still runs; the test is then run alone, and fails the run only if it fails or dies again there.
 #
 # Environment: BLENDER, LVP_SKIP_BLENDER43, LVP_SKIP_BLENDER52, LVP_ADDON_DIR / LVP_EXTENSION_ZIP (test another
 # build than dist/), LVP_BLENDER_TIMEOUT (seconds per Blender, default 1800), LVP_KEEP_TMP=1
@@ -169,71 +171,129 @@ run_one() {
 	fi
 
 	local results="$RUN_TMP/results-${label//[^A-Za-z0-9.]/_}"
-	rm -f "$results" "$results.fault"
-	touch "$RUN_TMP/started-$label"
-	log "Blender $label: ${cmd[*]}"
-	local rc=0 start=$SECONDS
-	# Debian's Blender leaves a core file on a crash (where the kernel writes one to the working directory),
-	# for crash_report's backtrace; the chroots' would stay inside them.
-	(
-		if [ "$label" = 3.4 ]; then ulimit -c unlimited 2>/dev/null || true; fi
-		exec timeout --kill-after=30 "${LVP_BLENDER_TIMEOUT:-1800}" "${cmd[@]}" -b --factory-startup -noaudio \
-			--python-exit-code 1 --python "$HERE/runner.py" -- \
-			--expect-version "$expect" --rerun "$rerun" --results "$results" \
-			${runner_args[@]+"${runner_args[@]}"} ${names[@]+"${names[@]}"}
-	) || rc=$?
-	[ "$list" = 1 ] && return $rc
-
-	local summary="" passed=0 failed=0 skipped=0
-	if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
-	case "$summary" in
-	done*)
-		passed="$(sed -n 's/.*passed=\([0-9]*\).*/\1/p' <<<"$summary")"
-		failed="$(sed -n 's/.*failed=\([0-9]*\).*/\1/p' <<<"$summary")"
-		skipped="$(sed -n 's/.*skipped=\([0-9]*\).*/\1/p' <<<"$summary")"
-		while IFS= read -r name; do
-			failed_lines+=("$rerun $name")
-		done < <(sed -n 's/^failed //p' "$results")
-		if [ "$rc" != 0 ] && [ "$failed" = 0 ]; then
-			# All tests passed but Blender still failed (e.g. a crash on exit).
-			failed=1
-			failed_lines+=("$rerun    # Blender $label exited with status $rc after the tests passed")
-		fi
-		;;
-	running*)
-		local current="${summary#running }"
-		failed=1
-		if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
-			log "Blender $label timed out after ${LVP_BLENDER_TIMEOUT:-1800}s in $current"
+	local start=$SECONDS passed=0 failed=0 skipped=0 rc after="" resumes=0 crashed=()
+	# A Blender that dies in a test is started again after it, up to three times, so that one crash does not
+	# take the rest of the suite with it; each test it died in is then run alone once (below).
+	while :; do
+		blender_tests "$results" ${after:+--after "$after"} ${runner_args[@]+"${runner_args[@]}"} \
+			${names[@]+"${names[@]}"}
+		[ "$list" = 1 ] && return $rc
+		local summary=""
+		if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
+		case "$summary" in
+		done*)
+			local done_failed
+			passed=$((passed + $(count_of passed "$summary")))
+			done_failed="$(count_of failed "$summary")"
+			failed=$((failed + done_failed))
+			skipped=$((skipped + $(count_of skipped "$summary")))
+			while IFS= read -r name; do
+				failed_lines+=("$rerun $name")
+			done < <(sed -n 's/^failed //p' "$results")
+			if [ "$rc" != 0 ] && [ "$done_failed" = 0 ]; then
+				# All tests passed but Blender still failed (e.g. a crash on exit).
+				failed=$((failed + 1))
+				failed_lines+=("$rerun    # Blender $label exited with status $rc after the tests passed")
+			fi
+			[ "$rc" = 0 ] || blender_failures=$((blender_failures + 1))
+			;;
+		running*)
+			local current="${summary#running }" so_far
+			# What ran before Blender died still counts (runner.py keeps the tally in the results file).
+			so_far="$(sed -n 's/^so far //p' "$results")"
+			passed=$((passed + $(count_of passed "$so_far")))
+			failed=$((failed + $(count_of failed "$so_far")))
+			skipped=$((skipped + $(count_of skipped "$so_far")))
+			while IFS= read -r name; do
+				failed_lines+=("$rerun $name")
+			done < <(sed -n 's/^failed //p' "$results")
+			if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
+				log "Blender $label timed out after ${LVP_BLENDER_TIMEOUT:-1800}s in $current"
+				failed=$((failed + 1))
+				failed_lines+=("$rerun $current    # Blender $label timed out in it")
+				blender_failures=$((blender_failures + 1))
+			else
+				log "Blender $label died (status $rc) in $current"
+				crash_report "$label" "$results.fault" "$current"
+				if [ "$resumes" -lt 3 ]; then
+					crashed+=("$current")
+					resumes=$((resumes + 1))
+					after="$current"
+					log "Blender $label: going on after $current in a new Blender"
+					continue
+				fi
+				failed=$((failed + 1))
+				failed_lines+=("$rerun $current    # Blender $label died in it (status $rc), the fourth time in this run: the rest was not run")
+				blender_failures=$((blender_failures + 1))
+			fi
+			;;
+		*)
+			failed=$((failed + 1))
+			failed_lines+=("$rerun    # Blender $label did not run the tests (status $rc)")
+			blender_failures=$((blender_failures + 1))
+			;;
+		esac
+		break
+	done
+	# A test Blender died in, alone in a fresh Blender: where it dies again (or fails) it fails the run. Where it
+	# passes, the crash did not come from what the test does but from what the long session had built up
+	# (Blender 3.4 built against Debian's Python 3.11 has crashed inside Python's interpreter that way): it is
+	# reported, with its stacks, and does not fail the run.
+	local name
+	for name in ${crashed[@]+"${crashed[@]}"}; do
+		log "Blender $label: $name alone, after Blender died in it"
+		blender_tests "$results" ${runner_args[@]+"${runner_args[@]}"} "$name"
+		local summary=""
+		if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
+		if [ "$rc" = 0 ] && [[ "$summary" == done*failed=0* ]]; then
+			passed=$((passed + $(count_of passed "$summary")))
+			skipped=$((skipped + $(count_of skipped "$summary")))
+			crash_notes+=("Blender $label died in $name (the report above) and passed it alone: not counted as a failure")
 		else
-			log "Blender $label died (status $rc) in $current"
+			failed=$((failed + 1))
+			failed_lines+=("$rerun $name    # Blender $label died in it (status $rc), and failed it again alone")
+			blender_failures=$((blender_failures + 1))
 		fi
-		if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
-			failed_lines+=("$rerun $current    # Blender $label timed out in it")
-		else
-			failed_lines+=("$rerun $current    # Blender $label died in it (status $rc)")
-			crash_report "$label" "$results.fault"
-		fi
-		;;
-	*)
-		failed=1
-		failed_lines+=("$rerun    # Blender $label did not run the tests (status $rc)")
-		;;
-	esac
-	[ "$rc" = 0 ] || blender_failures=$((blender_failures + 1))
+	done
 	total_passed=$((total_passed + passed))
 	total_failed=$((total_failed + failed))
 	total_skipped=$((total_skipped + skipped))
 	log "Blender $label: $passed passed, $failed failed, $skipped skipped ($((SECONDS - start)) s)"
 }
 
-# crash_report LABEL FAULT_FILE: where a Blender that died was (the crashed thread's native frames, from its
+# count_of KEY TEXT: the number after "KEY=" in TEXT (a line of runner.py's results), 0 when there is none.
+count_of() {
+	local value
+	value="$(sed -n "s/.*$1=\([0-9]*\).*/\1/p" <<<"$2")"
+	printf '%s\n' "${value:-0}"
+}
+
+# blender_tests RESULTS RUNNER_ARGUMENTS...: runner.py in a fresh Blender of run_one's (label, cmd, expect,
+# rerun), its results in RESULTS; its exit status into rc.
+blender_tests() {
+	local results="$1"
+	shift
+	rm -f "$results" "$results.fault"
+	touch "$RUN_TMP/started-$label"
+	log "Blender $label: ${cmd[*]}${*:+ ($*)}"
+	rc=0
+	# Debian's Blender leaves a core file on a crash (where the kernel writes one to the working directory),
+	# for crash_report's backtrace; the chroots' would stay inside them.
+	(
+		if [ "$label" = 3.4 ]; then ulimit -c unlimited 2>/dev/null || true; fi
+		exec timeout --kill-after=30 "${LVP_BLENDER_TIMEOUT:-1800}" "${cmd[@]}" -b --factory-startup -noaudio \
+			--python-exit-code 1 --python "$HERE/runner.py" -- \
+			--expect-version "$expect" --rerun "$rerun" --results "$results" "$@"
+	) || rc=$?
+}
+
+# crash_report LABEL FAULT_FILE TEST: where a Blender that died was (the crashed thread's native frames, from its
 # core file, and every thread's Python stack, from runner.py's faulthandler), kept for the end of the output
 # with the failing test, so that a crash seen once on CI can be traced from its log. The crashed thread's
 # Python stack comes last: a log cut to its last lines still shows it.
-crash_reports=()
+crash_reports=() crash_notes=()
 crash_report() {
-	local label="$1" fault="$2" report="Blender $label crashed."
+	local label="$1" fault="$2" report="Blender $label crashed in $3."
 	# The native frames, from a core file the kernel left in this directory (the crash file Blender 3.4 writes
 	# has none). Only after a crash, so gdb is installed only then.
 	local core
@@ -258,7 +318,7 @@ crash_report() {
 	if [ -s "$fault" ]; then
 		# faulthandler writes a block per thread, the crashed one headed "Current thread", innermost call first.
 		report+=$'\n'"The other threads' Python stacks (faulthandler):"$'\n'
-		report+="$(awk '/^Current thread/ { skip = 1 } skip && /^$/ { skip = 0; next } !skip' "$fault" | head -n 16)"
+		report+="$(awk '/^Current thread/ { skip = 1 } skip && /^$/ { skip = 0; next } !skip && !/^Extension modules/' "$fault" | head -n 16)"
 		report+=$'\n'"The crashed thread's Python stack (faulthandler):"$'\n'
 		report+="$(awk '/^Current thread/ { on = 1 } on && /^$/ { exit } on' "$fault" | head -n 24)"
 	else
@@ -272,12 +332,16 @@ for sel in "${selectors[@]}"; do
 done
 
 [ "$list" = 1 ] && exit 0
-# The crash reports before the failed tests' names, which end the output: a log cut to its last lines keeps
-# the names and as much of the reports as fits.
+# The crash reports (with or without a failure: a crash that did not recur alone is still reported) before the
+# failed tests' names, which end the output: a log cut to its last lines keeps the names and as much of the
+# reports as fits.
+for report in ${crash_reports[@]+"${crash_reports[@]}"}; do
+	printf '\n%s\n' "$report" >&2
+done
+for note in ${crash_notes[@]+"${crash_notes[@]}"}; do
+	printf '\n\033[33mWARNING\033[0m %s\n' "$note" >&2
+done
 if [ ${#failed_lines[@]} -gt 0 ]; then
-	for report in ${crash_reports[@]+"${crash_reports[@]}"}; do
-		printf '\n%s\n' "$report" >&2
-	done
 	printf '\n\033[31mFAILED\033[0m headless-Blender tests; rerun one alone with:\n' >&2
 	printf '    %s\n' "${failed_lines[@]}" >&2
 fi

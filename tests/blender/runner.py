@@ -17,7 +17,10 @@ test_module.TestClass.test_method. Options:
     --expect-version X.Y  the Blender version run.sh meant to start (test_environment checks it)
     --rerun PREFIX        command that reruns a test when followed by its name
                           (default: "tests/blender/run.sh --blender X.Y")
-    --results FILE        write "running ID" while a test runs, then a summary line
+    --results FILE        write "running ID" while a test runs or is set up (with the tally so far), then a
+                          summary line
+    --after ID            skip the tests up to ID and ID itself (run.sh goes on this way after a Blender died
+                          in ID)
     -k PATTERN            only tests whose name matches (as `python -m unittest -k`)
     -f, --failfast        stop at the first failure
     -q, --quiet           one character per test instead of one line
@@ -67,6 +70,7 @@ def parse_args(argv):
     parser.add_argument("--expect-version", default=os.environ.get("LVP_EXPECT_BLENDER_VERSION", ""))
     parser.add_argument("--rerun", default=None)
     parser.add_argument("--results", default=None)
+    parser.add_argument("--after", default=None)
     parser.add_argument("-k", dest="patterns", action="append", default=[])
     parser.add_argument("-f", "--failfast", action="store_true")
     parser.add_argument("-q", "--quiet", action="store_true")
@@ -125,6 +129,26 @@ class LoadError(unittest.TestCase):
 
 class Result(unittest.TextTestResult):
     results_file = None
+    next_names = {}  # each test's name -> the next test's, whose set-up runs before its startTest
+
+    def failing_names(self):
+        names = []
+        for test, _ in self.errors + self.failures + [(t, "") for t in self.unexpectedSuccesses]:
+            if rerun_name(test) not in names:
+                names.append(rerun_name(test))
+        return names
+
+    def write_running(self, name):
+        """The results file while tests run: the test running (or being set up), then the tally so far, so
+        that what ran before a crash is counted."""
+        if self.results_file:
+            failing = self.failing_names()
+            with open(self.results_file, "w") as f:
+                f.write("running %s\n" % name)
+                f.write("so far passed=%d failed=%d skipped=%d\n"
+                        % (getattr(self, "passed", 0), len(failing), len(self.skipped)))
+                for failed in failing:
+                    f.write("failed %s\n" % failed)
 
     def seconds(self, by):
         """Seconds spent per test module (by="module") or per test (by="test"), set-up included: where the
@@ -145,9 +169,7 @@ class Result(unittest.TextTestResult):
         lvp_helpers = sys.modules.get("lvp_helpers")
         if lvp_helpers is not None:
             del lvp_helpers.VOLUME_DISAGREEMENTS[:]
-        if self.results_file:
-            with open(self.results_file, "w") as f:
-                f.write("running %s\n" % rerun_name(test))
+        self.write_running(rerun_name(test))
         self._started = time.monotonic()
         super().startTest(test)
         self.stream.flush()
@@ -166,6 +188,11 @@ class Result(unittest.TextTestResult):
 
     def stopTest(self, test):
         self._charge_time(test)
+        # What runs from here to the next test's start (this class's tear-down, the next one's set-up) is
+        # charged to the next test: a Blender that dies there died in it.
+        following = self.next_names.get(rerun_name(test))
+        if following:
+            self.write_running(following)
         super().stopTest(test)
         self.stream.flush()
         sys.stdout.flush()
@@ -230,8 +257,24 @@ def main():
     else:
         suite = loader.discover(start_dir=HERE, pattern="test_*.py", top_level_dir=HERE)
 
+    # One flat suite in the order the tests run (unittest still sets up each class and module once, as the
+    # tests move into it), from which --after cuts the tests already run.
+    tests = list(iter_tests(suite))
+    order = [rerun_name(test) for test in tests]
+    if args.after:
+        if args.after not in order:
+            print("[runner] --after %s: no such test in this run" % args.after)
+            return 1
+        tests = tests[order.index(args.after) + 1:]
+        order = order[order.index(args.after) + 1:]
+    suite = unittest.TestSuite(tests)
+    Result.next_names = dict(zip(order, order[1:]))
+    if tests and args.results:
+        with open(args.results, "w") as f:
+            f.write("running %s\nso far passed=0 failed=0 skipped=0\n" % order[0])
+
     if args.list:
-        for test in iter_tests(suite):
+        for test in tests:
             print(rerun_name(test))
         sys.stdout.flush()
         shutil.rmtree(tmp, ignore_errors=True)
@@ -254,11 +297,7 @@ def main():
     else:
         shutil.rmtree(tmp, ignore_errors=True)
 
-    failing = []
-    for test, _ in result.errors + result.failures + [(t, "") for t in result.unexpectedSuccesses]:
-        name = rerun_name(test)
-        if name not in failing:
-            failing.append(name)
+    failing = result.failing_names()
     failed = len(failing)
     skipped = len(result.skipped)
     passed = getattr(result, "passed", 0)

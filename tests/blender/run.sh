@@ -251,7 +251,12 @@ run_one() {
 			crash_notes+=("Blender $label died in $name (the report above) and passed it alone: not counted as a failure")
 		else
 			failed=$((failed + 1))
-			failed_lines+=("$rerun $name    # Blender $label died in it (status $rc), and failed it again alone")
+			if [[ "$summary" == running* ]]; then
+				crash_report "$label" "$results.fault" "$name (alone)"
+				failed_lines+=("$rerun $name    # Blender $label died in it (status $rc), and again alone")
+			else
+				failed_lines+=("$rerun $name    # Blender $label died in it, and it failed alone (status $rc)")
+			fi
 			blender_failures=$((blender_failures + 1))
 		fi
 	done

@@ -182,15 +182,8 @@ run_one() {
 		if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
 		case "$summary" in
 		done*)
-			local done_failed
-			passed=$((passed + $(count_of passed "$summary")))
-			done_failed="$(count_of failed "$summary")"
-			failed=$((failed + done_failed))
-			skipped=$((skipped + $(count_of skipped "$summary")))
-			while IFS= read -r name; do
-				failed_lines+=("$rerun $name")
-			done < <(sed -n 's/^failed //p' "$results")
-			if [ "$rc" != 0 ] && [ "$done_failed" = 0 ]; then
+			add_tally "$summary" "$results"
+			if [ "$rc" != 0 ] && [ "$(count_of failed "$summary")" = 0 ]; then
 				# All tests passed but Blender still failed (e.g. a crash on exit).
 				failed=$((failed + 1))
 				failed_lines+=("$rerun    # Blender $label exited with status $rc after the tests passed")
@@ -198,15 +191,9 @@ run_one() {
 			[ "$rc" = 0 ] || blender_failures=$((blender_failures + 1))
 			;;
 		running*)
-			local current="${summary#running }" so_far
+			local current="${summary#running }"
 			# What ran before Blender died still counts (runner.py keeps the tally in the results file).
-			so_far="$(sed -n 's/^so far //p' "$results")"
-			passed=$((passed + $(count_of passed "$so_far")))
-			failed=$((failed + $(count_of failed "$so_far")))
-			skipped=$((skipped + $(count_of skipped "$so_far")))
-			while IFS= read -r name; do
-				failed_lines+=("$rerun $name")
-			done < <(sed -n 's/^failed //p' "$results")
+			add_tally "$(sed -n 's/^so far //p' "$results")" "$results"
 			if [ "$rc" = 124 ] || [ "$rc" = 137 ]; then
 				log "Blender $label timed out after ${LVP_BLENDER_TIMEOUT:-1800}s in $current"
 				failed=$((failed + 1))
@@ -246,8 +233,7 @@ run_one() {
 		local summary=""
 		if [ -f "$results" ]; then summary="$(head -n 1 "$results")"; fi
 		if [ "$rc" = 0 ] && [[ "$summary" == done*failed=0* ]]; then
-			passed=$((passed + $(count_of passed "$summary")))
-			skipped=$((skipped + $(count_of skipped "$summary")))
+			add_tally "$summary" "$results"
 			crash_notes+=("Blender $label died in $name (the report above) and passed it alone: not counted as a failure")
 		else
 			failed=$((failed + 1))
@@ -271,6 +257,18 @@ count_of() {
 	local value
 	value="$(sed -n "s/.*$1=\([0-9]*\).*/\1/p" <<<"$2")"
 	printf '%s\n' "${value:-0}"
+}
+
+# add_tally COUNTS RESULTS: COUNTS (a line "passed=P failed=F skipped=S" of runner.py's results) added to run_one's
+# passed, failed and skipped, and the tests RESULTS names as failed to failed_lines.
+add_tally() {
+	passed=$((passed + $(count_of passed "$1")))
+	failed=$((failed + $(count_of failed "$1")))
+	skipped=$((skipped + $(count_of skipped "$1")))
+	local name
+	while IFS= read -r name; do
+		failed_lines+=("$rerun $name")
+	done < <(sed -n 's/^failed //p' "$2")
 }
 
 # blender_tests RESULTS RUNNER_ARGUMENTS...: runner.py in a fresh Blender of run_one's (label, cmd, expect,

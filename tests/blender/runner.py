@@ -127,6 +127,16 @@ class LoadError(unittest.TestCase):
         raise self.error
 
 
+def write_running(path, name, passed, failing, skipped):
+    """The results file while tests run: the test running (or being set up), then the tally so far, so that
+    what ran before a crash is counted."""
+    with open(path, "w") as f:
+        f.write("running %s\n" % name)
+        f.write("so far passed=%d failed=%d skipped=%d\n" % (passed, len(failing), skipped))
+        for failed in failing:
+            f.write("failed %s\n" % failed)
+
+
 class Result(unittest.TextTestResult):
     results_file = None
     next_names = {}  # each test's name -> the next test's, whose set-up runs before its startTest
@@ -139,16 +149,9 @@ class Result(unittest.TextTestResult):
         return names
 
     def write_running(self, name):
-        """The results file while tests run: the test running (or being set up), then the tally so far, so
-        that what ran before a crash is counted."""
         if self.results_file:
-            failing = self.failing_names()
-            with open(self.results_file, "w") as f:
-                f.write("running %s\n" % name)
-                f.write("so far passed=%d failed=%d skipped=%d\n"
-                        % (getattr(self, "passed", 0), len(failing), len(self.skipped)))
-                for failed in failing:
-                    f.write("failed %s\n" % failed)
+            write_running(self.results_file, name, getattr(self, "passed", 0), self.failing_names(),
+                          len(self.skipped))
 
     def seconds(self, by):
         """Seconds spent per test module (by="module") or per test (by="test"), set-up included: where the
@@ -269,9 +272,6 @@ def main():
         order = order[order.index(args.after) + 1:]
     suite = unittest.TestSuite(tests)
     Result.next_names = dict(zip(order, order[1:]))
-    if tests and args.results:
-        with open(args.results, "w") as f:
-            f.write("running %s\nso far passed=0 failed=0 skipped=0\n" % order[0])
 
     if args.list:
         for test in tests:
@@ -281,6 +281,8 @@ def main():
         return 0
 
     Result.results_file = args.results
+    if tests and args.results:
+        write_running(args.results, order[0], 0, [], 0)
     runner = unittest.TextTestRunner(stream=sys.stdout, verbosity=1 if args.quiet else 2,
                                      failfast=args.failfast, resultclass=Result)
     start = time.monotonic()

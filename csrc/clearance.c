@@ -191,6 +191,9 @@ typedef struct lvp__clearance_search {
 	int32_t vertex;
 	double least;
 	float lo[3], hi[3];
+	/* The ball of the start (the reach) in floats, its radius a margin well past their rounding wider: any
+	 * box that meets a ball of the search meets this one (lvp__meets_start_ball). */
+	float start_centre[3], start_reach2;
 } lvp__clearance_search;
 
 /* Comparisons rather than fmin/fmax, which compilers call out of line to honour NaN rules (nothing
@@ -316,8 +319,8 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
  * descent of the hierarchy, then each vertex looks through those. A group is the vertices whose first
  * triangle lies under one subtree of at most this many triangles. */
 #define LVP__GROUP_TRIANGLES 32
-/* Triangles a group's descent may gather (on the stack of the thread searching it); past that, its
- * vertices descend one by one. */
+/* Triangles a group's descent may gather (on the stack of the thread searching it); past that, it gathers
+ * again by its balls (lvp__gather_group), and past that again its vertices descend one by one. */
 #define LVP__GROUP_CANDIDATES 1024
 /* Vertices of a group searched together at most (the corners of its triangles). */
 #define LVP__GROUP_SEARCHES (3 * LVP__GROUP_TRIANGLES)
@@ -359,6 +362,12 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
 	memcpy(search->lo, lo, sizeof(lo));
 	memcpy(search->hi, hi, sizeof(hi));
+	double size = fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + 0.5 * reach;
+	float start_reach = (float)(0.5 * reach + 1e-5 * size);
+	search->start_centre[0] = (float)centre.x;
+	search->start_centre[1] = (float)centre.y;
+	search->start_centre[2] = (float)centre.z;
+	search->start_reach2 = start_reach * start_reach;
 	return true;
 }
 
@@ -386,19 +395,73 @@ static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triang
 	return false;
 }
 
+/* Whether the box [lo, hi] may meet the start ball of the search (lvp__clearance_search.start_reach2). */
+static inline bool lvp__meets_start_ball(const lvp__clearance_search *search, const float lo[3], const float hi[3])
+{
+	float distance2 = 0.0f;
+	for (int axis = 0; axis < 3; ++axis) {
+		float c = search->start_centre[axis];
+		float gap = lo[axis] > c ? lo[axis] - c : (c > hi[axis] ? c - hi[axis] : 0.0f);
+		distance2 += gap * gap;
+	}
+	return distance2 <= search->start_reach2;
+}
+
+/* A group's gathering by its balls rather than by the box around them (lvp__gather_group). */
+typedef struct lvp__ball_gathering {
+	lvp__candidates *candidates;
+	const lvp__clearance_search *searches;
+	int32_t count;
+	const float *lo, *hi; /* the box around the group's balls */
+} lvp__ball_gathering;
+
+/* Whether the box [lo, hi] may meet any of the group's balls. */
+static bool lvp__meets_a_ball(void *context, const float lo[3], const float hi[3])
+{
+	const lvp__ball_gathering *gathering = context;
+	if (lo[0] > gathering->hi[0] || hi[0] < gathering->lo[0] || lo[1] > gathering->hi[1] || hi[1] < gathering->lo[1] ||
+	    lo[2] > gathering->hi[2] || hi[2] < gathering->lo[2])
+		return false;
+	for (int32_t s = 0; s < gathering->count; ++s)
+		if (lvp__meets_start_ball(&gathering->searches[s], lo, hi))
+			return true;
+	return false;
+}
+
+static bool lvp__gather_ball_candidate(void *context, const lvp__bvh_triangle *triangle)
+{
+	const lvp__ball_gathering *gathering = context;
+	return lvp__gather_candidate(gathering->candidates, triangle);
+}
+
+/* Into `candidates`, the triangles whose boxes meet the box [lo, hi] around the group's balls, or when
+ * more than it holds, those whose boxes meet one of the balls. Each ball lies in the box around it, which
+ * on fine skin (a ball many triangles wide) holds far more of the skin under the ball than the ball does:
+ * past the candidates' room, the group is gathered again by the balls themselves, which costs a test of
+ * each ball at every box it descends into, and only past that again do its vertices search one by one. */
+static void lvp__gather_group(const lvp__contact *contact, const lvp__clearance_search *searches, int32_t count,
+                              const float lo[3], const float hi[3], lvp__candidates *candidates)
+{
+	candidates->count = 0;
+	candidates->overflow = false;
+	lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__gather_candidate, candidates);
+	if (!candidates->overflow)
+		return;
+	candidates->count = 0;
+	candidates->overflow = false;
+	lvp__ball_gathering gathering = {candidates, searches, count, lo, hi};
+	lvp__bvh_search(&contact->bvh, lvp__meets_a_ball, lvp__gather_ball_candidate, &gathering);
+}
+
 /* Into r_near (in the order gathered), the candidates whose boxes may meet the vertex's ball as it is at
- * the start of its search, by a float test with a margin well past its rounding: one tight pass over the
- * boxes, where most of a group's candidates lie outside a vertex's ball. The search then tests those as
- * it tests any triangle, against the ball as it narrows: what this passes over, the larger ball of the
- * start passed over already. Returns their number. */
+ * the start of its search (lvp__clearance_search.start_reach2): one tight pass over the boxes, where most of
+ * a group's candidates lie outside a vertex's ball. The search then tests those as it tests any triangle,
+ * against the ball as it narrows: what this passes over, the larger ball of the start passed over already.
+ * Returns their number. */
 static int32_t lvp__near_candidates(const lvp__candidates *candidates, const lvp__clearance_search *search,
                                     int32_t *r_near)
 {
-	double radius = 0.5 * search->least;
-	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, radius));
-	double size = fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + radius;
-	float reach = (float)(radius + 1e-5 * size), reach2 = reach * reach;
-	const float cx = (float)centre.x, cy = (float)centre.y, cz = (float)centre.z;
+	const float cx = search->start_centre[0], cy = search->start_centre[1], cz = search->start_centre[2];
 	uint8_t meets[LVP__GROUP_CANDIDATES];
 	/* The gap along an axis, max(lo - c, c - hi, 0), as sums and absolute values: no branch, so that the
 	 * compiler tests four boxes at a time. */
@@ -411,7 +474,7 @@ static int32_t lvp__near_candidates(const lvp__candidates *candidates, const lvp
 			gap = 0.5f * (gap + fabsf(gap));
 			distance2 += gap * gap;
 		}
-		meets[i] = distance2 <= reach2;
+		meets[i] = distance2 <= search->start_reach2;
 	}
 	int32_t count = 0;
 	for (int32_t i = 0; i < candidates->count; ++i) {
@@ -470,9 +533,7 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 		}
 		if (count == 0)
 			continue;
-		candidates->count = 0;
-		candidates->overflow = false;
-		lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__gather_candidate, candidates);
+		lvp__gather_group(contact, searches, count, lo, hi, candidates);
 		for (int32_t s = 0; s < count; ++s)
 			lvp__search(contact, &searches[s], candidates);
 	}

@@ -366,7 +366,7 @@ typedef struct lvp__contact {
 	                              corner; contact.c) */
 	float *tested_scale;       /* per vertex: its scale when its triangles were last tested */
 	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is tested, or (a later
-	                              round) has a corner that moved since it was (lvp__bvh_mark) */
+	                              round) has a corner that moved since it was (contact.c, lvp__mark_nodes) */
 	int32_t *leaf_of;          /* per triangle: the leaf of the hierarchy that holds it (-1: none, no area) */
 	int32_t *dynamic_nodes;    /* this attempt: the nodes with a triangle around a dynamic vertex, the
 	                              last first (what a refit between the skinning and the correction visits) */

@@ -417,22 +417,6 @@ void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *
 			lvp__refit_node(bvh, nodes[i]);
 }
 
-void lvp__bvh_mark(const lvp__bvh *bvh, const uint8_t *vertex_marked, uint8_t *r_marked)
-{
-	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
-		const lvp__bvh_node *node = &bvh->nodes[index];
-		uint8_t any = 0;
-		if (node->count > 0) {
-			for (int32_t i = node->index; i < node->index + node->count && !any; ++i)
-				for (int c = 0; c < 3; ++c)
-					any |= vertex_marked[bvh->triangles[i].vertices[c]];
-		} else {
-			any = r_marked[node->index] | r_marked[node->index + 1];
-		}
-		r_marked[index] = any;
-	}
-}
-
 void lvp__bvh_free(lvp__bvh *bvh)
 {
 	if (!bvh)

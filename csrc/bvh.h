@@ -95,10 +95,6 @@ typedef void (*lvp__bvh_visit_pair)(void *context, const lvp__bvh_triangle *a, c
 void lvp__bvh_self_overlaps(const lvp__bvh *bvh, const uint8_t *marked, const uint8_t *skipped, lvp__pool *pool,
                             lvp__bvh_visit_pair visit, void *context);
 
-/* r_marked (node_count): per node, whether a triangle under it has a corner marked in vertex_marked;
- * passed to lvp__bvh_self_overlaps, pairs of nodes neither of which is marked are skipped. */
-void lvp__bvh_mark(const lvp__bvh *bvh, const uint8_t *vertex_marked, uint8_t *r_marked);
-
 /* The segment-triangle test the queries use (Moller-Trumbore in double), exposed for the tests' brute
  * force. Returns true and the parameter in *r_t when it crosses inside [t_min, t_max]. */
 static inline bool lvp__segment_triangle(double *r_t, lvp__vec3 from, lvp__vec3 direction, const float corners[3][3],

@@ -424,6 +424,26 @@ void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
 /* The work of refitting a node against a vertex's step (LVP__POOL_FOR): up to eight triangles' corners. */
 #define LVP__REFIT_WORK 8
 
+/* contact.moved_nodes: per node of the hierarchy, whether a triangle under it has a corner marked in `marks`
+ * (lvp__bvh_self_overlaps passes over pairs of nodes neither of which is marked). Walked up from the marked
+ * corners' triangles, each node once: a later round marks the few corners the round before shortened, of a
+ * body's hundreds of thousands of triangles. */
+static void lvp__mark_nodes(lvp_binding *binding, const uint8_t *marks)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__mesh *mesh = &binding->mesh;
+	uint8_t *marked = contact->moved_nodes;
+	memset(marked, 0, (size_t)contact->bvh.node_count);
+	for (int32_t k = 0; k < binding->vertex_count; ++k) {
+		if (!marks[k])
+			continue;
+		for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+			for (int32_t node = contact->leaf_of[mesh->vertex_triangles[c]]; node >= 0 && !marked[node];
+			     node = contact->bvh.parents[node])
+				marked[node] = 1;
+	}
+}
+
 /* The hierarchy fitted to `to` (the skinning, or the correction), from either. */
 static void lvp__refit_dynamic(lvp_binding *binding, const float *to)
 {
@@ -438,7 +458,7 @@ static void lvp__refit_dynamic(lvp_binding *binding, const float *to)
 static void lvp__refit_moved(lvp_binding *binding, const float *to)
 {
 	lvp__contact *contact = &binding->contact;
-	lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
+	lvp__mark_nodes(binding, contact->moved);
 	int32_t count = 0;
 	for (int32_t i = 0; i < contact->dynamic_node_count; ++i)
 		if (contact->moved_nodes[contact->dynamic_nodes[i]])
@@ -545,7 +565,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 				contact->limit[t] = contact->shifted_limit[t] = 1.0f;
 				contact->pair_count[t] = contact->skinned_pair_count[t] = 0;
 			}
-			lvp__bvh_mark(&contact->bvh, contact->moved, contact->moved_nodes);
+			lvp__mark_nodes(binding, contact->moved);
 			/* Which of the subtrees the correction moves (the only ones searched) are flat patches. */
 			lvp__fit_flat_patches(contact,
 			                      LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
@@ -571,7 +591,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			later.changed = round == 0 ? contact->changed : contact->moved;
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = 1.0f;
-			lvp__bvh_mark(&contact->bvh, later.changed, contact->moved_nodes);
+			lvp__mark_nodes(binding, later.changed);
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, NULL, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_later_pair, &later);
 			lvp__parallel_for(LVP__POOL_FOR(binding, f), lvp__search_loop, &later, f, LVP__GRAIN);

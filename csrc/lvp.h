@@ -334,8 +334,9 @@
  *   query per moving vertex reaching five times its offset (the fade needs clearances below four
  *   times; a vertex whose offset a restore grows past that is searched again before the next fade;
  *   vertices near each other gather the skin near any of them by one descent of the hierarchy, and
- *   each sets aside what lies outside its ball in one pass over the gathered boxes, or each descends
- *   only into boxes that meet its ball when that gathers too much; each passes over what lies
+ *   each sets aside what lies outside its ball in one pass over the gathered boxes; a group whose box
+ *   holds too much gathers again by its balls, and past that each vertex descends only into boxes that
+ *   meet its ball; each passes over what lies
  *   outside the ball of the nearest skin found so far, and searches a triangle's edges and inside
  *   only where their distance could bring it nearer), a traversal of the hierarchy against
  *   itself per check (passing over each subtree whose triangles form one connected patch with every

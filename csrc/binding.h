@@ -345,6 +345,7 @@ typedef struct lvp__fold {
 	int32_t *border_offsets;   /* per neighbour entry (s, j) + 1 into border_vertices */
 	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
+	float *longest_edge;       /* per vertex: its longest edge at the bind's rest (lvp__allowed_across) */
 	int32_t *plane_entry;      /* per bone, this frame: the entry whose plane all its joints as the
 	                              child share (lvp__share_child_planes), or -1 */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there (nonzero:

@@ -24,8 +24,10 @@
  *   as the offsets.
  * - LVP__OTHER_SIDE_FADE: the skin of a region on the other side of the plane at rest (heat
  *   weights give a finger's region palm skin behind its knuckle) may cross it further the deeper
- *   it lay there, without limit from this depth on. It was never pressed, and its neighbours a
- *   hair on the region's own side were pressed fully: a step of twice an edge at the fist.
+ *   it lay there, without limit from this depth on, or from the vertex's longest edge where that
+ *   is longer. It was never pressed, and its neighbours a hair on the region's own side were
+ *   pressed fully: a step of twice an edge at the fist. Where an edge is longer than the fade
+ *   (coarse and irregular meshes), it went from pressed fully to not at all: a step all the same.
  * - LVP__SOFT_CONTACT: skin on the concave side of the bend is pressed from this far (times the
  *   sine of half the bend, so not at all before the joint bends) in front of the plane, gently at
  *   first, fully at this far past it: projected exactly, the pressed skin met the free skin beside
@@ -140,11 +142,12 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
 }
 
 /* How far a vertex may lie across the joint's plane (along its normal) given how far across the
- * rest plane it lay at rest (negative: on its own side); INFINITY where it is never pressed
- * (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's sheet is. */
-static double lvp__allowed_across(const lvp__joint *joint, double rest_side)
+ * rest plane it lay at rest (negative: on its own side) and its longest edge; INFINITY where it is
+ * never pressed (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's
+ * sheet is. */
+static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge)
 {
-	double window = joint->window, fade = LVP__OTHER_SIDE_FADE * joint->reach;
+	double window = joint->window, fade = fmax(LVP__OTHER_SIDE_FADE * joint->reach, longest_edge);
 	if (rest_side <= 0.0)
 		return fmax(0.0, rest_side + window);
 	if (rest_side >= fade)
@@ -381,7 +384,7 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
 			continue;
 		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-		double allowed = lvp__allowed_across(joint, rest_side);
+		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k]);
 		if (allowed == INFINITY)
 			continue;
 		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
@@ -622,6 +625,22 @@ static bool lvp__find_borders(lvp_binding *binding)
 	return ok;
 }
 
+/* fold.longest_edge: each vertex's longest edge at the bind's rest. */
+static void lvp__longest_edges(lvp_binding *binding)
+{
+	float *longest = binding->fold.longest_edge;
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		for (int i = 0; i < 3; ++i) {
+			int32_t a = corners[i], b = corners[(i + 1) % 3];
+			float length = (float)lvp__length(lvp__sub(lvp__load(binding->rest_positions + 3 * (int64_t)a),
+			                                           lvp__load(binding->rest_positions + 3 * (int64_t)b)));
+			longest[a] = fmaxf(longest[a], length);
+			longest[b] = fmaxf(longest[b], length);
+		}
+	}
+}
+
 bool lvp__fold_alloc(lvp_binding *binding)
 {
 	bool ok = true;
@@ -635,8 +654,10 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	binding->fold.held_before = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	binding->fold.zone = lvp__calloc((size_t)binding->vertex_count, sizeof(int32_t), &ok);
 	binding->fold.saved = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
+	binding->fold.longest_edge = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	if (ok && binding->mode == LVP_MODE_LOCAL) {
 		lvp__flesh_radii(binding);
+		lvp__longest_edges(binding);
 		ok = lvp__find_borders(binding);
 	}
 	return ok;
@@ -653,6 +674,7 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->held_before);
 	free(fold->zone);
 	free(fold->saved);
+	free(fold->longest_edge);
 	free(fold->border_offsets);
 	free(fold->border_vertices);
 }

@@ -70,7 +70,7 @@ PRESSED_POSES = {
 }
 
 # Bodies whose creases at 150 degrees with Fold-Over are not held yet (test_fold_over_at_150_degrees), measured on
-# 3.4, 4.3 and 5.2: the coarse metaball body, 23 where 19.9 are allowed.
+# 3.4, 4.3 and 5.2: the coarse metaball body, 21 where 19.9 are allowed.
 CREASES_NOT_MET_AT_150 = ("metaballs, 0.03 (coarse)",)
 
 
@@ -173,7 +173,10 @@ class TestBodyFamily(unittest.TestCase):
         at the hard poses), no shard, and at most one crease added per 300 edges but on CREASES_NOT_MET_AT_150. Measured
         on 3.4, 4.3 and 5.2: at most 2 pairs left (29 of 173 on the coarse metaball body), roughness 0.24 / 0.23 / 0.15
         / 0.22 / 0.10 / 0.21 (voxel, metaballs at 0.02, 0.015 and 0.03 with Smoothing 10, Skin modifier, female), shard
-        at most 0.12, creases 24 / 26 / 56 / 23 / 18 / 20 where 46 / 46 / 81 / 19.9 / 40 / 46 are allowed. The finer
+        at most 0.12, creases 24 / 19 / 56 / 21 / 18 / 20 where 46 / 46 / 81 / 19.9 / 40 / 46 are allowed (26 and 23 on
+        the metaball bodies at 0.02 and 0.03 while the skin that lay on the other side of the contact plane at rest
+        was let across it over a depth shorter than its edges there: such an edge went from pressed fully to not
+        pressed, foldover.c, LVP__OTHER_SIDE_FADE). The finer
         metaball body had 127 creases (98 bordering a needle, a triangle with an angle under 15 degrees; 262 of its
         edges are under a twentieth of the mean) while fold-over's relaxation tied only what the offsets' smoothing
         ties, edges a few hundredths of the mean long: the presses moved a needle's two ends by different amounts and

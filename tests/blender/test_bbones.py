@@ -192,19 +192,19 @@ class TestBBonesCurvedMapping(BBoneTestCase):
 
 
 class TestRigifyBBonesBulgeAsOneBone(unittest.TestCase):
-    """Rigify's limbs and spine are B-Bones of 8 to 10 segments: corrected joint by joint, neighbouring
-    joints of one bone pulled against each other and the bulge came out rough (on the Rigify human of
-    real_cases.py posed hard, elbows and knees past 110 degrees, hips at 90: roughness 0.97 of the largest
-    offset, 507 creases added, one per 27 edges, 303 crossing pairs against plain skinning's 240). Corrected as
-    one bone (the core's bone groups, lvp.h GROUPS), that body meets QUALITY.md's measures as the add-on's
-    defaults give it: in the viewport roughness at most a quarter of the largest offset and at most one crease
-    added per 300 edges; as renders and bakes have it (Keep Skin Apart) the same, and no more crossing pairs
-    than plain skinning; with Fold-Over too, at most half of those pairs, the creases as few and no shard.
-    Measured on 3.4, 4.3 and 5.2 alike: viewport roughness 0.09, no crease, 243 pairs (the 3 more than plain skinning are its own
-    crossings at the hips moved by less than a triangle: no new contact); kept apart 0.06, no crease, 240;
-    Fold-Over 0 pairs, 36 creases (46 allowed), shard 0.10. Fold-Over's roughness is not held to a quarter
-    (0.28): where plain skinning passes the two sides of a fold through each other, pressing them apart turns
-    the offsets round across one edge (as on the coarse hands, test_hand_family.FOLD_OVER_ROUGH)."""
+    """Rigify's limbs and spine are B-Bones of 8 to 10 segments: corrected joint by joint, neighbouring joints of
+    one bone pulled against each other and the bulge came out rough (on the Rigify human of real_cases.py posed
+    hard, elbows and knees past 110 degrees, hips at 90: roughness 0.97 of the largest offset, 507 creases added,
+    one per 27 edges, 303 crossing pairs against plain skinning's 240). Corrected as one bone (the core's bone
+    groups, lvp.h GROUPS), that body meets QUALITY.md's measures as the add-on's defaults give it: in the viewport
+    roughness at most a quarter of the largest offset and at most one crease added per 300 edges; as renders and
+    bakes have it (Keep Skin Apart) the same, and no more crossing pairs than plain skinning; with Fold-Over too, at
+    most half of those pairs, the creases as few and no shard. Measured on 3.4, 4.3 and 5.2 alike: viewport
+    roughness 0.09, no crease, 243 pairs (the 3 more than plain skinning are its own crossings moved by less than a
+    triangle: no new contact); kept apart 0.06, no crease, 240; Fold-Over 0 pairs, 36 creases (46 allowed), shard
+    0.10. Fold-Over's roughness is not held to a quarter (0.28): where plain skinning passes the two sides of a fold
+    through each other, pressing them apart turns the offsets round across one edge (as on the coarse hands,
+    test_hand_family.FOLD_OVER_ROUGH)."""
 
     @classmethod
     def setUpClass(cls):

@@ -123,7 +123,8 @@ class TestRigifyArm(helpers.AddonTestCase):
     def test_the_outer_elbow_is_one_bulge(self):
         # The forearm's ten B-Bone joints are corrected as one bone (lvp.h, GROUPS). Joint by joint, their
         # multipliers pulled against each other: at 90 degrees, 57 creases added and roughness 1.1 times the
-        # largest offset (a jagged outer elbow); as one bone, 3 creases and 0.36.
+        # largest offset (a jagged outer elbow); as one bone, 2 creases and 0.11 (3.4, 4.3, 5.2): within QUALITY.md's
+        # quarter.
         mesh = quality.WeldedMesh(helpers.mesh_positions(self.obj.data), helpers.mesh_triangles(self.obj.data))
         self.bend_elbow(90.0)
         plain = helpers.uncorrected_positions(self.obj)
@@ -131,7 +132,7 @@ class TestRigifyArm(helpers.AddonTestCase):
         print("\n    Rigify arm, elbow at 90 degrees: %d creases added, roughness %.2f of the largest offset"
               % (vp["creases"], vp["roughness"] / vp["largest_offset"]))
         self.assertLessEqual(vp["creases"], 10, vp)
-        self.assertLess(vp["roughness"], 0.5 * vp["largest_offset"], vp)
+        self.assertLessEqual(vp["roughness"], 0.25 * vp["largest_offset"], vp)
 
     def bulge_along_the_arm(self):
         """(length along the arm over which the skin moved: four standard deviations of the offsets'

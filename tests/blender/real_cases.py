@@ -594,12 +594,14 @@ def pose_hand(rig, amount, shape=HAND):
 
 # Hands the suite's own was not tuned on (issue 46): {name: (voxel size, shape, decimated to this ratio or None)}.
 # Stubby and long phalanges, three fingers and a thumb, a thumb that closes over the fingers and one that closes
-# under them, 1,800 to 4,200 vertices from the voxel remesh, and two decimated to irregular triangles as most
+# under them, 1,000 to 17,000 vertices from the voxel remesh, and two decimated to irregular triangles as most
 # game and scanned meshes have.
 THUMB_OVER = HandShape(thumb_direction=(0.8, 0.55, 0.0), thumb_fist=(60.0, 40.0, 40.0))
 THUMB_UNDER = HandShape(thumb_direction=(0.6, 0.6, -0.6), thumb_fist=(45.0, 55.0, 60.0))
 HAND_FAMILY = {
+    "very coarse": (0.008, HAND, None),
     "coarse": (0.006, HAND, None),
+    "fine": (0.002, HAND, None),
     "stubby": (0.004, HAND.scaled(length=0.75, thickness=1.25), None),
     "long and slender": (0.004, HAND.scaled(length=1.25, thickness=0.85), None),
     "three fingers": (0.004, HandShape(fingers=FINGERS[:1] + FINGERS[2:]), None),

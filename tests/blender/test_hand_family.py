@@ -96,12 +96,13 @@ class TestHandFamily(unittest.TestCase):
         crossing in it not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's 19).
         Not held yet: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs (the little
         finger's tip folded onto its first phalanx, which is no joint's contact plane, and long triangles of one phalanx
-        crossing each other), and so is not asserted there (at the fist the decimated hands keep 28 of 84 and 26 of
-        111 on 3.4, 28 of 85 and 28 of 114 on 4.3 and 5.2; on 3.4 31 and 29 while the vertices the smoothing ties into
-        one point were averaged after fold-over even where it held them on a contact plane, smoothing_ties.c);
-        roughness 0.29 on the coarse hand three quarters closed (1,850 vertices: README asks Smoothing 10 of meshes
-        this coarse) and 0.35 on the very coarse one (998), 0.21-0.35 on the decimated ones, where fold-over presses one vertex on the crease's line as far
-        as the skinning carried it across and its neighbours, across the plane at rest, much less."""
+        crossing each other), and so is not asserted there (at the fist the decimated hands keep 28 of 84 and 26 of 111
+        on 3.4, 28 of 85 and 28 of 114 on 4.3 and 5.2; on 3.4 31 and 29 while the vertices the smoothing ties into one
+        point were averaged after fold-over even where it held them on a contact plane, smoothing_ties.c); roughness
+        0.29 on the coarse hand three quarters closed (1,850 vertices: README asks Smoothing 10 of meshes this coarse)
+        and 0.35 on the very coarse one (998), 0.21-0.35 on the decimated ones, where fold-over presses one vertex on
+        the crease's line as far as the skinning carried it across and its neighbours, across the plane at rest, much
+        less."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 obj, mesh = self.corrected_hand(voxel_size, shape, decimated)

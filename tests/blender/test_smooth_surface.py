@@ -121,8 +121,8 @@ class TestRigifyHuman(SurfaceCase):
         return fold, measured["plain"]
 
     def test_fold_over_bent_hard(self):
-        # Fold-Over Prevention too: fewer crossing pairs than plain skinning, and no skin pressed where no joint
-        # folds. The two thighs raised alike turn about one line through both hips, which left both heads in
+        # Fold-Over Prevention too: at most half of plain skinning's crossing pairs (issue 46; none of its 240 on
+        # 3.4, 4.3 and 5.2), and no skin pressed where no joint folds. The two thighs raised alike turn about one line through both hips, which left both heads in
         # place: taken for a joint (foldover.c, lvp__joint_child), the inner skin of one thigh was pressed onto a
         # plane across the other, roughness 0.78 of the largest offset there; then 0.50 at the armpit, where the
         # upper arm's skin meets the spine's, the shoulder's and the breast's, each pair pressing onto a plane of
@@ -134,7 +134,7 @@ class TestRigifyHuman(SurfaceCase):
         # bones carry rigidly (the upper arm's two DEF bones) and the map was faded on the convex side of a joint
         # too (the buttock, across the raised hip's plane; foldover.c).
         fold, plain = self.fold_over_at(1.0, "bent hard")
-        self.assertLess(fold["crossings"], plain["crossings"])
+        self.assertLessEqual(fold["crossings"], plain["crossings"] / 2)
         self.assertFewCreases(fold, "bent hard, Fold-Over")
         self.assertLessEqual(fold["roughness"], 0.45 * fold["largest_offset"])
 

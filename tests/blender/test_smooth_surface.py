@@ -121,18 +121,18 @@ class TestRigifyHuman(SurfaceCase):
         return fold, measured["plain"]
 
     def test_fold_over_bent_hard(self):
-        # Fold-Over Prevention too: at most half of plain skinning's crossing pairs (issue 46; none of its 240 on
-        # 3.4, 4.3 and 5.2), and no skin pressed where no joint folds. The two thighs raised alike turn about one line through both hips, which left both heads in
-        # place: taken for a joint (foldover.c, lvp__joint_child), the inner skin of one thigh was pressed onto a
-        # plane across the other, roughness 0.78 of the largest offset there; then 0.50 at the armpit, where the
-        # upper arm's skin meets the spine's, the shoulder's and the breast's, each pair pressing onto a plane of
-        # its own until they shared the plane of the bone the arm hangs from. Now 0.27 (README), at the back of
-        # the knees, where the press takes the skin that plain skinning folded back onto the contact plane: the
-        # offsets there undo the fold's roughness, and the surface is smoother than plain skinning's (the roughest
-        # vertex 0.15 mean edge lengths from its neighbours' mean, 0.64 in plain skinning), so no shard. At most
-        # one crease per 300 edges: 36 (46 allowed); 92 while the pressed skin's relaxation stopped at skin its
-        # bones carry rigidly (the upper arm's two DEF bones) and the map was faded on the convex side of a joint
-        # too (the buttock, across the raised hip's plane; foldover.c).
+        # Fold-Over Prevention too: at most half of plain skinning's crossing pairs (issue 46; none of its 240 on 3.4,
+        # 4.3 and 5.2), and no skin pressed where no joint folds. The two thighs raised alike turn about one line
+        # through both hips, which left both heads in place: taken for a joint (foldover.c, lvp__joint_child), the inner
+        # skin of one thigh was pressed onto a plane across the other, roughness 0.78 of the largest offset there; then
+        # 0.50 at the armpit, where the upper arm's skin meets the spine's, the shoulder's and the breast's, each pair
+        # pressing onto a plane of its own until they shared the plane of the bone the arm hangs from. Now 0.27
+        # (README), at the back of the knees, where the press takes the skin that plain skinning folded back onto the
+        # contact plane: the offsets there undo the fold's roughness, and the surface is smoother than plain skinning's
+        # (the roughest vertex 0.15 mean edge lengths from its neighbours' mean, 0.64 in plain skinning), so no shard.
+        # At most one crease per 300 edges: 36 (46 allowed); 92 while the pressed skin's relaxation stopped at skin its
+        # bones carry rigidly (the upper arm's two DEF bones) and the map was faded on the convex side of a joint too
+        # (the buttock, across the raised hip's plane; foldover.c).
         fold, plain = self.fold_over_at(1.0, "bent hard")
         self.assertLessEqual(fold["crossings"], plain["crossings"] / 2)
         self.assertFewCreases(fold, "bent hard, Fold-Over")

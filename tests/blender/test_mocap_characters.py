@@ -12,15 +12,19 @@ and turns, climbing and hanging, punches), each measured as QUALITY.md has it (s
 - roughness at most a quarter of the largest offset;
 - at most one crease added per 300 edges.
 
+Low-poly game characters are built as an artist makes a level of detail: the same bodies decimated to a few
+hundred points of irregular triangles (Decimate, weights by heat on the result).
+
 Measured on 4.3 and 5.2 (Blender 3.4's BVH importer cannot open files on Debian's Python 3.11: skipped there): no
 new contact and never more crossing pairs than plain skinning at any frame (plain skinning has up to 171 pairs; up
 to 18 of the correction's cross where plain skinning's own crossing moved by less than a triangle; without Keep
-Skin Apart the correction adds up to 31), the volume within 0.006 %, at most 3 creases (10 to 40 allowed), roughness
-at most 0.09 (4k points) to 0.22 (1k points) of the largest offset.
+Skin Apart the correction adds up to 31), the volume within 0.006 %, at most 3 creases (6 to 40 allowed), roughness
+at most 0.09 (4k points) to 0.22 (1k points) of the largest offset, 0.17-0.19 on the decimated ones.
 
-Not held here: the same jumps on a body decimated to 606 points of irregular triangles read roughness 0.27-0.31
-with Keep Skin Apart (0.21-0.24 without): the crossing test's shortening, smoothed over five rings, reaches 479
-of its 606 vertices, and restoring the volume along the offsets left makes a bump at the shoulder (issue 46).
+Not held without Keep Skin Apart (the viewport's default): the jumps and the climbing decimated read roughness
+0.30-0.34, at the armpit, where plain skinning presses the arm's skin into the torso's and the correction bulges
+one vertex into it; the largest offset of those frames is under a fifth of an edge. Keep Skin Apart fades it. Bodies
+coarser than these (the jumps' 1k body decimated to a half) leave a hand without heat weights on Blender 4.3.
 """
 
 import unittest
@@ -36,12 +40,15 @@ ROUGHNESS_OF_LARGEST = 0.25
 VOLUME_OFF_REST = 0.005
 FRAMES_MEASURED = 16
 
-# (clip of real_cases.MOCAP_CLIPS, voxel size in shares of the skeleton's height)
+# (clip of real_cases.MOCAP_CLIPS, voxel size in shares of the skeleton's height, Decimate's ratio or None)
 CHARACTERS = {
-    "jumps, 1k points": ("jumps", 0.03),
-    "jumps, 4k points": ("jumps", 0.015),
-    "climbing, 2k points": ("climbing", 0.02),
-    "boxing, 1k points": ("boxing", 0.025),
+    "jumps, 1k points": ("jumps", 0.03, None),
+    "jumps, 4k points": ("jumps", 0.015, None),
+    "climbing, 2k points": ("climbing", 0.02, None),
+    "boxing, 1k points": ("boxing", 0.025, None),
+    "jumps, 4k decimated": ("jumps", 0.015, 0.15),
+    "climbing, decimated": ("climbing", 0.02, 0.3),
+    "boxing, decimated": ("boxing", 0.025, 0.5),
 }
 
 
@@ -57,10 +64,10 @@ class TestMocapCharacters(unittest.TestCase):
         cls.addon = helpers.enable_addon()
 
     def test_kept_apart_and_smooth_over_each_clip(self):
-        for name, (clip, voxel_share) in CHARACTERS.items():
+        for name, (clip, voxel_share, decimated) in CHARACTERS.items():
             with self.subTest(character=name):
                 helpers.reset_scene()
-                obj, _rig, first, last = real_cases.mocap_character(clip, voxel_share)
+                obj, _rig, first, last = real_cases.mocap_character(clip, voxel_share, decimated)
                 mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
                 edges = len(mesh.interior_edges())
                 helpers.select_only(obj)

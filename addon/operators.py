@@ -23,6 +23,7 @@ from . import mesh_data
 from . import names
 from . import node_group
 from . import offsets
+from . import properties
 from . import skeleton
 from .session import SESSION
 
@@ -180,11 +181,18 @@ modifier, so they keep their volume when joints bend"""
             _report_errors(self, problems)
             return {'CANCELLED'}
 
+        kept_apart = []
         for obj, _armature_modifier, bound in plans:
             bindings.new_bind_record(obj, bound)
             offsets.new_offsets_object(obj, node_group.find_modifier(obj), bound.vertex_count)
+            if bound.vertex_count <= properties.KEEP_APART_VIEWPORT_VERTICES:
+                obj.lvp.keep_apart = True
+                kept_apart.append(obj.name)
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)
+        if kept_apart:
+            message += ("; Keep Skin Apart on in the viewport for %s (at most %d vertices, where it costs little)"
+                        % (", ".join(kept_apart), properties.KEEP_APART_VIEWPORT_VERTICES))
         scene = context.scene
         if scene is not None and not scene.render.use_lock_interface:
             scene.render.use_lock_interface = True

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# tests/blender/bench.sh - Blender frame times on a ~100k-vertex mesh and on a Rigify human (called by
-# ./build.sh bench): Armature alone, Armature + Corrective Smooth (default settings), Armature + Volume
-# Preservation, side by side in one run, on each Blender: 3.4 (Debian's), 4.3 and 5.2 (the chroots of blender_chroot.sh)
-# unless LVP_SKIP_BLENDER43=1 / LVP_SKIP_BLENDER52=1, and $BLENDER when set. One table per Blender and a summary.
+# tests/blender/bench.sh - Blender frame times on a ~100k-vertex mesh, on a Rigify human and on characters of a
+# game's size (called by ./build.sh bench): Armature alone, Armature + Corrective Smooth (default settings),
+# Armature + Volume Preservation (with and without Keep Skin Apart), side by side in one run, on each Blender:
+# 3.4 (Debian's), 4.3 and 5.2 (the chroots of blender_chroot.sh) unless LVP_SKIP_BLENDER43=1 /
+# LVP_SKIP_BLENDER52=1, and $BLENDER when set. One table per Blender and a summary.
 #
 #   tests/blender/bench.sh [--vertices N] [--frames N]
 #
@@ -20,5 +21,8 @@ bench_in_each_blender blender-bench bench.py '/^Blender [0-9].*vertices/' '/^re-
 bench_in_each_blender blender-bench-rigify bench_rigify.py '/^Blender [0-9].*Rigify/' '/^status: /' || status=1
 bench_in_each_blender blender-bench-rigify bench_rigify.py '/^Blender [0-9].*Rigify/' '/^status: /' \
 	--voxel 0.0052 --updates 12 || status=1
+# Keep Skin Apart in the viewport on characters of a game's size (what Add's choice rests on)
+bench_in_each_blender blender-bench-characters bench_characters.py '/^Blender [0-9].*characters/' \
+	'/^end of characters/' || status=1
 "$HERE/bench_bake.sh" || status=1  # bake speed to PC2 with 1 and 2 jobs (issue 4)
 exit $status

@@ -136,6 +136,28 @@ class TestBindAndRemove(helpers.AddonTestCase):
         bpy.context.scene.frame_set(9)
         self.assertEqual(helpers.object_snapshot(self.obj), before)
 
+    def test_add_keeps_skin_apart_in_the_viewport_on_small_meshes(self):
+        # A game character's few thousand vertices take Keep Skin Apart in the viewport for a few milliseconds a
+        # frame, so Add turns it on there and the viewport shows what renders; a denser mesh keeps it off (its
+        # cost, README), and either way the Render setting stays on.
+        dense = helpers.link(bpy.data.objects.new("Dense", helpers.cylinder_mesh("Dense", rings=64, around=64)))
+        helpers.weight_linear_band(dense)
+        helpers.add_armature_modifier(dense, self.rig, False)
+        dense.parent = self.rig
+        bpy.context.view_layer.update()
+        helpers.select_only(self.obj, dense)
+        self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
+        self.assertLessEqual(len(self.obj.data.vertices), 3000)
+        self.assertGreater(len(dense.data.vertices), 3000)
+        self.assertTrue(self.obj.lvp.keep_apart)
+        self.assertFalse(dense.lvp.keep_apart)
+        self.assertTrue(self.obj.lvp.keep_apart_render and dense.lvp.keep_apart_render)
+        # Bind again leaves the animator's choice as it is.
+        self.obj.lvp.keep_apart = False
+        helpers.select_only(self.obj)
+        self.assertEqual(bpy.ops.object.lvp_bind(), {'FINISHED'})
+        self.assertFalse(self.obj.lvp.keep_apart)
+
     def test_remove_after_applying_the_modifier(self):
         # Applying Volume Preservation (Ctrl A) bakes this frame's shape and makes the captured
         # attributes real; Remove then takes those away too.

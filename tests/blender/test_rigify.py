@@ -155,6 +155,9 @@ class TestRigifyArm(helpers.AddonTestCase):
         # elbow's bulge spreads wider along the arm, lower and smoother than over the band alone (Bulge
         # Width 0), with the same volume back, no more creases, and crossings within a tenth of plain
         # skinning's (the two widths differ by one pair: 65 against 64, plain 60).
+        # The correction's own bulge is compared: Keep Skin Apart, which Add turns on in the viewport on a mesh
+        # this small, shortens both widths' offsets where they would cross and is left out of the comparison.
+        self.obj.lvp.keep_apart = False
         mesh = quality.WeldedMesh(helpers.mesh_positions(self.obj.data), helpers.mesh_triangles(self.obj.data))
         self.assertEqual(self.obj.lvp.bulge_width, 1.0)
         self.bend_elbow(90.0)

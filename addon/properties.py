@@ -59,7 +59,7 @@ EFFECT_ITEMS = (
 
 # Add turns Keep Skin Apart on in the viewport too for meshes this small (game characters, low-poly rigs): it costs
 # two to three times the correction there, a few milliseconds a frame, and the viewport then shows what renders.
-# Denser meshes keep it off: on the 7,500-vertex hand of the tests it is five to six times the frame (README).
+# Denser meshes keep it off: on the 7,500-vertex hand of the tests it is about six times the frame (BENCHMARKS.md).
 KEEP_APART_VIEWPORT_VERTICES = 3000
 
 RESTORE_ITEMS = (

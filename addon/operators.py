@@ -191,8 +191,8 @@ modifier, so they keep their volume when joints bend"""
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)
         if kept_apart:
-            message += ("; Keep Skin Apart on in the viewport for %s (at most %d vertices, where it costs little)"
-                        % (", ".join(kept_apart), properties.KEEP_APART_VIEWPORT_VERTICES))
+            message += ("; Keep Skin Apart on in the viewport for {} (at most {:,} vertices, where it costs little)"
+                        .format(", ".join(kept_apart), properties.KEEP_APART_VIEWPORT_VERTICES))
         scene = context.scene
         if scene is not None and not scene.render.use_lock_interface:
             scene.render.use_lock_interface = True

@@ -30,9 +30,6 @@ bench_in_each_blender() {
 		export LVP_TEST_TMP="$run_tmp"
 		export LVP_ADDON_DIR="${LVP_ADDON_DIR:-$DIST/$ADDON_ID}"
 		export LVP_EXTENSION_ZIP="${LVP_EXTENSION_ZIP:-$HOST_EXTENSION_ZIP}"
-		# the real animated files of bench_characters, shown inside the chroots at the same path (as run.sh does)
-		ensure_packages assimp-testmodels
-		export LVP_CHROOT_BINDS="${LVP_CHROOT_BINDS:+$LVP_CHROOT_BINDS:}/usr/share/assimp"
 
 		local blenders=(3.4) selection status=0
 		[ "${LVP_SKIP_BLENDER43:-0}" = 1 ] || blenders+=(4.3)

@@ -157,9 +157,10 @@ class LVP_PT_statistics(_SubPanel, bpy.types.Panel):
         _figures(column, "Corrected", "%d regions, %d passes" % (stats["active_regions"], stats["iterations"]))
         if stats.get("folded_vertices"):
             _figures(column, "Unfolded", "%d vertices" % stats["folded_vertices"])
-        if stats.get("shortened_vertices"):
-            # Keep Skin Apart shortened these offsets where they would have pushed skin through skin.
-            _figures(column, "Kept Apart", "%d vertices" % stats["shortened_vertices"])
+        if stats.get("kept_apart_vertices"):
+            # Keep Skin Apart held these offsets back where they neared other skin (faded, or shortened
+            # where they would have pushed skin through skin).
+            _figures(column, "Kept Apart", "%d vertices" % stats["kept_apart_vertices"])
 
 
 def _figures(layout, name, *values):

@@ -393,6 +393,8 @@ typedef struct lvp__contact {
 	                              skinning (clearance.c; INFINITY: none near) */
 	float *clearance_reach;    /* per vertex, this frame: how far that was searched (0: not yet) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
+	uint8_t *faded;            /* per vertex, this frame: its clearance held its offset back (before the shares
+	                              were smoothed around), at some fade (lvp__kept_apart_count) */
 	int32_t *reader_offsets;   /* vertex_count + 1 into readers: */
 	int32_t *readers;          /* the vertices whose smoothing neighbours hold each vertex (clearance.c) */
 	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks */
@@ -929,6 +931,9 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,
  * changing nothing, when every offset is within its clearance. */
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
+/* The dynamic vertices this frame's Keep Skin Apart held back: shortened by the crossing test, or, when
+ * `faded` (the clearance was measured this frame), faded where they neared other skin. */
+int32_t lvp__kept_apart_count(const lvp_binding *binding, bool faded);
 /* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
  * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, then averaged; with
  * keep_floors the averaging only lowers (it rounds the rims of the dips and keeps their floors).

@@ -627,6 +627,7 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
 		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 			contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
 			contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
+			contact->faded[binding->dynamic.vertices[v]] = 0;
 		}
 	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }
@@ -651,6 +652,7 @@ static void lvp__share_range(void *context, int32_t begin, int32_t end)
 		int32_t k = binding->dynamic.vertices[v];
 		double m = lvp__length(lvp__offset_of(binding, pass->positions, k));
 		binding->contact.fade[k] = lvp__share_kept(m, binding->contact.clearance[k]);
+		binding->contact.faded[k] |= binding->contact.fade[k] < 1.0f;
 	}
 }
 
@@ -791,6 +793,17 @@ void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, con
 	}
 }
 _Static_assert((LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES) % 2 == 0, "the smoothed shares end where they began");
+
+int32_t lvp__kept_apart_count(const lvp_binding *binding, bool faded)
+{
+	const lvp__contact *contact = &binding->contact;
+	int32_t count = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		count += contact->shortened[k] || (faded && contact->faded[k]);
+	}
+	return count;
+}
 
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 {

@@ -498,6 +498,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->clearance_reach = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->faded = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	if (ok) {
 		lvp__find_leaves(contact, binding->triangle_count);
 		if ((result = lvp__flat_patches_begin(binding, r_diag)) == lvp_success &&
@@ -875,6 +876,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->clearance_reach);
 	free(contact->fade);
 	free(contact->fade_scratch);
+	free(contact->faded);
 	free(contact->reader_offsets);
 	free(contact->readers);
 	free(contact->near);

@@ -1264,6 +1264,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		}
 	}
 	stats->shortened_vertices = 0;
+	stats->kept_apart_vertices = 0;
 	stats->crossing_triangles = 0;
 	if (options->keep_apart && binding->mode == LVP_MODE_LOCAL) {
 		lvp__contact_fit_skinning(binding, positions);
@@ -1287,6 +1288,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
 		stats->shortened_vertices = lvp__shortened_count(binding);
+		stats->kept_apart_vertices = lvp__kept_apart_count(binding, !options->fold_over);
 		if (stats->shortened_vertices > 0) /* each check leaves the positions it shortened unmeasured */
 			lvp__measure_positions(binding, rest_positions, totals);
 	}

@@ -790,6 +790,9 @@ typedef struct lvp_frame_stats {
 	                              from the positions alone, without the closed form for rigid parts */
 	int32_t shortened_vertices; /* options.keep_apart: vertices whose offset the crossing test
 	                             shortened to keep skin from crossing skin (CONTACT), 0 without it */
+	int32_t kept_apart_vertices; /* options.keep_apart: vertices whose offset it held back, faded where
+	                                it neared other skin in front of it or shortened by the crossing test
+	                                (shortened_vertices among them), 0 without it */
 	int32_t crossing_triangles; /* options.keep_apart: the triangles the correction made cross skin
 	                             at the frame's first check, after the fade, each kept apart since
 	                             (CONTACT), 0 without it */

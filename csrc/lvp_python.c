@@ -1279,7 +1279,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	Py_END_ALLOW_THREADS;
 	if (lvp_py__end_claimed(&call, self, result) != 0)
 		return NULL;
-	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i,s:i,s:i,s:O}", "volume_rest",
+	return Py_BuildValue("{s:d,s:d,s:d,s:i,s:d,s:d,s:i,s:i,s:i,s:i,s:d,s:i,s:d,s:i,s:i,s:i,s:i,s:i,s:i,s:O}", "volume_rest",
 	                     stats.volume_rest,
 	                     "volume_before", stats.volume_before, "volume_after", stats.volume_after, "worst_region",
 	                     (int)stats.worst_region, "worst_region_change_before", stats.worst_region_change_before,
@@ -1290,6 +1290,7 @@ static PyObject *lvp_py__binding_correct(PyObject *object, PyObject *args, PyObj
 	                     "unskinned_distance", stats.unskinned_distance, "given_up_regions", (int)stats.given_up_regions,
 	                     "given_up_region", (int)stats.given_up_region, "given_up_diverged",
 	                     (int)stats.given_up_diverged, "shortened_vertices", (int)stats.shortened_vertices,
+	                     "kept_apart_vertices", (int)stats.kept_apart_vertices,
 	                     "crossing_triangles", (int)stats.crossing_triangles, "bones_scale",
 	                     stats.bones_scale ? Py_True : Py_False);
 }

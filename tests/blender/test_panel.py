@@ -251,6 +251,29 @@ class TestPanel(helpers.AddonTestCase):
         self.assertIn("painted_vertex_group", record["props"])
         self.assertIn("use_lock_interface", record["props"])
 
+    def test_keeping_skin_apart_is_shown(self):
+        """Bent to 120 degrees, the inside of the elbow nears itself: Keep Skin Apart holds those offsets back by
+        fading them, before any pair would cross (nothing left to shorten), and the statistics count them all the
+        same; without it the line is not drawn."""
+        obj, rig = helpers.make_cylinder_character()
+        helpers.keyframe_bend(rig, {1: 0.0, 10: 120.0})
+        helpers.add_volume_preservation(obj)
+        for keep_apart in (True, False):
+            obj.lvp.keep_apart = keep_apart
+            bpy.context.scene.frame_set(9)
+            bpy.context.scene.frame_set(10)
+            stats = self.addon.session.SESSION.bound(obj).stats
+            labels = self.draw(obj)["labels"]
+            if not keep_apart:
+                self.assertNotIn("Kept Apart", labels)
+                self.assertEqual(stats["kept_apart_vertices"], 0)
+                continue
+            self.assertIn("Kept Apart", labels)
+            held_back = int(labels[labels.index("Kept Apart") + 1].split()[0])
+            self.assertEqual(held_back, stats["kept_apart_vertices"])
+            self.assertGreater(held_back, stats["shortened_vertices"], "the fade held skin back, not only the test")
+            self.assertLess(held_back, len(obj.data.vertices) // 2, "only the inside of the bend")
+
     def test_rebind_needed_is_shown(self):
         obj, rig = helpers.make_cylinder_character()
         helpers.add_volume_preservation(obj)

@@ -84,8 +84,9 @@ static void test_one_joint_kept_apart(void)
 		double rough_without = test_roughness(&tube.rig, offsets_without);
 		double rough_with = test_roughness(&tube.rig, offsets_with);
 		printf("  crossing triangle pairs: plain skinning %lld, corrected %lld, kept apart %lld (%d vertices "
-		       "shortened); roughness %.3f / %.3f of the largest offset; volume %+.4f%% / %+.4f%%\n",
-		       (long long)plain, (long long)before, (long long)after, with.shortened_vertices, rough_without,
+		       "held back, %d shortened); roughness %.3f / %.3f of the largest offset; volume %+.4f%% / %+.4f%%\n",
+		       (long long)plain, (long long)before, (long long)after, with.kept_apart_vertices,
+		       with.shortened_vertices, rough_without,
 		       rough_with, 100 * (without.volume_after / without.volume_rest - 1.0),
 		       100 * (with.volume_after / with.volume_rest - 1.0));
 		CHECK(before > plain);
@@ -93,7 +94,9 @@ static void test_one_joint_kept_apart(void)
 		/* The offsets faded before any pair crossed: nothing left for the crossing test to shorten,
 		 * and the fade is as smooth as the offsets themselves. */
 		CHECK(with.shortened_vertices == 0 && with.crossing_triangles == 0);
-		CHECK(without.shortened_vertices == 0);
+		CHECK(without.shortened_vertices == 0 && without.kept_apart_vertices == 0);
+		/* The statistics say so all the same: the fade held the inside of the bend back. */
+		CHECK(with.kept_apart_vertices > 0 && with.kept_apart_vertices < tube.rig.vertex_count);
 		CHECK(rough_with <= 0.25 && rough_with <= rough_without + 0.02);
 		CHECK(fabs(with.volume_after / with.volume_rest - 1.0) < 1e-4);
 		free(offsets_without);
@@ -126,6 +129,7 @@ static void test_every_joint_kept_apart(void)
 		CHECK(before > plain);
 		CHECK(after <= plain);
 		CHECK(with.shortened_vertices > 0);
+		CHECK(with.kept_apart_vertices >= with.shortened_vertices);
 		CHECK(fabs(with.volume_after / with.volume_rest - 1.0) < 1e-3);
 	}
 	lvp_free(binding);

@@ -157,7 +157,7 @@ STATS_KEYS = {
     'volume_rest', 'volume_before', 'volume_after', 'worst_region', 'worst_region_change_before',
     'worst_region_change_after', 'iterations', 'active_regions', 'skipped_regions', 'folded_vertices',
     'max_displacement', 'passed_through', 'unskinned_distance', 'given_up_regions', 'given_up_region',
-    'given_up_diverged', 'shortened_vertices', 'crossing_triangles', 'bones_scale',
+    'given_up_diverged', 'shortened_vertices', 'kept_apart_vertices', 'crossing_triangles', 'bones_scale',
 }
 
 

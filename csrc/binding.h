@@ -346,6 +346,8 @@ typedef struct lvp__fold {
 	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */
 	float *longest_edge;       /* per vertex: its longest edge at the bind's rest (lvp__allowed_across) */
+	double deepest;            /* this frame: how far the deepest press moved a vertex, in its longest rest
+	                              edges (lvp__relaxation_rings) */
 	int32_t *plane_entry;      /* per bone, this frame: the entry whose plane all its joints as the
 	                              child share (lvp__share_child_planes), or -1 */
 	uint8_t *held;             /* per vertex: moved back to a contact surface and held there (nonzero:
@@ -841,6 +843,9 @@ bool lvp__stretch_targets(lvp_binding *binding, const float *rest_positions, con
  * and holds them (fold.held); marks the neighbour pairs where that happened. Returns how many
  * vertices it held that were not held yet. */
 int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
+/* The rings (and passes) of the relaxation of this frame's presses (lvp__relax_pressed): the offsets'
+ * smoothing passes, or where the presses went deeper than those rings can take, more (foldover.c). */
+int32_t lvp__relaxation_rings(const lvp_binding *binding, int32_t smoothing_passes);
 /* Relaxes the skin fold-over pressed with the skin around it (within `passes` rings), `passes` times:
  * every held vertex let go, the offsets smoothed one pass (lvp__smooth_offsets), the skin pressed
  * again at the joints where skin crossed; the vertices held before stay held. The volume it takes

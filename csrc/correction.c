@@ -1168,10 +1168,13 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
                                    const float *rest_positions, const lvp__region_sums *totals,
                                    lvp_frame_stats *stats)
 {
-	int32_t n = binding->vertex_count, relax_passes = options->smoothing_passes;
+	int32_t n = binding->vertex_count;
 	lvp__begin_fold_over(binding, rest_positions);
 	int32_t moved = lvp__fold_over(binding, rest_positions);
 	stats->folded_vertices = moved;
+	/* The frame's first press is its deepest: the rounds after it press what their volume steps push
+	 * across, a little. */
+	int32_t relax_passes = lvp__relaxation_rings(binding, options->smoothing_passes);
 	bool relaxed = lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes);
 	/* A round may move no vertex more than twice as far as the correction before it (volume
 	 * steps and the first contacts) moved any: further, it is diverging (the map faded at the
@@ -1190,8 +1193,8 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 	}
 	if (relaxed) {
 		/* The volume the relaxation took comes back through the map, where it peaks beside the
-		 * contacts: those peaks are smoothed as the frame's offsets were before fold-over (the held
-		 * skin keeping its place), the volume restored along the smoothed offsets, and what that
+		 * contacts: those peaks are smoothed over the relaxation's rings (the held skin keeping its
+		 * place), the volume restored along the smoothed offsets, and what that
 		 * carries across a plane pressed back. That press is relaxed as the rounds' are: left as it
 		 * was, the rim it put on the plane met the free skin beside it at an angle, creases along the
 		 * contact line (the flanks of a thigh that its calf presses, the sides of a finger at the

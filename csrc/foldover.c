@@ -511,9 +511,9 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 
 /* A pressed patch of depth D relaxed over R rings of edges e slopes into the free skin around it by about
  * D / (R e): at LVP__RELAXATION_RINGS_PER_EDGE rings per edge of the deepest press, by at most a half (27
- * degrees), below the 30 degrees a crease reads. Deep presses come from fine meshes (a thigh's skin pressed
- * under its calf at 150 degrees, four and a half edges deep on an 18,000-vertex body, where the smoothing's
- * six rings left the rim creased); a hand's or a game body's presses are one to two edges deep, within them. */
+ * degrees), below the 30 degrees a crease reads. Presses several edges deep come from fine meshes (a thigh's
+ * skin pressed under its calf, where the smoothing's rings alone left the rim creased); on coarser meshes the
+ * same press is an edge or two deep and the smoothing's rings already take it. */
 #define LVP__RELAXATION_RINGS_PER_EDGE 2.0
 /* The relaxation reaches at most this many times the smoothing's rings: its passes cost as many smoothing
  * passes over a zone that grows with them. */

@@ -106,7 +106,7 @@ class TestHandFamily(unittest.TestCase):
         crossing in it not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's 19).
         Every pair it leaves has a triangle that spans a joint (its corners following different bones): on the
         decimated hands (3.4), 14-16 of their 20-28 a triangle from a finger's first phalanx to its last with no corner on
-        the middle one (149 such of 4,484), whose straight edges cut through the bent finger wherever corners that
+        the middle one (57 such of 4,484), whose straight edges cut through the bent finger wherever corners that
         follow the skin go, and none between triangles that each follow one bone (all plain skinning's 2-33 such are
         parted). Not held yet: the decimated hand three quarters closed keeps 23 of plain skinning's 30 pairs, and
         so the halving is not asserted there (at the fist the decimated hands keep 28 of 84 and 26 of 111

@@ -396,7 +396,7 @@ typedef struct lvp__contact {
 	float *clearance_reach;    /* per vertex, this frame: how far that was searched (0: not yet) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
 	uint8_t *faded;            /* per vertex, this frame: its clearance held its offset back (before the shares
-	                              were smoothed around), at some fade (lvp__kept_apart_count) */
+	                              were smoothed around), at some fade (lvp__kept_apart_counts) */
 	int32_t *reader_offsets;   /* vertex_count + 1 into readers: */
 	int32_t *readers;          /* the vertices whose smoothing neighbours hold each vertex (clearance.c) */
 	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks */
@@ -909,8 +909,10 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 /* Fades frame_map.gamma by what the last lvp__keep_skin_apart left of each offset (contact.scale):
  * where skin met skin, the next volume step moves it as much less. */
 void lvp__fade_map_where_shortened(lvp_binding *binding);
-/* The dynamic vertices shortened by any lvp__keep_skin_apart of this frame. */
-int32_t lvp__shortened_count(const lvp_binding *binding);
+/* The dynamic vertices this frame's Keep Skin Apart shortened (any lvp__keep_skin_apart: r_shortened) and
+ * those it held back (r_kept_apart): shortened, or, when `faded` (the clearance was measured this frame),
+ * faded where they neared other skin (contact.faded). */
+void lvp__kept_apart_counts(const lvp_binding *binding, bool faded, int32_t *r_shortened, int32_t *r_kept_apart);
 /* Whether step.positions are where the last lvp__keep_skin_apart left them, its last round shortening
  * nothing there: another check would shorten nothing (a restore after a fade that moved no vertex). */
 bool lvp__still_where_kept_apart(const lvp_binding *binding);
@@ -936,9 +938,6 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,
  * changing nothing, when every offset is within its clearance. */
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
-/* The dynamic vertices this frame's Keep Skin Apart held back: shortened by the crossing test, or, when
- * `faded` (the clearance was measured this frame), faded where they neared other skin. */
-int32_t lvp__kept_apart_count(const lvp_binding *binding, bool faded);
 /* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
  * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, then averaged; with
  * keep_floors the averaging only lowers (it rounds the rims of the dips and keeps their floors).

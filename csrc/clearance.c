@@ -794,17 +794,6 @@ void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, con
 }
 _Static_assert((LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES) % 2 == 0, "the smoothed shares end where they began");
 
-int32_t lvp__kept_apart_count(const lvp_binding *binding, bool faded)
-{
-	const lvp__contact *contact = &binding->contact;
-	int32_t count = 0;
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
-		int32_t k = binding->dynamic.vertices[v];
-		count += contact->shortened[k] || (faded && contact->faded[k]);
-	}
-	return count;
-}
-
 bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions)
 {
 	int32_t count = binding->dynamic.vertex_count;

@@ -837,12 +837,17 @@ void lvp__fade_map_where_shortened(lvp_binding *binding)
 	}
 }
 
-int32_t lvp__shortened_count(const lvp_binding *binding)
+void lvp__kept_apart_counts(const lvp_binding *binding, bool faded, int32_t *r_shortened, int32_t *r_kept_apart)
 {
-	int32_t count = 0;
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
-		count += binding->contact.shortened[binding->dynamic.vertices[v]];
-	return count;
+	const lvp__contact *contact = &binding->contact;
+	int32_t shortened = 0, kept_apart = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		shortened += contact->shortened[k];
+		kept_apart += contact->shortened[k] || (faded && contact->faded[k]);
+	}
+	*r_shortened = shortened;
+	*r_kept_apart = kept_apart;
 }
 
 bool lvp__still_where_kept_apart(const lvp_binding *binding)

@@ -1290,8 +1290,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 				break; /* the restore moved no vertex: the check before left nothing to shorten there */
 			shortened = lvp__keep_skin_apart(binding, positions, false);
 		}
-		stats->shortened_vertices = lvp__shortened_count(binding);
-		stats->kept_apart_vertices = lvp__kept_apart_count(binding, !options->fold_over);
+		lvp__kept_apart_counts(binding, !options->fold_over, &stats->shortened_vertices, &stats->kept_apart_vertices);
 		if (stats->shortened_vertices > 0) /* each check leaves the positions it shortened unmeasured */
 			lvp__measure_positions(binding, rest_positions, totals);
 	}

@@ -337,6 +337,17 @@ typedef struct lvp__joint {
 	bool child_side;           /* the region of this entry is the child's */
 } lvp__joint;
 
+/* Scratch of the relaxation's plate (plate.c), vertex_count long, allocated with the relaxation's lists
+ * (lvp__relaxation_begin) and kept between frames only as memory. */
+typedef struct lvp__plate {
+	uint8_t *role;             /* per vertex: LVP__PLATE_* during a settling, zero between */
+	int32_t *free, *rows, *read; /* the vertices it moves, those in its bending sum, those the rows read */
+	int32_t free_count, row_count, read_count;
+	double *offsets;           /* *3: the offsets the rows read; the free ones are the unknowns */
+	double *direction, *product, *residual; /* *3: conjugate gradients' */
+	double *laplacian;         /* *3, per row: the Laplacian of the vector a product multiplies */
+} lvp__plate;
+
 /* Fold-over prevention (foldover.c). */
 typedef struct lvp__fold {
 	uint8_t *contact;          /* per neighbour entry (lvp__mesh), this frame: LVP__CONTACT_* */
@@ -356,6 +367,7 @@ typedef struct lvp__fold {
 	int32_t *zone;             /* vertex_count: the vertices a relaxation may move, pressed ones first */
 	int32_t *side_entry;       /* per neighbour entry (s, j), this frame: the entry that presses the skin of s's
 	                              group on its side of the joint (foldover.c, lvp__find_side_entries), or -1 */
+	lvp__plate plate;          /* the relaxation's plate (plate.c) */
 } lvp__fold;
 
 /* Skin kept from passing through skin (contact.c), allocated at the first frame that asks. */
@@ -478,8 +490,7 @@ typedef struct lvp__smoothing {
 	                             multiplies its offset by (the other half is the vertex's own) */
 	int32_t *movable;         /* scratch, vertex_count: the dynamic vertices that can move, which the
 	                             passes walk (lvp__smooth_offsets) */
-	int32_t tie_count;        /* clusters of two or more vertices tied into one point (smoothing_ties.c;
-	                             listed for binding.smoothing only) */
+	int32_t tie_count;        /* clusters of two or more vertices tied into one point (smoothing_ties.c) */
 	int32_t *tie_offsets;     /* tie_count+1: each cluster's members in tie_members */
 	int32_t *tie_members;
 } lvp__smoothing;
@@ -853,7 +864,8 @@ int32_t lvp__relaxation_rings(const lvp_binding *binding, int32_t smoothing_pass
  * which it keeps listing the vertices presses made dynamic. Returns whether any vertex was held
  * (else it does nothing). */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
-                        const lvp__region_sums *totals, int32_t passes);
+                        const lvp__region_sums *totals, int32_t passes, int32_t smoothing_passes);
+
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);
@@ -862,20 +874,29 @@ bool lvp__fade_map_at_contact(lvp_binding *binding);
  * first lvp__fold_over of a frame). */
 void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
 
+/* plate.c */
+/* Settles the free vertices of the relaxation's zone (zone[count], those fold.held does not hold) as a thin
+ * plate tied to their offsets from `positions` beyond about half smoothing_passes rings; the held vertices
+ * and the skin outside the zone stay. Moves step.positions. */
+void lvp__settle_as_plate(lvp_binding *binding, const float *positions, const int32_t *zone, int32_t count,
+                          int32_t smoothing_passes);
+bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count);
+void lvp__plate_free(lvp__plate *plate);
+
 /* offset_smoothing.c */
 /* The neighbour lists of the smoothing passes (binding.smoothing), from the sorted triangles. */
 lvp_result lvp__build_smoothing(lvp_binding *binding, lvp_diagnostic *r_diag);
-/* Those of fold-over's relaxation (binding.relaxation), built at the first frame that asks for
- * fold-over: a binding that never does has no use for them. */
+/* Those of fold-over's relaxation (binding.relaxation), and its plate's scratch (plate.c), built at the first
+ * frame that asks for fold-over: a binding that never does has no use for them. */
 lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 void lvp__smoothing_free(lvp__smoothing *smoothing);
 /* smoothing_ties.c */
 /* Gives the vertices that one neighbour dominates in `smoothing` the neighbours of the cluster they
- * form with it, so that a pass averages them as one point, and with list_ties lists those clusters
+ * form with it, so that a pass averages them as one point, and lists those clusters
  * (smoothing.tie_offsets, tie_members). Which neighbour dominates is decided on tie_shares (per entry
  * of smoothing's lists), or on smoothing.shares when NULL; the cluster's neighbours weigh by
  * smoothing.shares. */
-lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares, bool list_ties,
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares,
                               lvp_diagnostic *r_diag);
 /* The offsets (step.positions against `positions`, the input points) of each cluster's members
  * replaced by their mean, but for the clusters with a member fold-over holds (fold.held): what moved

@@ -1175,7 +1175,8 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 	/* The frame's first press is its deepest: the rounds after it press what their volume steps push
 	 * across, a little. */
 	int32_t relax_passes = lvp__relaxation_rings(binding, options->smoothing_passes);
-	bool relaxed = lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes);
+	bool relaxed =
+	    lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes, options->smoothing_passes);
 	/* A round may move no vertex more than twice as far as the correction before it (volume
 	 * steps and the first contacts) moved any: further, it is diverging (the map faded at the
 	 * contacts leaves the volume too few places to go), and the frame keeps the round before. */
@@ -1189,7 +1190,8 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		}
 		moved = lvp__fold_over(binding, rest_positions);
 		stats->folded_vertices += moved;
-		relaxed |= lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes);
+		relaxed |= lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes,
+		                              options->smoothing_passes);
 	}
 	if (relaxed) {
 		/* The volume the relaxation took comes back through the map, where it peaks beside the
@@ -1206,7 +1208,8 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
-		if (lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes)) {
+		if (lvp__relax_pressed(binding, positions, rest_positions, totals, relax_passes,
+		                       options->smoothing_passes)) {
 			stats->iterations += lvp__restore_relaxed(binding, options, rest_positions, totals);
 			stats->folded_vertices += lvp__fold_over(binding, rest_positions);
 		}

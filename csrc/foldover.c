@@ -459,7 +459,7 @@ static void lvp__list_pressed_dynamic(lvp_binding *binding, const float *rest_po
  * the pressed patch on its plane and the free skin around it curving into it, as flesh does around
  * a contact; the skin further away keeps its offsets. */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
-                        const lvp__region_sums *totals, int32_t passes)
+                        const lvp__region_sums *totals, int32_t passes, int32_t smoothing_passes)
 {
 	int32_t n = binding->vertex_count;
 	uint8_t *held = binding->fold.held, *before = binding->fold.held_before;
@@ -504,6 +504,13 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 		 * the limit itself, the hands of the tests kept twice the creases). */
 		lvp__press_across(binding, rest_positions, true);
 	}
+	/* The membrane's cones at single pressed vertices, settled as a plate (plate.c) with the skin its
+	 * last pass pressed held, and what the plate carries across pressed back. */
+	for (int32_t z = 0; z < count; ++z)
+		if (held[zone[z]] != LVP__HELD_BEFORE)
+			held[zone[z]] = 0;
+	lvp__settle_as_plate(binding, positions, zone, count, smoothing_passes);
+	lvp__press_across(binding, rest_positions, true);
 	for (int32_t k = 0; k < n; ++k)
 		held[k] = before[k] || held[k] == LVP__HELD_BEFORE ? LVP__HELD_BEFORE : 0;
 	return true;
@@ -698,4 +705,5 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->longest_edge);
 	free(fold->border_offsets);
 	free(fold->border_vertices);
+	lvp__plate_free(&fold->plate);
 }

@@ -205,7 +205,11 @@
  *   skin follows it, instead of a step at the map's border; the ends of any edge much shorter than
  *   those around it, a needle's, tied into one point, as mean value weights decide), and whatever
  *   that carries across a plane is pressed back, so
- *   the pressed patch meets the free skin around it without a crease. Contact test and volume
+ *   the pressed patch meets the free skin around it without a crease. That averaging settles as a
+ *   membrane, a cone's tip where the plane holds one vertex of a coarse mesh; the free skin of the
+ *   relaxed rings is then settled as a thin plate tied to the averaged offsets beyond about half the
+ *   smoothing's rings (docs/method.md, plate.c), the held skin and a tied cluster's members moving as
+ *   the passes move them, and what that carries across pressed back. Contact test and volume
  *   step alternate up to 4 more rounds; a round that would move a vertex more than twice as far
  *   as the correction before it is undone and ends them (the frame keeps its contacts, a little
  *   volume missing); the volume the relaxation took is restored after them, through the map and
@@ -369,7 +373,7 @@
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
  *   hierarchy, about 220 bytes a triangle, and 50 bytes a vertex) and at the first with fold_over
- *   (FOLD-OVER: its relaxation's neighbour lists, about 130 bytes a vertex); lvp_error_out_of_memory
+ *   (FOLD-OVER: its relaxation's neighbour lists and plate, about 260 bytes a vertex); lvp_error_out_of_memory
  *   when that fails. With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the

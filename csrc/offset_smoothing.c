@@ -130,7 +130,7 @@ static lvp_result lvp__build_lists(lvp_binding *binding, lvp__smoothing *smoothi
 		}
 		smoothing->offsets[k + 1] = written;
 	}
-	lvp_result result = lvp__tie_smoothing(binding, smoothing, tie_shares, !tie_by_mean_value, r_diag);
+	lvp_result result = lvp__tie_smoothing(binding, smoothing, tie_shares, r_diag);
 	free(tie_shares);
 	return result ? result : lvp__prepare_passes(binding, smoothing, r_diag);
 }
@@ -145,11 +145,15 @@ lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	if (binding->relaxation.offsets)
 		return lvp_success;
 	lvp_result result = lvp__build_lists(binding, &binding->relaxation, true, r_diag);
+	if (!result && !lvp__plate_alloc(&binding->fold.plate, binding->vertex_count))
+		result = lvp_error_out_of_memory;
 	if (!result)
 		return lvp_success;
 	/* nothing half built is taken for built at the next frame */
 	lvp__smoothing_free(&binding->relaxation);
 	memset(&binding->relaxation, 0, sizeof(binding->relaxation));
+	lvp__plate_free(&binding->fold.plate);
+	memset(&binding->fold.plate, 0, sizeof(binding->fold.plate));
 	if (result != lvp_error_out_of_memory)
 		return result;
 	return lvp__fail(r_diag, result, "binding", -1, "could not allocate fold-over's relaxation of %d vertices.",

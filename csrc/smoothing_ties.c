@@ -225,7 +225,7 @@ static bool lvp__list_ties(lvp__smoothing *smoothing, const lvp__clusters *clust
 	return true;
 }
 
-lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares, bool list_ties,
+lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, const float *tie_shares,
                               lvp_diagnostic *r_diag)
 {
 	int32_t n = binding->vertex_count;
@@ -248,7 +248,7 @@ lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, c
 	}
 	if (ok && joined > 0)
 		ok = lvp__list_members(&clusters, smoothing) && lvp__relist(smoothing, &clusters) &&
-		     (!list_ties || lvp__list_ties(smoothing, &clusters));
+		     lvp__list_ties(smoothing, &clusters);
 	free(clusters.parent);
 	free(clusters.first);
 	free(clusters.members);

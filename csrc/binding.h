@@ -859,8 +859,9 @@ int32_t lvp__fold_over(lvp_binding *binding, const float *rest_positions);
 int32_t lvp__relaxation_rings(const lvp_binding *binding, int32_t smoothing_passes);
 /* Relaxes the skin fold-over pressed with the skin around it (within `passes` rings), `passes` times:
  * every held vertex let go, the offsets smoothed one pass (lvp__smooth_offsets), the skin pressed
- * again at the joints where skin crossed; the vertices held before stay held. The volume it takes
- * is not restored here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set),
+ * again at the joints where skin crossed; then the skin its last pass left free settled as a plate
+ * (lvp__settle_as_plate, reaching about half smoothing_passes rings) and pressed again. The vertices
+ * held before stay held. The volume it takes is not restored here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set),
  * which it keeps listing the vertices presses made dynamic. Returns whether any vertex was held
  * (else it does nothing). */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,

@@ -457,7 +457,9 @@ static void lvp__list_pressed_dynamic(lvp_binding *binding, const float *rest_po
  * of the pressed skin and of the skin within `passes` rings of it averaged with their neighbours'
  * (both ways), then whatever that carried across a plane pressed back onto it. A few passes leave
  * the pressed patch on its plane and the free skin around it curving into it, as flesh does around
- * a contact; the skin further away keeps its offsets. */
+ * a contact; the skin further away keeps its offsets. Averaging settles as a membrane would, into a
+ * cone where the plane holds one vertex much further than its neighbours (a coarse mesh's press), so
+ * the free skin is then settled as a plate (plate.c). */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
                         const lvp__region_sums *totals, int32_t passes, int32_t smoothing_passes)
 {
@@ -504,8 +506,7 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 		 * the limit itself, the hands of the tests kept twice the creases). */
 		lvp__press_across(binding, rest_positions, true);
 	}
-	/* The membrane's cones at single pressed vertices, settled as a plate (plate.c) with the skin its
-	 * last pass pressed held, and what the plate carries across pressed back. */
+	/* The skin the last pass pressed held, and what the plate carries across pressed back. */
 	for (int32_t z = 0; z < count; ++z)
 		if (held[zone[z]] != LVP__HELD_BEFORE)
 			held[zone[z]] = 0;

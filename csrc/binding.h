@@ -861,12 +861,11 @@ int32_t lvp__relaxation_rings(const lvp_binding *binding, int32_t smoothing_pass
  * every held vertex let go, the offsets smoothed one pass (lvp__smooth_offsets), the skin pressed
  * again at the joints where skin crossed; then the skin its last pass left free settled as a plate
  * (lvp__settle_as_plate, reaching about half smoothing_passes rings) and pressed again. The vertices
- * held before stay held. The volume it takes is not restored here. rest_positions, totals: as for the dynamic set (lvp__find_dynamic_set),
- * which it keeps listing the vertices presses made dynamic. Returns whether any vertex was held
- * (else it does nothing). */
+ * held before stay held. The volume it takes is not restored here. rest_positions, totals: as for
+ * the dynamic set (lvp__find_dynamic_set), which it keeps listing the vertices presses made dynamic.
+ * Returns whether any vertex was held (else it does nothing). */
 bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const float *rest_positions,
                         const lvp__region_sums *totals, int32_t passes, int32_t smoothing_passes);
-
 /* Fades frame_map.gamma near the contact surfaces of the pairs marked since the last call; returns
  * whether there was any. */
 bool lvp__fade_map_at_contact(lvp_binding *binding);

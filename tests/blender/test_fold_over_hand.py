@@ -18,8 +18,8 @@ defaults and Keep Skin Apart on, at every frame of the animation:
   at the fist; 126 before the pressed skin was relaxed with the skin around it, lvp__relax_pressed);
 - offsets that follow the motion: from frame to frame they change by less than the skin moved (0.28 near the
   fist, where the animation eases out, 0.64 while the offsets Keep Skin Apart's fade left were not smoothed; 0.11
-  without Keep Skin Apart), with fold-over by about as much at most (0.83 from frame 19 to 20; 0.60 at the fist before the
-  plate). Keep Skin Apart fades the offsets by the room in front of them, which changes continuously
+  without Keep Skin Apart), with fold-over by about as much at most (0.83 from frame 19 to 20; 0.60 at the fist
+  before the plate). Keep Skin Apart fades the offsets by the room in front of them, which changes continuously
   with the pose; by the distance along a ray, which drops when the ray leaves the other skin's silhouette, it
   read 1.30, and by shortening the offsets of crossing pairs alone 1.15.
 

@@ -113,10 +113,9 @@ class TestHandFamily(unittest.TestCase):
         30 pairs, and so the halving is not asserted there (at the fist the decimated hands keep 32 of 84 and 30 of 111
         on 3.4, 33 of 85 and 33 of 114 on 4.3 and 5.2, 26-28 before the relaxed skin was settled as a plate; on 3.4 31
         and 29 while the vertices the smoothing ties into one point were averaged after fold-over even where it held
-        them on a contact plane, smoothing_ties.c); roughness
-        0.32-0.33 on the very coarse hand (998 vertices: README asks Smoothing 10 of meshes this coarse), whose worst
-        vertex is the bottom of the crease, pressed one way while its neighbour an edge away on the other side is
-        pressed the other: the crossing undone. The coarse and decimated hands read 0.15-0.25 since the relaxed skin
+        them on a contact plane, smoothing_ties.c); roughness 0.32-0.33 on the very coarse hand (998 vertices: README
+        asks Smoothing 10 of meshes this coarse), whose worst vertex is the bottom of the crease, pressed one way
+        while its neighbour an edge away on the other side is pressed the other: the crossing undone. The coarse and decimated hands read 0.15-0.25 since the relaxed skin
         is settled as a thin plate (plate.c; 0.21-0.36 while it settled as a membrane, a cone's tip where fold-over
         pressed one vertex on the crease's line as far as the skinning carried it across and its neighbours much
         less)."""

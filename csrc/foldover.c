@@ -506,10 +506,8 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 		 * the limit itself, the hands of the tests kept twice the creases). */
 		lvp__press_across(binding, rest_positions, true);
 	}
-	/* The skin the last pass pressed held, and what the plate carries across pressed back. */
-	for (int32_t z = 0; z < count; ++z)
-		if (held[zone[z]] != LVP__HELD_BEFORE)
-			held[zone[z]] = 0;
+	/* The skin the last pass pressed is held (LVP__HELD_BEFORE; the rest of the zone 0, as each pass left it),
+	 * and what the plate carries across is pressed back. */
 	lvp__settle_as_plate(binding, positions, zone, count, smoothing_passes);
 	lvp__press_across(binding, rest_positions, true);
 	for (int32_t k = 0; k < n; ++k)

@@ -83,8 +83,7 @@ static void lvp__plate_mark(lvp__plate *plate, int32_t k, uint8_t role, int32_t 
 {
 	if (!(plate->role[k] & role)) {
 		plate->role[k] |= role;
-		if (list)
-			list[(*count)++] = k;
+		list[(*count)++] = k;
 	}
 }
 

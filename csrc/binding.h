@@ -341,10 +341,15 @@ typedef struct lvp__joint {
  * (lvp__relaxation_begin) and kept between frames only as memory. */
 typedef struct lvp__plate {
 	uint8_t *role;             /* per vertex: LVP__PLATE_* during a settling, zero between */
-	int32_t *free, *rows, *read; /* the vertices it moves, those in its bending sum, those the rows read */
+	int32_t *free, *rows, *read; /* the vertices it moves, those in its bending sum (by local number once
+	                              listed), those the rows read */
 	int32_t free_count, row_count, read_count;
-	double *offsets;           /* *3: the offsets the rows read; the free ones are the unknowns */
-	double *direction, *product, *residual; /* *3: conjugate gradients' */
+	int32_t *number;           /* per vertex the rows read: its local number, the free vertices first */
+	int32_t *row_starts;       /* row_count+1: each row's neighbours in columns and weights */
+	int32_t *columns;          /* per relaxation entry of a row: the neighbour's local number */
+	float *weights;            /* and what the row's Laplacian multiplies its offset by */
+	double *offsets;           /* *3, by local number: the offsets the rows read; the free ones are the unknowns */
+	double *direction, *product, *residual; /* *3, by local number: conjugate gradients' */
 	double *laplacian;         /* *3, per row: the Laplacian of the vector a product multiplies */
 } lvp__plate;
 
@@ -880,7 +885,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions);
  * and the skin outside the zone stay. Moves step.positions. */
 void lvp__settle_as_plate(lvp_binding *binding, const float *positions, const int32_t *zone, int32_t count,
                           int32_t smoothing_passes);
-bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count);
+bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count, int32_t entry_count);
 void lvp__plate_free(lvp__plate *plate);
 
 /* offset_smoothing.c */

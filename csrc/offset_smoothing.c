@@ -145,7 +145,8 @@ lvp_result lvp__relaxation_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	if (binding->relaxation.offsets)
 		return lvp_success;
 	lvp_result result = lvp__build_lists(binding, &binding->relaxation, true, r_diag);
-	if (!result && !lvp__plate_alloc(&binding->fold.plate, binding->vertex_count))
+	if (!result && !lvp__plate_alloc(&binding->fold.plate, binding->vertex_count,
+	                                 binding->relaxation.offsets[binding->vertex_count]))
 		result = lvp_error_out_of_memory;
 	if (!result)
 		return lvp_success;

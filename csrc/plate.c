@@ -32,50 +32,40 @@ enum {
 	LVP__PLATE_READ = 4  /* a row reads it: plate.offsets and plate.direction hold it */
 };
 
-/* out = A v on the free vertices: A = L^T L + screen I over the rows, v read where a row reads it (zero off
- * the free vertices for a direction). plate.laplacian is scratch. */
-static void lvp__plate_product(lvp_binding *binding, const double *v, double screen, double *out)
+/* out = A v on the free vertices: A = L^T L + screen I over the rows, v by local number (zero off the free
+ * vertices for a direction; a neighbour outside the dynamic set reads zero, as it has no offset in a smoothing
+ * pass). plate.laplacian is scratch. */
+static void lvp__plate_product(lvp__plate *plate, const double *v, double screen, double *out)
 {
-	const lvp__smoothing *weights = &binding->relaxation;
-	lvp__plate *plate = &binding->fold.plate;
-	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
+	const int32_t *starts = plate->row_starts, *columns = plate->columns;
+	const float *weights = plate->weights;
 	for (int32_t r = 0; r < plate->row_count; ++r) {
-		int32_t k = plate->rows[r];
 		double sum[3] = {0.0, 0.0, 0.0};
-		if (weights->offsets[k + 1] > weights->offsets[k]) {
-			/* As a smoothing pass reads it: a neighbour outside the dynamic set has no offset. */
-			for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e) {
-				int32_t j = weights->neighbours[e];
-				if (dynamic[j])
-					for (int c = 0; c < 3; ++c)
-						sum[c] += 2.0 * weights->halves[e] * v[3 * j + c];
-			}
+		if (starts[r + 1] > starts[r]) {
+			for (int32_t e = starts[r]; e < starts[r + 1]; ++e)
+				for (int c = 0; c < 3; ++c)
+					sum[c] += weights[e] * v[3 * columns[e] + c];
 			for (int c = 0; c < 3; ++c)
-				sum[c] -= v[3 * k + c];
+				sum[c] -= v[3 * plate->rows[r] + c];
 		}
 		for (int c = 0; c < 3; ++c)
 			plate->laplacian[3 * r + c] = sum[c];
 	}
-	for (int32_t f = 0; f < plate->free_count; ++f) {
-		int32_t k = plate->free[f];
-		for (int c = 0; c < 3; ++c)
-			out[3 * k + c] = screen * v[3 * k + c];
-	}
+	int32_t free_count = plate->free_count;
+	for (int32_t i = 0; i < 3 * free_count; ++i)
+		out[i] = screen * v[i];
 	/* L^T: each row's Laplacian back onto the free vertices it read, in the rows' order. */
 	for (int32_t r = 0; r < plate->row_count; ++r) {
-		int32_t k = plate->rows[r];
 		const double *lap = plate->laplacian + 3 * r;
-		if (weights->offsets[k + 1] == weights->offsets[k])
+		if (starts[r + 1] == starts[r])
 			continue;
-		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e) {
-			int32_t j = weights->neighbours[e];
-			if (plate->role[j] & LVP__PLATE_FREE)
+		for (int32_t e = starts[r]; e < starts[r + 1]; ++e)
+			if (columns[e] < free_count)
 				for (int c = 0; c < 3; ++c)
-					out[3 * j + c] += 2.0 * weights->halves[e] * lap[c];
-		}
-		if (plate->role[k] & LVP__PLATE_FREE)
+					out[3 * columns[e] + c] += weights[e] * lap[c];
+		if (plate->rows[r] < free_count)
 			for (int c = 0; c < 3; ++c)
-				out[3 * k + c] -= lap[c];
+				out[3 * plate->rows[r] + c] -= lap[c];
 	}
 }
 
@@ -87,8 +77,10 @@ static void lvp__plate_mark(lvp__plate *plate, int32_t k, uint8_t role, int32_t 
 	}
 }
 
-/* Lists the free vertices (the zone's not held), the rows and what the rows read; loads the offsets of
- * what is read and clears the direction there. Returns the number of free vertices. */
+/* Lists the free vertices (the zone's not held), the rows and what the rows read, and numbers what is read
+ * for the solve: the free vertices first, in their list's order, then the rest. Lays out the rows' Laplacians
+ * by those numbers (rows then holds each row's own number), loads the offsets of what is read and clears the
+ * direction there. Returns the number of free vertices. */
 static int32_t lvp__plate_begin(lvp_binding *binding, const float *positions, const int32_t *zone, int32_t count)
 {
 	const lvp__smoothing *weights = &binding->relaxation;
@@ -109,13 +101,29 @@ static int32_t lvp__plate_begin(lvp_binding *binding, const float *positions, co
 		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e)
 			lvp__plate_mark(plate, weights->neighbours[e], LVP__PLATE_READ, plate->read, &plate->read_count);
 	}
+	for (int32_t f = 0; f < plate->free_count; ++f)
+		plate->number[plate->free[f]] = f;
+	for (int32_t i = 0, next = plate->free_count; i < plate->read_count; ++i)
+		if (!(plate->role[plate->read[i]] & LVP__PLATE_FREE))
+			plate->number[plate->read[i]] = next++;
+	int32_t written = 0;
+	for (int32_t r = 0; r < plate->row_count; ++r) {
+		int32_t k = plate->rows[r];
+		plate->row_starts[r] = written;
+		for (int32_t e = weights->offsets[k]; e < weights->offsets[k + 1]; ++e) {
+			plate->columns[written] = plate->number[weights->neighbours[e]];
+			plate->weights[written++] = 2.0f * weights->halves[e];
+		}
+		plate->rows[r] = plate->number[k];
+	}
+	plate->row_starts[plate->row_count] = written;
 	for (int32_t i = 0; i < plate->read_count; ++i) {
-		int32_t k = plate->read[i];
+		int32_t k = plate->read[i], at = plate->number[k];
 		for (int c = 0; c < 3; ++c) {
-			plate->offsets[3 * k + c] = binding->frame_map.vertex_dynamic[k]
-			                                ? (double)binding->step.positions[3 * k + c] - positions[3 * k + c]
-			                                : 0.0;
-			plate->direction[3 * k + c] = 0.0;
+			plate->offsets[3 * at + c] = binding->frame_map.vertex_dynamic[k]
+			                                 ? (double)binding->step.positions[3 * k + c] - positions[3 * k + c]
+			                                 : 0.0;
+			plate->direction[3 * at + c] = 0.0;
 		}
 	}
 	return plate->free_count;
@@ -128,6 +136,7 @@ static void lvp__plate_tie(lvp_binding *binding, double *v)
 {
 	const lvp__smoothing *weights = &binding->relaxation;
 	const uint8_t *role = binding->fold.plate.role;
+	const int32_t *number = binding->fold.plate.number;
 	for (int32_t tie = 0; tie < weights->tie_count; ++tie) {
 		double mean[3] = {0.0, 0.0, 0.0};
 		int32_t count = 0;
@@ -136,14 +145,14 @@ static void lvp__plate_tie(lvp_binding *binding, double *v)
 			if (role[k] & LVP__PLATE_FREE) {
 				++count;
 				for (int c = 0; c < 3; ++c)
-					mean[c] += v[3 * k + c];
+					mean[c] += v[3 * number[k] + c];
 			}
 		}
 		for (int32_t i = weights->tie_offsets[tie]; count > 1 && i < weights->tie_offsets[tie + 1]; ++i) {
 			int32_t k = weights->tie_members[i];
 			if (role[k] & LVP__PLATE_FREE)
 				for (int c = 0; c < 3; ++c)
-					v[3 * k + c] = mean[c] / count;
+					v[3 * number[k] + c] = mean[c] / count;
 		}
 	}
 }
@@ -155,12 +164,12 @@ static void lvp__plate_end(lvp__plate *plate)
 		plate->role[plate->read[i]] = 0;
 }
 
+/* a . b over the free vertices (the first free_count by local number) */
 static double lvp__plate_dot(const lvp__plate *plate, const double *a, const double *b)
 {
 	double sum = 0.0;
-	for (int32_t f = 0; f < plate->free_count; ++f)
-		for (int c = 0; c < 3; ++c)
-			sum += a[3 * plate->free[f] + c] * b[3 * plate->free[f] + c];
+	for (int32_t i = 0; i < 3 * plate->free_count; ++i)
+		sum += a[i] * b[i];
 	return sum;
 }
 
@@ -174,57 +183,56 @@ void lvp__settle_as_plate(lvp_binding *binding, const float *positions, const in
 		lvp__plate_end(plate);
 		return;
 	}
+	/* By local number: x and d over what the rows read, q and r over the free vertices. */
 	double *x = plate->offsets, *d = plate->direction, *q = plate->product, *r = plate->residual;
+	int32_t free_values = 3 * plate->free_count;
 	double screen = pow(1.0 / (LVP__PLATE_REACH_SHARE * smoothing_passes), 4.0);
 	/* From the membrane's offsets, where the screening term is zero: the residual is the bending's pull. */
-	lvp__plate_product(binding, x, 0.0, q);
-	for (int32_t f = 0; f < plate->free_count; ++f)
-		for (int c = 0; c < 3; ++c)
-			r[3 * plate->free[f] + c] = -q[3 * plate->free[f] + c];
+	lvp__plate_product(plate, x, 0.0, q);
+	for (int32_t i = 0; i < free_values; ++i)
+		r[i] = -q[i];
 	lvp__plate_tie(binding, r);
-	for (int32_t f = 0; f < plate->free_count; ++f)
-		for (int c = 0; c < 3; ++c)
-			d[3 * plate->free[f] + c] = r[3 * plate->free[f] + c];
+	for (int32_t i = 0; i < free_values; ++i)
+		d[i] = r[i];
 	double rr = lvp__plate_dot(plate, r, r), first = rr;
 	for (int32_t it = 0; it < LVP__PLATE_MOST_ITERATIONS && rr > LVP__PLATE_TOLERANCE * LVP__PLATE_TOLERANCE * first;
 	     ++it) {
-		lvp__plate_product(binding, d, screen, q);
+		lvp__plate_product(plate, d, screen, q);
 		double curvature = lvp__plate_dot(plate, d, q);
 		if (!(curvature > 0.0) || !isfinite(curvature))
 			break;
 		double alpha = rr / curvature;
-		for (int32_t f = 0; f < plate->free_count; ++f)
-			for (int c = 0; c < 3; ++c) {
-				int32_t i = 3 * plate->free[f] + c;
-				x[i] += alpha * d[i];
-				r[i] -= alpha * q[i];
-			}
+		for (int32_t i = 0; i < free_values; ++i) {
+			x[i] += alpha * d[i];
+			r[i] -= alpha * q[i];
+		}
 		lvp__plate_tie(binding, r);
 		double next = lvp__plate_dot(plate, r, r);
-		for (int32_t f = 0; f < plate->free_count; ++f)
-			for (int c = 0; c < 3; ++c) {
-				int32_t i = 3 * plate->free[f] + c;
-				d[i] = r[i] + next / rr * d[i];
-			}
+		for (int32_t i = 0; i < free_values; ++i)
+			d[i] = r[i] + next / rr * d[i];
 		rr = next;
 	}
 	for (int32_t f = 0; f < plate->free_count; ++f) {
 		int32_t k = plate->free[f];
-		if (isfinite(x[3 * k]) && isfinite(x[3 * k + 1]) && isfinite(x[3 * k + 2]))
+		if (isfinite(x[3 * f]) && isfinite(x[3 * f + 1]) && isfinite(x[3 * f + 2]))
 			for (int c = 0; c < 3; ++c)
-				binding->step.positions[3 * k + c] = (float)(positions[3 * k + c] + x[3 * k + c]);
+				binding->step.positions[3 * k + c] = (float)(positions[3 * k + c] + x[3 * f + c]);
 	}
 	lvp__plate_end(plate);
 }
 
-bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count)
+bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count, int32_t entry_count)
 {
 	bool ok = true;
-	size_t n = (size_t)vertex_count + 1;
+	size_t n = (size_t)vertex_count + 1, entries = (size_t)entry_count + 1;
 	plate->role = lvp__calloc(n, 1, &ok);
 	plate->free = lvp__calloc(n, sizeof(int32_t), &ok);
 	plate->rows = lvp__calloc(n, sizeof(int32_t), &ok);
 	plate->read = lvp__calloc(n, sizeof(int32_t), &ok);
+	plate->number = lvp__calloc(n, sizeof(int32_t), &ok);
+	plate->row_starts = lvp__calloc(n + 1, sizeof(int32_t), &ok);
+	plate->columns = lvp__calloc(entries, sizeof(int32_t), &ok);
+	plate->weights = lvp__calloc(entries, sizeof(float), &ok);
 	plate->offsets = lvp__calloc(3 * n, sizeof(double), &ok);
 	plate->direction = lvp__calloc(3 * n, sizeof(double), &ok);
 	plate->product = lvp__calloc(3 * n, sizeof(double), &ok);
@@ -239,6 +247,10 @@ void lvp__plate_free(lvp__plate *plate)
 	free(plate->free);
 	free(plate->rows);
 	free(plate->read);
+	free(plate->number);
+	free(plate->row_starts);
+	free(plate->columns);
+	free(plate->weights);
 	free(plate->offsets);
 	free(plate->direction);
 	free(plate->product);

@@ -398,6 +398,11 @@ typedef struct lvp__contact {
 	uint8_t *shortened;        /* per vertex: some offset of it was shortened this frame */
 	uint8_t *pinned;           /* per vertex, this frame: held by fold-over where skinned skin crosses
 	                              (lvp__pin_held); its offset is never shortened */
+	int32_t *raise_patch;      /* per vertex, a raise of pinned patches (lvp__raise_pinned_crossing): the
+	                              number of its patch */
+	float *raise_below, *raise_above, *raise_middle; /* per patch of a raise: its height's bisection */
+	uint8_t *raise_tested;     /* per triangle, a raise: what its crossing says of its patch (contact.c) */
+	uint8_t *raise_patch_crossing; /* per patch, a raise: some triangle of it crosses at its height */
 	float *shifted_limit;      /* per triangle, a first round: limit's share for the pairs that cross along
 	                              the skinning's own crossing, moved by less than a triangle (contact.c) */
 	int32_t *pair_count;       /* per triangle, a first round: pairs crossing after the correction counted
@@ -416,7 +421,8 @@ typedef struct lvp__contact {
 	                              were smoothed around), at some fade (lvp__kept_apart_counts) */
 	int32_t *reader_offsets;   /* vertex_count + 1 into readers: */
 	int32_t *readers;          /* the vertices whose smoothing neighbours hold each vertex (clearance.c) */
-	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks */
+	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks, or a raise's
+	                              walk over its patches */
 	uint8_t *near_seen;        /* scratch, vertex_count: listed in near this smoothing */
 	uint8_t *connected;        /* per node of the hierarchy: its triangles are one patch (flat_patches.c) */
 	float *cones;              /* per node: the cone of its triangles' normals at the last fit */

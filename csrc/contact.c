@@ -25,6 +25,8 @@
 #define LVP__CONTACT_ROUNDS 8
 /* Times a smoothed shortening is tested again (each test's shortening smoothed before the next). */
 #define LVP__CONTACT_RETESTS 3
+/* Steps of the bisection for how far a pinned patch goes back up (lvp__raise_pinned_crossing). */
+#define LVP__RAISE_STEPS 6
 /* Steps of the bisection for the share of the offsets that keeps a pair apart. */
 #define LVP__CONTACT_BISECTIONS 10
 
@@ -499,6 +501,12 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->faded = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->raise_patch = lvp__calloc((size_t)binding->vertex_count, sizeof(int32_t), &ok);
+	contact->raise_below = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->raise_above = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->raise_middle = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->raise_tested = lvp__calloc((size_t)binding->triangle_count, 1, &ok);
+	contact->raise_patch_crossing = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	if (ok) {
 		lvp__find_leaves(contact, binding->triangle_count);
 		if ((result = lvp__flat_patches_begin(binding, r_diag)) == lvp_success &&
@@ -713,24 +721,109 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 	lvp__grow_marked_patches(binding, held, contact->pinned);
 }
 
+/* Numbers the patches of the vertices marked in contact.moved (raise_patch: joined by edges), from 0;
+ * returns how many there are. */
+static int32_t lvp__number_raised_patches(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__mesh *mesh = &binding->mesh;
+	const uint8_t *raised = contact->moved;
+	int32_t *patch = contact->raise_patch, *queue = contact->near, count = 0;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
+		patch[binding->dynamic.vertices[v]] = -1;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t seed = binding->dynamic.vertices[v];
+		if (!raised[seed] || patch[seed] >= 0)
+			continue;
+		int32_t head = 0, tail = 0;
+		patch[seed] = count;
+		queue[tail++] = seed;
+		while (head < tail) {
+			int32_t k = queue[head++];
+			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c)
+				for (int i = 0; i < 3; ++i) {
+					int32_t corner = mesh->triangles[3 * (int64_t)mesh->vertex_triangles[c] + i];
+					if (raised[corner] && patch[corner] < 0) {
+						patch[corner] = count;
+						queue[tail++] = corner;
+					}
+				}
+		}
+		++count;
+	}
+	return count;
+}
+
+/* contact.raise_tested, per triangle, in a raise of pinned patches (lvp__raise_pinned_crossing): */
+enum {
+	LVP__RAISE_UNTESTED = 0, /* no corner raised, or not crossing with its patch lowered */
+	LVP__RAISE_PARTED,       /* crossing with its patch lowered, not raised whole: the bisection's test */
+	LVP__RAISE_CROSSING,     /* crossing with its patch raised whole: no height of the patch parts it */
+};
+
+/* Places the raised patches (contact.moved) at each one's height: its vertices' shares `up` (per patch) of the
+ * way from the lowered shares back to 1; the tree fitted there. */
+static void lvp__place_raised(lvp_binding *binding, const lvp__contact_pass *pass, const float *lowered,
+                              const float *up)
+{
+	lvp__contact *contact = &binding->contact;
+	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+		int32_t k = binding->dynamic.vertices[v];
+		if (contact->moved[k])
+			contact->scale[k] = lowered[k] + up[contact->raise_patch[k]] * (1.0f - lowered[k]);
+	}
+	lvp__place_shortened(binding, pass->positions, binding->fold.saved);
+	lvp__refit_moved(binding, binding->step.positions);
+}
+
+/* Marks in contact.raise_patch_crossing the raised patches (contact.moved) one of whose triangles crosses
+ * skin where the correction puts it now, of those marked `which` in contact.raise_tested, or (`which` < 0)
+ * of all but those marked LVP__RAISE_CROSSING. Patches at `height` 1 (when given) are not tested. */
+static void lvp__find_raised_crossing(lvp_binding *binding, const lvp__contact_pass *at_correction, int which,
+                                      const float *height, int32_t patch_count)
+{
+	lvp__contact *contact = &binding->contact;
+	uint8_t *crossing = contact->raise_patch_crossing;
+	for (int32_t p = 0; p < patch_count; ++p)
+		crossing[p] = height && height[p] == 1.0f; /* known: the test below skips them */
+	for (int32_t t = 0; t < binding->triangle_count; ++t) {
+		int tested = contact->raise_tested[t];
+		if (which >= 0 ? tested != which : tested == LVP__RAISE_CROSSING)
+			continue;
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		bool open = false; /* a raised corner whose patch is not yet known to cross */
+		for (int i = 0; i < 3; ++i)
+			open = open || (contact->moved[corners[i]] && !crossing[contact->raise_patch[corners[i]]]);
+		if (!open || !lvp__crosses_at(at_correction, corners))
+			continue;
+		for (int i = 0; i < 3; ++i)
+			if (contact->moved[corners[i]])
+				crossing[contact->raise_patch[corners[i]]] = 1;
+	}
+}
+
 /* A pinned patch comes down with the skin around it when the shares are smoothed: where the crossing
  * test shortened that skin (it would meet a third skin), a patch left in place stood out of it, a shard
  * as tall as the offsets. Brought down, it may bring back the crossing fold-over undid: every patch one of
- * whose lowered triangles then crosses skin goes back up whole (its shares 1). Marks the vertices raised
- * in contact.moved (which the caller sets afterwards) and returns whether it raised any; the positions
- * are placed by the shares as they were (the caller places them again). */
+ * whose lowered triangles then crosses skin goes back up, no further than parts those triangles (its
+ * shares the least way back up to 1, bisected), unless another of its triangles then crosses, when it
+ * goes up whole as before. A triangle that crosses with its patch raised whole (between a raised vertex
+ * and a neighbour the rounds shortened to nothing) is parted at no height: raising the patch whole for it
+ * stood the patch up above its neighbours, a spike. Marks the vertices raised in contact.moved (which the
+ * caller sets afterwards) and returns whether it raised any; the positions are placed by the shares as
+ * they were (the caller places them again). */
 static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_pass *pass)
 {
 	lvp__contact *contact = &binding->contact;
 	const uint8_t *pinned = contact->pinned;
-	uint8_t *raised = contact->moved;
-	float *scale = contact->scale, *next = contact->next_scale;
+	uint8_t *raised = contact->moved, *tested = contact->raise_tested, *crossing = contact->raise_patch_crossing;
+	float *scale = contact->scale, *lowered = contact->next_scale; /* the smoothed shares, as the caller left them */
 	const float *work = binding->step.positions;
 	const int32_t *dynamic = binding->dynamic.vertices, dynamic_count = binding->dynamic.vertex_count;
-	bool lowered = false;
-	for (int32_t v = 0; v < dynamic_count && !lowered; ++v)
-		lowered = pinned[dynamic[v]] && scale[dynamic[v]] < 1.0f;
-	if (!lowered)
+	bool down = false;
+	for (int32_t v = 0; v < dynamic_count && !down; ++v)
+		down = pinned[dynamic[v]] && scale[dynamic[v]] < 1.0f;
+	if (!down)
 		return false;
 	memset(raised, 0, (size_t)binding->vertex_count);
 	lvp__refit_dynamic(binding, work);
@@ -740,10 +833,11 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 	bool any = false;
 	for (int32_t t = 0; t < binding->triangle_count; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
-		bool down = false;
+		bool lowered_here = false;
 		for (int i = 0; i < 3; ++i)
-			down = down || (pinned[corners[i]] && scale[corners[i]] < 1.0f);
-		if (!down || !lvp__crosses_at(&at_correction, corners))
+			lowered_here = lowered_here || (pinned[corners[i]] && scale[corners[i]] < 1.0f);
+		tested[t] = lowered_here && lvp__crosses_at(&at_correction, corners) ? LVP__RAISE_PARTED : LVP__RAISE_UNTESTED;
+		if (!tested[t])
 			continue;
 		for (int i = 0; i < 3; ++i)
 			if (pinned[corners[i]]) {
@@ -754,9 +848,41 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 	if (!any)
 		return false;
 	lvp__grow_marked_patches(binding, pinned, raised);
-	for (int32_t v = 0; v < dynamic_count; ++v)
-		if (raised[dynamic[v]])
-			scale[dynamic[v]] = next[dynamic[v]] = 1.0f;
+	int32_t patch_count = lvp__number_raised_patches(binding);
+	float *below = contact->raise_below, *above = contact->raise_above;
+	for (int32_t p = 0; p < patch_count; ++p) {
+		below[p] = 0.0f;
+		above[p] = 1.0f;
+	}
+	/* Raised whole: those of the triangles found crossing that cross even so. */
+	lvp__place_raised(binding, pass, lowered, above);
+	for (int32_t t = 0; t < binding->triangle_count; ++t)
+		if (tested[t] && lvp__crosses_at(&at_correction, binding->mesh.triangles + 3 * (int64_t)t))
+			tested[t] = LVP__RAISE_CROSSING;
+	/* The least height that parts the triangles found crossing lowered (below crosses, above parts). */
+	for (int step = 0; step < LVP__RAISE_STEPS; ++step) {
+		for (int32_t p = 0; p < patch_count; ++p)
+			contact->raise_middle[p] = 0.5f * (below[p] + above[p]);
+		lvp__place_raised(binding, pass, lowered, contact->raise_middle);
+		lvp__find_raised_crossing(binding, &at_correction, LVP__RAISE_PARTED, NULL, patch_count);
+		for (int32_t p = 0; p < patch_count; ++p) {
+			if (crossing[p])
+				below[p] = contact->raise_middle[p];
+			else
+				above[p] = contact->raise_middle[p];
+		}
+	}
+	/* There, a patch whose other triangles cross goes up whole (those already up are not tested). */
+	lvp__place_raised(binding, pass, lowered, above);
+	lvp__find_raised_crossing(binding, &at_correction, -1, above, patch_count);
+	for (int32_t p = 0; p < patch_count; ++p)
+		if (crossing[p])
+			above[p] = 1.0f;
+	for (int32_t v = 0; v < dynamic_count; ++v) {
+		int32_t k = dynamic[v];
+		if (raised[k])
+			scale[k] = lowered[k] = lowered[k] + above[contact->raise_patch[k]] * (1.0f - lowered[k]);
+	}
 	return true;
 }
 
@@ -875,6 +1001,12 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->tested_scale);
 	free(contact->shortened);
 	free(contact->pinned);
+	free(contact->raise_patch);
+	free(contact->raise_below);
+	free(contact->raise_above);
+	free(contact->raise_middle);
+	free(contact->raise_tested);
+	free(contact->raise_patch_crossing);
 	free(contact->scale);
 	free(contact->next_scale);
 	free(contact->clearance);

@@ -372,7 +372,7 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 220 bytes a triangle, and 50 bytes a vertex) and at the first with fold_over
+ *   hierarchy, about 220 bytes a triangle, and 70 bytes a vertex) and at the first with fold_over
  *   (FOLD-OVER: its relaxation's neighbour lists and plate, about 320 bytes a vertex);
  *   lvp_error_out_of_memory when that fails. With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical

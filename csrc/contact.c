@@ -729,8 +729,8 @@ static int32_t lvp__number_raised_patches(lvp_binding *binding)
 	const lvp__mesh *mesh = &binding->mesh;
 	const uint8_t *raised = contact->moved;
 	int32_t *patch = contact->raise_patch, *queue = contact->near, count = 0;
-	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
-		patch[binding->dynamic.vertices[v]] = -1;
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		patch[k] = -1;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 		int32_t seed = binding->dynamic.vertices[v];
 		if (!raised[seed] || patch[seed] >= 0)
@@ -810,8 +810,8 @@ static void lvp__find_raised_crossing(lvp_binding *binding, const lvp__contact_p
  * goes up whole as before. A triangle that crosses with its patch raised whole (between a raised vertex
  * and a neighbour the rounds shortened to nothing) is parted at no height: raising the patch whole for it
  * stood the patch up above its neighbours, a spike. Marks the vertices raised in contact.moved (which the
- * caller sets afterwards) and returns whether it raised any; the positions are placed by the shares as
- * they were (the caller places them again). */
+ * caller sets afterwards) and returns whether it raised any; the positions are left where its last test
+ * placed them (the caller places them again by the shares). */
 static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_pass *pass)
 {
 	lvp__contact *contact = &binding->contact;

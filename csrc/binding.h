@@ -403,6 +403,7 @@ typedef struct lvp__contact {
 	float *raise_below, *raise_above, *raise_middle; /* per patch of a raise: its height's bisection */
 	uint8_t *raise_tested;     /* per triangle, a raise: what its crossing says of its patch (contact.c) */
 	uint8_t *raise_patch_crossing; /* per patch, a raise: some triangle of it crosses at its height */
+	uint8_t *share_roles;      /* per vertex, after a raise: what its share does in a smoothing (LVP__SHARE_*) */
 	float *shifted_limit;      /* per triangle, a first round: limit's share for the pairs that cross along
 	                              the skinning's own crossing, moved by less than a triangle (contact.c) */
 	int32_t *pair_count;       /* per triangle, a first round: pairs crossing after the correction counted
@@ -973,8 +974,15 @@ bool lvp__fade_at_clearance(lvp_binding *binding, const float *positions);
 /* Shares of the dynamic vertices' offsets (per vertex, at most 1) smoothed over the rings around:
  * none left more than LVP__SHARE_SLOPE (clearance.c) above a neighbour's, then averaged; with
  * keep_floors the averaging only lowers (it rounds the rims of the dips and keeps their floors).
- * Vertices marked in `kept` (may be NULL) are not read by the others and only take the slope from
- * the skin around them (kept or not), never averaged. `scratch`: per vertex. */
-void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors);
+ * `roles` (per vertex, or NULL: all LVP__SHARE_SMOOTHED) says what each vertex's share does. `scratch`:
+ * per vertex. */
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *roles, bool keep_floors);
+/* What a vertex's share does in lvp__smooth_shares: */
+enum {
+	LVP__SHARE_SMOOTHED = 0, /* read by its neighbours, and smoothed */
+	LVP__SHARE_KEPT = 1,     /* not read by the others; takes only the slope from the skin around it (kept or
+	                            not), never averaged */
+	LVP__SHARE_FIXED = 2,    /* read by its neighbours, never changed */
+};
 
 #endif /* LVP_BINDING_H */

@@ -43,7 +43,7 @@ typedef struct lvp__clearance_pass {
 	const float *positions; /* the frame's input points (the skinning) */
 	const float *from;      /* the shares a smoothing pass reads */
 	float *to;              /* and writes */
-	const uint8_t *kept;    /* per vertex, or NULL: shares a smoothing pass neither reads nor changes */
+	const uint8_t *roles;   /* per vertex, or NULL: what a smoothing pass does with each share (LVP__SHARE_*) */
 	bool keep_floors;       /* averaging lowers shares, never raises one */
 	const int32_t *near;    /* the vertices a smoothing pass walks (lvp__near_low_shares) */
 } lvp__clearance_pass;
@@ -656,17 +656,23 @@ static void lvp__share_range(void *context, int32_t begin, int32_t end)
 	}
 }
 
+/* The role of vertex k's share in a smoothing pass (LVP__SHARE_*). */
+static inline int lvp__share_role(const lvp__clearance_pass *pass, int32_t k)
+{
+	return pass->roles ? pass->roles[k] : LVP__SHARE_SMOOTHED;
+}
+
 /* Whether neighbour j's share counts in a smoothing pass: it has an offset this frame, and is not
  * kept out. */
 static inline bool lvp__share_counts(const lvp__clearance_pass *pass, const uint8_t *dynamic, int32_t j)
 {
-	return dynamic[j] && !(pass->kept && pass->kept[j]);
+	return dynamic[j] && lvp__share_role(pass, j) != LVP__SHARE_KEPT;
 }
 
 /* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the vertex's share, or
  * its least neighbour's and LVP__SHARE_SLOPE more when that is less. A kept vertex takes the slope
  * from every neighbour with an offset, kept or not (a kept patch comes down with the skin around it,
- * ring by ring), while the others do not read the kept ones' shares. */
+ * ring by ring), while the others do not read the kept ones' shares; a fixed one keeps its share. */
 static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__clearance_pass *pass = context;
@@ -675,9 +681,10 @@ static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 	const uint8_t *dynamic = binding->frame_map.vertex_dynamic;
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = pass->near[v];
-		bool kept = pass->kept && pass->kept[k];
+		int role = lvp__share_role(pass, k);
+		bool kept = role == LVP__SHARE_KEPT;
 		float least = pass->from[k];
-		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1] && role != LVP__SHARE_FIXED; ++e) {
 			int32_t j = smoothing->neighbours[e];
 			bool counts = kept ? dynamic[j] != 0 : lvp__share_counts(pass, dynamic, j);
 			if (counts && pass->from[j] + LVP__SHARE_SLOPE < least)
@@ -689,7 +696,7 @@ static void lvp__slope_range(void *context, int32_t begin, int32_t end)
 
 /* One pass over the dynamic vertices in [begin, end), from `from` into `to`: the mean of the share
  * of the vertex and those of its dynamic neighbours (with keep_floors, where that is less than its
- * own). */
+ * own); kept and fixed vertices keep theirs. */
 static void lvp__average_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__clearance_pass *pass = context;
@@ -699,7 +706,7 @@ static void lvp__average_range(void *context, int32_t begin, int32_t end)
 	for (int32_t v = begin; v < end; ++v) {
 		int32_t k = pass->near[v];
 		double sum = 0.0, count = 0.0;
-		if (!(pass->kept && pass->kept[k])) {
+		if (lvp__share_role(pass, k) == LVP__SHARE_SMOOTHED) {
 			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
 				int32_t j = smoothing->neighbours[e];
 				if (lvp__share_counts(pass, dynamic, j)) {
@@ -771,11 +778,11 @@ static void lvp__near_low_shares(lvp_binding *binding, const float *shares,
 	}
 }
 
-void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *kept, bool keep_floors)
+void lvp__smooth_shares(lvp_binding *binding, float *shares, float *scratch, const uint8_t *roles, bool keep_floors)
 {
 	int32_t ring_ends[LVP__SLOPE_PASSES + LVP__AVERAGE_PASSES + 1];
 	lvp__near_low_shares(binding, shares, ring_ends);
-	lvp__clearance_pass pass = {binding, NULL, shares, scratch, kept, keep_floors, binding->contact.near};
+	lvp__clearance_pass pass = {binding, NULL, shares, scratch, roles, keep_floors, binding->contact.near};
 	/* The vertices past the rings a pass walks, which its last ring reads, hold 1 in both. */
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v)
 		scratch[binding->dynamic.vertices[v]] = shares[binding->dynamic.vertices[v]];

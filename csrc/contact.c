@@ -507,6 +507,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->raise_middle = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->raise_tested = lvp__calloc((size_t)binding->triangle_count, 1, &ok);
 	contact->raise_patch_crossing = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
+	contact->share_roles = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	if (ok) {
 		lvp__find_leaves(contact, binding->triangle_count);
 		if ((result = lvp__flat_patches_begin(binding, r_diag)) == lvp_success &&
@@ -886,6 +887,26 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 	return true;
 }
 
+/* After a raise that left a patch part of the way down: the skin beside the pinned patches comes down
+ * with them (their shares read, and kept). A smoothing of shares does not read a pinned patch's (its
+ * patch takes the slope from the skin around it, and was to go back up whole), so the skin on its other
+ * side kept its offsets beside it: a step at the patch's rim (the game horse's walk between the hind
+ * legs, a vertex 1.0 mean edges out among pinned neighbours at 0.25-0.36). */
+static void lvp__lower_beside_pinned(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const int32_t *dynamic = binding->dynamic.vertices, dynamic_count = binding->dynamic.vertex_count;
+	bool part_way = false;
+	for (int32_t v = 0; v < dynamic_count && !part_way; ++v)
+		part_way = contact->moved[dynamic[v]] && contact->scale[dynamic[v]] < 1.0f;
+	if (!part_way)
+		return;
+	for (int32_t k = 0; k < binding->vertex_count; ++k)
+		contact->share_roles[k] = contact->pinned[k] ? LVP__SHARE_FIXED : LVP__SHARE_SMOOTHED;
+	lvp__smooth_shares(binding, contact->scale, contact->next_scale, contact->share_roles, true);
+	memcpy(contact->next_scale, contact->scale, sizeof(float) * (size_t)binding->vertex_count);
+}
+
 int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first)
 {
 	lvp__contact *contact = &binding->contact;
@@ -922,12 +943,14 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		 * the others were tested at. */
 		memcpy(contact->changed, contact->moved, (size_t)n);
 		memcpy(contact->tested_scale, scale, sizeof(float) * (size_t)n);
-		lvp__smooth_shares(binding, scale, next, pinned, true);
+		lvp__smooth_shares(binding, scale, next, pinned, true); /* pinned: LVP__SHARE_KEPT (1) or not (0) */
 		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
 		bool raised = lvp__raise_pinned_crossing(binding, &pass);
-		if (raised)
+		if (raised) {
+			lvp__lower_beside_pinned(binding);
 			lvp__place_shortened(binding, positions, corrected);
+		}
 		/* What the next round tests: the corners shortened, and those raised back (contact.moved); the
 		 * pairs it tests, those with a corner the smoothing or the raising moved (contact.changed). */
 		for (int32_t v = 0; v < dynamic_count; ++v) {
@@ -1007,6 +1030,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->raise_middle);
 	free(contact->raise_tested);
 	free(contact->raise_patch_crossing);
+	free(contact->share_roles);
 	free(contact->scale);
 	free(contact->next_scale);
 	free(contact->clearance);

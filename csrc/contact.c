@@ -762,10 +762,9 @@ enum {
 	LVP__RAISE_CROSSING,     /* crossing with its patch raised whole: no height of the patch parts it */
 };
 
-/* Places the raised patches (contact.moved) at each one's height: its vertices' shares `up` (per patch) of the
- * way from the lowered shares back to 1; the tree fitted there. */
-static void lvp__place_raised(lvp_binding *binding, const lvp__contact_pass *pass, const float *lowered,
-                              const float *up)
+/* The shares (contact.scale) of the raised patches (contact.moved) at each one's height: `up` (per patch) of
+ * the way from the lowered shares back to 1. */
+static void lvp__set_raised_shares(lvp_binding *binding, const float *lowered, const float *up)
 {
 	lvp__contact *contact = &binding->contact;
 	for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
@@ -773,6 +772,13 @@ static void lvp__place_raised(lvp_binding *binding, const lvp__contact_pass *pas
 		if (contact->moved[k])
 			contact->scale[k] = lowered[k] + up[contact->raise_patch[k]] * (1.0f - lowered[k]);
 	}
+}
+
+/* The raised patches placed at each one's height (lvp__set_raised_shares), the tree fitted there. */
+static void lvp__place_raised(lvp_binding *binding, const lvp__contact_pass *pass, const float *lowered,
+                              const float *up)
+{
+	lvp__set_raised_shares(binding, lowered, up);
 	lvp__place_shortened(binding, pass->positions, binding->fold.saved);
 	lvp__refit_moved(binding, binding->step.positions);
 }
@@ -879,11 +885,9 @@ static bool lvp__raise_pinned_crossing(lvp_binding *binding, const lvp__contact_
 	for (int32_t p = 0; p < patch_count; ++p)
 		if (crossing[p])
 			above[p] = 1.0f;
-	for (int32_t v = 0; v < dynamic_count; ++v) {
-		int32_t k = dynamic[v];
-		if (raised[k])
-			scale[k] = lowered[k] = lowered[k] + above[contact->raise_patch[k]] * (1.0f - lowered[k]);
-	}
+	lvp__set_raised_shares(binding, lowered, above);
+	for (int32_t v = 0; v < dynamic_count; ++v)
+		lowered[dynamic[v]] = scale[dynamic[v]]; /* next_scale as scale, as the caller left them */
 	return true;
 }
 

@@ -126,13 +126,9 @@ class TestHorse(helpers.AddonTestCase):
         self.assertGreater(max(map(abs, played[last])), 0.0)
 
 
-class TestHorseSurface(helpers.AddonTestCase):
-    """The horse's surface, every frame of every action, by the measures of ../shared/QUALITY.md against plain
-    skinning at the same frame: creases added at most one per 300 edges, and roughness against the largest
-    offset; with what renders have (Keep Skin Apart on), no more crossing pairs than plain skinning and no new
-    contact (surface_quality.measure_pose: "added crossings", "new contacts"). Keep Skin Apart never leaves a
-    frame out: by a rule that gave up past one triangle in 20 crossing anew, lay_to_idle had 56 crossing pairs
-    more than plain skinning on 5 frames."""
+class HorseSurfaceMeasures:
+    """The horse's surface over every frame of its actions, by the measures of ../shared/QUALITY.md against plain
+    skinning at the same frame (mixed into the test cases below)."""
 
     # No vertex further out of its neighbours' surface than plain skinning leaves it by more than this share of the
     # largest offset (surface_quality.shard), as the roughness.
@@ -180,6 +176,15 @@ class TestHorseSurface(helpers.AddonTestCase):
         for name, shard in self.shards.items():
             self.assertLessEqual(shard, self.SHARD_OF_LARGEST, "%s: a shard against the largest offset" % name)
 
+
+class TestHorseSurface(HorseSurfaceMeasures, helpers.AddonTestCase):
+    """The horse's surface, every frame of every action, by the measures of ../shared/QUALITY.md against plain
+    skinning at the same frame: creases added at most one per 300 edges, and roughness against the largest
+    offset; with what renders have (Keep Skin Apart on), no more crossing pairs than plain skinning and no new
+    contact (surface_quality.measure_pose: "added crossings", "new contacts"). Keep Skin Apart never leaves a
+    frame out: by a rule that gave up past one triangle in 20 crossing anew, lay_to_idle had 56 crossing pairs
+    more than plain skinning on 5 frames."""
+
     def test_every_frame_of_every_action(self):
         """With the add-on's defaults (the viewport's), roughness at most a quarter of the largest offset, as
         QUALITY.md asks, on every frame. On this coarse mesh (flesh an edge or two thick) it read 0.26-0.46: the
@@ -212,12 +217,8 @@ class TestHorseSurface(helpers.AddonTestCase):
         self.assertNoShard()
 
 
-class TestHorseFoldOverSurface(helpers.AddonTestCase):
-    """The horse's surface with Fold-Over and Keep Skin Apart, by TestHorseSurface's measures."""
-
-    SHARD_OF_LARGEST = TestHorseSurface.SHARD_OF_LARGEST
-    surface_of_every_action = TestHorseSurface.surface_of_every_action
-    assertNoShard = TestHorseSurface.assertNoShard
+class TestHorseFoldOverSurface(HorseSurfaceMeasures, helpers.AddonTestCase):
+    """The horse's surface with Fold-Over and Keep Skin Apart."""
 
     def test_fold_over_kick_stands_no_patch_out(self):
         """Fold-Over with Keep Skin Apart, the hind legs kicking: fold-over holds the skin between them on a

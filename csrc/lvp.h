@@ -318,11 +318,14 @@
  *   the skinning does (counted over the pairs with a moved triangle that the check visits, which holds every
  *   pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface
  *   keep their place in each patch of them where the skinned triangles cross skin (fold-over undid that
- *   crossing; moving them back would bring it back); the other patches are shortened as any, and a pair with
+ *   crossing; moving them back would bring it back), and so do the gaps of such a patch (free vertices
+ *   joined by edges, each beside the patch, none beside other free skin: shortened alone, down into the
+ *   skinning's crossing); the other patches are shortened as any, and a pair with
  *   such a corner that no shortening of its other corners parts keeps its offsets (taking them would part
  *   nothing and leave a step beside the held skin); where the skin around such a
- *   patch is shortened, the patch comes down with it as the shares are smoothed, and goes back up
- *   whole where one of its triangles then crosses skin (the crossing fold-over undid). It never
+ *   patch is shortened, the patch comes down with it as the shares are smoothed, and goes back up where
+ *   one of its triangles then crosses skin (the crossing fold-over undid), as far as parts it, the skin
+ *   beside it brought down with it once more (contact.c). It never
  *   gives up: a pose that folds the skin everywhere costs more (the 100k chain of the bench bent at
  *   every joint: seconds, not milliseconds), and stats.crossing_triangles says how many triangles the
  *   crossing test found after the fade (0 when it left pairs along the skinning's own crossing). Result:

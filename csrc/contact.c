@@ -704,8 +704,8 @@ static bool lvp__beside_marked(const lvp_binding *binding, const uint8_t *marks,
 
 /* Pins the gaps of the pinned patches: the sets of unpinned vertices joined by edges each of which has a
  * pinned neighbour (no vertex of the gap lies a ring away from the patch) and none of which is beside an
- * unpinned vertex out of the gap. Fold-over lets such a vertex go where the relaxation takes it (it did not
- * cross the plane), so it is not held, yet it lies among skin kept on its contact surface: shortened
+ * unpinned vertex out of the gap. Fold-over did not press such a vertex onto its plane (its relaxation moved
+ * it), so it is not held, yet it lies among skin kept on its contact surface: shortened
  * alone, it went down to where the skinning put it, inside the other skin (along the crease behind a
  * voxel body's knee bent to 150 degrees, a gap of 11 vertices: 28 more crossing pairs, 11 more creases). */
 static void lvp__pin_gaps(lvp_binding *binding)
@@ -751,7 +751,8 @@ static void lvp__pin_gaps(lvp_binding *binding)
  * rounding counts). Fold-over undid those crossings, and shortening the offsets of such a patch would
  * bring them back, so it keeps its place. The other patches are shortened as any: where the
  * skinning crosses nothing yet (a finger half closed), skin put on the contact plane can meet skin
- * coming from the other side, and only moving it back keeps the two apart. */
+ * coming from the other side, and only moving it back keeps the two apart. The gaps of a pinned patch are
+ * pinned with it (lvp__pin_gaps). */
 static void lvp__pin_held(lvp_binding *binding, const float *positions)
 {
 	lvp__contact *contact = &binding->contact;

@@ -669,29 +669,6 @@ static bool lvp__crosses_at(const lvp__contact_pass *pass, const int32_t corners
 	return search.limit < 1.0f;
 }
 
-/* Marks (1) every dynamic vertex of `patch` that shares a triangle with a marked one, and so on out to the
- * whole patch (its vertices joined by edges), a ring or more a pass (patches are a few rings across). */
-static void lvp__grow_marked_patches(const lvp_binding *binding, const uint8_t *patch, uint8_t *marks)
-{
-	const lvp__mesh *mesh = &binding->mesh;
-	for (bool grew = true; grew;) {
-		grew = false;
-		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
-			int32_t k = binding->dynamic.vertices[v];
-			if (!patch[k] || marks[k])
-				continue;
-			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
-				const int32_t *corners = mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c];
-				if (lvp__any_marked(marks, corners)) {
-					marks[k] = 1;
-					grew = true;
-					break;
-				}
-			}
-		}
-	}
-}
-
 /* Whether vertex k has an edge neighbour marked in `marks`. */
 static bool lvp__beside_marked(const lvp_binding *binding, const uint8_t *marks, int32_t k)
 {
@@ -700,6 +677,22 @@ static bool lvp__beside_marked(const lvp_binding *binding, const uint8_t *marks,
 		if (lvp__any_marked(marks, mesh->triangles + 3 * (int64_t)mesh->vertex_triangles[c]))
 			return true;
 	return false;
+}
+
+/* Marks (1) every dynamic vertex of `patch` that shares a triangle with a marked one, and so on out to the
+ * whole patch (its vertices joined by edges), a ring or more a pass (patches are a few rings across). */
+static void lvp__grow_marked_patches(const lvp_binding *binding, const uint8_t *patch, uint8_t *marks)
+{
+	for (bool grew = true; grew;) {
+		grew = false;
+		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
+			int32_t k = binding->dynamic.vertices[v];
+			if (patch[k] && !marks[k] && lvp__beside_marked(binding, marks, k)) {
+				marks[k] = 1;
+				grew = true;
+			}
+		}
+	}
 }
 
 /* Pins the gaps of the pinned patches: the sets of unpinned vertices joined by edges each of which has a

@@ -740,12 +740,14 @@ static void lvp__pin_gaps(lvp_binding *binding)
 }
 
 /* contact.pinned: the patches of vertices fold-over holds on a contact surface (fold.held; a patch:
- * held vertices joined by edges) where some triangle crosses skin in the skinning (touching within
- * rounding counts). Fold-over undid those crossings, and shortening the offsets of such a patch would
- * bring them back, so it keeps its place. The other patches are shortened as any: where the
- * skinning crosses nothing yet (a finger half closed), skin put on the contact plane can meet skin
- * coming from the other side, and only moving it back keeps the two apart. The gaps of a pinned patch are
- * pinned with it (lvp__pin_gaps). */
+ * held vertices joined by edges) where fold-over parted a crossing of the skinning: some triangle
+ * crosses skin in the skinning (touching within rounding counts) and no longer does where the
+ * correction put it. Shortening the offsets of such a patch would bring that crossing back, so it keeps
+ * its place. The other patches are shortened as any: where the skinning crosses nothing yet (a finger
+ * half closed), skin put on the contact plane can meet skin coming from the other side, and only moving
+ * it back keeps the two apart; where the press left the skinning's crossing as it was, keeping the
+ * patch in place kept the crossings it added around it (the game horse falling, two pressed sheets: 16
+ * pairs where the skinning has 4). The gaps of a pinned patch are pinned with it (lvp__pin_gaps). */
 static void lvp__pin_held(lvp_binding *binding, const float *positions)
 {
 	lvp__contact *contact = &binding->contact;
@@ -757,12 +759,21 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		any = held[binding->dynamic.vertices[v]];
 	if (!any)
 		return;
-	lvp__refit_dynamic(binding, positions);
+	/* The held triangles crossing in the skinning (in contact.raise_tested, which only a raise reads,
+	 * after this), then those of them that the correction parted. */
+	uint8_t *crossed_skinned = contact->raise_tested;
 	atomic_bool new_contact = false;
-	lvp__contact_pass pass = {binding, positions, &new_contact, NULL};
+	lvp__refit_dynamic(binding, positions);
+	lvp__contact_pass at_skinning = {binding, positions, &new_contact, NULL};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
-		if (!lvp__any_marked(held, corners) || !lvp__crosses_at(&pass, corners))
+		crossed_skinned[t] = lvp__any_marked(held, corners) && lvp__crosses_at(&at_skinning, corners);
+	}
+	lvp__refit_dynamic(binding, binding->step.positions);
+	lvp__contact_pass at_correction = {binding, binding->step.positions, &new_contact, NULL};
+	for (int32_t t = 0; t < f; ++t) {
+		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
+		if (!crossed_skinned[t] || lvp__crosses_at(&at_correction, corners))
 			continue;
 		for (int i = 0; i < 3; ++i)
 			contact->pinned[corners[i]] = held[corners[i]];

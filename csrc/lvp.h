@@ -317,8 +317,8 @@
  *   crosses, in `positions`, some triangle around the other) and the moved skin crosses no more pairs than
  *   the skinning does (counted over the pairs with a moved triangle that the check visits, which holds every
  *   pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface
- *   keep their place in each patch of them where the skinned triangles cross skin (fold-over undid that
- *   crossing; moving them back would bring it back), and so do the gaps of such a patch (free vertices
+ *   keep their place in each patch of them where a skinned triangle crosses skin and no longer does after
+ *   the correction (fold-over undid that crossing; moving them back would bring it back), and so do the gaps of such a patch (free vertices
  *   joined by edges, each beside the patch, none beside other free skin: shortened alone, down into the
  *   skinning's crossing); the other patches are shortened as any, and a pair with
  *   such a corner that no shortening of its other corners parts keeps its offsets (taking them would part

@@ -759,8 +759,8 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 		any = held[binding->dynamic.vertices[v]];
 	if (!any)
 		return;
-	/* The held triangles crossing in the skinning (in contact.raise_tested, which only a raise reads,
-	 * after this), then those of them that the correction parted. */
+	/* The held triangles crossing in the skinning, marked in contact.raise_tested (scratch until a raise
+	 * sets it), then those of them that the correction parted. */
 	uint8_t *crossed_skinned = contact->raise_tested;
 	atomic_bool new_contact = false;
 	lvp__refit_dynamic(binding, positions);

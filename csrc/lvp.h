@@ -318,9 +318,10 @@
  *   the skinning does (counted over the pairs with a moved triangle that the check visits, which holds every
  *   pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface
  *   keep their place in each patch of them where a skinned triangle crosses skin and no longer does after
- *   the correction (fold-over undid that crossing; moving them back would bring it back), and so do the gaps of such a patch (free vertices
- *   joined by edges, each beside the patch, none beside other free skin: shortened alone, down into the
- *   skinning's crossing); the other patches are shortened as any, and a pair with
+ *   the correction (fold-over undid that crossing; moving them back would bring it back), and so do the
+ *   gaps of such a patch (free vertices joined by edges, each beside the patch, none beside other free
+ *   skin: shortened alone, down into the skinning's crossing); the other patches are shortened as any (a
+ *   press that left the skinning's crossing as it was too), and a pair with
  *   such a corner that no shortening of its other corners parts keeps its offsets (taking them would part
  *   nothing and leave a step beside the held skin); where the skin around such a
  *   patch is shortened, the patch comes down with it as the shares are smoothed, and goes back up where

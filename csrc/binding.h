@@ -350,7 +350,6 @@ typedef struct lvp__plate {
 	float *weights;            /* and what the row's Laplacian multiplies its offset by */
 	double *offsets;           /* *3, by local number: the offsets the rows read; the free ones are the unknowns */
 	double *direction, *product, *residual; /* *3, by local number: conjugate gradients' */
-	double *laplacian;         /* *3, per row: the Laplacian of the vector a product multiplies */
 } lvp__plate;
 
 /* Fold-over prevention (foldover.c). */

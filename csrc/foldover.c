@@ -147,9 +147,12 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
  * sheet is. */
 static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge)
 {
-	double window = joint->window, fade = fmax(LVP__OTHER_SIDE_FADE * joint->reach, longest_edge);
+	/* Comparisons rather than fmax, which compilers call out of line (nothing here is NaN): the presses
+	 * ask this of every vertex of a joint's side, many times a frame. */
+	double window = joint->window, fade = LVP__OTHER_SIDE_FADE * joint->reach;
+	fade = longest_edge > fade ? longest_edge : fade;
 	if (rest_side <= 0.0)
-		return fmax(0.0, rest_side + window);
+		return rest_side + window > 0.0 ? rest_side + window : 0.0;
 	if (rest_side >= fade)
 		return INFINITY;
 	return (rest_side + window) / (1.0 - rest_side / fade);
@@ -378,6 +381,7 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 	bool pressed = false;
 	/* The skin of the two sides does not quite touch. */
 	double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
+	double softest = joint->soft > 0.0 ? joint->soft : 0.0;
 	for (int32_t i = binding->mesh.region_vertex_offsets[r]; i < binding->mesh.region_vertex_offsets[r + 1]; ++i) {
 		int32_t k = binding->mesh.region_vertices[i];
 		/* Pressed once: pressing again would soften its contact twice. Held still while pressed skin
@@ -389,8 +393,13 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		if (allowed == INFINITY)
 			continue;
 		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+		double excess = lvp__dot(from_joint, joint->normal) - allowed + gap;
+		/* Pressed only from the softest band short of the limit on: most of a side's skin lies further
+		 * back, and is passed over before its band is weighed. */
+		if (!(excess + softest > 0.0))
+			continue;
 		double soft = joint->soft * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach);
-		double push = lvp__press(lvp__dot(from_joint, joint->normal) - allowed + gap, soft);
+		double push = lvp__press(excess, soft);
 		if (!(push > 0.0))
 			continue;
 		double held = lvp__across_joint(joint, p);

@@ -34,38 +34,45 @@ enum {
 
 /* out = A v on the free vertices: A = L^T L + screen I over the rows, v by local number (zero off the free
  * vertices for a direction; a neighbour outside the dynamic set reads zero, as it has no offset in a smoothing
- * pass). plate.laplacian is scratch. */
+ * pass). Each row's Laplacian goes back onto the free vertices it read as soon as it is summed, in the rows'
+ * order. */
 static void lvp__plate_product(lvp__plate *plate, const double *v, double screen, double *out)
 {
 	const int32_t *starts = plate->row_starts, *columns = plate->columns;
 	const float *weights = plate->weights;
-	for (int32_t r = 0; r < plate->row_count; ++r) {
-		double sum[3] = {0.0, 0.0, 0.0};
-		if (starts[r + 1] > starts[r]) {
-			for (int32_t e = starts[r]; e < starts[r + 1]; ++e)
-				for (int c = 0; c < 3; ++c)
-					sum[c] += weights[e] * v[3 * columns[e] + c];
-			for (int c = 0; c < 3; ++c)
-				sum[c] -= v[3 * plate->rows[r] + c];
-		}
-		for (int c = 0; c < 3; ++c)
-			plate->laplacian[3 * r + c] = sum[c];
-	}
 	int32_t free_count = plate->free_count;
 	for (int32_t i = 0; i < 3 * free_count; ++i)
 		out[i] = screen * v[i];
-	/* L^T: each row's Laplacian back onto the free vertices it read, in the rows' order. */
 	for (int32_t r = 0; r < plate->row_count; ++r) {
-		const double *lap = plate->laplacian + 3 * r;
-		if (starts[r + 1] == starts[r])
+		int32_t begin = starts[r], end = starts[r + 1];
+		if (end == begin)
 			continue;
-		for (int32_t e = starts[r]; e < starts[r + 1]; ++e)
-			if (columns[e] < free_count)
-				for (int c = 0; c < 3; ++c)
-					out[3 * columns[e] + c] += weights[e] * lap[c];
-		if (plate->rows[r] < free_count)
-			for (int c = 0; c < 3; ++c)
-				out[3 * plate->rows[r] + c] -= lap[c];
+		double x = 0.0, y = 0.0, z = 0.0;
+		for (int32_t e = begin; e < end; ++e) {
+			const double *at = v + 3 * columns[e];
+			double w = weights[e];
+			x += w * at[0];
+			y += w * at[1];
+			z += w * at[2];
+		}
+		const double *own = v + 3 * plate->rows[r];
+		x -= own[0];
+		y -= own[1];
+		z -= own[2];
+		/* L^T */
+		for (int32_t e = begin; e < end; ++e)
+			if (columns[e] < free_count) {
+				double *to = out + 3 * columns[e], w = weights[e];
+				to[0] += w * x;
+				to[1] += w * y;
+				to[2] += w * z;
+			}
+		if (plate->rows[r] < free_count) {
+			double *to = out + 3 * plate->rows[r];
+			to[0] -= x;
+			to[1] -= y;
+			to[2] -= z;
+		}
 	}
 }
 
@@ -237,7 +244,6 @@ bool lvp__plate_alloc(lvp__plate *plate, int32_t vertex_count, int32_t entry_cou
 	plate->direction = lvp__calloc(3 * n, sizeof(double), &ok);
 	plate->product = lvp__calloc(3 * n, sizeof(double), &ok);
 	plate->residual = lvp__calloc(3 * n, sizeof(double), &ok);
-	plate->laplacian = lvp__calloc(3 * n, sizeof(double), &ok);
 	return ok;
 }
 
@@ -255,5 +261,4 @@ void lvp__plate_free(lvp__plate *plate)
 	free(plate->direction);
 	free(plate->product);
 	free(plate->residual);
-	free(plate->laplacian);
 }

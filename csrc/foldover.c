@@ -394,8 +394,9 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 			continue;
 		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
 		double excess = lvp__dot(from_joint, joint->normal) - allowed + gap;
-		/* Pressed only from the softest band short of the limit on: most of a side's skin lies further
-		 * back, and is passed over before its band is weighed. */
+		/* Short of its limit by more than the joint's widest soft band, a vertex is not pressed (lvp__press
+		 * gives nothing there): most of a side's skin lies that far back, passed over before its own band
+		 * is weighed. */
 		if (!(excess + softest > 0.0))
 			continue;
 		double soft = joint->soft * lvp__smoothstep(lvp__dot(from_joint, joint->concave) / joint->reach);

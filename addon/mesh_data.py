@@ -77,10 +77,52 @@ def bounding_box_diagonal(positions):
 
 
 def loop_triangles(mesh):
-    """The mesh's faces split into triangles, int32[3T], wound like the faces."""
+    """The mesh's faces split into triangles, int32[3T], wound like the faces: Blender's own split (its loop
+    triangles), or the same split made here when Blender's cached one does not fit the mesh."""
     blender_api.update_loop_triangles(mesh)
     triangles = int_array(3 * len(mesh.loop_triangles))
     mesh.loop_triangles.foreach_get("vertices", triangles)
+    if not fits_faces(mesh, triangles):
+        # Blender 3.4 once handed a bind, in a full test run, a triangle with a corner past the mesh's vertices
+        # (its cached triangles, not computed again when asked): split here rather than refuse a sound mesh.
+        triangles = triangles_of_faces(mesh)
+    return triangles
+
+
+def fits_faces(mesh, triangles):
+    """Whether int32[3T] triangles can be a split of the mesh's faces: as many as its faces make (a face of n
+    corners makes n - 2) and every corner one of its vertices."""
+    if len(triangles) != 3 * (len(mesh.loops) - 2 * len(mesh.polygons)):
+        return False
+    return len(triangles) == 0 or (min(triangles) >= 0 and max(triangles) < len(mesh.vertices))
+
+
+def triangles_of_faces(mesh):
+    """The mesh's faces split into triangles, int32[3T], wound like the faces, as Blender splits them: a
+    triangle as it is, a quad along the diagonal from its first corner, a larger face by filling its outline
+    (mathutils.geometry.tessellate_polygon, each triangle turned to the face's winding)."""
+    from mathutils import Vector, geometry
+
+    corner_vertices = int_array(len(mesh.loops))
+    mesh.loops.foreach_get("vertex_index", corner_vertices)
+    starts = int_array(len(mesh.polygons))
+    mesh.polygons.foreach_get("loop_start", starts)
+    sizes = int_array(len(mesh.polygons))
+    mesh.polygons.foreach_get("loop_total", sizes)
+    triangles = array('i')
+    for face, (start, size) in enumerate(zip(starts, sizes)):
+        corners = corner_vertices[start:start + size]
+        if size == 3:
+            triangles.extend(corners)
+        elif size == 4:
+            triangles.extend((corners[0], corners[1], corners[2], corners[0], corners[2], corners[3]))
+        elif size > 4:
+            points = [Vector(mesh.vertices[v].co) for v in corners]
+            normal = mesh.polygons[face].normal
+            for a, b, c in geometry.tessellate_polygon([points]):
+                if (points[b] - points[a]).cross(points[c] - points[a]).dot(normal) < 0.0:
+                    b, c = c, b
+                triangles.extend((corners[a], corners[b], corners[c]))
     return triangles
 
 

@@ -481,5 +481,58 @@ class TestBakeArguments(test_bake.CommandTestCase):
                 self.assertEqual(os.listdir(self.out), [], "nothing written")
 
 
+class TestStaleTriangulation(helpers.AddonTestCase):
+    """7. Blender 3.4 once handed a bind loop triangles with a corner past the mesh's vertices (vertex 10,989 of
+    the 7,478-vertex hand, bound right after its glTF round trip, in a full test run; not reproduced alone), and
+    the bind refused a sound mesh. The add-on then splits the faces itself, as Blender splits them."""
+
+    def mesh_of(self, faces, vertices):
+        mesh = bpy.data.meshes.new("Faces")
+        mesh.from_pydata(vertices, [], faces)
+        mesh.update()
+        return mesh
+
+    def test_split_as_blender_splits_triangles_and_quads(self):
+        obj, _rig = helpers.make_cylinder_character()
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        bmesh.ops.triangulate(bm, faces=list(bm.faces)[::3])  # some faces triangles, the rest quads
+        bmesh.ops.triangulate(bm, faces=[face for face in bm.faces if len(face.verts) > 4])
+        bm.to_mesh(obj.data)
+        bm.free()
+        mesh = obj.data
+        self.assertEqual({len(polygon.vertices) for polygon in mesh.polygons}, {3, 4})
+        blender = helpers.mesh_triangles(mesh)
+        self.assertTrue(self.addon.mesh_data.fits_faces(mesh, blender))
+        self.assertEqual(list(self.addon.mesh_data.triangles_of_faces(mesh)), list(blender))
+
+    def test_a_concave_face_is_filled_inside_its_outline(self):
+        outline = [(0, 0, 0), (2, 0, 0), (2, 1, 0), (1, 1, 0), (1, 2, 0), (0, 2, 0)]  # an L, area 3
+        for corners in (list(range(6)), list(reversed(range(6)))):
+            with self.subTest(winding=corners[:2]):
+                mesh = self.mesh_of([corners], outline)
+                triangles = self.addon.mesh_data.triangles_of_faces(mesh)
+                self.assertEqual(len(triangles), 3 * 4)
+                normal = mesh.polygons[0].normal
+                area = 0.0
+                for t in range(0, len(triangles), 3):
+                    a, b, c = (mesh.vertices[v].co for v in triangles[t:t + 3])
+                    cross = (b - a).cross(c - a)
+                    self.assertGreater(cross.dot(normal), 0.0, "wound like the face")
+                    area += 0.5 * cross.length
+                self.assertAlmostEqual(area, 3.0, places=5)
+                self.assertTrue(self.addon.mesh_data.fits_faces(mesh, triangles))
+                bpy.data.meshes.remove(mesh)
+
+    def test_triangles_that_do_not_fit_are_told(self):
+        mesh = self.mesh_of([(0, 1, 2, 3)], [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+        fits = self.addon.mesh_data.fits_faces
+        self.assertTrue(fits(mesh, array('i', [0, 1, 2, 0, 2, 3])))
+        self.assertFalse(fits(mesh, array('i', [0, 1, 2, 0, 2, 10989])), "a corner past the vertices")
+        self.assertFalse(fits(mesh, array('i', [0, 1, 2, 0, -1, 3])), "a negative corner")
+        self.assertFalse(fits(mesh, array('i', [0, 1, 2])), "fewer triangles than the faces make")
+        bpy.data.meshes.remove(mesh)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -84,7 +84,7 @@ def loop_triangles(mesh):
     mesh.loop_triangles.foreach_get("vertices", triangles)
     if not fits_faces(mesh, triangles):
         # Blender 3.4 once handed a bind, in a full test run, a triangle with a corner past the mesh's vertices
-        # (its cached triangles, not computed again when asked): split here rather than refuse a sound mesh.
+        # (not reproduced alone): split here rather than refuse a sound mesh.
         triangles = triangles_of_faces(mesh)
     return triangles
 

@@ -371,11 +371,23 @@ def mesh_positions(mesh):
     return positions
 
 
-def mesh_triangles(mesh):
+def blender_triangles(mesh):
+    """Blender's own loop triangles of the mesh, int32[3T], as it hands them."""
     if hasattr(mesh, "calc_loop_triangles"):
         mesh.calc_loop_triangles()
     triangles = array('i', bytes(12 * len(mesh.loop_triangles)))
     mesh.loop_triangles.foreach_get("vertices", triangles)
+    return triangles
+
+
+def mesh_triangles(mesh):
+    """The mesh's loop triangles, int32[3T]; split again by the add-on (mesh_data.triangles_of_faces) when
+    Blender's cached ones do not fit the mesh, as the add-on's bind does, so that a measure never reads a
+    corner past the mesh's vertices."""
+    triangles = blender_triangles(mesh)
+    mesh_data = enable_addon().mesh_data
+    if not mesh_data.fits_faces(mesh, triangles):
+        triangles = array('i', mesh_data.triangles_of_faces(mesh))
     return triangles
 
 

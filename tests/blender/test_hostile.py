@@ -502,7 +502,7 @@ class TestStaleTriangulation(helpers.AddonTestCase):
         bm.free()
         mesh = obj.data
         self.assertEqual({len(polygon.vertices) for polygon in mesh.polygons}, {3, 4})
-        blender = helpers.mesh_triangles(mesh)
+        blender = helpers.blender_triangles(mesh)
         self.assertTrue(self.addon.mesh_data.fits_faces(mesh, blender))
         self.assertEqual(list(self.addon.mesh_data.triangles_of_faces(mesh)), list(blender))
 

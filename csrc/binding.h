@@ -416,6 +416,8 @@ typedef struct lvp__contact {
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
 	                              skinning (clearance.c; INFINITY: none near) */
 	float *clearance_reach;    /* per vertex, this frame: how far that was searched (0: not yet) */
+	float *clearance_direction; /* vertex_count*3, this frame: the unit direction it is searched along, its
+	                              offset's at the frame's first search (clearance.c, lvp__start_search) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */
 	uint8_t *faded;            /* per vertex, this frame: its clearance held its offset back (before the shares
 	                              were smoothed around), at some fade (lvp__kept_apart_counts) */
@@ -964,7 +966,8 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag);
 /* contact.clearance of the dynamic vertices, ahead of their offsets (step.positions less
  * `positions`) in the skinning at `positions` (contact.bvh fitted to it: lvp__contact_fit_skinning),
  * as far as their offsets want (LVP__CLEARANCE_WANTED times them, clearance.c); `again` after the
- * offsets changed (the same frame): only those whose offsets grew past what was searched are. */
+ * offsets changed (the same frame): only those whose offsets grew past what was searched are, along the
+ * direction of their first search this frame. */
 void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool again);
 /* Scales the offsets (step.positions and step.smoothing_offsets) and frame_map.gamma of the dynamic
  * vertices by the share their clearance lets them keep, smoothed over a few rings; returns false,

@@ -15,7 +15,10 @@
  * of |q - p|^2 / <q - p, d>. Skin straight ahead counts at its distance, skin off to the side at
  * angle phi at its distance over cos phi, skin beside or behind not at all; unlike the distance
  * along a ray, it changes continuously with the pose (a ray leaving the other skin's silhouette
- * would drop it at once), so the fade has no jump.
+ * would drop it at once), so the fade has no jump. d is the offset's direction at the frame's first
+ * search, kept through its later fades: a vertex searched again along its new direction, beside
+ * neighbours whose clearances were found along their first, jumped between sub-frames where one
+ * crossed the threshold of searching again and the other did not.
  */
 #include "binding.h"
 
@@ -26,8 +29,8 @@
 #define LVP__CLEARANCE_WANTED 4.0
 /* Clearances are looked for up to this many times a vertex's offset, a quarter past what is wanted, so
  * that an offset the restore after a fade grows by less than that is not searched again; one that grows
- * more is (lvp__measure_clearance): every fade sees each clearance it needs, exactly. The search's
- * cost grows with the square of its reach (the skin around a vertex within it). */
+ * more is, along the same direction (lvp__measure_clearance): every fade sees each clearance it needs,
+ * exactly. The search's cost grows with the square of its reach (the skin around a vertex within it). */
 #define LVP__CLEARANCE_REACH 5.0
 /* How much a share may rise from one ring of the mesh to the next, at most: a vertex left no offset
  * holds its neighbours down over 1 / LVP__SHARE_SLOPE rings, one that keeps most of it only its own
@@ -123,6 +126,11 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d, double b
 	if (!(area2 > 0.0))
 		return least;
 	normal = lvp__scale(normal, 1.0 / area2);
+	/* The triangle's own normal, about which its corners turn one way: the test of the touching point
+	 * below asks that turn of it. (Asked about the normal turned towards the vertex, which most skin
+	 * facing it needs, it passed over every such touch, and the clearance jumped from the plane to an
+	 * edge as a triangle passed over the vertex.) */
+	lvp__vec3 winding = normal;
 	double h = lvp__dot(normal, x[0]);
 	if (h < 0.0) {
 		normal = lvp__scale(normal, -1.0);
@@ -139,7 +147,7 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d, double b
 	lvp__vec3 touch = lvp__scale(lvp__add(d, normal), 0.5 * diameter);
 	for (int i = 0; i < 3; ++i) {
 		lvp__vec3 edge = lvp__sub(x[(i + 1) % 3], x[i]);
-		if (lvp__dot(lvp__cross(edge, lvp__sub(touch, x[i])), normal) < 0.0)
+		if (lvp__dot(lvp__cross(edge, lvp__sub(touch, x[i])), winding) < 0.0)
 			return least;
 	}
 	return fmin(least, diameter);
@@ -347,10 +355,19 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	if (!(length > 0.0) || LVP__CLEARANCE_WANTED * length <= contact->clearance_reach[k])
 		return false;
 	double reach = LVP__CLEARANCE_REACH * length;
+	float *direction = contact->clearance_direction + 3 * (int64_t)k;
+	if (contact->clearance_reach[k] > 0.0f) { /* searched earlier this frame: along the same direction */
+		lvp__vec3 kept = lvp__load(direction);
+		search->direction = lvp__scale(kept, 1.0 / lvp__length(kept));
+	} else {
+		search->direction = lvp__scale(offset, 1.0 / length);
+		direction[0] = (float)search->direction.x;
+		direction[1] = (float)search->direction.y;
+		direction[2] = (float)search->direction.z;
+	}
 	contact->clearance[k] = INFINITY;
 	contact->clearance_reach[k] = (float)reach;
 	search->from = lvp__load(pass->positions + 3 * k);
-	search->direction = lvp__scale(offset, 1.0 / length);
 	for (int axis = 0; axis < 3; ++axis) {
 		search->from_f[axis] = pass->positions[3 * k + axis];
 		search->direction_f[axis] = (float)lvp__axis(search->direction, axis);

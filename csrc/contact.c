@@ -498,6 +498,7 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->next_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->clearance = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->clearance_reach = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->clearance_direction = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
 	contact->fade = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->fade_scratch = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->faded = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -1099,6 +1100,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->next_scale);
 	free(contact->clearance);
 	free(contact->clearance_reach);
+	free(contact->clearance_direction);
 	free(contact->fade);
 	free(contact->fade_scratch);
 	free(contact->faded);

@@ -294,9 +294,10 @@
  *   approaches skin (without fold_over: with it, skin near other skin is where fold-over's contacts
  *   moved it out of the skinning's own crossings, and fading it would bring them back): after the
  *   volume steps (and the smoothing), each moving vertex's clearance is measured in `positions`, the
- *   diameter of the largest ball tangent to its offset at it that no other skin enters (skin straight
- *   ahead counts at its distance, skin at angle phi to the side at its distance over cos phi, skin
- *   beside or behind not at all: it changes continuously with the pose). An offset up to a quarter of
+ *   diameter of the largest ball tangent at it to its offset (the direction the frame's first fade
+ *   finds) that no other skin enters (skin straight ahead counts at its distance, skin at angle phi
+ *   to the side at its distance over cos phi, skin beside or behind not at all: it changes
+ *   continuously with the pose). An offset up to a quarter of
  *   its clearance is kept; a longer one m is cut to h - h^2 / 4m, h half the clearance (the skin
  *   opposite may come as far), which joins it smoothly and never reaches h. The shares kept are
  *   smoothed over the rings around (none more than 0.2 above a neighbour's, then averaged), the map

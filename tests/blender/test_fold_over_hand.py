@@ -242,8 +242,10 @@ class TestFoldOverHand(unittest.TestCase):
               "Apart %.2f" % (largest["vp"], largest["fold"], largest["vp touching"]))
         # A pop moves an offset as far as the skin moved or more (surface_quality.offset_change_ratio).
         # Restoring the whole mesh, Volume Preservation follows the motion (0.11 without Keep Skin Apart). Keeping
-        # skin apart, the palm's bulge gives way to the fingertips closing on it (0.28 at frame 20, where the
-        # animation eases out, 0.64 at frame 19 while the offsets the fade left were not smoothed; with fold-over
+        # skin apart, the palm's bulge gives way to the fingertips closing on it (0.34 near the fist, where the
+        # animation eases out, 0.64 at frame 19 while the offsets the fade left were not smoothed; 0.28 while skin
+        # facing a vertex counted only at its triangles' edges, which jumped by 0.40 mean edge lengths between
+        # sub-frames 19.281 and 19.282, clearance.c, lvp__triangle_diameter; with fold-over
         # the thumb's skin against the index changes most, 0.83 from frame 19 to 20, 0.60 at the fist before the
         # relaxed skin was settled as a plate, where fold-over's contacts, not the fade, keep skin apart). Between
         # sub-frames the offsets do jump where a vertex starts or stops being pressed, which whole frames do not

@@ -126,10 +126,9 @@ static double lvp__triangle_diameter(const lvp__vec3 x[3], lvp__vec3 d, double b
 	if (!(area2 > 0.0))
 		return least;
 	normal = lvp__scale(normal, 1.0 / area2);
-	/* The triangle's own normal, about which its corners turn one way: the test of the touching point
-	 * below asks that turn of it. (Asked about the normal turned towards the vertex, which most skin
-	 * facing it needs, it passed over every such touch, and the clearance jumped from the plane to an
-	 * edge as a triangle passed over the vertex.) */
+	/* The corners turn one way about the triangle's own normal: whether the touching point lies inside
+	 * is asked about that one. About the normal turned to point from the vertex to the plane (below),
+	 * every touch of a triangle facing the vertex would read as outside. */
 	lvp__vec3 winding = normal;
 	double h = lvp__dot(normal, x[0]);
 	if (h < 0.0) {

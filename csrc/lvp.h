@@ -297,15 +297,15 @@
  *   diameter of the largest ball tangent at it to its offset (the direction the frame's first fade
  *   finds) that no other skin enters (skin straight ahead counts at its distance, skin at angle phi
  *   to the side at its distance over cos phi, skin beside or behind not at all: it changes
- *   continuously with the pose). An offset up to a quarter of
- *   its clearance is kept; a longer one m is cut to h - h^2 / 4m, h half the clearance (the skin
- *   opposite may come as far), which joins it smoothly and never reaches h. The shares kept are
- *   smoothed over the rings around (none more than 0.2 above a neighbour's, then averaged), the map
- *   faded by them, the faded offsets smoothed as the frame's are (smoothing_passes: the shares' slope
- *   stood out as a rim of the faded skin), and the volume they no longer carry restored along them, up
- *   to 3 rounds. Then every pair of triangles (sharing no corner) that still crosses after the correction
- *   but not in `positions` is found (a bounding volume hierarchy over the triangles, built at the first
- *   such frame, fitted to `positions` once a frame and after that only where skin moves), and the
+ *   continuously with the pose). An offset up to a quarter of its clearance is kept; a longer one m
+ *   is cut to h - h^2 / 4m, h half the clearance (the skin opposite may come as far), which joins it
+ *   smoothly and never reaches h. The shares kept are smoothed over the rings around (none more than
+ *   0.2 above a neighbour's, then averaged), the map faded by them, the faded offsets smoothed as the
+ *   frame's are (smoothing_passes: the shares' slope stood out as a rim of the faded skin), and the
+ *   volume they no longer carry restored along them, up to 3 rounds. Then every pair of triangles
+ *   (sharing no corner) that still crosses after the correction but not in `positions` is found (a
+ *   bounding volume hierarchy over the triangles, built at the first such frame, fitted to
+ *   `positions` once a frame and after that only where skin moves), and the
  *   offsets of its corners are shortened to the square of the share of them at which the pair stops
  *   crossing (bisection), over a few rounds, the last of which takes the offsets of a pair still
  *   crossing away; those shares are smoothed the same way but

@@ -381,14 +381,10 @@ def blender_triangles(mesh):
 
 
 def mesh_triangles(mesh):
-    """The mesh's loop triangles, int32[3T]; split again by the add-on (mesh_data.triangles_of_faces) when
-    Blender's cached ones do not fit the mesh, as the add-on's bind does, so that a measure never reads a
-    corner past the mesh's vertices."""
-    triangles = blender_triangles(mesh)
-    mesh_data = enable_addon().mesh_data
-    if not mesh_data.fits_faces(mesh, triangles):
-        triangles = array('i', mesh_data.triangles_of_faces(mesh))
-    return triangles
+    """The mesh's triangles, int32[3T], read as the add-on's bind reads them (mesh_data.loop_triangles: Blender's
+    own split, made again when its cached one does not fit the mesh), so that a measure never reads a corner
+    past the mesh's vertices."""
+    return enable_addon().mesh_data.loop_triangles(mesh)
 
 
 def offsets_of(obj):

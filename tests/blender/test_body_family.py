@@ -15,9 +15,7 @@ and bakes), the measures of QUALITY.md (surface_quality.py):
 
 The coarse bodies (about 1,000 and 2,000 vertices) are held with Smoothing 10, what README tells users of such
 meshes: the normals turn by tens of degrees from one vertex to the next there, and with the default 6 passes their
-roughness reaches 0.25-0.26 of the largest offset (10 passes: 0.18-0.22). Measured on 3.4 with the defaults'
-passes on the finer ones: roughness 0.12-0.21, at most 9 creases. Before the smoothing averaged tied vertices as
-one point (smoothing_ties.c), the metaball body's very short edges lagged their rings: 0.26 at the back of the hip.
+roughness reaches 0.25-0.26 of the largest offset (10 passes: 0.18-0.22).
 
 Fold-Over Prevention with knees and elbows bent to 150 degrees is measured on two of the family and on the suite's
 voxel bodies, male and female (test_fold_over_at_150_degrees).
@@ -73,9 +71,8 @@ PRESSED_POSES = {
 }
 
 # Bodies whose creases at 150 degrees with Fold-Over are not held yet (test_fold_over_at_150_degrees), measured on
-# 3.4, 4.3 and 5.2: the coarse metaball body, 22 where 19.9 are allowed (of its 21 before the relaxed skin was
-# settled as a plate, 11 where the sheet of skin turns back between the two sides pressed onto one plane: turning
-# 180 degrees under the measure takes a fold wider than its knee; README, BENCHMARKS.md).
+# 3.4, 4.3 and 5.2: the coarse metaball body, 22 where 19.9 are allowed, 11 of them where the sheet of skin turns
+# back between the two sides pressed onto one plane (README, BENCHMARKS.md).
 CREASES_NOT_MET_AT_150 = ("metaballs, 0.03 (coarse)",)
 
 
@@ -151,16 +148,10 @@ class TestBodyFamily(unittest.TestCase):
         lowered against the chest (real_cases.pose_rigify_human_arms_down: plain skinning passes each arm's skin
         through the chest's). With the add-on's defaults and with Keep Skin Apart, the measures of the hard poses:
         the volume kept, with Keep Skin Apart no new contact and no more crossing pairs than plain skinning, at most
-        one crease per 300 edges, roughness and shards at most a quarter of the largest offset. Measured on 3.4, 4.3
-        and 5.2: with Keep Skin Apart roughness 0.05-0.25, shards at most 0.15, at most 7 creases; the two coarsest
-        bodies with their arms against the chest read 0.19-0.23 (decimated) and 0.24-0.25 (Skin modifier, subdivided
-        once). Those read 0.27-0.30 while the offsets rose from nothing to most of their size within one edge where
-        the skin the arms move ends (their largest offset a fifth of an edge), before the smoothing feathered that
-        rim (offset_smoothing.c, lvp__feather_rim). Keep Skin Apart's fade
-        multiplied the offsets by shares that rise a fifth a ring, and grown as they were, the faded rim stood
-        out of the skin around it: roughness 0.26 on the Skin modifier body and 0.30 on the coarse metaball body
-        with the arms against the chest, 0.35 on the decimated one (shard 0.26), before the faded offsets were
-        smoothed as the frame's are (correction.c, lvp__restore_fade_smoothed)."""
+        one crease per 300 edges, roughness and shards at most a quarter of the largest offset. The coarsest bodies
+        with their arms against the chest are the closest to the bound: their largest offset is a fifth of an edge,
+        so the rim where the moved skin ends (feathered by the smoothing, offset_smoothing.c) and the rim of Keep
+        Skin Apart's fade (whose faded offsets are smoothed as the frame's are, correction.c) are what they read."""
         for name, (built_by, smoothing) in PRESSED_BODIES.items():
             with self.subTest(body=name):
                 body, rig, mesh, edges = self.bound_body(built_by, smoothing)
@@ -172,44 +163,22 @@ class TestBodyFamily(unittest.TestCase):
 
     def test_fold_over_at_150_degrees(self):
         """Knees and elbows bent to 150 degrees (real_cases.pose_rigify_human_folded): the calf lies on the back of the
-        thigh and the forearm on the upper arm, and plain skinning passes each through the other (173-405 crossing
-        pairs). With Fold-Over Prevention and Keep Skin Apart (what renders with Fold-Over get): the volume kept, at
-        most half of plain skinning's crossing pairs (issue 46), roughness at most a quarter of the largest offset (as
-        at the hard poses), no shard, and at most one crease added per 300 edges but on CREASES_NOT_MET_AT_150. Measured
-        on 3.4, 4.3 and 5.2: at most 2 pairs left (27 of 173-174 on the coarse metaball body, 79 of 687 on the fine
-        voxel body: 107 while the unpinned gaps of skin Keep Skin Apart kept in place were shortened alone, contact.c,
-        lvp__pin_gaps), roughness 0.22 / 0.15 / 0.22 / 0.14 / 0.19 / 0.21 / 0.20 (voxel, fine voxel, metaballs at 0.02,
-        0.015 and 0.03 with Smoothing 10, Skin modifier, female), shard at most 0.13, creases 25 / 115 / 26 / 55 / 22 /
-        21 / 21 where 46 / 187 / 46 / 81 / 19.9 / 40 / 46 are allowed (24 / 164 / 19 / 56 / 21 / 21 / 20 before the
-        relaxed skin was settled as a plate, plate.c: the metaball body at 0.02 has 7 more inside the elbows' fold,
-        where the sheet of skin turns back; the fine voxel body's were 206 while its thigh's
-        skin, pressed 4.5 edges deep under the calf, relaxed over the Smoothing's 6 rings rather than over twice as
-        many as it was pressed edges deep, foldover.c, lvp__relaxation_rings; 26 and 23 on
-        the metaball bodies at 0.02 and 0.03 while the skin that lay on the other side of the contact plane at rest
-        was let across it over a depth shorter than its edges there: such an edge went from pressed fully to not
-        pressed, foldover.c, LVP__OTHER_SIDE_FADE). The finer
-        metaball body had 127 creases (98 bordering a needle, a triangle with an angle under 15 degrees; 262 of its
-        edges are under a twentieth of the mean) while fold-over's relaxation tied only what the offsets' smoothing
-        ties, edges a few hundredths of the mean long: the presses moved a needle's two ends by different amounts and
-        one pass between presses left them apart (offset_smoothing.c, the relaxation's ties). The coarse body's shard
-        read 0.25 (0.44 edge lengths at one vertex of the knee) while the volume step after the last relaxation went
-        through the map unsmoothed (correction.c, lvp__restore_relaxed). Roughness 0.23-0.44 before the pressed skin
-        relaxed into skin its bones carry rigidly (foldover.c, lvp__relax_pressed), when the upper arm's lower DEF bone,
-        pressed, met its upper one, not pressed, in a step. The 0.02 metaball body's creases were 49 (the finer one's
-        156) while the vertices its very short edges tie into one point (the smoothing's ties, smoothing_ties.c) came
-        out of fold-over one by one: 33 of those 49 edges bordered a needle, along the lines where pressed skin meets
-        free skin, whose near corners' offsets differed by a share of them; now those fold-over does not hold move as
-        one point. Of the voxel, 0.02 metaball, Skin modifier and female bodies: 25 / 65 / 26 / 22 while the last press
-        of a frame was left unrelaxed, its rim meeting the free skin at an angle along the contact line (correction.c,
-        lvp__prevent_fold_over); 46 / 55 / 36 / 39 while a B-Bone's joints that border the other side at a crease each
-        pressed the whole side once more a pass (the shin's second, third and fourth joints at the back of the knee;
-        foldover.c, lvp__find_side_entries), and 60-107 before the relaxation. The metaball body's 65 were on its
-        thighs' and upper arms' lower DEF bones (25 and 20), where the pressed skin meets the free skin, 10-25 cm from
-        the knee; at the elbow the contact plane, halfway between where the forearm would point had it moved with the
-        upper arm and where it points, leans by half Rigify's rest bend of the elbow towards the upper arm (bisecting
-        the two bones' lines instead halved them, but not where a parent's line is no flesh axis: BENCHMARKS.md). Before
-        a B-Bone's joints pressed together, the calf's skin away from the knee stayed in the thigh: 272-359 pairs. The
-        squeezed volume goes back as a rounder knee."""
+        thigh and the forearm on the upper arm, and plain skinning passes each through the other (more than 100
+        crossing pairs). With Fold-Over Prevention and Keep Skin Apart (what renders with Fold-Over get): the volume
+        kept, at most half of plain skinning's crossing pairs (issue 46), roughness at most a quarter of the largest
+        offset, no shard, and at most one crease added per 300 edges but on CREASES_NOT_MET_AT_150.
+
+        Where the two sides are pressed onto one contact plane, the squeezed volume goes back as a rounder knee and
+        elbow. What makes this pose hard for the surface measures, and where the core answers it: the pressed skin is
+        relaxed with the skin around it over more rings the deeper it was pressed (foldover.c,
+        lvp__relaxation_rings) and settled as a thin plate (plate.c), so the rim of the press meets the free skin
+        without a step; vertices that very short edges tie into one point (marching cubes' needles) move as one point
+        through fold-over (smoothing_ties.c); skin that lay on the other side of the plane at rest is let across it
+        over a depth no shorter than its longest edge (foldover.c, LVP__OTHER_SIDE_FADE); and the gaps of skin Keep
+        Skin Apart keeps in place are not shortened alone (contact.c, lvp__pin_gaps). What is left, on the coarse
+        metaball body, is the sheet turning back 180 degrees between the two pressed sides: in turns of under 30
+        degrees an edge (what the measure allows over plain skinning's) that takes more edges than its knee has
+        across."""
         for name, (built_by, smoothing) in FOLDED_BODIES.items():
             with self.subTest(body=name):
                 body, rig, mesh, edges = self.bound_body(built_by, smoothing)

@@ -4,36 +4,29 @@ lengths and thicknesses off one palm bone, heat weights, animated from open to t
 defaults and Keep Skin Apart on, at every frame of the animation:
 
 - the flesh of a bone and of its parent (the joints fold-over handles) hardly ever crosses: at any frame at
-  most a hundredth of the pairs plain skinning has at the fist (191; none is measured), none at the fist;
+  most a hundredth of the pairs plain skinning has at the fist, none at the fist;
 - never more crossing pairs than plain skinning: none before plain skinning crosses itself, fewer once it does,
-  and at the fist at most half of its (0 are measured at every frame, against 220 at the fist);
+  and at the fist at most half of its;
 - Volume Preservation alone (with Keep Skin Apart) crosses no more pairs than plain skinning and makes no new
   contact (skin meeting skin that plain skinning keeps apart);
 - the volume within 1 % of the rest, the whole mesh never falling back to plain skinning;
-- no spike: roughness at most a quarter of the largest offset at every frame (QUALITY.md; with fold-over up to
-  0.13 between half and three quarters closed, 0.08 at the fist since the relaxed skin is settled as a plate,
-  plate.c, 0.18 and 0.09 before; 0.30 and 0.17 while the relaxation left skin of no map still; 1.00 at
-  frame 6, 0.44 half closed and 0.29 three quarters closed before foldover.c's crease window and soft contact);
-- few creases where fold-over presses skin: at most one added per 300 edges at any frame (28 of 22,428 edges
-  at the fist; 126 before the pressed skin was relaxed with the skin around it, lvp__relax_pressed);
-- offsets that follow the motion: from frame to frame they change by less than the skin moved (0.28 near the
-  fist, where the animation eases out, 0.64 while the offsets Keep Skin Apart's fade left were not smoothed; 0.11
-  without Keep Skin Apart), with fold-over by about as much at most (0.83 from frame 19 to 20; 0.60 at the fist
-  before the plate). Keep Skin Apart fades the offsets by the room in front of them, which changes continuously
-  with the pose; by the distance along a ray, which drops when the ray leaves the other skin's silhouette, it
-  read 1.30, and by shortening the offsets of crossing pairs alone 1.15.
+- no spike: roughness at most a quarter of the largest offset at every frame (QUALITY.md);
+- few creases where fold-over presses skin: at most one added per 300 edges at any frame;
+- offsets that follow the motion: from frame to frame they change by less than the skin moved, with fold-over by
+  about as much at most. Keep Skin Apart fades the offsets by the room in front of them, which changes
+  continuously with the pose; a distance along a ray would drop when the ray leaves the other skin's silhouette,
+  and shortening only the offsets of crossing pairs would jump as pairs begin to cross.
 
 Vertices fold-over holds on its contact plane keep their place under Keep Skin Apart in each patch of them where
-some skinned triangle crosses skin (fold-over undid that crossing; lvp.h, CONTACT). With all of them kept in
-place there were 3 and 2 pairs at frames 11 and 12 (half closed), where plain skinning has none: skin held on the
-plane met skin coming from the other side. With all of them shortened as any, 71 at the fist in a replay of the
-animation through the Python module: skinning's own crossings came back.
+a skinned triangle crosses skin and the correction parted it (lvp.h, CONTACT): shortened as any, they would bring
+the skinning's own crossings back at the fist; all kept in place, skin held on the plane meets skin coming from
+the other side half closed, where plain skinning crosses nothing.
 
-With the contact plane through the bone's head instead of the crease (heat weights put a finger's border with
-the palm up to 26 mm into the palm) it had 1 to 36 pairs at frames 10-13, and roughness 0.64 of the largest
-offset half closed. Before the contact plane through the joint (the bisector of the bone segments, as the paper
-has it) a palm bone down the middle of the hand put the contact in the middle of the palm: 564 crossing pairs at
-the fist, sheets of skin pulled out under the hand.
+A joint's contact plane lies where the skins of its two bones meet on the concave side (heat weights put a
+finger's border with the palm up to 26 mm into the palm: with the plane through the finger bone's head, a
+step in the skin before anything touches), and turns with the child's bone alone, halfway through the bend: the
+bisector of the bone segments, as the paper has it, runs through the middle of the palm, far from any crease,
+and pulled sheets of skin out under the hand (foldover.c).
 """
 
 import os

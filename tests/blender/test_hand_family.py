@@ -13,9 +13,8 @@ quarters closed and at the fist (the measures of QUALITY.md, from surface_qualit
 Measured on 3.4: no new contact on any, and 0-37 fewer crossing pairs than plain skinning (the correction without
 Keep Skin Apart has up to 153 pairs that plain skinning has not at the fist), roughness 0.03-0.10 of the largest
 offset, at most 4 creases but on the fine hand at the fist, 19 (171 allowed; 57 without Keep Skin Apart). The
-decimated hands are the ones that need the smoothing weighted by the mesh (offset_smoothing.c):
-with equal weights they had 21 and 23 creases at the fist, their long thin triangles beside small ones tilted by
-offsets smooth over the rings (13 and 13 weighted, before tied vertices were averaged as one).
+decimated hands are the ones that need the smoothing weighted by the mesh (offset_smoothing.c): smoothed with
+equal weights over the rings, the offsets tilt their long thin triangles beside small ones into creases.
 """
 
 import unittest
@@ -97,28 +96,21 @@ class TestHandFamily(unittest.TestCase):
         """Fold-Over Prevention with Keep Skin Apart (what renders with Fold-Over get): the volume kept, at most half of
         plain skinning's crossing pairs, three quarters closed and at the fist (issue 46), Keep Skin Apart adding at
         most one crease per 300 edges to Fold-Over's own, roughness at most a quarter of the largest offset but on
-        FOLD_OVER_ROUGH, and on every hand no shard (surface_quality.shard, a quarter of the largest offset: 0.08-0.18
-        on 3.4, where the roughness reads up to 0.35). Measured on 3.4, 4.3 and 5.2, the voxel hands: no pair left where
-        plain skinning has 14-399, roughness 0.08-0.22 (the coarse ones aside). Keep Skin Apart shortens only what it
-        can part: on the stubby hand at the fist, the skin that fold-over holds in the thumb's web meets the index's
-        fingertip, which the skinning already pushed into it; shortening the skin beside it to nothing parted none of
-        those pairs and added 42 creases to Fold-Over's 22. The web held in place then stood out of the skin around it,
-        shortened because it met a third skin (roughness 0.45): now it comes down with that skin, the skinning's
-        crossing in it not coming back (contact.c, lvp__raise_pinned_crossing; 0.20, 3 creases added to Fold-Over's 19).
-        Every pair it leaves has a triangle that spans a joint (its corners following different bones): on the
-        decimated hands (3.4), 14-20 of their 19-32 a triangle from a finger's first phalanx to its last with no
-        corner on the middle one (57 such of 4,484), whose straight edges cut through the bent finger wherever
-        corners that follow the skin go, and none between triangles that each follow one bone (all plain skinning's
-        2-33 such are parted). Not held yet: the decimated hand three quarters closed keeps 23 of plain skinning's
-        30 pairs, and so the halving is not asserted there (at the fist the decimated hands keep 32 of 84 and 30 of 111
-        on 3.4, 33 of 85 and 33 of 114 on 4.3 and 5.2, 26-28 before the relaxed skin was settled as a plate; on 3.4 31
-        and 29 while the vertices the smoothing ties into one point were averaged after fold-over even where it held
-        them on a contact plane, smoothing_ties.c); roughness 0.32-0.33 on the very coarse hand (998 vertices: README
-        asks Smoothing 10 of meshes this coarse), whose worst vertex is the bottom of the crease, pressed one way
-        while its neighbour an edge away on the other side is pressed the other: the crossing undone. The coarse and decimated hands read 0.15-0.25 since the relaxed skin
-        is settled as a thin plate (plate.c; 0.21-0.36 while it settled as a membrane, a cone's tip where fold-over
-        pressed one vertex on the crease's line as far as the skinning carried it across and its neighbours much
-        less)."""
+        FOLD_OVER_ROUGH, and on every hand no shard (surface_quality.shard, a quarter of the largest offset).
+
+        Keep Skin Apart shortens only what it can part. Skin that fold-over holds on a contact plane keeps its place
+        where its press parted a crossing of the skinning (contact.c, lvp__pin_held), and where the skin around it
+        is shortened because it met a third skin (the thumb's web under the index's fingertip, which the skinning
+        already pushed into it), it comes down with that skin as far as the crossing it parted stays parted
+        (lvp__raise_pinned_crossing): held in place alone, it stood out of the skin around it.
+
+        Every pair left must have a triangle that spans a joint (its corners following different bones). On the
+        decimated hands those are triangles from a finger's first phalanx to its last with no corner on the middle
+        one: their straight edges cut through the bent finger wherever corners that follow the skin go. That is why the decimated hands three quarters closed are not held to
+        half (23 of plain skinning's 30 pairs left on 3.4). The very coarse hand (998 vertices; README asks Smoothing
+        10 of meshes this coarse) is not held to the roughness bound: its worst vertex is the bottom of a crease
+        pressed one way while its neighbour an edge away on the other side is pressed the other, undoing the
+        skinning's crossing (0.32-0.33); its surface is held by the shard bound like every other hand's."""
         for name, (voxel_size, shape, decimated) in real_cases.HAND_FAMILY.items():
             with self.subTest(hand=name):
                 obj, mesh = self.corrected_hand(voxel_size, shape, decimated)

@@ -373,8 +373,7 @@ def mesh_positions(mesh):
 
 def blender_triangles(mesh):
     """Blender's own loop triangles of the mesh, int32[3T], as it hands them."""
-    if hasattr(mesh, "calc_loop_triangles"):
-        mesh.calc_loop_triangles()
+    enable_addon().blender_api.update_loop_triangles(mesh)
     triangles = array('i', bytes(12 * len(mesh.loop_triangles)))
     mesh.loop_triangles.foreach_get("vertices", triangles)
     return triangles

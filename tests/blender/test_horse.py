@@ -9,15 +9,14 @@ defaults, Volume Preservation added with the add-on's defaults, every frame of e
   given (the Armature modifier's, read from the modifier's captured attribute), its volume after the volume of the
   evaluated mesh, each to 1e-6;
 - a frame's correction is the same bits whatever was evaluated before it (played to, or opened at, as the first
-  frame of a farm's chunk is), with what renders have: Keep Skin Apart, and Fold-Over Prevention too. Played, Walk
-  differed from its frames opened alone by up to 2e-4 with Keep Skin Apart (what an earlier frame had left of the
-  offsets of skin that does not move this frame; contact.c) and by 1e-7 without (with a bulge width, skin that
-  moved rigidly the frame before was taken for rigid; frame_map.c).
+  frame of a farm's chunk is), with what renders have: Keep Skin Apart, and Fold-Over Prevention too. The core
+  keeps per-frame state between calls (Keep Skin Apart's shares of skin that does not move this frame, contact.c;
+  which skin moves rigidly, frame_map.c), and none of it may carry from one frame to the next.
 
 The clips' scale keys are 1 to about 1e-5 (the exporter's rounding): the bones are stretched against each other by
-up to 2e-5 in every frame. Taken for squash and stretch, that gave up restoring the whole mesh and left a third to
-a half of the loss on whole actions (Walk -3.2 % at its frame 11), all of it on Sleep, while the panel said
-"Correcting" (lvp.h, RESTORE: a stretch that changes no region's volume by more than the tolerance is none).
+up to 2e-5 in every frame. Taken for squash and stretch, that would give up restoring the whole mesh (a third to a
+half of the loss left on whole actions) while the panel says "Correcting"; a stretch that changes no region's
+volume by more than the tolerance is none (lvp.h, RESTORE).
 """
 
 import os
@@ -187,10 +186,9 @@ class TestHorseSurface(HorseSurfaceMeasures, helpers.AddonTestCase):
 
     def test_every_frame_of_every_action(self):
         """With the add-on's defaults (the viewport's), roughness at most a quarter of the largest offset, as
-        QUALITY.md asks, on every frame. On this coarse mesh (flesh an edge or two thick) it read 0.26-0.46: the
-        volume the smoothing took came back through the map (where it peaks: a vertex whose weights differ from
-        its neighbours'), the bulge was as narrow as the weights' band, and a vertex whose strongest bones all
-        moved together stayed still inside moving skin. Measured on 3.4: 0.15-0.24."""
+        QUALITY.md asks, on every frame. On this coarse mesh (flesh an edge or two thick) roughness comes easily:
+        the map peaks at a vertex whose weights differ from its neighbours', the bulge is no wider than the
+        weights' band, and a vertex whose strongest bones move together sits inside moving skin."""
         obj, rig = horse_scene()
         for name, (_crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)
@@ -203,10 +201,8 @@ class TestHorseSurface(HorseSurfaceMeasures, helpers.AddonTestCase):
         the fade leaves, smoothed the same way, as QUALITY.md asks: roughness at most a quarter of the largest
         offset. Where plain skinning already pushes one skin into another (a front leg into the ribcage in
         Turn_Left), any offset pushes it further, the crossing test leaves a vertex none, and its neighbours may
-        keep only a little more: when the smoothing raised that vertex again (and the test held it back once
-        more, alone), it read 0.27 there. Measured on 3.4 now: 0.11-0.21 (0.16-0.22 while the offsets each fade left
-        were restored unsmoothed), creases at most 1, no new contact and no more crossing pairs than plain
-        skinning."""
+        keep only a little more; the smoothing of the shares never raises a share its pairs lowered, or the test
+        would hold that vertex back once more, alone."""
         obj, rig = horse_scene()
         obj.lvp.keep_apart = True
         for name, ((new_contacts, added), creases, rough) in self.surface_of_every_action(obj, rig).items():

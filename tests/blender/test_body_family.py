@@ -173,7 +173,7 @@ class TestBodyFamily(unittest.TestCase):
         relaxed with the skin around it over more rings the deeper it was pressed (foldover.c,
         lvp__relaxation_rings) and settled as a thin plate (plate.c), so the rim of the press meets the free skin
         without a step; vertices that very short edges tie into one point (marching cubes' needles) move as one point
-        through fold-over (smoothing_ties.c); skin that lay on the other side of the plane at rest is let across it
+        after fold-over, but for those it holds on a contact plane (smoothing_ties.c); skin that lay on the other side of the plane at rest is let across it
         over a depth no shorter than its longest edge (foldover.c, LVP__OTHER_SIDE_FADE); and the gaps of skin Keep
         Skin Apart keeps in place are not shortened alone (contact.c, lvp__pin_gaps). What is left, on the coarse
         metaball body, is the sheet turning back 180 degrees between the two pressed sides: in turns of under 30

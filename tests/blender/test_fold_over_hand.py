@@ -14,13 +14,13 @@ defaults and Keep Skin Apart on, at every frame of the animation:
 - few creases where fold-over presses skin: at most one added per 300 edges at any frame;
 - offsets that follow the motion: from frame to frame they change by less than the skin moved, with fold-over by
   about as much at most. Keep Skin Apart fades the offsets by the room in front of them, which changes
-  continuously with the pose; a distance along a ray would drop when the ray leaves the other skin's silhouette,
-  and shortening only the offsets of crossing pairs would jump as pairs begin to cross.
+  continuously with the pose: faded by a distance along a ray (which drops when the ray leaves the other skin's
+  silhouette), or left to the shortening of crossing pairs alone, they changed faster than the skin moved.
 
 Vertices fold-over holds on its contact plane keep their place under Keep Skin Apart in each patch of them where
-a skinned triangle crosses skin and the correction parted it (lvp.h, CONTACT): shortened as any, they would bring
-the skinning's own crossings back at the fist; all kept in place, skin held on the plane meets skin coming from
-the other side half closed, where plain skinning crosses nothing.
+a skinned triangle crosses skin and the correction parted it (lvp.h, CONTACT): shortened as any skin, they brought
+the skinning's own crossings back at the fist; every held patch kept in place, skin held on the plane met skin
+coming from the other side half closed, where plain skinning crosses nothing.
 
 A joint's contact plane lies where the skins of its two bones meet on the concave side (heat weights put a
 finger's border with the palm up to 26 mm into the palm: with the plane through the finger bone's head, a

@@ -106,8 +106,9 @@ class TestHandFamily(unittest.TestCase):
 
         Every pair left must have a triangle that spans a joint (its corners following different bones). On the
         decimated hands those are triangles from a finger's first phalanx to its last with no corner on the middle
-        one: their straight edges cut through the bent finger wherever corners that follow the skin go. That is why the decimated hands three quarters closed are not held to
-        half (23 of plain skinning's 30 pairs left on 3.4). The very coarse hand (998 vertices; README asks Smoothing
+        one: their straight edges cut through the bent finger wherever corners that follow the skin go. That is why
+        the decimated hands three quarters closed are not held to half (one keeps 23 of plain skinning's 30 pairs
+        on 3.4). The very coarse hand (998 vertices; README asks Smoothing
         10 of meshes this coarse) is not held to the roughness bound: its worst vertex is the bottom of a crease
         pressed one way while its neighbour an edge away on the other side is pressed the other, undoing the
         skinning's crossing (0.32-0.33); its surface is held by the shard bound like every other hand's."""

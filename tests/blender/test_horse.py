@@ -187,8 +187,8 @@ class TestHorseSurface(HorseSurfaceMeasures, helpers.AddonTestCase):
     def test_every_frame_of_every_action(self):
         """With the add-on's defaults (the viewport's), roughness at most a quarter of the largest offset, as
         QUALITY.md asks, on every frame. On this coarse mesh (flesh an edge or two thick) roughness comes easily:
-        the map peaks at a vertex whose weights differ from its neighbours', the bulge is no wider than the
-        weights' band, and a vertex whose strongest bones move together sits inside moving skin."""
+        where the map peaks (a vertex whose weights differ from its neighbours'), where the weights' band is
+        narrow, and where a vertex whose strongest bones move together lies inside moving skin."""
         obj, rig = horse_scene()
         for name, (_crossings, creases, rough) in self.surface_of_every_action(obj, rig).items():
             self.assertLessEqual(creases, self.creases_allowed, "%s: creases added" % name)

@@ -76,12 +76,19 @@ def bounding_box_diagonal(positions):
     return sum(value * value for value in extent) ** 0.5
 
 
-def loop_triangles(mesh):
-    """The mesh's faces split into triangles, int32[3T], wound like the faces: Blender's own split (its loop
-    triangles), or the same split made here when Blender's cached one does not fit the mesh."""
+def blender_loop_triangles(mesh):
+    """Blender's own split of the mesh's faces into triangles (its loop triangles, brought up to date), int32[3T],
+    as it hands them."""
     blender_api.update_loop_triangles(mesh)
     triangles = int_array(3 * len(mesh.loop_triangles))
     mesh.loop_triangles.foreach_get("vertices", triangles)
+    return triangles
+
+
+def loop_triangles(mesh):
+    """The mesh's faces split into triangles, int32[3T], wound like the faces: Blender's own split (its loop
+    triangles), or the same split made here when Blender's cached one does not fit the mesh."""
+    triangles = blender_loop_triangles(mesh)
     if not fits_faces(mesh, triangles):
         # Blender 3.4 once handed a bind, in a full test run, a triangle with a corner past the mesh's vertices
         # (not reproduced alone): split here rather than refuse a sound mesh.

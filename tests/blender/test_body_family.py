@@ -96,8 +96,8 @@ class TestBodyFamily(unittest.TestCase):
         return helpers.uncorrected_positions(body), corrected
 
     def bound_body(self, built_by, smoothing):
-        """(body, rig, its welded mesh, its interior edges): real_cases.rigify_human(**built_by) with Volume Preservation
-        added, at Smoothing `smoothing` (None: the add-on's default)."""
+        """(body, rig, its welded mesh, its interior edges): real_cases.rigify_human(**built_by) with Volume
+        Preservation added, at Smoothing `smoothing` (None: the add-on's default)."""
         helpers.reset_scene()
         body, rig = real_cases.rigify_human(**built_by)
         mesh = quality.WeldedMesh(helpers.mesh_positions(body.data), helpers.mesh_triangles(body.data))
@@ -170,15 +170,14 @@ class TestBodyFamily(unittest.TestCase):
 
         Where the two sides are pressed onto one contact plane, the squeezed volume goes back as a rounder knee and
         elbow. What makes this pose hard for the surface measures, and where the core answers it: the pressed skin is
-        relaxed with the skin around it over more rings the deeper it was pressed (foldover.c,
-        lvp__relaxation_rings) and settled as a thin plate (plate.c), so the rim of the press meets the free skin
-        without a step; vertices that very short edges tie into one point (marching cubes' needles) move as one point
-        after fold-over, but for those it holds on a contact plane (smoothing_ties.c); skin that lay on the other side of the plane at rest is let across it
-        over a depth no shorter than its longest edge (foldover.c, LVP__OTHER_SIDE_FADE); and the gaps of skin Keep
-        Skin Apart keeps in place are not shortened alone (contact.c, lvp__pin_gaps). What is left, on the coarse
-        metaball body, is the sheet turning back 180 degrees between the two pressed sides: in turns of under 30
-        degrees an edge (what the measure allows over plain skinning's) that takes more edges than its knee has
-        across."""
+        relaxed with the skin around it over more rings the deeper it was pressed (foldover.c, lvp__relaxation_rings)
+        and settled as a thin plate (plate.c), so the rim of the press meets the free skin without a step; vertices that
+        very short edges tie into one point (marching cubes' needles) move as one point after fold-over, but for those
+        it holds on a contact plane (smoothing_ties.c); skin that lay on the other side of the plane at rest is let
+        across it over a depth no shorter than its longest edge (foldover.c, LVP__OTHER_SIDE_FADE); and the gaps of skin
+        Keep Skin Apart keeps in place are not shortened alone (contact.c, lvp__pin_gaps). What is left, on the coarse
+        metaball body, is the sheet turning back 180 degrees between the two pressed sides: in turns of under 30 degrees
+        an edge (what the measure allows over plain skinning's) that takes more edges than its knee has across."""
         for name, (built_by, smoothing) in FOLDED_BODIES.items():
             with self.subTest(body=name):
                 body, rig, mesh, edges = self.bound_body(built_by, smoothing)
@@ -193,8 +192,8 @@ class TestBodyFamily(unittest.TestCase):
                 measured = quality.measure_pose(mesh, helpers.uncorrected_positions(body),
                                                 {"fold-over": helpers.evaluated_positions(body)})
                 folded, plain = measured["fold-over"], measured["plain"]
-                print("\n    %-26s 150 degrees, Fold-Over: volume %+.4f %% (plain %+.2f %%), crossing pairs %d (plain %d), "
-                      "creases %d (%.0f allowed), roughness %.2f, shard %.2f"
+                print("\n    %-26s 150 degrees, Fold-Over: volume %+.4f %% (plain %+.2f %%), "
+                      "crossing pairs %d (plain %d), creases %d (%.0f allowed), roughness %.2f, shard %.2f"
                       % (name, 100 * folded["volume"], 100 * plain["volume"], folded["crossings"], plain["crossings"],
                          folded["creases"], edges / EDGES_PER_CREASE, folded["roughness"] / folded["largest_offset"],
                          folded["shard"] / folded["largest_offset"]))

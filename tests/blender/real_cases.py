@@ -11,6 +11,8 @@ and the same at every run:
   from open (frame 1) to a fist (frame 21: finger joints at 90, 100 and 70 degrees, fingertips at the palm);
 - mocap_character(): a motion capture clip of Debian's assimp-testmodels imported as a BVH file, a closed body
   grown around its skeleton, heat weights: a character as game and previs pipelines have them;
+- modelled_human(): the mannequin of assimp-testmodels' HUMAN.blend, modelled by hand from a box, mirrored and
+  subdivided, a rig placed by hand, heat weights; pose_modelled_human() bends its knees, hips and elbows hard;
 - gltf_round_trip(): a mesh through Blender's own glTF exporter and importer, which split it at its UV seams
   as files from other packages are split, then skinned to the same armature with the same weights.
 
@@ -25,7 +27,7 @@ import unittest
 
 import addon_utils
 import bpy
-from mathutils import Euler, Vector, kdtree
+from mathutils import Euler, Quaternion, Vector, kdtree
 
 # ---- closed smooth surfaces from spheres --------------------------------------------------------
 
@@ -879,3 +881,119 @@ def mocap_character(clip="jumps", voxel_share=0.015, decimated=None):
     if limbs:
         raise RuntimeError("heat weighting left %s empty" % limbs)
     return body, rig, first, last
+
+
+# ---- a body modelled by hand ------------------------------------------------------------------------------------
+
+MODELLED_HUMAN = "BLEND/HUMAN.blend"  # in assimp-testmodels: (c) 2010 Tobias Rittig, reuse allowed for any purpose
+
+# The rig a user places by hand in the modelled human (its mesh's units: 10.7 tall, feet at z -5.2, arms hanging
+# 20 degrees out): per bone, its head, its tail and its parent, the left side (+x) mirrored to the right. The
+# joints lie on the limbs' centre lines, measured from the subdivided mesh.
+_MODELLED_HUMAN_BONES = {
+    "pelvis": ((0.0, 0.2, 0.2), (0.0, 0.2, -0.6), None),
+    "spine": ((0.0, 0.2, 0.2), (0.0, 0.2, 1.6), "pelvis"),
+    "chest": ((0.0, 0.2, 1.6), (0.0, 0.2, 3.4), "spine"),
+    "neck": ((0.0, 0.2, 3.4), (0.0, 0.15, 4.0), "chest"),
+    "head": ((0.0, 0.15, 4.0), (0.0, 0.0, 5.5), "neck"),
+    "thigh.L": ((0.75, 0.25, -0.5), (0.8, 0.2, -2.8), "pelvis"),
+    "shin.L": ((0.8, 0.2, -2.8), (0.84, 0.35, -5.15), "thigh.L"),
+    "shoulder.L": ((0.3, 0.2, 3.3), (1.1, 0.2, 3.35), "chest"),
+    "upper_arm.L": ((1.15, 0.25, 3.3), (1.68, 0.3, 1.9), "shoulder.L"),
+    "forearm.L": ((1.68, 0.3, 1.9), (2.15, 0.0, 0.45), "upper_arm.L"),
+    "hand.L": ((2.15, 0.0, 0.45), (2.3, -0.13, -0.05), "forearm.L"),
+}
+
+
+def _modelled_human_armature(name):
+    """The armature of _MODELLED_HUMAN_BONES, both sides, each child connected where its head is its parent's
+    tail."""
+    data = bpy.data.armatures.new(name)
+    rig = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(rig)
+    _select_only(rig)
+    bpy.context.view_layer.objects.active = rig
+    bpy.ops.object.mode_set(mode='EDIT')
+    for bone_name, (head, tail, parent) in _MODELLED_HUMAN_BONES.items():
+        sides = ((bone_name, 1.0, parent),)
+        if bone_name.endswith(".L"):
+            sides += ((bone_name[:-2] + ".R", -1.0, parent[:-2] + ".R" if parent.endswith(".L") else parent),)
+        for side_name, sign, side_parent in sides:
+            bone = data.edit_bones.new(side_name)
+            bone.head = (sign * head[0], head[1], head[2])
+            bone.tail = (sign * tail[0], tail[1], tail[2])
+            if side_parent:
+                bone.parent = data.edit_bones[side_parent]
+                bone.use_connect = (bone.parent.tail - bone.head).length < 1e-6
+    bpy.ops.object.mode_set(mode='OBJECT')
+    return rig
+
+
+def modelled_human(subdivisions=2):
+    """(body, rig): the human of assimp-testmodels' HUMAN.blend, a mannequin modelled by hand from a box (151
+    vertices of quads, a Mirror and a Subdivision Surface modifier), appended as File > Append does, its modifiers
+    applied with the subdivision at `subdivisions` levels (1: 1,072 vertices, 2: 4,282, all quads, long along the
+    limbs and short around them), parented With Automatic Weights to a rig of 17 bones placed by hand. Raises
+    unittest.SkipTest where the file is missing."""
+    path = os.path.join(BVH_MODELS, MODELLED_HUMAN)
+    if not os.path.isfile(path):
+        raise unittest.SkipTest("%s is missing: apt-get install assimp-testmodels" % path)
+    with bpy.data.libraries.load(path) as (source, target):
+        target.objects = ["Cube"]
+    body = target.objects[0]
+    body.name = "ModelledHuman"
+    bpy.context.scene.collection.objects.link(body)
+    body.modifiers["Subsurf"].levels = subdivisions
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    mesh = bpy.data.meshes.new_from_object(body.evaluated_get(depsgraph))
+    body.modifiers.clear()
+    old, body.data = body.data, mesh
+    bpy.data.meshes.remove(old)
+    rig = _modelled_human_armature("ModelledHumanRig")
+    if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
+        raise RuntimeError("With Automatic Weights failed on the modelled human")
+    empty = empty_vertex_groups(body)
+    if empty:
+        raise RuntimeError("heat weighting left %s empty" % empty)
+    return body, rig
+
+
+def _turn_about(rig, bone_name, axis, degrees):
+    """Pose bone `bone_name` turned by `degrees` about `axis`, given in the armature's rest space (the turn is
+    applied in the bone's own rest frame, so the axis moves with the bones above it)."""
+    pose_bone = rig.pose.bones[bone_name]
+    pose_bone.rotation_mode = 'QUATERNION'
+    local_axis = pose_bone.bone.matrix_local.to_3x3().inverted() @ Vector(axis)
+    pose_bone.rotation_quaternion = Quaternion(local_axis.normalized(), math.radians(degrees))
+
+
+def _bend_elbows(rig, degrees):
+    """Both forearms bent forward by `degrees` about the elbow's hinge (across the upper arm, facing forward)."""
+    for sign, side in ((1.0, "L"), (-1.0, "R")):
+        head, tail, _parent = _MODELLED_HUMAN_BONES["upper_arm.L"]
+        upper_arm = Vector((sign * (tail[0] - head[0]), tail[1] - head[1], tail[2] - head[2]))
+        _turn_about(rig, "forearm." + side, upper_arm.cross(Vector((0.0, -1.0, 0.0))), degrees)
+
+
+# name: how pose_modelled_human poses the rig (the body faces -y)
+MODELLED_HUMAN_POSES = {
+    "knees at 150 degrees": lambda rig: [_turn_about(rig, "shin." + side, (1.0, 0.0, 0.0), 150.0) for side in "LR"],
+    "crouching": lambda rig: [(_turn_about(rig, "thigh." + side, (1.0, 0.0, 0.0), -100.0),
+                               _turn_about(rig, "shin." + side, (1.0, 0.0, 0.0), 140.0)) for side in "LR"],
+    "hips at 110 degrees": lambda rig: [_turn_about(rig, "thigh." + side, (1.0, 0.0, 0.0), -110.0) for side in "LR"],
+    "elbows at 140 degrees": lambda rig: _bend_elbows(rig, 140.0),
+    "arms against the chest": lambda rig: [_turn_about(rig, "upper_arm.L", (0.0, 1.0, 0.0), -28.0),
+                                           _turn_about(rig, "upper_arm.R", (0.0, 1.0, 0.0), 28.0)],
+    "arms down, elbows at 120 degrees": lambda rig: [_turn_about(rig, "upper_arm.L", (0.0, 1.0, 0.0), -25.0),
+                                                     _turn_about(rig, "upper_arm.R", (0.0, 1.0, 0.0), 25.0),
+                                                     _bend_elbows(rig, 120.0)],
+}
+
+
+def pose_modelled_human(rig, pose):
+    """The rig at MODELLED_HUMAN_POSES[pose], every other bone at rest."""
+    for pose_bone in rig.pose.bones:
+        pose_bone.rotation_mode = 'QUATERNION'
+        pose_bone.rotation_quaternion = (1.0, 0.0, 0.0, 0.0)
+    MODELLED_HUMAN_POSES[pose](rig)
+    bpy.context.view_layer.update()

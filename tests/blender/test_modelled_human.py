@@ -37,12 +37,14 @@ BODIES = {
 FOLDED_POSES = ("knees at 150 degrees", "elbows at 140 degrees")
 # (body, pose, settings) whose roughness, shards or creases are not held to the measures yet, measured on 3.4, 4.3
 # and 5.2 (the same on each):
-# - the knees at 150 degrees, where plain skinning passes the calf through the thigh over hundreds of pairs: the
-#   offsets there turn with the skinning's collapsed normals (roughness 0.28-0.50 of the largest offset);
-# - the elbows at 140 degrees with the defaults: 0.27-0.28, across the crease inside the elbow, one long quad;
-# - the coarse body crouching and with its hips raised, with Keep Skin Apart: 0.27. The fade where thigh meets belly
-#   sends the volume to the back, four to five times the offsets there without it, and the map ends where the
-#   chest's weights begin: a ledge across the back (BENCHMARKS.md).
+# - the defaults where the correction is small and bends over quads several times longer than wide: the knees at
+#   150 degrees (the calf behind the knee) and the elbows at 140 (behind the upper arm), largest offsets of a fifth
+#   to three quarters of an edge, roughness 0.27-0.50 of them;
+# - Keep Skin Apart where its fade sends the volume to skin whose map ends a ring further: the coarse body crouching
+#   and with its hips raised (the back, four to five times its offsets without the fade, down to the chest's weights
+#   in one ring: a ledge across the back, 0.27; BENCHMARKS.md), and both bodies' knees at 150 degrees (the front
+#   of the thigh near the hip, 0.73-1.31 of an edge beside neighbours at 0.01-0.04: 0.48 and 13 creases where 11
+#   are allowed on the coarse body, 0.39 on the finer).
 SURFACE_NOT_MET = {
     ("subdivided twice", "knees at 150 degrees", "defaults"),
     ("subdivided twice", "knees at 150 degrees", "kept apart"),

@@ -36,7 +36,7 @@ BODIES = {
 # Poses where Fold-Over must part at least half of plain skinning's crossing pairs (issue 46).
 FOLDED_POSES = ("knees at 150 degrees", "elbows at 140 degrees")
 # (body, pose, settings) whose roughness, shards or creases are not held to the measures yet, measured on 3.4, 4.3
-# and 5.2 (the same on each):
+# and 5.2 (the same measures on each):
 # - the defaults where the correction is small and bends over quads several times longer than wide: the knees at
 #   150 degrees (the calf behind the knee) and the elbows at 140 (behind the upper arm), largest offsets of a fifth
 #   to three quarters of an edge, roughness 0.27-0.50 of them;

@@ -967,26 +967,28 @@ def _turn_about(rig, bone_name, axis, degrees):
     pose_bone.rotation_quaternion = Quaternion(local_axis.normalized(), math.radians(degrees))
 
 
-def _bend_elbows(rig, degrees):
-    """Both forearms bent forward by `degrees` about the elbow's hinge (across the upper arm, facing forward)."""
-    for sign, side in ((1.0, "L"), (-1.0, "R")):
-        head, tail, _parent = _MODELLED_HUMAN_BONES["upper_arm.L"]
-        upper_arm = Vector((sign * (tail[0] - head[0]), tail[1] - head[1], tail[2] - head[2]))
-        _turn_about(rig, "forearm." + side, upper_arm.cross(Vector((0.0, -1.0, 0.0))), degrees)
+def _elbow_hinge(sign):
+    """The axis an elbow bends about, for the left (sign 1) or right (-1) arm: across the upper arm and the body's
+    facing (-y), so that a positive turn brings the forearm forward."""
+    head, tail, _parent = _MODELLED_HUMAN_BONES["upper_arm.L"]
+    upper_arm = Vector((sign * (tail[0] - head[0]), tail[1] - head[1], tail[2] - head[2]))
+    return tuple(upper_arm.cross(Vector((0.0, -1.0, 0.0))))
 
 
-# name: how pose_modelled_human poses the rig (the body faces -y)
+_ACROSS = (1.0, 0.0, 0.0)  # a knee's and a hip's hinge: positive turns a shin back, negative a thigh forward
+_FRONT_TO_BACK = (0.0, 1.0, 0.0)  # turns a hanging arm in towards the body (left arm negative, right positive)
+
+# name: the turns that pose_modelled_human makes, (bone, axis in rest space, degrees)
 MODELLED_HUMAN_POSES = {
-    "knees at 150 degrees": lambda rig: [_turn_about(rig, "shin." + side, (1.0, 0.0, 0.0), 150.0) for side in "LR"],
-    "crouching": lambda rig: [(_turn_about(rig, "thigh." + side, (1.0, 0.0, 0.0), -100.0),
-                               _turn_about(rig, "shin." + side, (1.0, 0.0, 0.0), 140.0)) for side in "LR"],
-    "hips at 110 degrees": lambda rig: [_turn_about(rig, "thigh." + side, (1.0, 0.0, 0.0), -110.0) for side in "LR"],
-    "elbows at 140 degrees": lambda rig: _bend_elbows(rig, 140.0),
-    "arms against the chest": lambda rig: [_turn_about(rig, "upper_arm.L", (0.0, 1.0, 0.0), -28.0),
-                                           _turn_about(rig, "upper_arm.R", (0.0, 1.0, 0.0), 28.0)],
-    "arms down, elbows at 120 degrees": lambda rig: [_turn_about(rig, "upper_arm.L", (0.0, 1.0, 0.0), -25.0),
-                                                     _turn_about(rig, "upper_arm.R", (0.0, 1.0, 0.0), 25.0),
-                                                     _bend_elbows(rig, 120.0)],
+    "knees at 150 degrees": (("shin.L", _ACROSS, 150.0), ("shin.R", _ACROSS, 150.0)),
+    "crouching": (("thigh.L", _ACROSS, -100.0), ("thigh.R", _ACROSS, -100.0), ("shin.L", _ACROSS, 140.0),
+                  ("shin.R", _ACROSS, 140.0)),
+    "hips at 110 degrees": (("thigh.L", _ACROSS, -110.0), ("thigh.R", _ACROSS, -110.0)),
+    "elbows at 140 degrees": (("forearm.L", _elbow_hinge(1.0), 140.0), ("forearm.R", _elbow_hinge(-1.0), 140.0)),
+    "arms against the chest": (("upper_arm.L", _FRONT_TO_BACK, -28.0), ("upper_arm.R", _FRONT_TO_BACK, 28.0)),
+    "arms down, elbows at 120 degrees": (("upper_arm.L", _FRONT_TO_BACK, -25.0), ("upper_arm.R", _FRONT_TO_BACK, 25.0),
+                                         ("forearm.L", _elbow_hinge(1.0), 120.0),
+                                         ("forearm.R", _elbow_hinge(-1.0), 120.0)),
 }
 
 
@@ -995,5 +997,6 @@ def pose_modelled_human(rig, pose):
     for pose_bone in rig.pose.bones:
         pose_bone.rotation_mode = 'QUATERNION'
         pose_bone.rotation_quaternion = (1.0, 0.0, 0.0, 0.0)
-    MODELLED_HUMAN_POSES[pose](rig)
+    for bone_name, axis, degrees in MODELLED_HUMAN_POSES[pose]:
+        _turn_about(rig, bone_name, axis, degrees)
     bpy.context.view_layer.update()

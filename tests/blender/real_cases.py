@@ -940,15 +940,12 @@ def modelled_human(subdivisions=2):
         raise unittest.SkipTest("%s is missing: apt-get install assimp-testmodels" % path)
     with bpy.data.libraries.load(path) as (source, target):
         target.objects = ["Cube"]
-    body = target.objects[0]
-    body.name = "ModelledHuman"
-    bpy.context.scene.collection.objects.link(body)
-    body.modifiers["Subsurf"].levels = subdivisions
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    mesh = bpy.data.meshes.new_from_object(body.evaluated_get(depsgraph))
-    body.modifiers.clear()
-    old, body.data = body.data, mesh
-    bpy.data.meshes.remove(old)
+    appended = target.objects[0]
+    bpy.context.scene.collection.objects.link(appended)
+    appended.modifiers["Subsurf"].levels = subdivisions
+    modelled = appended.data
+    body = _as_mesh_object(appended, "ModelledHuman")
+    bpy.data.meshes.remove(modelled)
     rig = _modelled_human_armature("ModelledHumanRig")
     if parent_with_automatic_weights(body, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the modelled human")

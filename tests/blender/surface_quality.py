@@ -33,6 +33,10 @@ from mathutils.bvhtree import BVHTree
 
 CREASE_DEGREES = 30.0
 WELD_RELATIVE_TOLERANCE = 1e-6
+# QUALITY.md's limits on a corrected surface: roughness and shard at most this share of the largest offset, and
+# at most one crease added per EDGES_PER_CREASE interior edges.
+ROUGHNESS_OF_LARGEST = 0.25
+EDGES_PER_CREASE = 300
 
 
 # ---- input ---------------------------------------------------------------------------------
@@ -462,3 +466,22 @@ def measure_pose(mesh, plain_positions, corrected):
                         "roughness": rough, "largest_offset": largest, "crack": crack(offsets, mesh),
                         "shard": shard(plain_positions, positions, mesh)[0]}
     return result
+
+
+def surface_faults(measured, edges, roughness=True, shard=True, creases=True, creases_before=0):
+    """The limits of QUALITY.md that one correction's measures (an entry of measure_pose) break, a sentence each
+    with the numbers; empty when the surface holds. `edges`: the mesh's interior edges. roughness, shard or
+    creases False leave that limit out (a case a test names as not met yet); creases_before: creases that another
+    setting already adds at this pose, so that only what this one adds to them is counted."""
+    largest = measured["largest_offset"] or 1.0
+    faults = []
+    if roughness and measured["roughness"] > ROUGHNESS_OF_LARGEST * measured["largest_offset"]:
+        faults.append("roughness %.2f of the largest offset (at most %.2f)"
+                      % (measured["roughness"] / largest, ROUGHNESS_OF_LARGEST))
+    if shard and measured["shard"] > ROUGHNESS_OF_LARGEST * measured["largest_offset"]:
+        faults.append("shard %.2f of the largest offset (at most %.2f)" % (measured["shard"] / largest,
+                                                                           ROUGHNESS_OF_LARGEST))
+    if creases and measured["creases"] - creases_before > edges / EDGES_PER_CREASE:
+        faults.append("%d creases added (at most %.1f: one per %d of %d edges)"
+                      % (measured["creases"] - creases_before, edges / EDGES_PER_CREASE, EDGES_PER_CREASE, edges))
+    return faults

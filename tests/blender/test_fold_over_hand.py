@@ -217,7 +217,7 @@ class TestFoldOverHand(unittest.TestCase):
         # plane: 126 creases at the fist; relaxed with the skin around it under the contact, 38.
         edges = len(self.mesh.interior_edges())
         for row in self.measured:
-            self.assertLessEqual(row["fold"]["creases"], edges / 300, "frame %d" % row["frame"])
+            self.assertLessEqual(row["fold"]["creases"], edges / quality.EDGES_PER_CREASE, "frame %d" % row["frame"])
 
     def test_volume_and_no_fallback(self):
         for row in self.measured:

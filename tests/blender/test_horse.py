@@ -139,7 +139,7 @@ class HorseSurfaceMeasures:
         with `only`), each frame's status checked; and self.shards, {action name: the largest shard over the
         largest offset} (surface_quality.shard)."""
         mesh = quality.WeldedMesh(helpers.mesh_positions(obj.data), helpers.mesh_triangles(obj.data))
-        self.creases_allowed = len(mesh.interior_edges()) / 300.0
+        self.creases_allowed = len(mesh.interior_edges()) / quality.EDGES_PER_CREASE
         scene = bpy.context.scene
         result = {}
         self.shards = {}
@@ -267,7 +267,7 @@ class TestLowPolyHorseSurface(TestHorseSurface):
 
     LOW_POLY = 0.18
     SMOOTHING = 10
-    COARSE_ROUGHNESS = 0.25
+    COARSE_ROUGHNESS = quality.ROUGHNESS_OF_LARGEST
     # The shard reads the offsets' roughness along the normals, which turn by tens of degrees from vertex to vertex
     # here: 0.10-0.22 on every action with Keep Skin Apart (3.4 and 5.2; 0.29 on lay_to_idle before the offsets each
     # fade left were smoothed), at the vertex the roughness finds.

@@ -132,7 +132,7 @@ class TestRigifyArm(helpers.AddonTestCase):
         print("\n    Rigify arm, elbow at 90 degrees: %d creases added, roughness %.2f of the largest offset"
               % (vp["creases"], vp["roughness"] / vp["largest_offset"]))
         self.assertLessEqual(vp["creases"], 10, vp)
-        self.assertLessEqual(vp["roughness"], 0.25 * vp["largest_offset"], vp)
+        self.assertLessEqual(vp["roughness"], quality.ROUGHNESS_OF_LARGEST * vp["largest_offset"], vp)
 
     def bulge_along_the_arm(self):
         """(length along the arm over which the skin moved: four standard deviations of the offsets'

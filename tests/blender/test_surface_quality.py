@@ -238,6 +238,48 @@ class TestShards(unittest.TestCase):
         self.assertLessEqual(value, 0.0)
 
 
+class TestSurfaceFaults(unittest.TestCase):
+    """surface_faults: QUALITY.md's limits on one correction's measures, as the family tests hold them."""
+    SIZE = 21
+
+    def setUp(self):
+        self.points, self.triangles = grid(self.SIZE)
+        self.mesh = quality.WeldedMesh(self.points, self.triangles)
+        self.edges = len(self.mesh.interior_edges())
+        self.bulge = [(x, y, 2.0 * math.exp(-((x - 10) ** 2 + (y - 10) ** 2) / 18.0)) for x, y, _z in self.points]
+
+    def measured(self, positions):
+        """The measures surface_faults reads, as measure_pose gives them (which a sheet, holding no volume, cannot
+        take)."""
+        rough, largest, _vertex = quality.roughness(quality.offsets_between(self.points, positions), self.mesh)
+        return {"roughness": rough, "largest_offset": largest,
+                "shard": quality.shard(self.points, positions, self.mesh)[0],
+                "creases": len(quality.creases_added(self.points, positions, self.mesh))}
+
+    def test_a_smooth_bulge_holds(self):
+        self.assertEqual(quality.surface_faults(self.measured(self.bulge), self.edges), [])
+
+    def test_a_spike_on_the_bulge_is_rough_a_shard_and_creased(self):
+        spiked = list(self.bulge)
+        x, y, z = spiked[10 * self.SIZE + 12]
+        spiked[10 * self.SIZE + 12] = (x, y, z + 1.5)
+        measured = self.measured(spiked)
+        faults = quality.surface_faults(measured, self.edges)
+        self.assertEqual([fault.split()[0] for fault in faults], ["roughness", "shard", str(measured["creases"])],
+                         faults)
+        self.assertEqual(quality.surface_faults(measured, self.edges, roughness=False, shard=False, creases=False), [])
+
+    def test_creases_past_one_per_300_edges(self):
+        # A sheet folded up by 90 degrees along the row x = 10: each edge on it a crease, 20 of them against the
+        # 3.9 allowed on the sheet's 1,160 interior edges; as many already added by another setting are not counted.
+        folded = [(x, y, 0.0) if x <= 10 else (10.0, y, x - 10.0) for x, y, _z in self.points]
+        measured = self.measured(folded)
+        self.assertEqual((self.edges, measured["creases"]), (1160, 20))
+        self.assertEqual(len(quality.surface_faults(measured, self.edges, roughness=False, shard=False)), 1)
+        self.assertEqual(quality.surface_faults(measured, self.edges, roughness=False, shard=False,
+                                                creases_before=measured["creases"]), [])
+
+
 class TestPopping(unittest.TestCase):
     """offset_change_ratio: a bulge that grows with the bend changes by a fraction of the skin's motion; one that
     appears at once (a region starting to be corrected) by more than the skin moved."""

@@ -272,10 +272,12 @@
  *   themselves, each part's growing by one factor (what they cannot restore goes through the map),
  *   so the shape the passes gave is kept: more passes, smoother offsets. The passes move only what
  *   the map moves, so where the moving skin ends (the weight of a bone that moves runs out) the
- *   offsets would rise from nothing to their neighbours' within one edge; after the passes, each
- *   vertex on that rim that its bind map lets move, but not this frame's map, takes half the mean
- *   of its neighbours' offsets (fold-over's held vertices aside; the rim is found before anything
- *   fades the map), so the offsets fall off over one edge more. Restoring each region
+ *   offsets would rise from nothing to their neighbours' within one edge; after the passes, the
+ *   vertices on that rim that their bind map lets move, but not this frame's map, take the
+ *   weighted mean of their neighbours' offsets, the still skin beyond counting with none (the
+ *   harmonic values, found by a few sweeps over the rim; fold-over's held vertices aside; the rim
+ *   is found before anything fades the map), so the offsets fall off over one edge more, on the
+ *   line from the moving skin to the still. Restoring each region
  *   (LVP_RESTORE_EACH_REGION, or a frame whose bones scale), steps 1-3 restore it. On a hand
  *   closing into a fist, 6 passes (the add-on's default) with equal weights: creases added
  *   111 -> 29, offsets' roughness 0.15 -> 0.06 of the largest, crossing pairs 253 -> 227; on a

@@ -271,34 +271,55 @@ static int32_t lvp__list_movable(lvp_binding *binding, lvp__smoothing *smoothing
 	return count;
 }
 
-/* The rim of the moving skin (frame_map.rim: vertices the bind map lets move that this frame's map
- * does not, beside ones it moves), but for vertices fold-over holds, takes half the mean of its
- * neighbours' offsets (those outside the dynamic set counting with none). The passes move only what
- * the map moves, and without it the offsets rose from nothing to their neighbours' within one edge, a
- * cliff that on a coarse mesh is a large share of the moving patch. Written into `from` (the passes'
- * result) after every rim vertex is computed from the passes' result alone (in `to`), so in any order. */
+/* The rim of the moving skin (frame_map.rim: vertices the bind map lets move that this frame's map does not,
+ * beside ones it moves), but for vertices fold-over holds, takes the offsets that join the moving skin to the still
+ * skin beyond as smoothly as the passes join the moving skin within: each rim vertex the weighted mean of its
+ * neighbours' offsets as the passes weigh them (those outside the dynamic set counting with none, the rim's own as
+ * they are being found), the harmonic values the passes would reach if the rim moved and the skin beyond did not.
+ * Found by sweeps that each give every rim vertex that mean from the sweep before, from no offset, until none
+ * changes by more than LVP__RIM_TOLERANCE of the largest. The passes move only what the map moves, and without this
+ * the offsets rose from nothing to their neighbours' within one edge, a cliff that on a coarse mesh is a large
+ * share of the moving patch; the harmonic values leave the least roughness a ramp over one ring can (a quarter of
+ * the offset beside it; docs/method.md, Where the moving skin ends). The restores that follow grow the moving
+ * skin's offsets, not these: grown with them, the rim moved the cliff to the still skin beyond. */
+#define LVP__RIM_TOLERANCE 1e-3
+#define LVP__RIM_SWEEPS 64 /* at most: each sweep shrinks the error by at least the share of a rim vertex's
+                              weight on other rim vertices, and most have still skin beside them */
 static void lvp__feather_rim(lvp_binding *binding, lvp__smoothing_pass *pass)
 {
 	const lvp__smoothing *smoothing = pass->smoothing;
 	const lvp__frame_map *frame_map = &binding->frame_map;
 	const uint8_t *dynamic = frame_map->vertex_dynamic;
 	float *result = (float *)pass->from, *scratch = pass->to;
-	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
-		int32_t k = frame_map->rim[i], first = smoothing->offsets[k], last = smoothing->offsets[k + 1];
-		double sum[3] = {0.0, 0.0, 0.0};
-		for (int32_t e = first; e < last; ++e) {
-			int32_t j = smoothing->neighbours[e];
-			if (dynamic[j])
-				for (int c = 0; c < 3; ++c)
-					sum[c] += result[3 * j + c];
+	for (int32_t i = 0; i < frame_map->rim_count; ++i)
+		if (!binding->fold.held[frame_map->rim[i]])
+			memset(result + 3 * (int64_t)frame_map->rim[i], 0, 3 * sizeof(float));
+	for (int sweep = 0; sweep < LVP__RIM_SWEEPS; ++sweep) {
+		for (int32_t i = 0; i < frame_map->rim_count; ++i) {
+			int32_t k = frame_map->rim[i];
+			double sum[3] = {0.0, 0.0, 0.0};
+			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+				int32_t j = smoothing->neighbours[e];
+				if (dynamic[j])
+					for (int c = 0; c < 3; ++c)
+						sum[c] += 2.0 * smoothing->halves[e] * result[3 * (int64_t)j + c];
+			}
+			for (int c = 0; c < 3; ++c)
+				scratch[3 * (int64_t)k + c] = (float)sum[c]; /* apart: the sweep reads the one before */
 		}
-		for (int c = 0; c < 3; ++c)
-			scratch[3 * k + c] = (float)(0.5 * sum[c] / (double)(last - first)); /* listed for a neighbour */
-	}
-	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
-		int32_t k = frame_map->rim[i];
-		if (!binding->fold.held[k])
-			memcpy(result + 3 * k, scratch + 3 * k, 3 * sizeof(float));
+		double change = 0.0, largest = 0.0;
+		for (int32_t i = 0; i < frame_map->rim_count; ++i) {
+			int32_t k = frame_map->rim[i];
+			if (binding->fold.held[k])
+				continue;
+			float *now = result + 3 * (int64_t)k;
+			const float *next = scratch + 3 * (int64_t)k;
+			change = fmax(change, lvp__length(lvp__sub(lvp__load(next), lvp__load(now))));
+			largest = fmax(largest, lvp__length(lvp__load(next)));
+			memcpy(now, next, 3 * sizeof(float));
+		}
+		if (change <= LVP__RIM_TOLERANCE * largest)
+			break;
 	}
 }
 

@@ -152,10 +152,10 @@ class TestBodyFamily(unittest.TestCase):
         through the chest's). With the add-on's defaults and with Keep Skin Apart, the measures of the hard poses:
         the volume kept, with Keep Skin Apart no new contact and no more crossing pairs than plain skinning, at most
         one crease per 300 edges, roughness (but on ROUGHNESS_NOT_MET) and shards at most a quarter of the largest
-        offset. The coarsest bodies
-        with their arms against the chest are the closest to the bound: their largest offset is a fifth of an edge,
-        so the rim where the moved skin ends (feathered by the smoothing, offset_smoothing.c) and the rim of Keep
-        Skin Apart's fade (whose faded offsets are smoothed as the frame's are, correction.c) are what they read."""
+        offset. The coarsest bodies with their arms against the chest are the closest to the bound: their largest
+        offset is a fifth of an edge, so the rim where the moved skin ends (feathered by the smoothing,
+        offset_smoothing.c) and the rim of Keep Skin Apart's fade (whose faded offsets are smoothed as the frame's
+        are, correction.c) are what they read."""
         for name, (built_by, smoothing) in PRESSED_BODIES.items():
             with self.subTest(body=name):
                 body, rig, mesh, edges = self.bound_body(built_by, smoothing)

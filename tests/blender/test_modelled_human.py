@@ -39,8 +39,8 @@ FOLDED_POSES = ("knees at 150 degrees", "elbows at 140 degrees")
 #   knees at 150 degrees (the calf behind the knee) and the elbows at 140 (behind the upper arm), largest offsets of
 #   a fifth to three quarters of an edge, roughness 0.27-0.50 of them;
 # - Keep Skin Apart at the knees at 150 degrees, where its fade sends the volume to skin at the edge of what the map
-#   moves: the front of the thigh near the hip, up to 0.8 of an edge beside the still skin above (0.44 on the coarse
-#   body, 0.39 on the finer; BENCHMARKS.md).
+#   moves: the outer side of the thigh near the hip, 0.76 of an edge beside the still skin above it at 0.00-0.02
+#   (0.44 on the coarse body, 0.39 on the finer; BENCHMARKS.md).
 SURFACE_NOT_MET = {
     ("subdivided twice", "knees at 150 degrees", "apart off"),
     ("subdivided twice", "knees at 150 degrees", "kept apart"),

@@ -283,8 +283,8 @@ static int32_t lvp__list_movable(lvp_binding *binding, lvp__smoothing *smoothing
  * the offset beside it; docs/method.md, Where the moving skin ends). The restores that follow grow the moving
  * skin's offsets, not these: grown with them, the rim moved the cliff to the still skin beyond. */
 #define LVP__RIM_TOLERANCE 1e-3
-#define LVP__RIM_SWEEPS 64 /* at most: each sweep shrinks the error by at least the share of a rim vertex's
-                              weight on other rim vertices, and most have still skin beside them */
+#define LVP__RIM_SWEEPS 64 /* at most: a sweep leaves of the error at most the largest share of a rim vertex's
+                              weight on other rim vertices, below 1 as each has moving skin beside it */
 static void lvp__feather_rim(lvp_binding *binding, lvp__smoothing_pass *pass)
 {
 	const lvp__smoothing *smoothing = pass->smoothing;

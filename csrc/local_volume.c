@@ -145,8 +145,14 @@ static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 		double volume6 = 0.0, ax = 0.0, ay = 0.0, az = 0.0;
 		for (int32_t i = binding->measure.piece_first[piece]; i < binding->measure.piece_first[piece + 1]; ++i) {
 			int32_t t = dynamic[i];
-			float *g = triangle_gradient + 3 * t;
+			/* Summed from a local copy, not read back from the array just written: two 4-byte stores read
+			 * back as one 8-byte load cannot be forwarded, and Clang's code (the shipped Linux and macOS
+			 * modules) stalled there for a third of this loop. */
+			float g[3];
 			float v = (float)lvp__triangle_terms(g, c->positions, triangles + 3 * t, o);
+			triangle_gradient[3 * t] = g[0];
+			triangle_gradient[3 * t + 1] = g[1];
+			triangle_gradient[3 * t + 2] = g[2];
 			triangle_volume6[t] = v;
 			volume6 += v;
 			ax += g[0];

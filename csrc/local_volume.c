@@ -147,7 +147,7 @@ static void lvp__piece_loop(void *context, int32_t begin, int32_t end)
 			int32_t t = dynamic[i];
 			/* Summed from a local copy, not read back from the array just written: two 4-byte stores read
 			 * back as one 8-byte load cannot be forwarded, and Clang's code (the shipped Linux and macOS
-			 * modules) stalled there for a third of this loop. */
+			 * modules) stalled there for more than half of this loop's time. */
 			float g[3];
 			float v = (float)lvp__triangle_terms(g, c->positions, triangles + 3 * t, o);
 			triangle_gradient[3 * t] = g[0];

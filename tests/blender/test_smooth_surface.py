@@ -33,7 +33,6 @@ import real_cases
 import surface_quality as quality
 
 
-
 class SurfaceCase(unittest.TestCase):
 
     def measure(self, obj, label):

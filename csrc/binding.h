@@ -925,6 +925,11 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 /* step.smoothing_offsets of the dynamic vertices: their offsets as they are (step.positions less
  * positions), for steps along them (lvp__restore_smoothed) without smoothing. */
 void lvp__take_offsets(lvp_binding *binding, const float *positions);
+/* The moving skin's rim (frame_map.rim) feathered again against the offsets as they are (step.positions against
+ * `positions`), as lvp__smooth_offsets feathers it after its passes: after restores that grew the moving skin's
+ * offsets but not the rim's. Leaves step.smoothing_offsets holding every dynamic vertex's offset; the volume is
+ * not restored here. */
+void lvp__feather_rim_again(lvp_binding *binding, const float *positions);
 
 /* contact.c */
 /* Allocates the contact test at the first call (lvp_error_out_of_memory when it cannot). */

@@ -989,8 +989,9 @@ static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_optio
 	return steps;
 }
 
-/* The volume that the crossing test's shortening took, restored again: along the offsets as they are
- * (the shape the smoothing and the fade gave them, each growing as little as it was shortened), or with
+/* The volume that the crossing test's shortening took (or the rim's feathering after the fades added), restored
+ * again: along the offsets as they are (the shape the smoothing and the fade gave them, each growing as little as
+ * it was shortened), or with
  * fold-over through the map, which fold-over faded at its contacts: growing along the offsets, the
  * skin beside a contact would be pushed back through it, a crossing of the skinning's own that no
  * test of new crossings sees. */
@@ -1038,12 +1039,21 @@ static int32_t lvp__restore_short_of_contact(lvp_binding *binding, const lvp_fra
                                              const float *positions, const float *rest_positions,
                                              const lvp__region_sums *totals)
 {
-	int32_t steps = 0;
-	for (int cycle = 0; cycle < LVP__CLEARANCE_CYCLES; ++cycle) {
+	int32_t steps = 0, cycle = 0;
+	for (; cycle < LVP__CLEARANCE_CYCLES; ++cycle) {
 		lvp__measure_clearance(binding, positions, cycle > 0);
 		if (!lvp__fade_at_clearance(binding, positions))
 			break;
 		steps += lvp__restore_fade_smoothed(binding, options, positions, rest_positions, totals);
+	}
+	/* The restores grew the moving skin's offsets, up to eightfold where the fade left it little room, and not
+	 * the rim's, which the smoothing feathered against the offsets before them: where the volume went to the
+	 * end of the moving skin (a coarse body's arms against its chest, the fade sending the volume to the top
+	 * of the shoulder), the offsets stood on the rim as a ledge. It is feathered against them again, and the
+	 * volume that adds taken back along the offsets. */
+	if (cycle > 0 && binding->frame_map.rim_count > 0) {
+		lvp__feather_rim_again(binding, positions);
+		steps += lvp__restore_after_fade(binding, options, positions, rest_positions, totals);
 	}
 	return steps;
 }

@@ -273,11 +273,12 @@
  *   so the shape the passes gave is kept: more passes, smoother offsets. The passes move only what
  *   the map moves, so where the moving skin ends (the weight of a bone that moves runs out) the
  *   offsets would rise from nothing to their neighbours' within one edge; after the passes, the
- *   vertices on that rim that their bind map lets move, but not this frame's map, take the
- *   weighted mean of their neighbours' offsets, the still skin beyond counting with none (the
- *   harmonic values, found by a few sweeps over the rim; fold-over's held vertices aside; the rim
- *   is found before anything fades the map), so the offsets fall off over one edge more, on the
- *   line from the moving skin to the still. Restoring each region
+ *   vertices on that rim that their bind map lets move, but not this frame's map, take the offsets
+ *   that leave the least roughness (an offset against the plain mean of its neighbours') summed in
+ *   squares over the rim and the skin on both sides of it, the still skin beyond at none (found by
+ *   a few sweeps over the rim; fold-over's held vertices aside; the rim is found before anything
+ *   fades the map), so the offsets fall off over one edge more: on a line, half the offset beside
+ *   them, the least a one-ring ramp can leave. Restoring each region
  *   (LVP_RESTORE_EACH_REGION, or a frame whose bones scale), steps 1-3 restore it. On a hand
  *   closing into a fist, 6 passes (the add-on's default) with equal weights: creases added
  *   111 -> 29, offsets' roughness 0.15 -> 0.06 of the largest, crossing pairs 253 -> 227; on a
@@ -304,7 +305,9 @@
  *   smoothly and never reaches h. The shares kept are smoothed over the rings around (none more than
  *   0.2 above a neighbour's, then averaged), the map faded by them, the faded offsets smoothed as the
  *   frame's are (smoothing_passes: the shares' slope stood out as a rim of the faded skin), and the
- *   volume they no longer carry restored along them, up to 3 rounds. Then every pair of triangles
+ *   volume they no longer carry restored along them, up to 3 rounds; the restores grow the moving
+ *   skin's offsets and not the rim's (OFFSET SMOOTHING), so after them the rim is feathered again and
+ *   the volume that adds taken back along the offsets. Then every pair of triangles
  *   (sharing no corner) that still crosses after the correction but not in `positions` is found (a
  *   bounding volume hierarchy over the triangles, built at the first such frame, fitted to
  *   `positions` once a frame and after that only where skin moves), and the

@@ -272,54 +272,92 @@ static int32_t lvp__list_movable(lvp_binding *binding, lvp__smoothing *smoothing
 }
 
 /* The rim of the moving skin (frame_map.rim: vertices the bind map lets move that this frame's map does not,
- * beside ones it moves), but for vertices fold-over holds, takes the offsets that join the moving skin to the still
- * skin beyond as smoothly as the passes join the moving skin within: each rim vertex the weighted mean of its
- * neighbours' offsets as the passes weigh them (those outside the dynamic set counting with none, the rim's own as
- * they are being found), the harmonic values the passes would reach if the rim moved and the skin beyond did not.
- * Found by sweeps that each give every rim vertex that mean from the sweep before, from no offset, until none
- * changes by more than LVP__RIM_TOLERANCE of the largest. The passes move only what the map moves, and without this
- * the offsets rose from nothing to their neighbours' within one edge, a cliff that on a coarse mesh is a large
- * share of the moving patch; the harmonic values leave the least roughness a ramp over one ring can (a quarter of
- * the offset beside it; docs/method.md, Where the moving skin ends). The restores that follow grow the moving
- * skin's offsets, not these: grown with them, the rim moved the cliff to the still skin beyond. */
+ * beside ones it moves), but for vertices fold-over holds, takes the offsets that leave the least roughness as
+ * QUALITY.md measures it (a vertex's offset against the plain mean of its edge neighbours') summed in squares over
+ * the rim and every vertex beside it: the moving skin's last ring, the rim and the still skin beyond, whose
+ * offsets stay as they are (none outside the dynamic set). Each rim vertex k then solves
+ *     o_k (1 + sum_v 1 / n_v^2) = m_k + sum_v (o_v - s_v / n_v) / n_v,
+ * v over k's n_k neighbours, m_k the mean of their offsets, n_v a neighbour's count of neighbours and s_v the sum
+ * of their offsets but k's: the least-squares system of the umbrella operator, symmetric and positive definite, so
+ * the Gauss-Seidel sweeps (in the rim's order, from no offset, until none changes by more than LVP__RIM_TOLERANCE
+ * of the largest) converge. The passes move only what the map moves, and without this the offsets rose from
+ * nothing to their neighbours' within one edge, a cliff that on a coarse mesh is a large share of the moving
+ * patch. On a one-dimensional ramp the values are the harmonic ones (half the offset beside them), which leave the
+ * least roughness a ramp over one ring can (a quarter of the offset beside it; docs/method.md, Where the moving
+ * skin ends); on a surface they also weigh the still skin beyond the rim, where the harmonic values of the
+ * passes' weights left a cliff as steep as the one they took away (the still vertex beside three rim vertices of
+ * the coarse modelled human's back). */
 #define LVP__RIM_TOLERANCE 1e-3
-#define LVP__RIM_SWEEPS 64 /* at most: a sweep leaves of the error at most the largest share of a rim vertex's
-                              weight on other rim vertices, below 1 as each has moving skin beside it */
-static void lvp__feather_rim(lvp_binding *binding, lvp__smoothing_pass *pass)
+#define LVP__RIM_SWEEPS 64 /* at most: each sweep lowers the summed squares, and a few leave what the tolerance asks */
+
+/* The offset of vertex j in `offsets`: none outside the dynamic set, whatever its entry holds. */
+static inline lvp__vec3 lvp__rim_offset_of(const uint8_t *dynamic, const float *offsets, int32_t j)
 {
-	const lvp__smoothing *smoothing = pass->smoothing;
+	return dynamic[j] ? lvp__load(offsets + 3 * (int64_t)j) : lvp__v(0.0, 0.0, 0.0);
+}
+
+/* The offset of rim vertex k that leaves the least summed squares of roughness around it, the others as they are
+ * in `offsets` (see above). */
+static lvp__vec3 lvp__rim_value(const lvp__smoothing *smoothing, const uint8_t *dynamic, const float *offsets,
+                                int32_t k)
+{
+	int32_t count = smoothing->offsets[k + 1] - smoothing->offsets[k];
+	lvp__vec3 sum = lvp__v(0.0, 0.0, 0.0);
+	double diagonal = 1.0;
+	for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
+		int32_t v = smoothing->neighbours[e];
+		int32_t beside_v = smoothing->offsets[v + 1] - smoothing->offsets[v];
+		if (beside_v == 0) /* k is v's neighbour as v is k's; a list without k would not be */
+			continue;
+		lvp__vec3 own = lvp__rim_offset_of(dynamic, offsets, v), others = lvp__v(0.0, 0.0, 0.0);
+		for (int32_t f = smoothing->offsets[v]; f < smoothing->offsets[v + 1]; ++f)
+			if (smoothing->neighbours[f] != k)
+				others = lvp__add(others, lvp__rim_offset_of(dynamic, offsets, smoothing->neighbours[f]));
+		sum = lvp__add(sum, lvp__scale(own, 1.0 / count));
+		sum = lvp__add(sum, lvp__scale(lvp__sub(own, lvp__scale(others, 1.0 / beside_v)), 1.0 / beside_v));
+		diagonal += 1.0 / ((double)beside_v * beside_v);
+	}
+	return lvp__scale(sum, 1.0 / diagonal);
+}
+
+static void lvp__feather_rim(lvp_binding *binding, float *offsets)
+{
+	const lvp__smoothing *smoothing = &binding->smoothing;
 	const lvp__frame_map *frame_map = &binding->frame_map;
 	const uint8_t *dynamic = frame_map->vertex_dynamic;
-	float *result = (float *)pass->from, *scratch = pass->to;
 	for (int32_t i = 0; i < frame_map->rim_count; ++i)
 		if (!binding->fold.held[frame_map->rim[i]])
-			memset(result + 3 * (int64_t)frame_map->rim[i], 0, 3 * sizeof(float));
+			memset(offsets + 3 * (int64_t)frame_map->rim[i], 0, 3 * sizeof(float));
 	for (int sweep = 0; sweep < LVP__RIM_SWEEPS; ++sweep) {
-		for (int32_t i = 0; i < frame_map->rim_count; ++i) {
-			int32_t k = frame_map->rim[i];
-			double sum[3] = {0.0, 0.0, 0.0};
-			for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
-				int32_t j = smoothing->neighbours[e];
-				if (dynamic[j])
-					for (int c = 0; c < 3; ++c)
-						sum[c] += 2.0 * smoothing->halves[e] * result[3 * (int64_t)j + c];
-			}
-			for (int c = 0; c < 3; ++c)
-				scratch[3 * (int64_t)k + c] = (float)sum[c]; /* apart: the sweep reads the one before */
-		}
 		double change = 0.0, largest = 0.0;
 		for (int32_t i = 0; i < frame_map->rim_count; ++i) {
 			int32_t k = frame_map->rim[i];
 			if (binding->fold.held[k])
 				continue;
-			float *now = result + 3 * (int64_t)k;
-			const float *next = scratch + 3 * (int64_t)k;
-			change = fmax(change, lvp__length(lvp__sub(lvp__load(next), lvp__load(now))));
-			largest = fmax(largest, lvp__length(lvp__load(next)));
-			memcpy(now, next, 3 * sizeof(float));
+			lvp__vec3 next = lvp__rim_value(smoothing, dynamic, offsets, k);
+			float *now = offsets + 3 * (int64_t)k;
+			change = fmax(change, lvp__length(lvp__sub(next, lvp__load(now))));
+			largest = fmax(largest, lvp__length(next));
+			now[0] = (float)next.x;
+			now[1] = (float)next.y;
+			now[2] = (float)next.z;
 		}
 		if (change <= LVP__RIM_TOLERANCE * largest)
 			break;
+	}
+}
+
+void lvp__feather_rim_again(lvp_binding *binding, const float *positions)
+{
+	const lvp__frame_map *frame_map = &binding->frame_map;
+	lvp__take_offsets(binding, positions);
+	lvp__feather_rim(binding, binding->step.smoothing_offsets);
+	for (int32_t i = 0; i < frame_map->rim_count; ++i) {
+		int64_t k = frame_map->rim[i];
+		if (binding->fold.held[k])
+			continue;
+		for (int c = 0; c < 3; ++c)
+			binding->step.positions[3 * k + c] = positions[3 * k + c] + binding->step.smoothing_offsets[3 * k + c];
 	}
 }
 
@@ -338,6 +376,6 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 		pass.from = read;
 	}
 	if (!whatever_the_map)
-		lvp__feather_rim(binding, &pass);
+		lvp__feather_rim(binding, (float *)pass.from);
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__put_offsets, &pass, count, LVP__GRAIN);
 }

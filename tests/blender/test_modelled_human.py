@@ -38,9 +38,10 @@ FOLDED_POSES = ("knees at 150 degrees", "elbows at 140 degrees")
 # - without Keep Skin Apart, where the correction is small and bends over quads several times longer than wide: the
 #   knees at 150 degrees (the calf behind the knee) and the elbows at 140 (behind the upper arm), largest offsets of
 #   a fifth to three quarters of an edge, roughness 0.27-0.50 of them;
-# - Keep Skin Apart at the knees at 150 degrees, steps at the edge of the skin it holds back: on the finer body the
-#   front of the thigh, 0.09 of an edge beside neighbours at 0.94-1.31 (0.39), on the coarse one the outer side of
-#   the knee, a vertex held at no offset among neighbours at 0.37-0.56 (0.44; BENCHMARKS.md).
+# - Keep Skin Apart at the knees at 150 degrees, steps at the edge of the skin it holds back (0.37 on the finer body,
+#   0.43 on the coarse one): measured before the rim took its least-squares values (0.39 and 0.44 then), on the finer
+#   body the front of the thigh, 0.09 of an edge beside neighbours at 0.94-1.31, on the coarse one the outer side of
+#   the knee, a vertex held at no offset among neighbours at 0.37-0.56 (BENCHMARKS.md).
 SURFACE_NOT_MET = {
     ("subdivided twice", "knees at 150 degrees", "apart off"),
     ("subdivided twice", "knees at 150 degrees", "kept apart"),

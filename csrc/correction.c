@@ -991,9 +991,8 @@ static int32_t lvp__restore_smoothed(lvp_binding *binding, const lvp_frame_optio
 
 /* The volume that the crossing test's shortening took (or the rim's feathering after the fades added), restored
  * again: along the offsets as they are (the shape the smoothing and the fade gave them, each growing as little as
- * it was shortened), or with
- * fold-over through the map, which fold-over faded at its contacts: growing along the offsets, the
- * skin beside a contact would be pushed back through it, a crossing of the skinning's own that no
+ * it was shortened), or with fold-over through the map, which fold-over faded at its contacts: growing along the
+ * offsets, the skin beside a contact would be pushed back through it, a crossing of the skinning's own that no
  * test of new crossings sees. */
 static int32_t lvp__restore_after_fade(lvp_binding *binding, const lvp_frame_options *options,
                                        const float *positions, const float *rest_positions,

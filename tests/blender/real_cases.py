@@ -697,7 +697,8 @@ def enable_gltf():
 def gltf_round_trip(obj, rig, directory=None):
     """A copy of obj's rest mesh exported by Blender's glTF exporter (with a box-projected UV map) and imported
     back, which splits it at the UV seams; its vertices get the weights of obj's vertices at their positions, an
-    Armature modifier on `rig` and `rig` as parent. Returns the imported object (obj stays)."""
+    Armature modifier on `rig` and `rig` as parent. Returns the imported object (obj stays); the file is
+    directory/<obj's name>.glb (glb_triangle_count reads it)."""
     if not enable_gltf():
         raise RuntimeError("this Blender cannot import glTF (Blender's importer needs numpy)")
     directory = directory or tempfile.mkdtemp(prefix="lvp-gltf-")
@@ -737,6 +738,29 @@ def gltf_round_trip(obj, rig, directory=None):
     result.data.polygons.foreach_set("use_smooth", [True] * len(result.data.polygons))
     bpy.context.view_layer.update()
     return result
+
+
+def glb_triangle_count(path):
+    """Triangles a .glb file holds: its meshes' triangle primitives' indices (or vertices, unindexed) over 3, read
+    from the file's JSON chunk, so that a round trip that loses triangles says whether the exporter or the importer
+    lost them."""
+    import json
+    import struct
+    with open(path, "rb") as glb:
+        magic, _version, _length = struct.unpack("<4sII", glb.read(12))
+        chunk_length, chunk_type = struct.unpack("<II", glb.read(8))
+        if magic != b"glTF" or chunk_type != 0x4E4F534A:
+            raise RuntimeError("%s is not a binary glTF file with its JSON first" % path)
+        document = json.loads(glb.read(chunk_length))
+    accessors = document.get("accessors", [])
+    triangles = 0
+    for mesh in document.get("meshes", []):
+        for primitive in mesh["primitives"]:
+            if primitive.get("mode", 4) != 4:
+                raise RuntimeError("%s holds a primitive of mode %d, not triangles" % (path, primitive["mode"]))
+            counted = primitive["indices"] if "indices" in primitive else primitive["attributes"]["POSITION"]
+            triangles += accessors[counted]["count"] // 3
+    return triangles
 
 
 def world_positions(obj, evaluated=False):

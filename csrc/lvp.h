@@ -154,14 +154,16 @@
  *   bulge_width times the flesh's thickness there (its rest distance to the nearest of its bones),
  *   by explicit steps along the edges, ceil((bulge_width thickness / its mean edge)^2 / 2) at the
  *   vertex that needs the most, the others diffusing slower in proportion, at most 32 steps
- *   (about 8 edges: a dense mesh of thick flesh is spread less than asked), and at least 2 steps
- *   (about two rings: flesh an edge or two thick, as on a low-poly character, would blend a
- *   vertex's row with its neighbours' only partly). Rows keep their 8 strongest bones. w_k of the
- *   maps and the deformation weighting a_k are taken from the diffused rows too, so a bulge can
- *   reach skin that one bone carries rigidly, near a joint that bends. Entries under 1 % of
- *   their row's largest are dropped. The volume comes back as exactly as without it, in a lower,
- *   wider, smoother bulge; weight flows only along edges, so it never reaches a separate part. 1
- *   fits a limb (README measures it); a wider bulge also moves more skin each frame (PERFORMANCE).
+ *   (about 8 edges: a dense mesh of thick flesh is spread less than asked), and at least 3 steps
+ *   (the fewest after which a weight one vertex alone carried reads, diffused, at most a quarter of
+ *   its height above its neighbours' mean: flesh an edge or two thick, as on a low-poly character,
+ *   would blend a vertex's row with its neighbours' only partly). Rows keep their 8 strongest
+ *   bones. w_k of the maps and the deformation weighting a_k are taken from the diffused rows
+ *   too, so a bulge can reach skin that one bone carries rigidly, near a joint that bends.
+ *   Entries under 1 % of their row's largest are dropped. The volume comes back as exactly as
+ *   without it, in a lower, wider, smoother bulge; weight flows only along edges, so it never
+ *   reaches a separate part. 1 fits a limb (README measures it); a wider bulge also moves more
+ *   skin each frame (PERFORMANCE).
  *
  * SEGMENTATION (paper 5.2)
  *

@@ -17,12 +17,16 @@
 /* Most diffusion steps at bind: the steps grow with (thickness / edge length)^2, so a dense mesh
  * of thick flesh is widened less than asked rather than bound slowly (lvp.h, PERFORMANCE). */
 #define LVP__REACH_MOST_STEPS 32
-/* Fewest steps of any vertex's blend: 2, about two rings of the mesh. Where the flesh is no more
- * than an edge or two thick (a low-poly character) its own width would blend a vertex's row with
- * its ring only partly: rows keep their strongest bones, and a bone bending nearby then reaches
- * some vertices and not their neighbours, the bulge rising and falling from one vertex to the
- * next, narrower than the mesh can show smoothly. */
-#define LVP__REACH_LEAST_STEPS 2.0
+/* Fewest steps of any vertex's blend: the fewest after which a weight that one vertex alone
+ * carried, diffused, stands out of its neighbours' mean by at most a quarter of its height, the
+ * roughness QUALITY.md allows (on a regular mesh of six neighbours a vertex: 1 step leaves 0.50,
+ * 2 leave 0.43, 3 leave 0.23). Where the flesh is no more than an edge or two thick (a low-poly
+ * character) or the edges along a limb are several times its edges around it (quads modelled
+ * long), its own width would blend a vertex's row with its ring only partly: rows keep their
+ * strongest bones, and a bone bending nearby then reaches some vertices and not their
+ * neighbours, the bulge rising and falling from one vertex to the next, narrower than the mesh
+ * can show smoothly. */
+#define LVP__REACH_LEAST_STEPS 3.0
 /* Entries below this fraction of their row's largest are dropped: they would cost each frame
  * and move nothing. */
 #define LVP__REACH_FLOOR 1e-2f

@@ -20,7 +20,7 @@
 /* Fewest steps of any vertex's blend: the fewest after which a weight that one vertex alone
  * carried, diffused, stands out of its neighbours' mean by at most a quarter of its height, the
  * roughness QUALITY.md allows (on a regular mesh of six neighbours a vertex: 1 step leaves 0.50,
- * 2 leave 0.43, 3 leave 0.23). Where the flesh is no more than an edge or two thick (a low-poly
+ * 2 leave 0.43, 3 leave 0.23; tests/bench/diffused_spike.py). Where the flesh is no more than an edge or two thick (a low-poly
  * character) or the edges along a limb are several times its edges around it (quads modelled
  * long), its own width would blend a vertex's row with its ring only partly: rows keep their
  * strongest bones, and a bone bending nearby then reaches some vertices and not their

@@ -20,12 +20,12 @@
 /* Fewest steps of any vertex's blend: the fewest after which a weight that one vertex alone
  * carried, diffused, stands out of its neighbours' mean by at most a quarter of its height, the
  * roughness QUALITY.md allows (on a regular mesh of six neighbours a vertex: 1 step leaves 0.50,
- * 2 leave 0.43, 3 leave 0.23; tests/bench/diffused_spike.py). Where the flesh is no more than an edge or two thick (a low-poly
- * character) or the edges along a limb are several times its edges around it (quads modelled
- * long), its own width would blend a vertex's row with its ring only partly: rows keep their
- * strongest bones, and a bone bending nearby then reaches some vertices and not their
- * neighbours, the bulge rising and falling from one vertex to the next, narrower than the mesh
- * can show smoothly. */
+ * 2 leave 0.43, 3 leave 0.23; tests/bench/diffused_spike.py). Where the flesh is no more than an
+ * edge or two thick (a low-poly character) or the edges along a limb are several times its edges
+ * around it (quads modelled long), its own width would blend a vertex's row with its ring only
+ * partly: rows keep their strongest bones, and a bone bending nearby then reaches some vertices
+ * and not their neighbours, the bulge rising and falling from one vertex to the next, narrower
+ * than the mesh can show smoothly. */
 #define LVP__REACH_LEAST_STEPS 3.0
 /* Entries below this fraction of their row's largest are dropped: they would cost each frame
  * and move nothing. */

@@ -14,16 +14,19 @@ SIZE = 41
 AROUND = ((1, 0), (0, 1), (-1, 1), (-1, 0), (0, -1), (1, -1))
 
 
+def around(values, i, j):
+    """The sum of vertex (i, j)'s six neighbours' values (the lattice wraps)."""
+    return sum(values[(i + di) % SIZE][(j + dj) % SIZE] for di, dj in AROUND)
+
+
 def step(values):
-    """One step at rate 1: each vertex takes the mean of itself and its six neighbours (the lattice wraps)."""
-    return [[(values[i][j] + sum(values[(i + di) % SIZE][(j + dj) % SIZE] for di, dj in AROUND)) / 7.0
-             for j in range(SIZE)] for i in range(SIZE)]
+    """One step at rate 1: each vertex takes the mean of itself and its six neighbours."""
+    return [[(values[i][j] + around(values, i, j)) / 7.0 for j in range(SIZE)] for i in range(SIZE)]
 
 
 def roughness(values):
     """The largest |value - mean of its six neighbours'| over the largest value."""
-    worst = max(abs(values[i][j] - sum(values[(i + di) % SIZE][(j + dj) % SIZE] for di, dj in AROUND) / 6.0)
-                for i in range(SIZE) for j in range(SIZE))
+    worst = max(abs(values[i][j] - around(values, i, j) / 6.0) for i in range(SIZE) for j in range(SIZE))
     return worst / max(max(row) for row in values)
 
 

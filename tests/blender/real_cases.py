@@ -697,12 +697,11 @@ def enable_gltf():
 def gltf_round_trip(obj, rig, directory=None):
     """A copy of obj's rest mesh exported by Blender's glTF exporter (with a box-projected UV map) and imported
     back, which splits it at the UV seams; its vertices get the weights of obj's vertices at their positions, an
-    Armature modifier on `rig` and `rig` as parent. Returns the imported object (obj stays); the file is
-    directory/<obj's name>.glb (glb_triangle_count reads it)."""
+    Armature modifier on `rig` and `rig` as parent. Returns the imported object (obj stays); the file it wrote
+    is gltf_round_trip_file(obj, directory)."""
     if not enable_gltf():
         raise RuntimeError("this Blender cannot import glTF (Blender's importer needs numpy)")
-    directory = directory or tempfile.mkdtemp(prefix="lvp-gltf-")
-    path = os.path.join(directory, obj.name + ".glb")
+    path = gltf_round_trip_file(obj, directory or tempfile.mkdtemp(prefix="lvp-gltf-"))
     mesh = obj.data.copy()
     mesh.name = obj.name + "Export"
     if not mesh.uv_layers:
@@ -738,6 +737,11 @@ def gltf_round_trip(obj, rig, directory=None):
     result.data.polygons.foreach_set("use_smooth", [True] * len(result.data.polygons))
     bpy.context.view_layer.update()
     return result
+
+
+def gltf_round_trip_file(obj, directory):
+    """The .glb file gltf_round_trip(obj, rig, directory) writes."""
+    return os.path.join(directory, obj.name + ".glb")
 
 
 def glb_triangle_count(path):

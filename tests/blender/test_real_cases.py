@@ -7,7 +7,6 @@ to issues 24-26 (measure_quality.py prints it).
 """
 
 import math
-import os
 import unittest
 
 import bpy
@@ -142,7 +141,7 @@ class TestGLTFRoundTrip(unittest.TestCase):
         self.assertGreater(real_cases.open_edge_count(result.data), 500, "open borders along the seams")
         # Counted at each step, so that a round trip that loses triangles says which step lost them.
         source = len(helpers.mesh_triangles(obj.data)) // 3
-        in_file = real_cases.glb_triangle_count(os.path.join(directory, obj.name + ".glb"))
+        in_file = real_cases.glb_triangle_count(real_cases.gltf_round_trip_file(obj, directory))
         imported = len(helpers.mesh_triangles(result.data)) // 3
         self.assertEqual((in_file, imported), (source, source),
                          "triangles: %d in the hand, %d in the exported .glb, %d imported" % (source, in_file, imported))

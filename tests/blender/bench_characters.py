@@ -17,7 +17,11 @@ The characters, each in a scene of its own, added with the add-on's defaults:
 
 A time is the wall time of scene.frame_set(frame), as playback pays it: the Armature modifier alone (Volume
 Preservation's modifier hidden), the correction with the defaults less Keep Skin Apart, and with it. Medians over
-all frames of --rounds passes over the character's frames; the three setups take turns frame by frame.
+all frames of --rounds passes over the character's frames; the three setups take turns frame by frame. For scale,
+the last column is Blender's own test of the skinned triangles against each other (mathutils' BVHTree built and
+overlapped with itself, lvp_helpers.self_intersection_test_ms), the median over the same frames: what an exact
+crossing test of every triangle costs in Blender (Keep Skin Apart runs one of its own over the moving skin, with
+the clearance searches of its fades).
 """
 
 import argparse
@@ -95,28 +99,42 @@ def frame_times(modifier, obj, frames, rounds):
     return {name: 1000.0 * statistics.median(values) for name, values in times.items()}
 
 
+def self_intersection_ms(modifier, obj, frames):
+    """Blender's own crossing test of the skinned triangles (helpers.self_intersection_test_ms), median over
+    frames: for scale beside Keep Skin Apart's frame."""
+    modifier.show_viewport = False
+    times = []
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        times.append(helpers.self_intersection_test_ms(obj))
+    modifier.show_viewport = True
+    return statistics.median(times)
+
+
 def main():
     arguments = parse_arguments()
     addon = helpers.enable_addon(check_volumes=False)
     version = bpy.app.version_string
     lines = ["Blender %s: characters of a game's size, ms a frame (medians)" % version, "",
              "| character | vertices | Armature alone | + Volume Preservation | with Keep Skin Apart | ratio | "
-             "Add turns it on |",
-             "|---|---:|---:|---:|---:|---:|---|"]
+             "Add turns it on | Blender's self-intersection test |",
+             "|---|---:|---:|---:|---:|---:|---|---:|"]
     limit = addon.properties.KEEP_APART_VIEWPORT_VERTICES
     for label, make in CHARACTERS:
         helpers.reset_scene()
         try:
             obj, frames = make()
         except unittest.SkipTest as skipped:
-            lines.append("| %s | skipped: %s | | | | | |" % (label, skipped))
+            lines.append("| %s | skipped: %s | | | | | | |" % (label, skipped))
             continue
         on_by_add = obj.lvp.keep_apart
-        ms = frame_times(addon.node_group.find_modifier(obj), obj, frames, arguments.rounds)
+        modifier = addon.node_group.find_modifier(obj)
+        ms = frame_times(modifier, obj, frames, arguments.rounds)
         vertices = len(obj.data.vertices)
-        lines.append("| %s | %d | %.2f | %.2f | %.2f | %.1fx | %s |"
+        lines.append("| %s | %d | %.2f | %.2f | %.2f | %.1fx | %s | %.2f |"
                      % (label, vertices, ms["armature"], ms["correction"], ms["keep_apart"],
-                        ms["keep_apart"] / ms["correction"], "yes" if on_by_add else "no"))
+                        ms["keep_apart"] / ms["correction"], "yes" if on_by_add else "no",
+                        self_intersection_ms(modifier, obj, frames)))
         if on_by_add != (vertices <= limit):
             raise RuntimeError("Add left Keep Skin Apart %s in the viewport on %s (%d vertices)"
                                % ("on" if on_by_add else "off", label, vertices))

@@ -7,9 +7,11 @@ Used by tests/blender/test_*.py (run by tests/blender/runner.py) and by bench.py
 
 import math
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 from array import array
 
@@ -207,6 +209,22 @@ def show_only_one(setups, shown):
     at a time, the others not evaluated."""
     for obj in set(setups.values()):
         obj.hide_viewport = obj is not shown
+
+
+def self_intersection_test_ms(obj, repeats=3):
+    """Blender's own test of obj's evaluated triangles against each other, median ms over repeats: mathutils'
+    BVHTree built from the evaluated mesh (BVHTree.FromObject), then overlapped with itself (triangles sharing an
+    edge passed over). The benchmarks print it beside Keep Skin Apart's frame for scale: an exact crossing test of
+    every triangle as Blender itself runs one."""
+    from mathutils.bvhtree import BVHTree
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    times = []
+    for _repeat in range(repeats):
+        start = time.perf_counter()
+        tree = BVHTree.FromObject(obj, depsgraph)
+        tree.overlap(tree)
+        times.append(time.perf_counter() - start)
+    return 1000.0 * statistics.median(times)
 
 
 def render_tiny_still(scene):

@@ -243,9 +243,18 @@ def bone_collections(armature_object):
 # ---- application handlers -------------------------------------------------------------------
 
 
+def animation_playing():
+    """Whether an animation plays in any window (Screen.is_animation_playing): never without an interface."""
+    for window_manager in bpy.data.window_managers:
+        for window in window_manager.windows:
+            if window.screen is not None and window.screen.is_animation_playing:
+                return True
+    return False
+
+
 def app_handlers(name):
     """The list bpy.app.handlers.<name>, or None where this Blender has no such handler
-    (save_post_fail exists from 4.1 on)."""
+    (save_post_fail exists from 4.1 on; 3.4 has no animation_playback_post)."""
     return getattr(bpy.app.handlers, name, None)
 
 

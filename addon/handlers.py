@@ -25,6 +25,9 @@
 - a timer for changes to meshes: the correction reads the weights and the rest mesh again (binding
   the object again when they changed) once the changes paused (changes.py); the timer then has those
   objects corrected again.
+- animation_playback_post (where Blender has it: not 3.4): the frame playback stops on is corrected again, with
+  Keep Skin Apart where the viewport has it only on a still frame (live._keep_apart_in_viewport). Blender 3.4
+  evaluates that frame again when playback stops, and the handlers above correct it.
 - render_init: renders started from the interface run in a thread; handlers that write data then
   need Render > Lock Interface (Blender's rule). With it off, the render thread does not touch the
   data (the frame on screen keeps the viewport's correction; other frames would not be corrected)
@@ -223,6 +226,22 @@ def depsgraph_update_post(scene, depsgraph=None):
 
 
 @persistent
+def animation_playback_post(scene, depsgraph=None):
+    """Playback stopped: the frame it stopped on was corrected as playback has it, without Keep Skin Apart where
+    that is only for a still frame (keep_apart_paused_only); it is corrected again with it."""
+    if _busy or not live.is_main_thread():
+        return
+    if depsgraph is None:
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+    if not may_write(scene):
+        return
+    paused_only = [obj for obj in _objects_with_modifier(depsgraph)
+                   if obj.lvp.keep_apart and obj.lvp.keep_apart_paused_only]
+    if paused_only:
+        _correct(paused_only, depsgraph)
+
+
+@persistent
 def load_post(*_arguments):
     SESSION.start_file()
     node_group.repair_modifiers(bpy.data.objects)
@@ -312,6 +331,7 @@ HANDLERS = (
     ("undo_post", undo_post),
     ("redo_post", undo_post),
     ("render_init", render_init),
+    ("animation_playback_post", animation_playback_post),
     ("save_pre", save_pre),
     ("save_post", save_post),
     ("save_post_fail", save_post),

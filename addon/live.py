@@ -21,6 +21,7 @@ why. With GPU subdivision in the viewport, the CPU mesh is not subdivided at all
 import threading
 
 from . import bindings
+from . import blender_api
 from . import display
 from . import mesh_data
 from . import names
@@ -306,7 +307,7 @@ def _correct(obj, bound, check_topology, final_output):
     if obj.data.shape_keys is not None:
         rest_positions = _shape_key_rest(obj, bound, check_topology)
     fold_over = obj.lvp.fold_over and bound.mode == 'LOCAL'
-    keep_apart = obj.lvp.keep_apart_render if final_output else obj.lvp.keep_apart
+    keep_apart = obj.lvp.keep_apart_render if final_output else _keep_apart_in_viewport(obj.lvp)
     stats, failure = _core_correction(obj, bound, rest_positions, fold_over, keep_apart)
     if failure is not None and fold_over:
         stats, without = _core_correction(obj, bound, rest_positions, False, keep_apart)
@@ -317,6 +318,12 @@ def _correct(obj, bound, check_topology, final_output):
     if failure is not None:
         raise failure
     return stats
+
+
+def _keep_apart_in_viewport(settings):
+    """Whether the viewport's correction keeps skin apart now: its Viewport setting, unless that is only for a still
+    frame and an animation is playing (handlers.animation_playback_post corrects the frame it stops on again)."""
+    return settings.keep_apart and not (settings.keep_apart_paused_only and blender_api.animation_playing())
 
 
 def _core_correction(obj, bound, rest_positions, fold_over, keep_apart):

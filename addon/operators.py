@@ -181,18 +181,20 @@ modifier, so they keep their volume when joints bend"""
             _report_errors(self, problems)
             return {'CANCELLED'}
 
-        kept_apart = []
+        paused_only = []
         for obj, _armature_modifier, bound in plans:
             bindings.new_bind_record(obj, bound)
             offsets.new_offsets_object(obj, node_group.find_modifier(obj), bound.vertex_count)
-            if bound.vertex_count <= properties.KEEP_APART_VIEWPORT_VERTICES:
-                obj.lvp.keep_apart = True
-                kept_apart.append(obj.name)
+            obj.lvp.keep_apart = True
+            if bound.vertex_count > properties.KEEP_APART_VIEWPORT_VERTICES:
+                obj.lvp.keep_apart_paused_only = True
+                paused_only.append(obj.name)
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)
-        if kept_apart:
-            message += ("; Keep Skin Apart on in the viewport for {} (at most {:,} vertices, where it costs little)"
-                        .format(", ".join(kept_apart), properties.KEEP_APART_VIEWPORT_VERTICES))
+        if paused_only:
+            message += ("; Keep Skin Apart in the viewport only when paused for {} (more than {:,} vertices, where "
+                        "it would slow playback)".format(", ".join(paused_only),
+                                                         properties.KEEP_APART_VIEWPORT_VERTICES))
         scene = context.scene
         if scene is not None and not scene.render.use_lock_interface:
             scene.render.use_lock_interface = True

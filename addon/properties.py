@@ -57,9 +57,11 @@ EFFECT_ITEMS = (
      "One region, the whole closed mesh: its total volume is kept (paper 3.2-3.3, organic map)"),
 )
 
-# Add turns Keep Skin Apart on in the viewport too for meshes this small (game characters, low-poly rigs): it costs
-# two to three times the correction there, a few milliseconds a frame, and the viewport then shows what renders.
-# Denser meshes keep it off: on the 7,500-vertex hand of the tests it is about six times the frame (BENCHMARKS.md).
+# Add turns Keep Skin Apart on in the viewport, so that the viewport shows what renders. On meshes this small (game
+# characters, low-poly rigs) it costs two to three times the correction, a few milliseconds a frame, and stays on
+# while the animation plays. Denser meshes have it only on a still frame (keep_apart_paused_only): on the
+# 7,500-vertex hand of the tests it is about six times the frame (BENCHMARKS.md), which posing or scrubbing one frame
+# affords and playback at the scene's frame rate does not.
 KEEP_APART_VIEWPORT_VERTICES = 3000
 
 RESTORE_ITEMS = (
@@ -170,9 +172,16 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         name="Keep Skin Apart in the Viewport",
         description="Never push skin through skin while animating: where the correction would make two parts of "
                     "the surface cross that plain skinning keeps apart, it is shortened there and the volume goes "
-                    "elsewhere. Several times slower than the correction alone: Add turns it on for meshes of at "
-                    "most %d vertices (game characters), where that is a few milliseconds a frame"
-                    % KEEP_APART_VIEWPORT_VERTICES,
+                    "elsewhere. Several times slower than the correction alone: Add turns it on, on dense meshes "
+                    "only for still frames (Only When Paused)",
+        default=False,
+    )
+    keep_apart_paused_only: _setting(
+        BoolProperty,
+        name="Keep Skin Apart Only When Paused",
+        description="In the viewport, keep skin apart on a still frame (posing, scrubbing, a stopped animation) "
+                    "but not while the animation plays, where its cost would lower the frame rate. Add turns this "
+                    "on for meshes of more than %d vertices" % KEEP_APART_VIEWPORT_VERTICES,
         default=False,
     )
     keep_apart_render: _setting(

@@ -94,10 +94,14 @@ class LVP_PT_volume_preservation(_InModifierTab, bpy.types.Panel):
         fold_over = column.column(heading="Fold-Over")
         fold_over.active = settings.effect != 'GLOBAL'
         fold_over.prop(settings, "fold_over", text="Prevent")
-        # Viewport and Render, as Blender's own modifiers split what costs time (Subdivision's levels).
+        # Viewport and Render, as Blender's own modifiers split what costs time (Subdivision's levels); the
+        # viewport's only on a still frame where its cost would slow playback.
         keep_apart = column.column(heading="Keep Skin Apart")
         keep_apart.active = settings.effect != 'GLOBAL'
         keep_apart.prop(settings, "keep_apart", text="Viewport")
+        paused_only = keep_apart.column()  # qualifies Viewport
+        paused_only.active = keep_apart.active and settings.keep_apart
+        paused_only.prop(settings, "keep_apart_paused_only", text="Only When Paused")
         keep_apart.prop(settings, "keep_apart_render", text="Render")
         column.prop(settings, "display")
 

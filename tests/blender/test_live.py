@@ -127,6 +127,39 @@ class TestCylinder(CylinderTestCase):
         types = [(modifier.type, modifier.name) for modifier in self.obj.modifiers]
         self.assertEqual(types, [('ARMATURE', "Armature"), ('NODES', "Volume Preservation")])
 
+    def test_keep_skin_apart_only_when_paused(self):
+        """Keep Skin Apart only when paused: a still frame keeps the inside of the bend apart, a frame of playback
+        is corrected without it, bit for bit as with Keep Skin Apart off, and the frame playback stops on is
+        corrected again with it (animation_playback_post, registered where Blender has it)."""
+        helpers.keyframe_bend(self.rig, {1: 0.0, 10: 120.0})
+        settings = self.obj.lvp
+        settings.keep_apart, settings.keep_apart_paused_only = True, True
+        blender_api, handlers = self.addon.blender_api, self.addon.handlers
+
+        def at_frame_10():
+            self.scene.frame_set(9)
+            self.scene.frame_set(10)
+            return self.bound().stats["kept_apart_vertices"], list(helpers.offsets_of(self.obj))
+
+        held, still = at_frame_10()
+        self.assertGreater(held, 0, "on a still frame the inside of the bend is kept apart")
+        playing = blender_api.animation_playing
+        blender_api.animation_playing = lambda: True
+        try:
+            held_playing, played = at_frame_10()
+        finally:
+            blender_api.animation_playing = playing
+        self.assertEqual(held_playing, 0, "playback runs without it")
+        self.assertNotEqual(played, still)
+        handlers.animation_playback_post(self.scene, bpy.context.evaluated_depsgraph_get())
+        self.assertEqual(self.bound().stats["kept_apart_vertices"], held)
+        self.assertEqual(list(helpers.offsets_of(self.obj)), still, "the frame playback stopped on, kept apart")
+        handler_list = blender_api.app_handlers("animation_playback_post")
+        if handler_list is not None:
+            self.assertIn(handlers.animation_playback_post, handler_list)
+        settings.keep_apart = False
+        self.assertEqual(at_frame_10(), (0, played), "playback's frame is the correction without Keep Skin Apart")
+
     def test_offsets_zero_at_rest(self):
         self.scene.frame_set(1)
         offsets = helpers.offsets_of(self.obj)

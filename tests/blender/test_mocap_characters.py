@@ -21,8 +21,8 @@ to 18 of the correction's cross where plain skinning's own crossing moved by les
 Skin Apart the correction adds up to 31), the volume within 0.006 %, at most 3 creases (6 to 40 allowed), roughness
 at most 0.09 (4k points) to 0.22 (1k points) of the largest offset, 0.17-0.19 on the decimated ones.
 
-Not held without Keep Skin Apart (which is why Add turns it on in the viewport for meshes of at most 3,000 vertices,
-as these decimated ones are): the jumps and the climbing decimated read roughness 0.30-0.34, at the armpit, where
+Not held without Keep Skin Apart (which is why Add turns it on in the viewport, during playback too for meshes of at
+most 3,000 vertices, as these decimated ones are): the jumps and the climbing decimated read roughness 0.30-0.34, at the armpit, where
 plain skinning presses the arm's skin into the torso's and the correction bulges one vertex into it; the largest
 offset of those frames is under a fifth of an edge. Keep Skin Apart fades it. Bodies coarser than these (the jumps'
 1k body decimated to a half) leave a hand without heat weights on Blender 4.3.

@@ -137,9 +137,9 @@ class TestBindAndRemove(helpers.AddonTestCase):
         self.assertEqual(helpers.object_snapshot(self.obj), before)
 
     def test_add_keeps_skin_apart_in_the_viewport_on_small_meshes(self):
-        # A game character's few thousand vertices take Keep Skin Apart in the viewport for a few milliseconds a
-        # frame, so Add turns it on there and the viewport shows what renders; a denser mesh keeps it off (its
-        # cost, README), and either way the Render setting stays on.
+        # Add turns Keep Skin Apart on in the viewport, so that it shows what renders. A game character's few
+        # thousand vertices take it for a few milliseconds a frame, even while the animation plays; a denser mesh
+        # has it only on a still frame (its cost, README). Either way the Render setting stays on.
         dense = helpers.link(bpy.data.objects.new("Dense", helpers.cylinder_mesh("Dense", rings=64, around=64)))
         helpers.weight_linear_band(dense)
         helpers.add_armature_modifier(dense, self.rig, False)
@@ -149,8 +149,9 @@ class TestBindAndRemove(helpers.AddonTestCase):
         self.assertEqual(bpy.ops.object.lvp_add(), {'FINISHED'})
         self.assertLessEqual(len(self.obj.data.vertices), 3000)
         self.assertGreater(len(dense.data.vertices), 3000)
-        self.assertTrue(self.obj.lvp.keep_apart)
-        self.assertFalse(dense.lvp.keep_apart)
+        self.assertTrue(self.obj.lvp.keep_apart and dense.lvp.keep_apart)
+        self.assertFalse(self.obj.lvp.keep_apart_paused_only)
+        self.assertTrue(dense.lvp.keep_apart_paused_only)
         self.assertTrue(self.obj.lvp.keep_apart_render and dense.lvp.keep_apart_render)
         # Bind again leaves the animator's choice as it is.
         self.obj.lvp.keep_apart = False

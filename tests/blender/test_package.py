@@ -68,7 +68,7 @@ class TestPackage(helpers.AddonTestCase):
         for effect in ('ORGANIC', 'RUBBER', 'PAINTED', 'GLOBAL'):
             settings.effect = effect
         for name in ("alpha", "beta", "iterations", "tolerance", "smoothing", "fold_over", "keep_apart",
-                     "keep_apart_render", "painted_vertex_group", "region_restrictions"):
+                     "keep_apart_paused_only", "keep_apart_render", "painted_vertex_group", "region_restrictions"):
             self.assertTrue(hasattr(settings, name), name)
 
     def test_disable_and_enable_again(self):

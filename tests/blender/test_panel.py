@@ -215,7 +215,7 @@ class TestPanel(helpers.AddonTestCase):
         for idname in ("object.lvp_bind", "object.lvp_remove", "object.lvp_region_restriction_add", "object.lvp_bake"):
             self.assertIn(idname, record["operators"])
         for name in ("effect", "alpha", "beta", "iterations", "tolerance", "smoothing", "fold_over", "keep_apart",
-                     "keep_apart_render", "painted_vertex_group", "display"):
+                     "keep_apart_paused_only", "keep_apart_render", "painted_vertex_group", "display"):
             self.assertIn(name, record["props"])
         self.assertEqual(record["inactive"], ["alpha", "beta"], "the painted map ignores alpha and beta")
         obj.lvp.effect = 'ORGANIC'

@@ -12,7 +12,8 @@ others hidden, while the joint bends from 0 to 90 degrees and back:
 
     Armature alone
     Armature + Corrective Smooth (default settings)
-    Armature + Volume Preservation (this add-on, default settings)
+    Armature + Volume Preservation (this add-on, default settings as playback runs them: on a mesh this
+    dense, Keep Skin Apart only on a still frame)
     Armature + Volume Preservation with Keep Skin Apart (what renders have; issue 46's target: under 0.75x
     Armature + Corrective Smooth)
     Armature + Volume Preservation's node group with the correction off (the add-on's handlers
@@ -114,11 +115,14 @@ def main():
     start = time.perf_counter()
     bpy.ops.object.lvp_add()
     bind_seconds = time.perf_counter() - start
+    # The correction as playback runs it on a mesh this dense: Add sets Keep Skin Apart Only When Paused, and
+    # frame_set here is never playing, so it is turned off for this setup and timed with the next.
+    ours.lvp.keep_apart = False
     setups["volume_preservation"] = ours
     kept_apart = dense_character("VolumePreservationKeptApart", rig, rings)
     helpers.select_only(kept_apart)
     bpy.ops.object.lvp_add()
-    kept_apart.lvp.keep_apart = True
+    kept_apart.lvp.keep_apart, kept_apart.lvp.keep_apart_paused_only = True, False
     setups["kept_apart"] = kept_apart
     setups["node_group_only"] = ours  # the same object, with the correction off (set_correction)
     vertex_count = len(ours.data.vertices)

@@ -186,8 +186,8 @@ modifier, so they keep their volume when joints bend"""
             bindings.new_bind_record(obj, bound)
             offsets.new_offsets_object(obj, node_group.find_modifier(obj), bound.vertex_count)
             obj.lvp.keep_apart = True
-            if bound.vertex_count > properties.KEEP_APART_VIEWPORT_VERTICES:
-                obj.lvp.keep_apart_paused_only = True
+            obj.lvp.keep_apart_paused_only = bound.vertex_count > properties.KEEP_APART_VIEWPORT_VERTICES
+            if obj.lvp.keep_apart_paused_only:
                 paused_only.append(obj.name)
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)

@@ -136,7 +136,7 @@ class TestBindAndRemove(helpers.AddonTestCase):
         bpy.context.scene.frame_set(9)
         self.assertEqual(helpers.object_snapshot(self.obj), before)
 
-    def test_add_keeps_skin_apart_in_the_viewport_on_small_meshes(self):
+    def test_add_keeps_skin_apart_in_the_viewport(self):
         # Add turns Keep Skin Apart on in the viewport, so that it shows what renders. A game character's few
         # thousand vertices take it for a few milliseconds a frame, even while the animation plays; a denser mesh
         # has it only on a still frame (its cost, README). Either way the Render setting stays on.

@@ -185,9 +185,9 @@ modifier, so they keep their volume when joints bend"""
         for obj, _armature_modifier, bound in plans:
             bindings.new_bind_record(obj, bound)
             offsets.new_offsets_object(obj, node_group.find_modifier(obj), bound.vertex_count)
-            obj.lvp.keep_apart = True
+            obj.lvp.keep_apart = bound.vertex_count <= properties.KEEP_APART_STILL_VERTICES
             obj.lvp.keep_apart_paused_only = bound.vertex_count > properties.KEEP_APART_VIEWPORT_VERTICES
-            if obj.lvp.keep_apart_paused_only:
+            if obj.lvp.keep_apart and obj.lvp.keep_apart_paused_only:
                 paused_only.append(obj.name)
             _tag(obj)
         message = "Volume Preservation added to %s" % ", ".join(obj.name for obj, _m, _b in plans)

@@ -63,6 +63,9 @@ EFFECT_ITEMS = (
 # 7,500-vertex hand of the tests it is about six times the frame (BENCHMARKS.md), which posing or scrubbing one frame
 # affords and playback at the scene's frame rate does not.
 KEEP_APART_VIEWPORT_VERTICES = 3000
+# Beyond this many vertices Add leaves it off in the viewport: each update while posing would take more than about
+# 35 ms on two cores (1.6-1.9 microseconds a vertex on the hand and on the 24k Rigify human, BENCHMARKS.md).
+KEEP_APART_STILL_VERTICES = 20000
 
 RESTORE_ITEMS = (
     ('WHOLE_MESH', "Whole Mesh",
@@ -172,8 +175,9 @@ class LVP_PG_settings(bpy.types.PropertyGroup):
         name="Keep Skin Apart in the Viewport",
         description="Never push skin through skin while animating: where the correction would make two parts of "
                     "the surface cross that plain skinning keeps apart, it is shortened there and the volume goes "
-                    "elsewhere. Several times slower than the correction alone: Add turns it on, on dense meshes "
-                    "only for still frames (Only When Paused)",
+                    "elsewhere. Several times slower than the correction alone: Add turns it on for meshes of up to "
+                    "%d vertices, above %d only for still frames (Only When Paused)"
+                    % (KEEP_APART_STILL_VERTICES, KEEP_APART_VIEWPORT_VERTICES),
         default=False,
     )
     keep_apart_paused_only: _setting(

@@ -136,7 +136,7 @@ def main():
                      % (label, vertices, ms["armature"], ms["correction"], ms["keep_apart"],
                         ms["keep_apart"] / ms["correction"], "yes" if in_playback else "no",
                         self_intersection_ms(modifier, obj, frames)))
-        if not added_on or in_playback != (vertices <= limit):
+        if added_on != (vertices <= addon.properties.KEEP_APART_STILL_VERTICES) or in_playback != (vertices <= limit):
             raise RuntimeError("Add left Keep Skin Apart %s in the viewport on %s (%d vertices)"
                                % ("off" if not added_on else ("on in playback" if in_playback else
                                                               "only on still frames"), label, vertices))

@@ -330,9 +330,12 @@ typedef struct lvp__joint {
 	lvp__vec3 rest_point, rest_normal;
 	lvp__vec3 axis;            /* posed bend axis, unit */
 	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
+	lvp__vec3 inside;          /* posed, unit: the concave direction square to the unbent child, where
+	                              the parent carries the skin at the bottom of the crease */
 	double reach;              /* along the axis: the child bone's flesh radius */
 	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
-	double window;             /* the crease's skin that may cross the plane (foldover.c) */
+	double window;             /* how far the crease's skin may cross the plane; negative: held short of it
+	                              (foldover.c) */
 	int32_t child, parent;     /* the two bones: the child turns about its head */
 	bool child_side;           /* the region of this entry is the child's */
 } lvp__joint;
@@ -357,6 +360,7 @@ typedef struct lvp__fold {
 	uint8_t *contact;          /* per neighbour entry (lvp__mesh), this frame: LVP__CONTACT_* */
 	lvp__joint *joints;        /* per neighbour entry, this frame */
 	double *radius;            /* per region: its vertices' mean rest distance to its bone */
+	double *mean_edge;         /* per region: its vertices' longest rest edges, averaged */
 	int32_t *border_offsets;   /* per neighbour entry (s, j) + 1 into border_vertices */
 	int32_t *border_vertices;  /* the vertices of s with an edge to a vertex of j */
 	float *saved;              /* vertex_count*3: the positions before a round (lvp__correct_attempt) */

@@ -21,7 +21,12 @@
  *   there, and as the joint bends, skinning shifts where it passes: its vertices cross the plane
  *   by a fraction of an edge long before any skin meets. One vertex pressed back and its
  *   neighbours not (one just on the other side at rest, one a little deeper) was a spike as tall
- *   as the offsets.
+ *   as the offsets. Past a right angle the cosine turns negative and the window opens the other
+ *   way: the skin at the bottom of the fold is held short of the plane by as much as it lay in
+ *   front of the window's depth at rest, so the fold stays open there, as flesh does at the
+ *   bottom of a deep fold (lvp__fold_opening). Pressed onto the plane from both sides, the sheet
+ *   turned back on itself within an edge or two of a coarse mesh, a crease at each, and crossed
+ *   itself there.
  * - LVP__OTHER_SIDE_FADE: the skin of a region on the other side of the plane at rest (heat
  *   weights give a finger's region palm skin behind its knuckle) may cross it further the deeper
  *   it lay there, without limit from this depth on, or from the vertex's longest edge where that
@@ -116,6 +121,7 @@ static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 
 	r_joint->normal = lvp__unit(normal);
 	r_joint->axis = lvp__unit(axis);
 	r_joint->concave = lvp__unit(concave);
+	r_joint->inside = lvp__unit(lvp__sub(concave, lvp__scale(unbent, lvp__dot(concave, unbent))));
 	return true;
 }
 
@@ -141,18 +147,36 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
 	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
 }
 
+/* How much of a joint's window bent past a right angle holds vertex k of region r short of the plane
+ * (LVP__CREASE_WINDOW): the skin at the bottom of the crease, on the inside of the bend at rest (its rest
+ * place from the joint along the bend's direction, as the parent carries it): all of it where it lay
+ * the child's flesh radius inside, none on the flanks or outside, where nothing folds over. Scaled down where
+ * the region's edges are shorter than that radius: the room is for a sheet of skin to turn back over
+ * a few edges, which a fine mesh has within the press itself. */
+static double lvp__fold_opening(const lvp_binding *binding, const float *rest, int32_t r, int32_t k,
+                                const lvp__joint *joint)
+{
+	lvp__vec3 from_rest_joint = lvp__sub(lvp__load(rest + 3 * k), joint->rest_point);
+	double inside = lvp__dot(lvp__transform_vector(&binding->rig.skin[joint->parent], from_rest_joint), joint->inside);
+	return lvp__smoothstep(inside / joint->reach) * fmin(1.0, binding->fold.mean_edge[r] / joint->reach);
+}
+
 /* How far a vertex may lie across the joint's plane (along its normal) given how far across the
- * rest plane it lay at rest (negative: on its own side) and its longest edge; INFINITY where it is
- * never pressed (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's
- * sheet is. */
-static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge)
+ * rest plane it lay at rest (negative: on its own side), its longest edge, and, past a right angle,
+ * how much of the window opens there (lvp__fold_opening); INFINITY where it is never pressed
+ * (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's sheet is. */
+static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge, double open)
 {
 	/* Comparisons rather than fmax, which compilers call out of line (nothing here is NaN): the presses
 	 * ask this of every vertex of a joint's side, many times a frame. */
-	double window = joint->window, fade = LVP__OTHER_SIDE_FADE * joint->reach;
+	double window = joint->window < 0.0 ? joint->window * open : joint->window;
+	double fade = LVP__OTHER_SIDE_FADE * joint->reach;
 	fade = longest_edge > fade ? longest_edge : fade;
-	if (rest_side <= 0.0)
+	if (rest_side <= 0.0) {
+		if (window < 0.0) /* bent past a right angle: held short of the plane, the fold's bottom open */
+			return rest_side - window > 0.0 ? window - rest_side : 0.0;
 		return rest_side + window > 0.0 ? rest_side + window : 0.0;
+	}
 	if (rest_side >= fade)
 		return INFINITY;
 	return (rest_side + window) / (1.0 - rest_side / fade);
@@ -351,7 +375,7 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->reach = binding->fold.radius[child];
 			joint->soft = LVP__SOFT_CONTACT * joint->reach * sine;
 			/* cos(bend) = 1 - 2 sin(bend / 2)^2 */
-			joint->window = LVP__CREASE_WINDOW * joint->reach * fmax(0.0, 1.0 - 2.0 * sine * sine);
+			joint->window = LVP__CREASE_WINDOW * joint->reach * (1.0 - 2.0 * sine * sine);
 			joint->bends = joint->reach > 0.0;
 			if (joint->bends)
 				lvp__place_at_border(binding, rest, s, n, joint);
@@ -389,10 +413,11 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
 			continue;
 		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k]);
+		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
+		double open = joint->window < 0.0 ? lvp__fold_opening(binding, rest, r, k, joint) : 0.0;
+		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k], open);
 		if (allowed == INFINITY)
 			continue;
-		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
 		double excess = lvp__dot(from_joint, joint->normal) - allowed + gap;
 		/* Short of its limit by more than the joint's widest soft band, a vertex is not pressed (lvp__press
 		 * gives nothing there): most of a side's skin lies that far back, passed over before its own band
@@ -678,6 +703,18 @@ static void lvp__longest_edges(lvp_binding *binding)
 	}
 }
 
+/* fold.mean_edge: each region's vertices' longest edges (fold.longest_edge), averaged. */
+static void lvp__mean_edges(lvp_binding *binding)
+{
+	for (int32_t r = 0; r < binding->region_count; ++r) {
+		int32_t first = binding->mesh.region_vertex_offsets[r], end = binding->mesh.region_vertex_offsets[r + 1];
+		double sum = 0.0;
+		for (int32_t i = first; i < end; ++i)
+			sum += binding->fold.longest_edge[binding->mesh.region_vertices[i]];
+		binding->fold.mean_edge[r] = end > first ? sum / (end - first) : 0.0;
+	}
+}
+
 bool lvp__fold_alloc(lvp_binding *binding)
 {
 	bool ok = true;
@@ -685,6 +722,7 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	binding->fold.contact = lvp__calloc(entries, 1, &ok);
 	binding->fold.joints = lvp__calloc(entries, sizeof(lvp__joint), &ok);
 	binding->fold.radius = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
+	binding->fold.mean_edge = lvp__calloc((size_t)binding->region_count + 1, sizeof(double), &ok);
 	binding->fold.plane_entry = lvp__calloc((size_t)binding->region_count + 1, sizeof(int32_t), &ok);
 	binding->fold.side_entry = lvp__calloc(entries + 1, sizeof(int32_t), &ok);
 	binding->fold.held = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
@@ -695,6 +733,7 @@ bool lvp__fold_alloc(lvp_binding *binding)
 	if (ok && binding->mode == LVP_MODE_LOCAL) {
 		lvp__flesh_radii(binding);
 		lvp__longest_edges(binding);
+		lvp__mean_edges(binding);
 		ok = lvp__find_borders(binding);
 	}
 	return ok;
@@ -705,6 +744,7 @@ void lvp__fold_free(lvp__fold *fold)
 	free(fold->contact);
 	free(fold->joints);
 	free(fold->radius);
+	free(fold->mean_edge);
 	free(fold->plane_entry);
 	free(fold->side_entry);
 	free(fold->held);

@@ -200,7 +200,8 @@
  *   volume becomes a bulge beside it (paper Fig. 10d). It is pressed softly, so that it runs
  *   into the free skin without a kink; the skin at the bottom of the crease, which the plane
  *   cuts at rest, may cross it by as much as it lay near it at rest until the joint bends to a
- *   right angle; a vertex of s on j's side at rest crosses further the deeper it lay there
+ *   right angle, and past it is held short of it, so that the bottom of the fold stays open; a
+ *   vertex of s on j's side at rest crosses further the deeper it lay there
  *   (docs/method.md, foldover.c). After each contact test the pressed skin is relaxed under the
  *   contact (options.smoothing_passes passes, none at 0): it and the skin within that many rings
  *   of it take one smoothing pass (whatever their map: skin its bones carry rigidly beside pressed

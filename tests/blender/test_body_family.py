@@ -69,7 +69,6 @@ PRESSED_POSES = {
 }
 
 
-
 class TestBodyFamily(unittest.TestCase):
 
     @classmethod

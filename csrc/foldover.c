@@ -147,29 +147,25 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
 	return 1.0 - lvp__smoothstep((side - joint->reach) / joint->reach);
 }
 
-/* How much of a joint's window bent past a right angle holds vertex k of region r short of the plane
+/* How much of a joint's window bent past a right angle holds vertex k short of the plane
  * (LVP__CREASE_WINDOW): the skin at the bottom of the crease, on the inside of the bend at rest (its rest
  * place from the joint along the bend's direction, as the parent carries it): all of it where it lay
- * the child's flesh radius inside, none on the flanks or outside, where nothing folds over. Scaled down where
- * the region's edges are shorter than that radius: the room is for a sheet of skin to turn back over
- * a few edges, which a fine mesh has within the press itself. */
-static double lvp__fold_opening(const lvp_binding *binding, const float *rest, int32_t r, int32_t k,
-                                const lvp__joint *joint)
+ * the child's flesh radius inside, none on the flanks or outside, where nothing folds over. */
+static double lvp__fold_opening(const lvp_binding *binding, const float *rest, int32_t k, const lvp__joint *joint)
 {
 	lvp__vec3 from_rest_joint = lvp__sub(lvp__load(rest + 3 * k), joint->rest_point);
 	double inside = lvp__dot(lvp__transform_vector(&binding->rig.skin[joint->parent], from_rest_joint), joint->inside);
-	return lvp__smoothstep(inside / joint->reach) * fmin(1.0, binding->fold.mean_edge[r] / joint->reach);
+	return lvp__smoothstep(inside / joint->reach);
 }
 
 /* How far a vertex may lie across the joint's plane (along its normal) given how far across the
- * rest plane it lay at rest (negative: on its own side), its longest edge, and, past a right angle,
- * how much of the window opens there (lvp__fold_opening); INFINITY where it is never pressed
+ * rest plane it lay at rest (negative: on its own side), its longest edge, and the joint's crease
+ * window there (negative past a right angle: lvp__press_region); INFINITY where it is never pressed
  * (LVP__CREASE_WINDOW, LVP__OTHER_SIDE_FADE). Continuous in the rest side: the skin's sheet is. */
-static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge, double open)
+static double lvp__allowed_across(const lvp__joint *joint, double rest_side, double longest_edge, double window)
 {
 	/* Comparisons rather than fmax, which compilers call out of line (nothing here is NaN): the presses
 	 * ask this of every vertex of a joint's side, many times a frame. */
-	double window = joint->window < 0.0 ? joint->window * open : joint->window;
 	double fade = LVP__OTHER_SIDE_FADE * joint->reach;
 	fade = longest_edge > fade ? longest_edge : fade;
 	if (rest_side <= 0.0) {
@@ -406,6 +402,10 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 	/* The skin of the two sides does not quite touch. */
 	double gap = 1e-4 * (binding->lines.length[s] + binding->lines.length[j]);
 	double softest = joint->soft > 0.0 ? joint->soft : 0.0;
+	/* Past a right angle the window holds the fold's bottom open (lvp__fold_opening), scaled down where
+	 * the region's edges are shorter than the child's flesh radius: the room is for a sheet of skin to
+	 * turn back over a few edges, which a fine mesh has within the press itself. */
+	double opening = joint->window < 0.0 ? joint->window * fmin(1.0, binding->fold.mean_edge[r] / joint->reach) : 0.0;
 	for (int32_t i = binding->mesh.region_vertex_offsets[r]; i < binding->mesh.region_vertex_offsets[r + 1]; ++i) {
 		int32_t k = binding->mesh.region_vertices[i];
 		/* Pressed once: pressing again would soften its contact twice. Held still while pressed skin
@@ -414,8 +414,8 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 			continue;
 		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
 		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
-		double open = joint->window < 0.0 ? lvp__fold_opening(binding, rest, r, k, joint) : 0.0;
-		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k], open);
+		double window = joint->window < 0.0 ? opening * lvp__fold_opening(binding, rest, k, joint) : joint->window;
+		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k], window);
 		if (allowed == INFINITY)
 			continue;
 		double excess = lvp__dot(from_joint, joint->normal) - allowed + gap;

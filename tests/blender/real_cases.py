@@ -19,6 +19,7 @@ and the same at every run:
 The add-on is not involved: measure_quality.py adds Volume Preservation to these.
 """
 
+import collections
 import importlib.util
 import math
 import os
@@ -594,31 +595,11 @@ def pose_hand(rig, amount, shape=HAND):
     bpy.context.view_layer.update()
 
 
-# Hands the suite's own was not tuned on (issue 46): {name: (voxel size, shape, decimated to this ratio or None)}.
-# Stubby and long phalanges, three fingers and a thumb, a thumb that closes over the fingers and one that closes
-# under them, 1,000 to 17,000 vertices from the voxel remesh, and two decimated to irregular triangles as most
-# game and scanned meshes have.
-THUMB_OVER = HandShape(thumb_direction=(0.8, 0.55, 0.0), thumb_fist=(60.0, 40.0, 40.0))
-THUMB_UNDER = HandShape(thumb_direction=(0.6, 0.6, -0.6), thumb_fist=(45.0, 55.0, 60.0))
-HAND_FAMILY = {
-    "very coarse": (0.008, HAND, None),
-    "coarse": (0.006, HAND, None),
-    "fine": (0.002, HAND, None),
-    "stubby": (0.004, HAND.scaled(length=0.75, thickness=1.25), None),
-    "long and slender": (0.004, HAND.scaled(length=1.25, thickness=0.85), None),
-    "three fingers": (0.004, HandShape(fingers=FINGERS[:1] + FINGERS[2:]), None),
-    "thumb over the fingers": (0.004, THUMB_OVER, None),
-    "thumb under the fingers": (0.004, THUMB_UNDER, None),
-    "decimated": (0.003, HAND, 0.3),
-    "decimated, thumb over": (0.003, THUMB_OVER, 0.3),
-}
-
-
-def decimate(obj, ratio):
-    """Collapses the mesh of obj (which has no other modifier) to `ratio` of its faces with Blender's Decimate
-    modifier: irregular triangles, long and thin beside small ones."""
-    modifier = obj.modifiers.new("Decimate", 'DECIMATE')
-    modifier.ratio = ratio
+def _apply_modifier(obj, kind, **settings):
+    """Replaces the mesh of obj (which has no other modifier) by its own with a new modifier of `kind` applied."""
+    modifier = obj.modifiers.new(kind.title(), kind)
+    for name, value in settings.items():
+        setattr(modifier, name, value)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     mesh = bpy.data.meshes.new_from_object(obj.evaluated_get(depsgraph))
     obj.modifiers.remove(modifier)
@@ -626,14 +607,61 @@ def decimate(obj, ratio):
     bpy.data.meshes.remove(old)
 
 
-def hand(voxel_size=HAND_VOXEL, shape=HAND, name="Hand", decimated=None):
-    """(hand, rig): the closed hand (decimated to that ratio of its faces when given) parented With Automatic
-    Weights to its armature, animated from open at frame HAND_FRAMES[0] to the fist at HAND_FRAMES[1] (two keys,
-    Blender's default ease in and out), the scene's frame range set to it."""
+def decimate(obj, ratio):
+    """Collapses the mesh of obj (which has no other modifier) to `ratio` of its faces with Blender's Decimate
+    modifier: irregular triangles, long and thin beside small ones."""
+    _apply_modifier(obj, 'DECIMATE', ratio=ratio)
+
+
+def triangulate(obj):
+    """Splits every face of obj's mesh (which has no other modifier) into triangles with Blender's Triangulate
+    modifier (its Beauty split), as game exporters leave a mesh."""
+    _apply_modifier(obj, 'TRIANGULATE', quad_method='BEAUTY', ngon_method='BEAUTY')
+
+
+def subdivide(obj):
+    """One level of Catmull-Clark subdivision of obj's mesh (which has no other modifier; the Subdivision Surface
+    modifier): each quad split in four and the surface rounded, as a modeller's cage is."""
+    _apply_modifier(obj, 'SUBSURF', levels=1)
+
+
+# Hands the suite's own was not tuned on (issue 46): {name: HandCase}. Stubby and long phalanges, three fingers and
+# a thumb, a thumb that closes over the fingers and one that closes under them, 1,000 to 17,000 vertices from the
+# voxel remesh; decimated to irregular triangles as most game and scanned meshes have, split into triangles as game
+# exporters leave a mesh, and a coarse one subdivided once, as a modeller's cage is.
+# decimated: the ratio of faces Blender's Decimate keeps, or None; finish: what is done to the mesh after that
+# (triangulate, subdivide), or None.
+HandCase = collections.namedtuple("HandCase", "voxel_size shape decimated finish", defaults=(None, None))
+THUMB_OVER = HandShape(thumb_direction=(0.8, 0.55, 0.0), thumb_fist=(60.0, 40.0, 40.0))
+THUMB_UNDER = HandShape(thumb_direction=(0.6, 0.6, -0.6), thumb_fist=(45.0, 55.0, 60.0))
+HAND_FAMILY = {
+    "very coarse": HandCase(0.008, HAND),
+    "coarse": HandCase(0.006, HAND),
+    "fine": HandCase(0.002, HAND),
+    "stubby": HandCase(0.004, HAND.scaled(length=0.75, thickness=1.25)),
+    "long and slender": HandCase(0.004, HAND.scaled(length=1.25, thickness=0.85)),
+    "three fingers": HandCase(0.004, HandShape(fingers=FINGERS[:1] + FINGERS[2:])),
+    "thumb over the fingers": HandCase(0.004, THUMB_OVER),
+    "thumb under the fingers": HandCase(0.004, THUMB_UNDER),
+    "decimated": HandCase(0.003, HAND, decimated=0.3),
+    "decimated, thumb over": HandCase(0.003, THUMB_OVER, decimated=0.3),
+    "decimated to half": HandCase(0.004, HAND, decimated=0.5),
+    "triangulated": HandCase(0.004, HAND, finish=triangulate),
+    "subdivided once": HandCase(0.008, HAND, finish=subdivide),
+}
+
+
+def hand(voxel_size=HAND_VOXEL, shape=HAND, name="Hand", decimated=None, finish=None):
+    """(hand, rig): the closed hand (decimated to that ratio of its faces when given, then given to `finish`:
+    triangulate, subdivide) parented With Automatic Weights to its armature, animated from open at frame
+    HAND_FRAMES[0] to the fist at HAND_FRAMES[1] (two keys, Blender's default ease in and out), the scene's frame
+    range set to it."""
     rig = hand_armature(name + "Rig", shape)
     obj = closed_surface(name, _hand_spheres(shape), voxel_size)
     if decimated is not None:
         decimate(obj, decimated)
+    if finish is not None:
+        finish(obj)
     if parent_with_automatic_weights(obj, rig) != {'FINISHED'}:
         raise RuntimeError("With Automatic Weights failed on the hand")
     empty = empty_vertex_groups(obj)

@@ -410,9 +410,9 @@ class TestHand(unittest.TestCase):
     def setUpClass(cls):
         bpy.ops.wm.read_homefile(use_empty=True)
         helpers.enable_addon()
-        voxel, cls.shape, decimated = real_cases.HAND_FAMILY.get(
-            cls.shape_name, (real_cases.HAND_VOXEL, real_cases.HAND, None))
-        cls.hand, cls.rig = real_cases.hand(voxel, cls.shape, decimated=decimated)
+        case = real_cases.HAND_FAMILY.get(cls.shape_name, real_cases.HandCase(real_cases.HAND_VOXEL, real_cases.HAND))
+        cls.shape = case.shape
+        cls.hand, cls.rig = real_cases.hand(case.voxel_size, case.shape, decimated=case.decimated, finish=case.finish)
         cls.bone_names = [bone.name for bone in cls.rig.data.bones if bone.use_deform]
         cls.mesh = quality.WeldedMesh(helpers.mesh_positions(cls.hand.data), helpers.mesh_triangles(cls.hand.data))
         cls.measured = {"heat": cls.measure()}

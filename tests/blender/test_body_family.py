@@ -17,8 +17,9 @@ The coarse bodies (about 1,000 and 2,000 vertices) are held with Smoothing 10, w
 meshes: the normals turn by tens of degrees from one vertex to the next there, and with the default 6 passes their
 roughness reaches 0.25-0.26 of the largest offset (10 passes: 0.18-0.22).
 
-Fold-Over Prevention with knees and elbows bent to 150 degrees is measured on two of the family and on the suite's
-voxel bodies, male and female (test_fold_over_at_150_degrees).
+Fold-Over Prevention with knees and elbows bent to 150 degrees is measured on four of the family, on the suite's
+voxel bodies (male, female, and at half the voxel size) and on the voxel body decimated to 0.3 of its faces
+(test_fold_over_at_150_degrees).
 """
 
 import unittest
@@ -42,14 +43,21 @@ BODY_FAMILY = {
 
 # name: (real_cases.rigify_human's keyword arguments, Smoothing, or None for the add-on's default): the suite's voxel
 # body and the same at half the voxel size (18,654 vertices), the family's metaball bodies at three densities and its
-# Skin modifier body, a female build
+# Skin modifier body, a female build, and the voxel body decimated to 0.3 of its faces (Smoothing 10, as for the
+# coarse bodies)
 FOLDED_BODIES = {
     "voxel body": ({}, None),
     "fine voxel body": ({"voxel_size": real_cases.BODY_VOXEL / 2}, None),
     **{name: BODY_FAMILY[name] for name in ("metaballs, 0.02", "metaballs, 0.015", "metaballs, 0.03 (coarse)",
                                             "Skin modifier, subdivided twice")},
     "female voxel body": ({"build": "female"}, None),
+    "voxel body decimated to 0.3": ({"decimated": 0.3}, COARSE_SMOOTHING),
 }
+# Folded bodies whose surface with Fold-Over at 150 degrees is not held to QUALITY.md's bounds yet, only their volume
+# and the halving of plain skinning's crossings: decimated to irregular triangles, the knee's crease is a few long
+# triangles wide, and its two sides, pressed onto the plane from either side, leave roughness 0.34-0.41 of the largest
+# offset, shards of 0.27-0.31 and 16-24 creases where 13.9 are allowed (BENCHMARKS.md, "The body family widened").
+SURFACE_NOT_MET_AT_150 = ("voxel body decimated to 0.3",)
 # name: (real_cases.rigify_human's keyword arguments, Smoothing, or None for the add-on's default): the bodies whose
 # skin is pressed on their own skin (test_against_the_body): the voxel bodies (the suite's, at half its voxel size,
 # female), the family's metaball and Skin modifier bodies, and the voxel body decimated to 0.3 of its faces (1,392
@@ -59,7 +67,7 @@ PRESSED_BODIES = {
     "fine voxel body": FOLDED_BODIES["fine voxel body"],
     "female voxel body": ({"build": "female"}, None),
     **BODY_FAMILY,
-    "voxel body decimated to 0.3": ({"decimated": 0.3}, COARSE_SMOOTHING),
+    "voxel body decimated to 0.3": FOLDED_BODIES["voxel body decimated to 0.3"],
 }
 # name: how real_cases poses it
 PRESSED_POSES = {
@@ -196,7 +204,8 @@ class TestBodyFamily(unittest.TestCase):
                 self.assertGreater(plain["crossings"], 100, "the pose folds skin through skin")
                 self.assertLess(abs(folded["volume"]), 0.005, name)
                 self.assertLessEqual(folded["crossings"], plain["crossings"] / 2, name)
-                self.assertEqual(quality.surface_faults(folded, edges), [], name)
+                if name not in SURFACE_NOT_MET_AT_150:
+                    self.assertEqual(quality.surface_faults(folded, edges), [], name)
 
 
 if __name__ == "__main__":

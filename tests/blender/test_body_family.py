@@ -54,9 +54,10 @@ FOLDED_BODIES = {
     "voxel body decimated to 0.3": ({"decimated": 0.3}, COARSE_SMOOTHING),
 }
 # Folded bodies whose surface with Fold-Over at 150 degrees is not held to QUALITY.md's bounds yet, only their volume
-# and the halving of plain skinning's crossings: decimated to irregular triangles, the knee's crease is a few long
-# triangles wide, and its two sides, pressed onto the plane from either side, leave roughness 0.34-0.41 of the largest
-# offset, shards of 0.27-0.31 and 16-24 creases where 13.9 are allowed (BENCHMARKS.md, "The body family widened").
+# and the halving of plain skinning's crossings: decimated to irregular triangles, a knee's or elbow's crease is a
+# few long triangles wide, and its two sides, pressed onto the plane from either side, leave roughness 0.34 of the
+# largest offset (the roughest vertices at the border of shin and thigh), shards of 0.27 and 24 creases where 13.9
+# are allowed (BENCHMARKS.md, "The body family widened").
 SURFACE_NOT_MET_AT_150 = ("voxel body decimated to 0.3",)
 # name: (real_cases.rigify_human's keyword arguments, Smoothing, or None for the add-on's default): the bodies whose
 # skin is pressed on their own skin (test_against_the_body): the voxel bodies (the suite's, at half its voxel size,

@@ -413,11 +413,11 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
 			continue;
 		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
 		double window = joint->window < 0.0 ? opening * lvp__fold_opening(binding, rest, k, joint) : joint->window;
 		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k], window);
 		if (allowed == INFINITY)
 			continue;
+		lvp__vec3 p = lvp__load(work + 3 * k), from_joint = lvp__sub(p, joint->point);
 		double excess = lvp__dot(from_joint, joint->normal) - allowed + gap;
 		/* Short of its limit by more than the joint's widest soft band, a vertex is not pressed (lvp__press
 		 * gives nothing there): most of a side's skin lies that far back, passed over before its own band

@@ -330,8 +330,8 @@ typedef struct lvp__joint {
 	lvp__vec3 rest_point, rest_normal;
 	lvp__vec3 axis;            /* posed bend axis, unit */
 	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
-	lvp__vec3 inside;          /* posed, unit: the concave direction square to the unbent child, where
-	                              the parent carries the skin at the bottom of the crease */
+	lvp__vec3 rest_inside;     /* at rest: the direction the parent's skinning carries onto the concave
+	                              direction square to the unbent child, towards the crease's bottom */
 	double reach;              /* along the axis: the child bone's flesh radius */
 	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
 	double window;             /* how far the crease's skin may cross the plane; negative: held short of it

@@ -110,8 +110,9 @@ static bool lvp__joint_child(const lvp_binding *binding, int32_t s, int32_t j, i
  * the parent's direction: a palm bone down the middle of the hand, a pelvis bone pointing at the
  * hip bone's crest, say nothing of where the flesh of their children turns. Also the bend's axis
  * and its concave side (where the child bent to). False when the child does not turn (nothing
- * folds) or turns back onto the parent (no plane between them). */
-static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 bent)
+ * folds) or turns back onto the parent (no plane between them). r_inside: the concave direction
+ * square to the unbent child, where the parent carries the skin at the bottom of the crease. */
+static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 *r_inside, lvp__vec3 unbent, lvp__vec3 bent)
 {
 	unbent = lvp__unit(unbent);
 	bent = lvp__unit(bent);
@@ -121,7 +122,7 @@ static bool lvp__contact_plane(lvp__joint *r_joint, lvp__vec3 unbent, lvp__vec3 
 	r_joint->normal = lvp__unit(normal);
 	r_joint->axis = lvp__unit(axis);
 	r_joint->concave = lvp__unit(concave);
-	r_joint->inside = lvp__unit(lvp__sub(concave, lvp__scale(unbent, lvp__dot(concave, unbent))));
+	*r_inside = lvp__unit(lvp__sub(concave, lvp__scale(unbent, lvp__dot(concave, unbent))));
 	return true;
 }
 
@@ -151,10 +152,9 @@ static double lvp__across_joint(const lvp__joint *joint, lvp__vec3 p)
  * (LVP__CREASE_WINDOW): the skin at the bottom of the crease, on the inside of the bend at rest (its rest
  * place from the joint along the bend's direction, as the parent carries it): all of it where it lay
  * the child's flesh radius inside, none on the flanks or outside, where nothing folds over. */
-static double lvp__fold_opening(const lvp_binding *binding, const float *rest, int32_t k, const lvp__joint *joint)
+static double lvp__fold_opening(const float *rest, int32_t k, const lvp__joint *joint)
 {
-	lvp__vec3 from_rest_joint = lvp__sub(lvp__load(rest + 3 * k), joint->rest_point);
-	double inside = lvp__dot(lvp__transform_vector(&binding->rig.skin[joint->parent], from_rest_joint), joint->inside);
+	double inside = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_inside);
 	return lvp__smoothstep(inside / joint->reach);
 }
 
@@ -359,9 +359,11 @@ void lvp__begin_fold_over(lvp_binding *binding, const float *rest_positions)
 			joint->rest_point = rig->heads[child];
 			joint->point = rig->posed_heads[child];
 			joint->rest_normal = lvp__unit(direction);
-			lvp__vec3 unbent = lvp__transform_vector(&rig->skin[parent], direction);
-			if (!lvp__contact_plane(joint, unbent, lvp__transform_vector(&rig->skin[child], direction)))
+			lvp__vec3 unbent = lvp__transform_vector(&rig->skin[parent], direction), inside;
+			if (!lvp__contact_plane(joint, &inside, unbent, lvp__transform_vector(&rig->skin[child], direction)))
 				continue;
+			/* Where the parent's skinning takes rest direction d, d . rest_inside = (skin d) . inside. */
+			joint->rest_inside = lvp__transform_vector_transposed(&rig->skin[parent], inside);
 			/* The sine of half the bend: the normal lies halfway between unbent and bent. */
 			double sine = lvp__length(lvp__cross(lvp__unit(unbent), joint->normal));
 			if (child == s) { /* the normals point from s's side to j's */
@@ -413,7 +415,7 @@ static int32_t lvp__press_region(lvp_binding *binding, const float *rest, int32_
 		if (binding->fold.held[k] == LVP__HELD_BEFORE || binding->fold.held[k] == LVP__HELD_STILL)
 			continue;
 		double rest_side = lvp__dot(lvp__sub(lvp__load(rest + 3 * k), joint->rest_point), joint->rest_normal);
-		double window = joint->window < 0.0 ? opening * lvp__fold_opening(binding, rest, k, joint) : joint->window;
+		double window = joint->window < 0.0 ? opening * lvp__fold_opening(rest, k, joint) : joint->window;
 		double allowed = lvp__allowed_across(joint, rest_side, binding->fold.longest_edge[k], window);
 		if (allowed == INFINITY)
 			continue;

@@ -134,6 +134,14 @@ static inline lvp__vec3 lvp__transform_vector(const lvp__mat4 *a, lvp__vec3 p)
 	              m[8] * p.x + m[9] * p.y + m[10] * p.z);
 }
 
+/* The transpose of a's linear part applied to p: (a v) . p = v . result, for every v. */
+static inline lvp__vec3 lvp__transform_vector_transposed(const lvp__mat4 *a, lvp__vec3 p)
+{
+	const double *m = a->m;
+	return lvp__v(m[0] * p.x + m[4] * p.y + m[8] * p.z, m[1] * p.x + m[5] * p.y + m[9] * p.z,
+	              m[2] * p.x + m[6] * p.y + m[10] * p.z);
+}
+
 /* ---- small utilities -------------------------------------------------------------------- */
 
 static inline bool lvp__finite(float v)

@@ -373,20 +373,10 @@ static void lvp__refit_node(lvp__bvh *bvh, int32_t index)
 	memcpy(node->hi, box.hi, sizeof(box.hi));
 }
 
-void lvp__bvh_refit(lvp__bvh *bvh, const float *positions)
-{
-	if (bvh->triangle_count == 0)
-		return;
-	for (int32_t i = 0; i < bvh->triangle_count; ++i)
-		lvp__refit_triangle(&bvh->triangles[i], positions);
-	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
-		lvp__refit_node(bvh, index);
-}
-
 typedef struct lvp__refit_pass {
 	lvp__bvh *bvh;
 	const float *positions;
-	const int32_t *nodes;
+	const int32_t *nodes; /* NULL: every node, by index */
 } lvp__refit_pass;
 
 /* The listed leaves in [begin, end): their triangles and boxes (each writes only its own). */
@@ -395,12 +385,13 @@ static void lvp__refit_leaves(void *context, int32_t begin, int32_t end)
 	const lvp__refit_pass *pass = context;
 	lvp__bvh *bvh = pass->bvh;
 	for (int32_t i = begin; i < end; ++i) {
-		const lvp__bvh_node *node = &bvh->nodes[pass->nodes[i]];
+		int32_t index = pass->nodes ? pass->nodes[i] : i;
+		const lvp__bvh_node *node = &bvh->nodes[index];
 		if (node->count == 0)
 			continue;
 		for (int32_t t = node->index; t < node->index + node->count; ++t)
 			lvp__refit_triangle(&bvh->triangles[t], pass->positions);
-		lvp__refit_node(bvh, pass->nodes[i]);
+		lvp__refit_node(bvh, index);
 	}
 }
 
@@ -415,6 +406,18 @@ void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *
 	for (int32_t i = 0; i < count; ++i)
 		if (bvh->nodes[nodes[i]].count == 0)
 			lvp__refit_node(bvh, nodes[i]);
+}
+
+void lvp__bvh_refit(lvp__bvh *bvh, const float *positions, lvp__pool *pool)
+{
+	if (bvh->triangle_count == 0)
+		return;
+	lvp__refit_pass pass = {bvh, positions, NULL};
+	lvp__parallel_for(pool, lvp__refit_leaves, &pass, bvh->node_count, LVP__BVH_REFIT_GRAIN);
+	/* Then the inner nodes, each after its children (which come after it). */
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
+		if (bvh->nodes[index].count == 0)
+			lvp__refit_node(bvh, index);
 }
 
 void lvp__bvh_free(lvp__bvh *bvh)

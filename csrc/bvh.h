@@ -64,8 +64,8 @@ bool lvp__bvh_segment_hits(const lvp__bvh *bvh, lvp__vec3 from, lvp__vec3 to, do
 /* Moves the triangles to `positions` (indexed like the mesh the hierarchy was built over) and
  * recomputes every node's box from its children's, keeping the tree: after a deformation that keeps
  * neighbours near each other (skinning), the boxes grow where the skin bends but stay valid, and
- * queries stay exact; O(F). */
-void lvp__bvh_refit(lvp__bvh *bvh, const float *positions);
+ * queries stay exact; O(F), the leaves on the pool's threads (NULL: this one). */
+void lvp__bvh_refit(lvp__bvh *bvh, const float *positions, lvp__pool *pool);
 
 /* The refit of the listed nodes alone (`nodes`: indices from the last to the first, each listed
  * node's parent listed too): their leaves' triangles moved to `positions`, then their boxes, the

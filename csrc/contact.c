@@ -417,14 +417,15 @@ static void lvp__list_dynamic_nodes(lvp_binding *binding)
 	contact->dynamic_node_count = count;
 }
 
-void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
-{
-	lvp__bvh_refit(&binding->contact.bvh, positions);
-	lvp__list_dynamic_nodes(binding);
-}
-
 /* The work of refitting a node against a vertex's step (LVP__POOL_FOR): up to eight triangles' corners. */
 #define LVP__REFIT_WORK 8
+
+void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions)
+{
+	lvp__bvh *bvh = &binding->contact.bvh;
+	lvp__bvh_refit(bvh, positions, LVP__POOL_FOR(binding, (int64_t)bvh->node_count * LVP__REFIT_WORK));
+	lvp__list_dynamic_nodes(binding);
+}
 
 /* contact.moved_nodes: per node of the hierarchy, whether a triangle under it has a corner marked in `marks`
  * (lvp__bvh_self_overlaps passes over pairs of nodes neither of which is marked). Walked up from the marked

@@ -330,8 +330,9 @@ typedef struct lvp__joint {
 	lvp__vec3 rest_point, rest_normal;
 	lvp__vec3 axis;            /* posed bend axis, unit */
 	lvp__vec3 concave;         /* posed, unit: from the joint into the bend */
-	lvp__vec3 rest_inside;     /* at rest: the direction the parent's skinning carries onto the concave
-	                              direction square to the unbent child, towards the crease's bottom */
+	lvp__vec3 rest_inside;     /* at rest: a rest offset's dot product with it is that of the offset as the
+	                              parent carries it with the posed concave direction square to the unbent
+	                              child (towards the crease's bottom): the parent's skinning, transposed */
 	double reach;              /* along the axis: the child bone's flesh radius */
 	double soft;               /* how softly skin is pressed onto the plane (foldover.c) */
 	double window;             /* how far the crease's skin may cross the plane; negative: held short of it

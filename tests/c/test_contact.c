@@ -7,8 +7,8 @@
  * correction crosses more than plain skinning does, never more crossing pairs than plain skinning
  * (the crossing test takes what the fade leaves: it never gives up); with fold-over too, bent 100 and
  * 140 degrees at one joint, never more crossing pairs than plain skinning or fold-over alone; wound the
- * other way, kept apart the same, bit for bit. (The giraffe's 28 single-joint poses: test_giraffe.c; a
- * hand closing: tests/blender/test_fold_over_hand.py.)
+ * other way, kept apart the same, bit for bit; and on one to four threads, the same bits. (The giraffe's
+ * 28 single-joint poses: test_giraffe.c; a hand closing: tests/blender/test_fold_over_hand.py.)
  */
 #include "lvp.h"
 #include "support/bind_rig.h"
@@ -204,11 +204,57 @@ static void test_either_winding_kept_apart_alike(void)
 	}
 }
 
+/* Keep Skin Apart and fold-over on one to four threads: the same bits (lvp.h, thread_count). The tube bent 71 degrees
+ * at every joint, where the crossing test shortens offsets after the fades, and 110 degrees, where fold-over presses
+ * too: the clearance searches, the fades, the hierarchy's refits and the crossing rounds all run on the threads. */
+static void test_any_thread_count_alike(void)
+{
+	static const struct {
+		double degrees;
+		int fold_over, smoothing;
+	} cases[] = {{71.0, 0, 0}, {71.0, 0, 6}, {110.0, 1, 6}};
+	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); ++c) {
+		test_posed_rig tube = make_tube(cases[c].degrees, true);
+		size_t values = 3 * (size_t)tube.rig.vertex_count;
+		float *corrected[4];
+		lvp_frame_stats stats[4];
+		for (int threads = 1; threads <= 4; ++threads) {
+			lvp_bind_options bind_options = lvp_bind_default_options();
+			bind_options.thread_count = threads;
+			corrected[threads - 1] = calloc(values, sizeof(float));
+			lvp_binding *binding = test_bind_rig(&tube.rig, &bind_options);
+			if (!binding)
+				continue;
+			lvp_frame_options options = lvp_frame_default_options();
+			options.restore = LVP_RESTORE_WHOLE_MESH;
+			options.keep_apart = 1;
+			options.fold_over = cases[c].fold_over;
+			options.smoothing_passes = cases[c].smoothing;
+			lvp_diagnostic diag;
+			CHECK_OK(lvp_correct(corrected[threads - 1], NULL, binding, tube.skinned, tube.posed, NULL, &options,
+			                     &stats[threads - 1], &diag),
+			         diag);
+			lvp_free(binding);
+		}
+		printf("  %.0f degrees at every joint%s, smoothing %d: %d vertices shortened, %d folded\n", cases[c].degrees,
+		       cases[c].fold_over ? ", fold-over" : "", cases[c].smoothing, stats[0].shortened_vertices,
+		       stats[0].folded_vertices);
+		CHECK(stats[0].shortened_vertices > 0); /* the crossing rounds ran */
+		CHECK(!cases[c].fold_over || stats[0].folded_vertices > 0);
+		for (int threads = 2; threads <= 4; ++threads)
+			CHECK(memcmp(corrected[0], corrected[threads - 1], sizeof(float) * values) == 0);
+		for (int threads = 1; threads <= 4; ++threads)
+			free(corrected[threads - 1]);
+		test_posed_rig_free(&tube);
+	}
+}
+
 int main(void)
 {
 	RUN(test_one_joint_kept_apart);
 	RUN(test_every_joint_kept_apart);
 	RUN(test_with_fold_over);
 	RUN(test_either_winding_kept_apart_alike);
+	RUN(test_any_thread_count_alike);
 	return check_failures() != 0;
 }

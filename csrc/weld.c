@@ -95,11 +95,14 @@ static bool lvp__number_points(lvp__weld *weld, int32_t *r_point_count, const fl
                                const int32_t *triangles, int32_t triangle_count)
 {
 	size_t slots = (size_t)(n > 0 ? n : 1), directed = 6 * (size_t)triangle_count + 1;
+	/* pairs: 2 per directed edge, and before that the neighbour lists' fill, one per vertex (a mesh of
+	 * loose vertices has more vertices than its triangles have edges) */
+	size_t pair_slots = 2 * directed > slots ? 2 * directed : slots;
 	lvp__sort_key *keys = malloc(sizeof(lvp__sort_key) * slots);
 	int32_t *place = malloc(sizeof(int32_t) * slots);
 	int32_t *neighbour_offsets = calloc(slots + 1, sizeof(int32_t));
 	int32_t *neighbours = malloc(sizeof(int32_t) * directed);
-	int32_t *pairs = malloc(sizeof(int32_t) * 2 * directed);
+	int32_t *pairs = malloc(sizeof(int32_t) * pair_slots);
 	bool ok = keys && place && neighbour_offsets && neighbours && pairs;
 	if (ok) {
 		for (int32_t k = 0; k < n; ++k) {

@@ -283,6 +283,44 @@ static void test_awkward_meshes_have_defined_outcomes(void)
 	free_scene(&s);
 }
 
+/* A skinned mesh joined with more loose vertices than its triangles have corners twice over (a point cloud or an
+ * edge-only hair guide in the same object): binds and corrects, the loose vertices where they were. The bind's
+ * scratch for welding seam copies was sized by the triangles' edges alone and overflowed. */
+static void test_many_loose_vertices(void)
+{
+	scene s = bent_cylinder(70);
+	test_rig *rig = &s.rig;
+	int32_t n = rig->vertex_count, f = rig->triangle_count, loose = 12 * f + 50, total = n + loose;
+	float *positions = malloc(sizeof(float) * 3 * (size_t)total), *skinned = malloc(sizeof(float) * 3 * (size_t)total);
+	float *out = malloc(sizeof(float) * 3 * (size_t)total);
+	int32_t *offsets = malloc(sizeof(int32_t) * ((size_t)total + 1));
+	memcpy(positions, rig->positions, sizeof(float) * 3 * (size_t)n);
+	memcpy(skinned, s.skinned, sizeof(float) * 3 * (size_t)n);
+	memcpy(offsets, rig->weight_offsets, sizeof(int32_t) * ((size_t)n + 1));
+	for (int32_t k = n; k < total; ++k) { /* unweighted, on a line beside the cylinder, two at each place */
+		for (int axis = 0; axis < 3; ++axis)
+			positions[3 * k + axis] = skinned[3 * k + axis] = axis == 0 ? 3.0f + 0.01f * (float)((k - n) / 2) : 0.5f;
+		offsets[k + 1] = offsets[n];
+	}
+	lvp_weights weights = {offsets, rig->weight_bones, rig->weight_values};
+	lvp_skeleton skeleton = test_rig_skeleton(rig);
+	lvp_binding *binding = NULL;
+	lvp_diagnostic diag;
+	CHECK_OK(lvp_bind(&binding, positions, total, rig->triangles, f, &weights, &skeleton, NULL, &diag), diag);
+	if (binding) {
+		lvp_frame_stats stats;
+		CHECK_OK(lvp_correct(out, NULL, binding, skinned, s.posed, NULL, NULL, &stats, &diag), diag);
+		CHECK(memcmp(out + 3 * (size_t)n, skinned + 3 * (size_t)n, sizeof(float) * 3 * (size_t)loose) == 0);
+		CHECK(fabs(stats.volume_after - stats.volume_rest) < 1e-3 * fabs(stats.volume_rest));
+		lvp_free(binding);
+	}
+	free(positions);
+	free(skinned);
+	free(out);
+	free(offsets);
+	free_scene(&s);
+}
+
 /* Triangles wound against their neighbours (faces whose normals were flipped) are counted, so
  * that the caller can say so: the local volumes across them are wrong. A mesh wound the other way
  * everywhere is consistent. */
@@ -383,6 +421,7 @@ int main(void)
 	RUN(test_frame_errors_leave_outputs_untouched);
 	RUN(test_singular_posed_bone_skips_its_region);
 	RUN(test_awkward_meshes_have_defined_outcomes);
+	RUN(test_many_loose_vertices);
 	RUN(test_painted_map_and_region_restriction);
 	RUN(test_flipped_triangles_are_counted);
 	return check_failures() != 0;

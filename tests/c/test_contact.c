@@ -218,6 +218,7 @@ static void test_any_thread_count_alike(void)
 		size_t values = 3 * (size_t)tube.rig.vertex_count;
 		float *corrected[4];
 		lvp_frame_stats stats[4];
+		memset(stats, 0, sizeof(stats));
 		for (int threads = 1; threads <= 4; ++threads) {
 			lvp_bind_options bind_options = lvp_bind_default_options();
 			bind_options.thread_count = threads;

@@ -373,11 +373,19 @@ static void lvp__refit_node(lvp__bvh *bvh, int32_t index)
 	memcpy(node->hi, box.hi, sizeof(box.hi));
 }
 
+/* The nodes of a refit: `nodes` listed from the last to the first (lvp__bvh_refit_nodes), or, NULL, every node of
+ * the hierarchy in that order. */
 typedef struct lvp__refit_pass {
 	lvp__bvh *bvh;
 	const float *positions;
-	const int32_t *nodes; /* NULL: every node, by index */
+	const int32_t *nodes;
+	int32_t count;
 } lvp__refit_pass;
+
+static inline int32_t lvp__refit_node_at(const lvp__refit_pass *pass, int32_t i)
+{
+	return pass->nodes ? pass->nodes[i] : pass->count - 1 - i;
+}
 
 /* The listed leaves in [begin, end): their triangles and boxes (each writes only its own). */
 static void lvp__refit_leaves(void *context, int32_t begin, int32_t end)
@@ -385,7 +393,7 @@ static void lvp__refit_leaves(void *context, int32_t begin, int32_t end)
 	const lvp__refit_pass *pass = context;
 	lvp__bvh *bvh = pass->bvh;
 	for (int32_t i = begin; i < end; ++i) {
-		int32_t index = pass->nodes ? pass->nodes[i] : i;
+		int32_t index = lvp__refit_node_at(pass, i);
 		const lvp__bvh_node *node = &bvh->nodes[index];
 		if (node->count == 0)
 			continue;
@@ -398,26 +406,29 @@ static void lvp__refit_leaves(void *context, int32_t begin, int32_t end)
 /* Listed nodes a task of the leaves' refit takes at a time. */
 #define LVP__BVH_REFIT_GRAIN 512
 
+/* The leaves on the pool's threads, then the inner nodes, each after its children (listed before it). */
+static void lvp__refit(lvp__refit_pass *pass, lvp__pool *pool)
+{
+	lvp__parallel_for(pool, lvp__refit_leaves, pass, pass->count, LVP__BVH_REFIT_GRAIN);
+	for (int32_t i = 0; i < pass->count; ++i) {
+		int32_t index = lvp__refit_node_at(pass, i);
+		if (pass->bvh->nodes[index].count == 0)
+			lvp__refit_node(pass->bvh, index);
+	}
+}
+
 void lvp__bvh_refit_nodes(lvp__bvh *bvh, const float *positions, const int32_t *nodes, int32_t count, lvp__pool *pool)
 {
-	lvp__refit_pass pass = {bvh, positions, nodes};
-	lvp__parallel_for(pool, lvp__refit_leaves, &pass, count, LVP__BVH_REFIT_GRAIN);
-	/* Then the inner nodes, each after its children (listed before it). */
-	for (int32_t i = 0; i < count; ++i)
-		if (bvh->nodes[nodes[i]].count == 0)
-			lvp__refit_node(bvh, nodes[i]);
+	lvp__refit_pass pass = {bvh, positions, nodes, count};
+	lvp__refit(&pass, pool);
 }
 
 void lvp__bvh_refit(lvp__bvh *bvh, const float *positions, lvp__pool *pool)
 {
 	if (bvh->triangle_count == 0)
 		return;
-	lvp__refit_pass pass = {bvh, positions, NULL};
-	lvp__parallel_for(pool, lvp__refit_leaves, &pass, bvh->node_count, LVP__BVH_REFIT_GRAIN);
-	/* Then the inner nodes, each after its children (which come after it). */
-	for (int32_t index = bvh->node_count - 1; index >= 0; --index)
-		if (bvh->nodes[index].count == 0)
-			lvp__refit_node(bvh, index);
+	lvp__refit_pass pass = {bvh, positions, NULL, bvh->node_count};
+	lvp__refit(&pass, pool);
 }
 
 void lvp__bvh_free(lvp__bvh *bvh)

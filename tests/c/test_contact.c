@@ -39,19 +39,27 @@ static test_posed_rig make_tube(double degrees, bool every_joint)
 	return tube;
 }
 
-/* Corrects the tube (the whole mesh restored), keep_apart on or off, into r_positions. */
-static lvp_frame_stats correct_with(lvp_binding *binding, const test_posed_rig *tube, int keep_apart, int fold_over,
-                                    float *r_positions)
+/* Corrects the tube (the whole mesh restored), keep_apart and fold_over on or off, with that many smoothing
+ * passes, into r_positions. */
+static lvp_frame_stats correct_smoothed(lvp_binding *binding, const test_posed_rig *tube, int keep_apart,
+                                        int fold_over, int smoothing, float *r_positions)
 {
 	lvp_frame_options options = lvp_frame_default_options();
 	options.restore = LVP_RESTORE_WHOLE_MESH;
 	options.keep_apart = keep_apart;
 	options.fold_over = fold_over;
+	options.smoothing_passes = smoothing;
 	lvp_frame_stats stats;
 	memset(&stats, 0, sizeof(stats));
 	lvp_diagnostic diag;
 	CHECK_OK(lvp_correct(r_positions, NULL, binding, tube->skinned, tube->posed, NULL, &options, &stats, &diag), diag);
 	return stats;
+}
+
+static lvp_frame_stats correct_with(lvp_binding *binding, const test_posed_rig *tube, int keep_apart, int fold_over,
+                                    float *r_positions)
+{
+	return correct_smoothed(binding, tube, keep_apart, fold_over, 0, r_positions);
 }
 
 static lvp_frame_stats correct(lvp_binding *binding, const test_posed_rig *tube, int keep_apart, float *r_positions)
@@ -226,15 +234,8 @@ static void test_any_thread_count_alike(void)
 			lvp_binding *binding = test_bind_rig(&tube.rig, &bind_options);
 			if (!binding)
 				continue;
-			lvp_frame_options options = lvp_frame_default_options();
-			options.restore = LVP_RESTORE_WHOLE_MESH;
-			options.keep_apart = 1;
-			options.fold_over = cases[c].fold_over;
-			options.smoothing_passes = cases[c].smoothing;
-			lvp_diagnostic diag;
-			CHECK_OK(lvp_correct(corrected[threads - 1], NULL, binding, tube.skinned, tube.posed, NULL, &options,
-			                     &stats[threads - 1], &diag),
-			         diag);
+			stats[threads - 1] = correct_smoothed(binding, &tube, 1, cases[c].fold_over, cases[c].smoothing,
+			                                      corrected[threads - 1]);
 			lvp_free(binding);
 		}
 		printf("  %.0f degrees at every joint%s, smoothing %d: %d vertices shortened, %d folded\n", cases[c].degrees,

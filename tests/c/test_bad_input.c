@@ -283,9 +283,10 @@ static void test_awkward_meshes_have_defined_outcomes(void)
 	free_scene(&s);
 }
 
-/* A skinned mesh joined with more loose vertices than its triangles have corners twice over (a point cloud or an
+/* A skinned mesh joined with more loose vertices than four times its triangles' corners (a point cloud or an
  * edge-only hair guide in the same object): binds and corrects, the loose vertices where they were. The bind's
- * scratch for welding seam copies was sized by the triangles' edges alone and overflowed. */
+ * scratch for welding seam copies was sized by the triangles' directed edges alone (12 a triangle) and
+ * overflowed. */
 static void test_many_loose_vertices(void)
 {
 	scene s = bent_cylinder(70);

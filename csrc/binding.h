@@ -421,6 +421,8 @@ typedef struct lvp__contact {
 	float *clearance;          /* per vertex, this frame: the room in front of its offset in the
 	                              skinning (clearance.c; INFINITY: none near) */
 	float *clearance_reach;    /* per vertex, this frame: how far that was searched (0: not yet) */
+	double *sheets;            /* per node of bvh, this frame (clearance.c, lvp__fit_sheets): the slab of the
+	                              skinning's triangles under it, which a clearance search tests wide balls on */
 	float *clearance_direction; /* vertex_count*3, this frame: the unit direction it is searched along, its
 	                              offset's at the frame's first search (clearance.c, lvp__start_search) */
 	float *fade, *fade_scratch; /* per vertex: the share of its offset its clearance lets it keep */

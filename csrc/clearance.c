@@ -19,6 +19,15 @@
  * search, kept through its later fades: a vertex searched again along its new direction, beside
  * neighbours whose clearances were found along their first, jumped between sub-frames where one
  * crossed the threshold of searching again and the other did not.
+ *
+ * A search tests the triangles whose boxes its ball may meet. Where offsets are long against the edges
+ * (fine skin, a wide bulge), a ball spans many triangles and rests on nearly flat skin, tangent at its
+ * vertex: the box of every patch of skin beneath it pokes up into it, and the triangles tested grew as
+ * the square of the ball's width in edges, nearly none of them within the ball. Each node of the
+ * hierarchy also bounds the slab its skin lies in (its sheet, lvp__fit_sheets), which meets such a ball
+ * only near its vertex; groups whose balls are wider than their own skin gather and test the leaves by
+ * it (lvp__sheet_may_meet). Both culls are conservative, so every search still sees each triangle its
+ * ball may meet, and the clearances are the same either way (tests/c/test_clearance.c).
  */
 #include "binding.h"
 
@@ -322,6 +331,74 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 	return false;
 }
 
+/* Per node of the hierarchy, its sheet (contact.sheets): the sum of its triangles' normals weighted by
+ * their areas, that sum's direction (the axis), and the range of <x, axis> over its triangles. */
+#define LVP__SHEET_SIZE 8
+/* A descent's stack: the hierarchy is less than 72 deep (bvh.h), and one sibling waits per level. */
+#define LVP__DESCENT_STACK 96
+
+/* contact.sheets of the hierarchy as fitted to the skinning, children before parents (a parent comes
+ * before its children in the node array). A leaf's range is its corners' own; a parent's holds each
+ * child's, carried from the child's axis to its own through the child's box (<x, a> = <x, a_c> +
+ * <x, a - a_c>, the last bounded over the box), and never wider than the child's box along the axis.
+ * Each range is widened by a margin well past the rounding of its sums. */
+static void lvp__fit_sheets(lvp__contact *contact)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		double *sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)index;
+		lvp__vec3 sum = lvp__v(0.0, 0.0, 0.0);
+		if (node->count > 0) {
+			for (int32_t i = node->index; i < node->index + node->count; ++i) {
+				const lvp__bvh_triangle *triangle = &bvh->triangles[i];
+				lvp__vec3 a = lvp__load(triangle->corners[0]);
+				sum = lvp__add(sum, lvp__cross(lvp__sub(lvp__load(triangle->corners[1]), a),
+				                               lvp__sub(lvp__load(triangle->corners[2]), a)));
+			}
+		} else {
+			const double *left = contact->sheets + LVP__SHEET_SIZE * (int64_t)node->index;
+			const double *right = left + LVP__SHEET_SIZE;
+			sum = lvp__v(left[0] + right[0], left[1] + right[1], left[2] + right[2]);
+		}
+		double length = lvp__length(sum);
+		lvp__vec3 axis = length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
+		double low = INFINITY, high = -INFINITY;
+		if (node->count > 0) {
+			for (int32_t i = node->index; i < node->index + node->count; ++i)
+				for (int c = 0; c < 3; ++c) {
+					double along = lvp__dot(lvp__load(bvh->triangles[i].corners[c]), axis);
+					low = lvp__min_d(low, along);
+					high = lvp__max_d(high, along);
+				}
+		} else {
+			for (int32_t child = node->index; child <= node->index + 1; ++child) {
+				const lvp__bvh_node *box = &bvh->nodes[child];
+				const double *child_sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)child;
+				double box_low = 0.0, box_high = 0.0, tilt_low = 0.0, tilt_high = 0.0;
+				for (int k = 0; k < 3; ++k) {
+					double a = lvp__axis(axis, k), tilt = a - child_sheet[3 + k];
+					box_low += a > 0.0 ? a * box->lo[k] : a * box->hi[k];
+					box_high += a > 0.0 ? a * box->hi[k] : a * box->lo[k];
+					tilt_low += tilt > 0.0 ? tilt * box->lo[k] : tilt * box->hi[k];
+					tilt_high += tilt > 0.0 ? tilt * box->hi[k] : tilt * box->lo[k];
+				}
+				low = lvp__min_d(low, lvp__max_d(child_sheet[6] + tilt_low, box_low));
+				high = lvp__max_d(high, lvp__min_d(child_sheet[7] + tilt_high, box_high));
+			}
+		}
+		double margin = 1e-9 * (fabs(low) + fabs(high));
+		sheet[0] = sum.x;
+		sheet[1] = sum.y;
+		sheet[2] = sum.z;
+		sheet[3] = axis.x;
+		sheet[4] = axis.y;
+		sheet[5] = axis.z;
+		sheet[6] = low - margin;
+		sheet[7] = high + margin;
+	}
+}
+
 /* Vertices near each other are searched together: the triangles near any of them are found by one
  * descent of the hierarchy, then each vertex looks through those. A group is the vertices whose first
  * triangle lies under one subtree of at most this many triangles. */
@@ -387,13 +464,14 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	return true;
 }
 
-/* The triangles a group's descent gathers, and their boxes by coordinate (lvp__near_candidates reads
- * them in one pass per vertex). */
+/* What a group's descent gathers, the triangles or (by_sheets) the leaves of the hierarchy, and their
+ * boxes by coordinate (lvp__near_candidates reads them in one pass per vertex). */
 typedef struct lvp__candidates {
 	const lvp__bvh_triangle *triangles[LVP__GROUP_CANDIDATES];
+	int32_t leaves[LVP__GROUP_CANDIDATES];
 	float lo[3][LVP__GROUP_CANDIDATES], hi[3][LVP__GROUP_CANDIDATES];
 	int32_t count;
-	bool overflow;
+	bool overflow, by_sheets;
 } lvp__candidates;
 
 static bool lvp__gather_candidate(void *context, const lvp__bvh_triangle *triangle)
@@ -450,16 +528,94 @@ static bool lvp__gather_ball_candidate(void *context, const lvp__bvh_triangle *t
 	return lvp__gather_candidate(gathering->candidates, triangle);
 }
 
+/* Whether the skin under node `index` may meet the search's ball as it is now (lvp__clearance_search.least):
+ * the ball cut to the node's sheet (contact.sheets, the slab its triangles lie in) lies in a cylinder
+ * along the sheet's axis, and that in a sphere, which the node's box must meet. Where a wide ball rests
+ * on nearly flat skin, tangent at its vertex, the boxes of the skin around poke up into it and the slab
+ * does not: the slab meets the ball only within about the square root of the ball's diameter times the
+ * slab's thickness of the vertex. Conservative by a margin well past rounding, as the box tests are. */
+static bool lvp__sheet_may_meet(const lvp__contact *contact, const lvp__clearance_search *search, int32_t index)
+{
+	const double *sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)index;
+	const lvp__bvh_node *node = &contact->bvh.nodes[index];
+	double radius = 0.5 * search->least * (1.0 + 1e-6);
+	lvp__vec3 axis = lvp__v(sheet[3], sheet[4], sheet[5]);
+	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * search->least));
+	double height = lvp__dot(centre, axis);
+	double low = lvp__max_d(sheet[6], height - radius), high = lvp__min_d(sheet[7], height + radius);
+	if (low > high)
+		return false;
+	/* The widest cross-section of the ball within [low, high], and the sphere around that cylinder. */
+	double widest = height < low ? low : (height > high ? high : height);
+	double across2 = lvp__max_d(radius * radius - (widest - height) * (widest - height), 0.0);
+	double half = 0.5 * (high - low);
+	double bound = sqrt(across2 + half * half);
+	lvp__vec3 middle = lvp__add(centre, lvp__scale(axis, 0.5 * (low + high) - height));
+	double distance2 = 0.0;
+	for (int axis_index = 0; axis_index < 3; ++axis_index) {
+		double x = lvp__axis(middle, axis_index);
+		double gap = x < node->lo[axis_index] ? node->lo[axis_index] - x
+		                                      : (x > node->hi[axis_index] ? x - node->hi[axis_index] : 0.0);
+		distance2 += gap * gap;
+	}
+	bound += 1e-6 * bound + 1e-9 * (fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + radius);
+	return distance2 <= bound * bound;
+}
+
+/* Into `candidates` (by_sheets), the leaves of the hierarchy whose boxes meet the box [lo, hi] around
+ * the group's balls and whose skin may meet one of them (lvp__sheet_may_meet), going down only into
+ * nodes that may; past its room, overflow. */
+static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance_search *searches, int32_t count,
+                               const float lo[3], const float hi[3], lvp__candidates *candidates)
+{
+	const lvp__bvh *bvh = &contact->bvh;
+	int32_t stack[LVP__DESCENT_STACK];
+	int top = 0;
+	stack[top++] = 0;
+	while (top > 0) {
+		int32_t index = stack[--top];
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		if (node->lo[0] > hi[0] || node->hi[0] < lo[0] || node->lo[1] > hi[1] || node->hi[1] < lo[1] ||
+		    node->lo[2] > hi[2] || node->hi[2] < lo[2])
+			continue;
+		bool meets = false;
+		for (int32_t s = 0; s < count && !meets; ++s)
+			meets = lvp__meets_start_ball(&searches[s], node->lo, node->hi) &&
+			        lvp__sheet_may_meet(contact, &searches[s], index);
+		if (!meets)
+			continue;
+		if (node->count == 0) {
+			stack[top++] = node->index + 1;
+			stack[top++] = node->index;
+			continue;
+		}
+		if (candidates->count == LVP__GROUP_CANDIDATES) {
+			candidates->overflow = true;
+			return;
+		}
+		for (int axis = 0; axis < 3; ++axis) {
+			candidates->lo[axis][candidates->count] = node->lo[axis];
+			candidates->hi[axis][candidates->count] = node->hi[axis];
+		}
+		candidates->leaves[candidates->count++] = index;
+	}
+}
+
 /* Into `candidates`, the triangles whose boxes meet the box [lo, hi] around the group's balls, or when
  * more than it holds, those whose boxes meet one of the balls. Each ball lies in the box around it, which
  * on fine skin (a ball many triangles wide) holds far more of the skin under the ball than the ball does:
  * past the candidates' room, the group is gathered again by the balls themselves, which costs a test of
  * each ball at every box it descends into, and only past that again do its vertices search one by one. */
 static void lvp__gather_group(const lvp__contact *contact, const lvp__clearance_search *searches, int32_t count,
-                              const float lo[3], const float hi[3], lvp__candidates *candidates)
+                              const float lo[3], const float hi[3], bool by_sheets, lvp__candidates *candidates)
 {
 	candidates->count = 0;
 	candidates->overflow = false;
+	candidates->by_sheets = by_sheets;
+	if (by_sheets) {
+		lvp__gather_leaves(contact, searches, count, lo, hi, candidates);
+		return;
+	}
 	lvp__bvh_overlapping(&contact->bvh, lo, hi, lvp__gather_candidate, candidates);
 	if (!candidates->overflow)
 		return;
@@ -509,8 +665,16 @@ static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, co
 	if (candidates && !candidates->overflow) {
 		int32_t nearby[LVP__GROUP_CANDIDATES];
 		int32_t count = lvp__near_candidates(candidates, search, nearby);
-		for (int32_t c = 0; c < count; ++c)
+		for (int32_t c = 0; c < count && !candidates->by_sheets; ++c)
 			lvp__visit_clearance(search, candidates->triangles[nearby[c]]);
+		for (int32_t c = 0; c < count && candidates->by_sheets; ++c) {
+			int32_t index = candidates->leaves[nearby[c]];
+			const lvp__bvh_node *leaf = &contact->bvh.nodes[index];
+			if (!lvp__box_may_hold(search, leaf->lo, leaf->hi) || !lvp__sheet_may_meet(contact, search, index))
+				continue;
+			for (int32_t t = leaf->index; t < leaf->index + leaf->count; ++t)
+				lvp__visit_clearance(search, &contact->bvh.triangles[t]);
+		}
 	} else {
 		lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);
 	}
@@ -533,8 +697,14 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 	for (int32_t g = begin; g < end; ++g) {
 		int32_t count = 0;
 		float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+		float skin_lo[3] = {INFINITY, INFINITY, INFINITY}, skin_hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+		double widest = 0.0;
 		for (int32_t i = contact->group_offsets[g]; i < contact->group_offsets[g + 1]; ++i) {
 			int32_t k = contact->group_vertices[i];
+			for (int axis = 0; axis < 3; ++axis) {
+				skin_lo[axis] = fminf(skin_lo[axis], pass->positions[3 * k + axis]);
+				skin_hi[axis] = fmaxf(skin_hi[axis], pass->positions[3 * k + axis]);
+			}
 			if (!dynamic[k] || !lvp__start_search(pass, k, &searches[count]))
 				continue;
 			if (count == LVP__GROUP_SEARCHES - 1) { /* a group of a larger leaf than the hierarchy makes: */
@@ -545,11 +715,17 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 				lo[axis] = fminf(lo[axis], searches[count].lo[axis]);
 				hi[axis] = fmaxf(hi[axis], searches[count].hi[axis]);
 			}
+			widest = lvp__max_d(widest, searches[count].least);
 			++count;
 		}
 		if (count == 0)
 			continue;
-		lvp__gather_group(contact, searches, count, lo, hi, candidates);
+		/* Balls wider than the group's own skin hold far less of the skin around than their boxes do,
+		 * and are gathered by the sheets (lvp__sheet_may_meet); narrower ones by the triangles' boxes,
+		 * which are as tight there and cheaper to test. Either way each search sees every triangle
+		 * its ball may meet, and gives the same clearance. */
+		double span = lvp__max_d(lvp__max_d(skin_hi[0] - skin_lo[0], skin_hi[1] - skin_lo[1]), skin_hi[2] - skin_lo[2]);
+		lvp__gather_group(contact, searches, count, lo, hi, widest > span, candidates);
 		for (int32_t s = 0; s < count; ++s)
 			lvp__search(contact, &searches[s], candidates);
 	}
@@ -566,6 +742,7 @@ lvp_result lvp__clearance_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	int32_t *group_of = lvp__calloc((size_t)nodes, sizeof(int32_t), &ok); /* each node's group, or -1 */
 	int32_t *vertex_group = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
 	contact->group_offsets = lvp__calloc((size_t)nodes + 1, sizeof(int32_t), &ok);
+	contact->sheets = lvp__calloc((size_t)nodes * LVP__SHEET_SIZE, sizeof(double), &ok);
 	contact->group_vertices = lvp__calloc((size_t)n, sizeof(int32_t), &ok);
 	if (!ok) {
 		free(size);
@@ -639,12 +816,14 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
 	lvp__pool *pool = LVP__POOL_FOR(binding, (int64_t)binding->dynamic.vertex_count * LVP__SEARCH_WORK);
 	lvp__clearance_pass pass = {binding, positions, NULL, NULL, NULL, false, NULL};
 	/* Vertices in no group (every triangle around them of no area) have no clearance to measure. */
-	if (!again) /* a new frame: nothing searched yet */
+	if (!again) { /* a new frame: nothing searched yet, the hierarchy fitted to the skinning anew */
 		for (int32_t v = 0; v < binding->dynamic.vertex_count; ++v) {
 			contact->clearance[binding->dynamic.vertices[v]] = INFINITY;
 			contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
 			contact->faded[binding->dynamic.vertices[v]] = 0;
 		}
+		lvp__fit_sheets(contact);
+	}
 	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }
 

@@ -1102,6 +1102,7 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->clearance);
 	free(contact->clearance_reach);
 	free(contact->clearance_direction);
+	free(contact->sheets);
 	free(contact->fade);
 	free(contact->fade_scratch);
 	free(contact->faded);

@@ -337,65 +337,91 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 /* A descent's stack: the hierarchy is less than 72 deep (bvh.h), and one sibling waits per level. */
 #define LVP__DESCENT_STACK 96
 
-/* contact.sheets of the hierarchy as fitted to the skinning, children before parents (a parent comes
- * before its children in the node array). A leaf's range is its corners' own; a parent's holds each
- * child's, carried from the child's axis to its own through the child's box (<x, a> = <x, a_c> +
- * <x, a - a_c>, the last bounded over the box), and never wider than the child's box along the axis.
- * Each range is widened by a margin well past the rounding of its sums. */
-static void lvp__fit_sheets(lvp__contact *contact)
+/* Stores a node's sheet, its range widened by a margin well past the rounding of its sums. */
+static void lvp__set_sheet(double *sheet, lvp__vec3 sum, lvp__vec3 axis, double low, double high)
 {
+	double margin = 1e-9 * (fabs(low) + fabs(high));
+	sheet[0] = sum.x;
+	sheet[1] = sum.y;
+	sheet[2] = sum.z;
+	sheet[3] = axis.x;
+	sheet[4] = axis.y;
+	sheet[5] = axis.z;
+	sheet[6] = low - margin;
+	sheet[7] = high + margin;
+}
+
+/* What fitting one node's sheet costs against a vertex's step of the correction (LVP__POOL_FOR counts
+ * those): a leaf's few triangles, their normals and corners, as a refit's node (contact.c). And the nodes
+ * a task takes at a time. */
+#define LVP__SHEET_WORK 8
+#define LVP__SHEET_GRAIN 512
+
+/* The sheet of a leaf: its triangles' own normals and corners. */
+static void lvp__fit_leaf_sheets(void *context, int32_t begin, int32_t end)
+{
+	lvp__contact *contact = context;
 	const lvp__bvh *bvh = &contact->bvh;
-	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
+	for (int32_t index = begin; index < end; ++index) {
 		const lvp__bvh_node *node = &bvh->nodes[index];
-		double *sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)index;
+		if (node->count == 0)
+			continue;
 		lvp__vec3 sum = lvp__v(0.0, 0.0, 0.0);
-		if (node->count > 0) {
-			for (int32_t i = node->index; i < node->index + node->count; ++i) {
-				const lvp__bvh_triangle *triangle = &bvh->triangles[i];
-				lvp__vec3 a = lvp__load(triangle->corners[0]);
-				sum = lvp__add(sum, lvp__cross(lvp__sub(lvp__load(triangle->corners[1]), a),
-				                               lvp__sub(lvp__load(triangle->corners[2]), a)));
-			}
-		} else {
-			const double *left = contact->sheets + LVP__SHEET_SIZE * (int64_t)node->index;
-			const double *right = left + LVP__SHEET_SIZE;
-			sum = lvp__v(left[0] + right[0], left[1] + right[1], left[2] + right[2]);
+		for (int32_t i = node->index; i < node->index + node->count; ++i) {
+			const lvp__bvh_triangle *triangle = &bvh->triangles[i];
+			lvp__vec3 a = lvp__load(triangle->corners[0]);
+			sum = lvp__add(sum, lvp__cross(lvp__sub(lvp__load(triangle->corners[1]), a),
+			                               lvp__sub(lvp__load(triangle->corners[2]), a)));
 		}
 		double length = lvp__length(sum);
 		lvp__vec3 axis = length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
 		double low = INFINITY, high = -INFINITY;
-		if (node->count > 0) {
-			for (int32_t i = node->index; i < node->index + node->count; ++i)
-				for (int c = 0; c < 3; ++c) {
-					double along = lvp__dot(lvp__load(bvh->triangles[i].corners[c]), axis);
-					low = lvp__min_d(low, along);
-					high = lvp__max_d(high, along);
-				}
-		} else {
-			for (int32_t child = node->index; child <= node->index + 1; ++child) {
-				const lvp__bvh_node *box = &bvh->nodes[child];
-				const double *child_sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)child;
-				double box_low = 0.0, box_high = 0.0, tilt_low = 0.0, tilt_high = 0.0;
-				for (int k = 0; k < 3; ++k) {
-					double a = lvp__axis(axis, k), tilt = a - child_sheet[3 + k];
-					box_low += a > 0.0 ? a * box->lo[k] : a * box->hi[k];
-					box_high += a > 0.0 ? a * box->hi[k] : a * box->lo[k];
-					tilt_low += tilt > 0.0 ? tilt * box->lo[k] : tilt * box->hi[k];
-					tilt_high += tilt > 0.0 ? tilt * box->hi[k] : tilt * box->lo[k];
-				}
-				low = lvp__min_d(low, lvp__max_d(child_sheet[6] + tilt_low, box_low));
-				high = lvp__max_d(high, lvp__min_d(child_sheet[7] + tilt_high, box_high));
+		for (int32_t i = node->index; i < node->index + node->count; ++i)
+			for (int c = 0; c < 3; ++c) {
+				double along = lvp__dot(lvp__load(bvh->triangles[i].corners[c]), axis);
+				low = lvp__min_d(low, along);
+				high = lvp__max_d(high, along);
 			}
+		lvp__set_sheet(contact->sheets + LVP__SHEET_SIZE * (int64_t)index, sum, axis, low, high);
+	}
+}
+
+/* contact.sheets of the hierarchy as fitted to the skinning: the leaves on the pool's threads, then the
+ * inner nodes, children before parents (a parent comes before its children in the node array). A
+ * parent's range holds each child's, carried from the child's axis to its own through the child's box
+ * (<x, a> = <x, a_c> + <x, a - a_c>, the last bounded over the box), and never wider than the child's
+ * box along the axis. */
+static void lvp__fit_sheets(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__bvh *bvh = &contact->bvh;
+	lvp__parallel_for(LVP__POOL_FOR(binding, (int64_t)bvh->node_count * LVP__SHEET_WORK), lvp__fit_leaf_sheets,
+	                  contact, bvh->node_count, LVP__SHEET_GRAIN);
+	for (int32_t index = bvh->node_count - 1; index >= 0; --index) {
+		const lvp__bvh_node *node = &bvh->nodes[index];
+		if (node->count > 0)
+			continue;
+		const double *left = contact->sheets + LVP__SHEET_SIZE * (int64_t)node->index;
+		const double *right = left + LVP__SHEET_SIZE;
+		lvp__vec3 sum = lvp__v(left[0] + right[0], left[1] + right[1], left[2] + right[2]);
+		double length = lvp__length(sum);
+		lvp__vec3 axis = length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
+		double low = INFINITY, high = -INFINITY;
+		for (int32_t child = node->index; child <= node->index + 1; ++child) {
+			const lvp__bvh_node *box = &bvh->nodes[child];
+			const double *child_sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)child;
+			double box_low = 0.0, box_high = 0.0, tilt_low = 0.0, tilt_high = 0.0;
+			for (int k = 0; k < 3; ++k) {
+				double a = lvp__axis(axis, k), tilt = a - child_sheet[3 + k];
+				box_low += a > 0.0 ? a * box->lo[k] : a * box->hi[k];
+				box_high += a > 0.0 ? a * box->hi[k] : a * box->lo[k];
+				tilt_low += tilt > 0.0 ? tilt * box->lo[k] : tilt * box->hi[k];
+				tilt_high += tilt > 0.0 ? tilt * box->hi[k] : tilt * box->lo[k];
+			}
+			low = lvp__min_d(low, lvp__max_d(child_sheet[6] + tilt_low, box_low));
+			high = lvp__max_d(high, lvp__min_d(child_sheet[7] + tilt_high, box_high));
 		}
-		double margin = 1e-9 * (fabs(low) + fabs(high));
-		sheet[0] = sum.x;
-		sheet[1] = sum.y;
-		sheet[2] = sum.z;
-		sheet[3] = axis.x;
-		sheet[4] = axis.y;
-		sheet[5] = axis.z;
-		sheet[6] = low - margin;
-		sheet[7] = high + margin;
+		lvp__set_sheet(contact->sheets + LVP__SHEET_SIZE * (int64_t)index, sum, axis, low, high);
 	}
 }
 
@@ -822,7 +848,7 @@ void lvp__measure_clearance(lvp_binding *binding, const float *positions, bool a
 			contact->clearance_reach[binding->dynamic.vertices[v]] = 0.0f;
 			contact->faded[binding->dynamic.vertices[v]] = 0;
 		}
-		lvp__fit_sheets(contact);
+		lvp__fit_sheets(binding);
 	}
 	lvp__parallel_for(pool, lvp__clearance_groups, &pass, contact->group_count, LVP__GROUP_GRAIN);
 }

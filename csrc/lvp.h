@@ -351,9 +351,11 @@
  *   query per moving vertex reaching five times its offset (the fade needs clearances below four
  *   times; a vertex whose offset a restore grows past that is searched again before the next fade;
  *   vertices near each other gather the skin near any of them by one descent of the hierarchy, and
- *   each sets aside what lies outside its ball in one pass over the gathered boxes; a group whose box
- *   holds too much gathers again by its balls, and past that each vertex descends only into boxes that
- *   meet its ball; each passes over what lies
+ *   each sets aside what lies outside its ball in one pass over the gathered boxes; balls wider than
+ *   their group's skin gather and test the hierarchy's leaves by the slab each node's skin lies in,
+ *   which meets a ball resting on nearly flat skin only near its vertex; a group whose box holds too
+ *   much gathers again by its balls, and past that each vertex descends only into boxes that meet its
+ *   ball; each passes over what lies
  *   outside the ball of the nearest skin found so far, and searches a triangle's edges and inside
  *   only where their distance could bring it nearer), a traversal of the hierarchy against
  *   itself per check (passing over each subtree whose triangles form one connected patch with every
@@ -385,8 +387,9 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy, about 220 bytes a triangle, and 70 bytes a vertex) and at the first with fold_over
- *   (FOLD-OVER: its relaxation's neighbour lists and plate, about 320 bytes a vertex);
+ *   hierarchy and the sheets its searches cull by, about 260 bytes a triangle, and 70 bytes a
+ *   vertex) and at the first with fold_over (FOLD-OVER: its relaxation's neighbour lists and plate,
+ *   about 320 bytes a vertex);
  *   lvp_error_out_of_memory when that fails. With options.thread_count > 1 a binding keeps that many
  *   worker threads, created by lvp_bind() and joined by lvp_free(); results are identical
  *   for every thread count (reductions use a fixed partition). Between the loops of a frame the

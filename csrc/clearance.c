@@ -631,7 +631,8 @@ static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance
  * more than it holds, those whose boxes meet one of the balls. Each ball lies in the box around it, which
  * on fine skin (a ball many triangles wide) holds far more of the skin under the ball than the ball does:
  * past the candidates' room, the group is gathered again by the balls themselves, which costs a test of
- * each ball at every box it descends into, and only past that again do its vertices search one by one. */
+ * each ball at every box it descends into, and only past that again do its vertices search one by one.
+ * With by_sheets, the leaves whose sheets meet one of the balls instead (lvp__gather_leaves). */
 static void lvp__gather_group(const lvp__contact *contact, const lvp__clearance_search *searches, int32_t count,
                               const float lo[3], const float hi[3], bool by_sheets, lvp__candidates *candidates)
 {
@@ -682,9 +683,10 @@ static int32_t lvp__near_candidates(const lvp__candidates *candidates, const lvp
 	return count;
 }
 
-/* A vertex's search over its group's gathered triangles, or (candidates NULL, or more than were
- * gathered) through the hierarchy on its own, going down only into boxes that meet its ball; then
- * contact.clearance of its vertex (lvp__start_search set it to INFINITY). */
+/* A vertex's search over its group's gathered triangles, or the triangles of its gathered leaves whose
+ * boxes and sheets meet its ball, or (candidates NULL, or more than were gathered) through the hierarchy
+ * on its own, going down only into boxes that meet its ball; then contact.clearance of its vertex
+ * (lvp__start_search set it to INFINITY). */
 static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, const lvp__candidates *candidates)
 {
 	double reach = search->least;

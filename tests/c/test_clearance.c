@@ -4,10 +4,11 @@
  * over every triangle of the skinning that is not around the vertex, and every vertex left at INFINITY
  * has no such triangle within the reach it searched. The searches cull what they look at by the boxes of
  * the hierarchy, and where a ball is wider than the skin of its group, by the sheet each node's skin lies
- * in; the brute force culls nothing. A tube fine enough that its offsets span many edges (balls many
- * triangles wide, the sheets' cull) bent hard at every joint, where it folds into itself (clearances
- * found), and a coarser one bent a little at one joint (balls narrower than a triangle). A white-box
- * test: it reads the binding's contact state (binding.h).
+ * in; the brute force takes every triangle whose bounding sphere meets the ball and finds its least by
+ * its own means. A tube fine enough that its offsets span many edges (balls many triangles wide, the
+ * sheets' cull) bent hard at every joint, where it folds into itself (clearances found), and a coarser
+ * one bent less, whose balls are most of them narrower than a group's skin (the boxes' cull). A
+ * white-box test: it reads the binding's contact state (binding.h).
  */
 #include "binding.h"
 #include "lvp.h"

@@ -245,26 +245,38 @@ static void lvp__narrow_search(lvp__clearance_search *search)
 	}
 }
 
+/* Whether the boxes [a_lo, a_hi] and [b_lo, b_hi] have no point in common. */
+static inline bool lvp__boxes_apart(const float a_lo[3], const float a_hi[3], const float b_lo[3], const float b_hi[3])
+{
+	return a_lo[0] > b_hi[0] || a_hi[0] < b_lo[0] || a_lo[1] > b_hi[1] || a_hi[1] < b_lo[1] || a_lo[2] > b_hi[2] ||
+	       a_hi[2] < b_lo[2];
+}
+
+/* The squared distance from the point to the box [lo, hi] (0 inside it). */
+static inline double lvp__box_distance2(lvp__vec3 point, const float lo[3], const float hi[3])
+{
+	double distance2 = 0.0;
+	for (int axis = 0; axis < 3; ++axis) {
+		double x = lvp__axis(point, axis);
+		double gap = x < lo[axis] ? lo[axis] - x : (x > hi[axis] ? x - hi[axis] : 0.0);
+		distance2 += gap * gap;
+	}
+	return distance2;
+}
+
 /* Whether the box [lo, hi] lies outside the box searched. */
 static inline bool lvp__outside_search(const lvp__clearance_search *search, const float lo[3], const float hi[3])
 {
-	return lo[0] > search->hi[0] || hi[0] < search->lo[0] || lo[1] > search->hi[1] || hi[1] < search->lo[1] ||
-	       lo[2] > search->hi[2] || hi[2] < search->lo[2];
+	return lvp__boxes_apart(lo, hi, search->lo, search->hi);
 }
 
 /* Whether the box [lo, hi] lies outside the ball of the least diameter found (by a margin past
  * rounding): every point outside that ball gives more than the least (|x|^2 > least <x, d> there). */
 static inline bool lvp__outside_ball(const lvp__clearance_search *search, const float lo[3], const float hi[3])
 {
-	double radius = 0.5 * search->least, distance2 = 0.0;
-	double centre[3] = {search->from.x + radius * search->direction.x, search->from.y + radius * search->direction.y,
-	                    search->from.z + radius * search->direction.z};
-	for (int axis = 0; axis < 3; ++axis) {
-		double below = (double)lo[axis] - centre[axis], above = centre[axis] - (double)hi[axis];
-		double gap = below > 0.0 ? below : (above > 0.0 ? above : 0.0);
-		distance2 += gap * gap;
-	}
-	return distance2 > radius * radius * (1.0 + 1e-6);
+	double radius = 0.5 * search->least;
+	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, radius));
+	return lvp__box_distance2(centre, lo, hi) > radius * radius * (1.0 + 1e-6);
 }
 
 /* Whether skin in the box [lo, hi] may come nearer than the least found (lvp__bvh_search's test). */
@@ -337,6 +349,14 @@ static bool lvp__visit_clearance(void *context, const lvp__bvh_triangle *triangl
 /* A descent's stack: the hierarchy is less than 72 deep (bvh.h), and one sibling waits per level. */
 #define LVP__DESCENT_STACK 96
 
+/* The axis of a sheet whose normals sum to `sum`: its direction, or any where they cancel (the range along
+ * it still holds the skin, only wider). */
+static inline lvp__vec3 lvp__sheet_axis(lvp__vec3 sum)
+{
+	double length = lvp__length(sum);
+	return length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
+}
+
 /* Stores a node's sheet, its range widened by a margin well past the rounding of its sums. */
 static void lvp__set_sheet(double *sheet, lvp__vec3 sum, lvp__vec3 axis, double low, double high)
 {
@@ -373,8 +393,7 @@ static void lvp__fit_leaf_sheets(void *context, int32_t begin, int32_t end)
 			sum = lvp__add(sum, lvp__cross(lvp__sub(lvp__load(triangle->corners[1]), a),
 			                               lvp__sub(lvp__load(triangle->corners[2]), a)));
 		}
-		double length = lvp__length(sum);
-		lvp__vec3 axis = length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
+		lvp__vec3 axis = lvp__sheet_axis(sum);
 		double low = INFINITY, high = -INFINITY;
 		for (int32_t i = node->index; i < node->index + node->count; ++i)
 			for (int c = 0; c < 3; ++c) {
@@ -404,8 +423,7 @@ static void lvp__fit_sheets(lvp_binding *binding)
 		const double *left = contact->sheets + LVP__SHEET_SIZE * (int64_t)node->index;
 		const double *right = left + LVP__SHEET_SIZE;
 		lvp__vec3 sum = lvp__v(left[0] + right[0], left[1] + right[1], left[2] + right[2]);
-		double length = lvp__length(sum);
-		lvp__vec3 axis = length > 0.0 ? lvp__scale(sum, 1.0 / length) : lvp__v(0.0, 0.0, 1.0);
+		lvp__vec3 axis = lvp__sheet_axis(sum);
 		double low = INFINITY, high = -INFINITY;
 		for (int32_t child = node->index; child <= node->index + 1; ++child) {
 			const lvp__bvh_node *box = &bvh->nodes[child];
@@ -539,8 +557,7 @@ typedef struct lvp__ball_gathering {
 static bool lvp__meets_a_ball(void *context, const float lo[3], const float hi[3])
 {
 	const lvp__ball_gathering *gathering = context;
-	if (lo[0] > gathering->hi[0] || hi[0] < gathering->lo[0] || lo[1] > gathering->hi[1] || hi[1] < gathering->lo[1] ||
-	    lo[2] > gathering->hi[2] || hi[2] < gathering->lo[2])
+	if (lvp__boxes_apart(lo, hi, gathering->lo, gathering->hi))
 		return false;
 	for (int32_t s = 0; s < gathering->count; ++s)
 		if (lvp__meets_start_ball(&gathering->searches[s], lo, hi))
@@ -577,15 +594,8 @@ static bool lvp__sheet_may_meet(const lvp__contact *contact, const lvp__clearanc
 	double half = 0.5 * (high - low);
 	double bound = sqrt(across2 + half * half);
 	lvp__vec3 middle = lvp__add(centre, lvp__scale(axis, 0.5 * (low + high) - height));
-	double distance2 = 0.0;
-	for (int axis_index = 0; axis_index < 3; ++axis_index) {
-		double x = lvp__axis(middle, axis_index);
-		double gap = x < node->lo[axis_index] ? node->lo[axis_index] - x
-		                                      : (x > node->hi[axis_index] ? x - node->hi[axis_index] : 0.0);
-		distance2 += gap * gap;
-	}
 	bound += 1e-6 * bound + 1e-9 * (fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + radius);
-	return distance2 <= bound * bound;
+	return lvp__box_distance2(middle, node->lo, node->hi) <= bound * bound;
 }
 
 /* Into `candidates` (by_sheets), the leaves of the hierarchy whose boxes meet the box [lo, hi] around
@@ -601,8 +611,7 @@ static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance
 	while (top > 0) {
 		int32_t index = stack[--top];
 		const lvp__bvh_node *node = &bvh->nodes[index];
-		if (node->lo[0] > hi[0] || node->hi[0] < lo[0] || node->lo[1] > hi[1] || node->hi[1] < lo[1] ||
-		    node->lo[2] > hi[2] || node->hi[2] < lo[2])
+		if (lvp__boxes_apart(node->lo, node->hi, lo, hi))
 			continue;
 		bool meets = false;
 		for (int32_t s = 0; s < count && !meets; ++s)
@@ -693,15 +702,18 @@ static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, co
 	if (candidates && !candidates->overflow) {
 		int32_t nearby[LVP__GROUP_CANDIDATES];
 		int32_t count = lvp__near_candidates(candidates, search, nearby);
-		for (int32_t c = 0; c < count && !candidates->by_sheets; ++c)
-			lvp__visit_clearance(search, candidates->triangles[nearby[c]]);
-		for (int32_t c = 0; c < count && candidates->by_sheets; ++c) {
-			int32_t index = candidates->leaves[nearby[c]];
-			const lvp__bvh_node *leaf = &contact->bvh.nodes[index];
-			if (!lvp__box_may_hold(search, leaf->lo, leaf->hi) || !lvp__sheet_may_meet(contact, search, index))
-				continue;
-			for (int32_t t = leaf->index; t < leaf->index + leaf->count; ++t)
-				lvp__visit_clearance(search, &contact->bvh.triangles[t]);
+		if (!candidates->by_sheets) {
+			for (int32_t c = 0; c < count; ++c)
+				lvp__visit_clearance(search, candidates->triangles[nearby[c]]);
+		} else {
+			for (int32_t c = 0; c < count; ++c) {
+				int32_t index = candidates->leaves[nearby[c]];
+				const lvp__bvh_node *leaf = &contact->bvh.nodes[index];
+				if (!lvp__box_may_hold(search, leaf->lo, leaf->hi) || !lvp__sheet_may_meet(contact, search, index))
+					continue;
+				for (int32_t t = leaf->index; t < leaf->index + leaf->count; ++t)
+					lvp__visit_clearance(search, &contact->bvh.triangles[t]);
+			}
 		}
 	} else {
 		lvp__bvh_search(&contact->bvh, lvp__box_may_hold, lvp__visit_clearance, search);

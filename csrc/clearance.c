@@ -210,7 +210,20 @@ typedef struct lvp__clearance_search {
 	/* The ball of the start (the reach) in floats, its radius a margin well past their rounding wider: any
 	 * box that meets a ball of the search meets this one (lvp__meets_start_ball). */
 	float start_centre[3], start_reach2;
+	/* The ball of the least diameter: its centre, its radius a millionth wider, and a margin past the
+	 * rounding of a distance from it (lvp__set_ball; read by lvp__sheet_may_meet). */
+	lvp__vec3 centre;
+	double radius, rounding;
 } lvp__clearance_search;
+
+/* The search's ball (lvp__clearance_search.centre) as its least diameter is now. */
+static void lvp__set_ball(lvp__clearance_search *search)
+{
+	search->centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * search->least));
+	search->radius = 0.5 * search->least * (1.0 + 1e-6);
+	search->rounding =
+	    1e-9 * (fabs(search->centre.x) + fabs(search->centre.y) + fabs(search->centre.z) + search->radius);
+}
 
 /* Comparisons rather than fmin/fmax, which compilers call out of line to honour NaN rules (nothing
  * here is NaN: positions are validated; a zero's sign changes no test below). */
@@ -230,6 +243,7 @@ static inline double lvp__max_d(double a, double b)
  * the ball of the least. */
 static void lvp__narrow_search(lvp__clearance_search *search)
 {
+	lvp__set_ball(search);
 	double half = 0.5 * search->least * (1.0 + 1e-6);
 	double centre[3] = {search->from.x + search->direction.x * half, search->from.y + search->direction.y * half,
 	                    search->from.z + search->direction.z * half};
@@ -494,6 +508,7 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	}
 	search->vertex = k;
 	search->least = reach;
+	lvp__set_ball(search);
 	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * reach));
 	float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
 	float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
@@ -581,9 +596,9 @@ static bool lvp__sheet_may_meet(const lvp__contact *contact, const lvp__clearanc
 {
 	const double *sheet = contact->sheets + LVP__SHEET_SIZE * (int64_t)index;
 	const lvp__bvh_node *node = &contact->bvh.nodes[index];
-	double radius = 0.5 * search->least * (1.0 + 1e-6);
+	double radius = search->radius;
 	lvp__vec3 axis = lvp__v(sheet[3], sheet[4], sheet[5]);
-	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * search->least));
+	lvp__vec3 centre = search->centre;
 	double height = lvp__dot(centre, axis);
 	double low = lvp__max_d(sheet[6], height - radius), high = lvp__min_d(sheet[7], height + radius);
 	if (low > high)
@@ -594,7 +609,7 @@ static bool lvp__sheet_may_meet(const lvp__contact *contact, const lvp__clearanc
 	double half = 0.5 * (high - low);
 	double bound = sqrt(across2 + half * half);
 	lvp__vec3 middle = lvp__add(centre, lvp__scale(axis, 0.5 * (low + high) - height));
-	bound += 1e-6 * bound + 1e-9 * (fabs(centre.x) + fabs(centre.y) + fabs(centre.z) + radius);
+	bound += 1e-6 * bound + search->rounding;
 	return lvp__box_distance2(middle, node->lo, node->hi) <= bound * bound;
 }
 
@@ -605,7 +620,7 @@ static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance
                                const float lo[3], const float hi[3], lvp__candidates *candidates)
 {
 	const lvp__bvh *bvh = &contact->bvh;
-	int32_t stack[LVP__DESCENT_STACK];
+	int32_t stack[LVP__DESCENT_STACK], last = 0;
 	int top = 0;
 	stack[top++] = 0;
 	while (top > 0) {
@@ -613,10 +628,15 @@ static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance
 		const lvp__bvh_node *node = &bvh->nodes[index];
 		if (lvp__boxes_apart(node->lo, node->hi, lo, hi))
 			continue;
+		/* The ball that met the last node first: a node and the next one down lie mostly under the
+		 * same balls. */
 		bool meets = false;
-		for (int32_t s = 0; s < count && !meets; ++s)
+		for (int32_t tried = 0, s = last; tried < count && !meets; ++tried, s = s + 1 < count ? s + 1 : 0) {
 			meets = lvp__meets_start_ball(&searches[s], node->lo, node->hi) &&
 			        lvp__sheet_may_meet(contact, &searches[s], index);
+			if (meets)
+				last = s;
+		}
 		if (!meets)
 			continue;
 		if (node->count == 0) {

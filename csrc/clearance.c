@@ -523,8 +523,9 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	return true;
 }
 
-/* What a group's descent gathers, the triangles or (by_sheets) the leaves of the hierarchy, and their
- * boxes by coordinate (lvp__near_candidates reads them in one pass per vertex). */
+/* What a group's descent gathers: the triangles and their boxes by coordinate (lvp__near_candidates reads
+ * them in one pass per vertex), or (by_sheets) the leaves of the hierarchy, few enough that each search
+ * tests their boxes and sheets one by one. */
 typedef struct lvp__candidates {
 	const lvp__bvh_triangle *triangles[LVP__GROUP_CANDIDATES];
 	int32_t leaves[LVP__GROUP_CANDIDATES];
@@ -648,10 +649,6 @@ static void lvp__gather_leaves(const lvp__contact *contact, const lvp__clearance
 			candidates->overflow = true;
 			return;
 		}
-		for (int axis = 0; axis < 3; ++axis) {
-			candidates->lo[axis][candidates->count] = node->lo[axis];
-			candidates->hi[axis][candidates->count] = node->hi[axis];
-		}
 		candidates->leaves[candidates->count++] = index;
 	}
 }
@@ -720,14 +717,14 @@ static void lvp__search(lvp__contact *contact, lvp__clearance_search *search, co
 {
 	double reach = search->least;
 	if (candidates && !candidates->overflow) {
-		int32_t nearby[LVP__GROUP_CANDIDATES];
-		int32_t count = lvp__near_candidates(candidates, search, nearby);
 		if (!candidates->by_sheets) {
+			int32_t nearby[LVP__GROUP_CANDIDATES];
+			int32_t count = lvp__near_candidates(candidates, search, nearby);
 			for (int32_t c = 0; c < count; ++c)
 				lvp__visit_clearance(search, candidates->triangles[nearby[c]]);
 		} else {
-			for (int32_t c = 0; c < count; ++c) {
-				int32_t index = candidates->leaves[nearby[c]];
+			for (int32_t c = 0; c < candidates->count; ++c) {
+				int32_t index = candidates->leaves[c];
 				const lvp__bvh_node *leaf = &contact->bvh.nodes[index];
 				if (!lvp__box_may_hold(search, leaf->lo, leaf->hi) || !lvp__sheet_may_meet(contact, search, index))
 					continue;

@@ -211,7 +211,7 @@ typedef struct lvp__clearance_search {
 	 * box that meets a ball of the search meets this one (lvp__meets_start_ball). */
 	float start_centre[3], start_reach2;
 	/* The ball of the least diameter: its centre, its radius a millionth wider, and a margin past the
-	 * rounding of a distance from it (lvp__set_ball; read by lvp__sheet_may_meet). */
+	 * rounding of a distance from it (lvp__set_ball; read by lvp__outside_ball and lvp__sheet_may_meet). */
 	lvp__vec3 centre;
 	double radius, rounding;
 } lvp__clearance_search;
@@ -289,8 +289,7 @@ static inline bool lvp__outside_search(const lvp__clearance_search *search, cons
 static inline bool lvp__outside_ball(const lvp__clearance_search *search, const float lo[3], const float hi[3])
 {
 	double radius = 0.5 * search->least;
-	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, radius));
-	return lvp__box_distance2(centre, lo, hi) > radius * radius * (1.0 + 1e-6);
+	return lvp__box_distance2(search->centre, lo, hi) > radius * radius * (1.0 + 1e-6);
 }
 
 /* Whether skin in the box [lo, hi] may come nearer than the least found (lvp__bvh_search's test). */

@@ -235,6 +235,14 @@ static inline double lvp__max_d(double a, double b)
 {
 	return a > b ? a : b;
 }
+static inline float lvp__min_f(float a, float b)
+{
+	return a < b ? a : b;
+}
+static inline float lvp__max_f(float a, float b)
+{
+	return a > b ? a : b;
+}
 
 /* The box of the search narrowed to the ball of the least diameter found, a millionth wider (and a
  * rounding of the coordinates more), never wider than it was: skin outside it is outside that
@@ -758,8 +766,8 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 		for (int32_t i = contact->group_offsets[g]; i < contact->group_offsets[g + 1]; ++i) {
 			int32_t k = contact->group_vertices[i];
 			for (int axis = 0; axis < 3; ++axis) {
-				skin_lo[axis] = fminf(skin_lo[axis], pass->positions[3 * k + axis]);
-				skin_hi[axis] = fmaxf(skin_hi[axis], pass->positions[3 * k + axis]);
+				skin_lo[axis] = lvp__min_f(skin_lo[axis], pass->positions[3 * k + axis]);
+				skin_hi[axis] = lvp__max_f(skin_hi[axis], pass->positions[3 * k + axis]);
 			}
 			if (!dynamic[k] || !lvp__start_search(pass, k, &searches[count]))
 				continue;
@@ -768,8 +776,8 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 				continue;
 			}
 			for (int axis = 0; axis < 3; ++axis) {
-				lo[axis] = fminf(lo[axis], searches[count].lo[axis]);
-				hi[axis] = fmaxf(hi[axis], searches[count].hi[axis]);
+				lo[axis] = lvp__min_f(lo[axis], searches[count].lo[axis]);
+				hi[axis] = lvp__max_f(hi[axis], searches[count].hi[axis]);
 			}
 			widest = lvp__max_d(widest, searches[count].least);
 			++count;

@@ -516,7 +516,7 @@ static bool lvp__start_search(const lvp__clearance_pass *pass, int32_t k, lvp__c
 	search->vertex = k;
 	search->least = reach;
 	lvp__set_ball(search);
-	lvp__vec3 centre = lvp__add(search->from, lvp__scale(search->direction, 0.5 * reach));
+	lvp__vec3 centre = search->centre;
 	float lo[3] = {(float)(centre.x - 0.5 * reach), (float)(centre.y - 0.5 * reach), (float)(centre.z - 0.5 * reach)};
 	float hi[3] = {(float)(centre.x + 0.5 * reach), (float)(centre.y + 0.5 * reach), (float)(centre.z + 0.5 * reach)};
 	memcpy(search->lo, lo, sizeof(lo));

@@ -27,17 +27,6 @@ static void lvp__box_empty(lvp__box *box)
 		box->lo[a] = FLT_MAX, box->hi[a] = -FLT_MAX;
 }
 
-/* Comparisons rather than fminf/fmaxf, which compilers call out of line to honour NaN rules (nothing
- * here is NaN: positions are validated). */
-static inline float lvp__minf(float a, float b)
-{
-	return a < b ? a : b;
-}
-static inline float lvp__maxf(float a, float b)
-{
-	return a > b ? a : b;
-}
-
 static void lvp__box_grow(lvp__box *box, const lvp__box *other)
 {
 	for (int a = 0; a < 3; ++a) {
@@ -453,15 +442,6 @@ typedef struct lvp__segment {
 	double t_min, t_max;
 } lvp__segment;
 
-static inline float lvp__min2(float a, float b)
-{
-	return a < b ? a : b;
-}
-static inline float lvp__max2(float a, float b)
-{
-	return a > b ? a : b;
-}
-
 /* Whether the segment meets a node's box; *r_near receives where it enters. Branch-free slabs in float:
  * the entry and exit are each off by a few float roundings, so the test is widened by 1e-6 of their size
  * and never culls a box the segment touches (culling too little only costs a triangle test, which is
@@ -471,8 +451,8 @@ static inline bool lvp__segment_box(float *r_near, const lvp__bvh_node *node, co
 	float x0 = (node->lo[0] - s->origin_lo[0]) * s->inverse[0], x1 = (node->hi[0] - s->origin_hi[0]) * s->inverse[0];
 	float y0 = (node->lo[1] - s->origin_lo[1]) * s->inverse[1], y1 = (node->hi[1] - s->origin_hi[1]) * s->inverse[1];
 	float z0 = (node->lo[2] - s->origin_lo[2]) * s->inverse[2], z1 = (node->hi[2] - s->origin_hi[2]) * s->inverse[2];
-	float near = lvp__max2(lvp__max2(lvp__min2(x0, x1), lvp__min2(y0, y1)), lvp__max2(lvp__min2(z0, z1), s->near));
-	float far = lvp__min2(lvp__min2(lvp__max2(x0, x1), lvp__max2(y0, y1)), lvp__min2(lvp__max2(z0, z1), s->far));
+	float near = lvp__maxf(lvp__maxf(lvp__minf(x0, x1), lvp__minf(y0, y1)), lvp__maxf(lvp__minf(z0, z1), s->near));
+	float far = lvp__minf(lvp__minf(lvp__maxf(x0, x1), lvp__maxf(y0, y1)), lvp__minf(lvp__maxf(z0, z1), s->far));
 	*r_near = near;
 	return near <= far + 1e-6f * (fabsf(near) + fabsf(far)) + s->slack;
 }

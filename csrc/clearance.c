@@ -225,25 +225,6 @@ static void lvp__set_ball(lvp__clearance_search *search)
 	    1e-9 * (fabs(search->centre.x) + fabs(search->centre.y) + fabs(search->centre.z) + search->radius);
 }
 
-/* Comparisons rather than fmin/fmax, which compilers call out of line to honour NaN rules (nothing
- * here is NaN: positions are validated; a zero's sign changes no test below). */
-static inline double lvp__min_d(double a, double b)
-{
-	return a < b ? a : b;
-}
-static inline double lvp__max_d(double a, double b)
-{
-	return a > b ? a : b;
-}
-static inline float lvp__min_f(float a, float b)
-{
-	return a < b ? a : b;
-}
-static inline float lvp__max_f(float a, float b)
-{
-	return a > b ? a : b;
-}
-
 /* The box of the search narrowed to the ball of the least diameter found, a millionth wider (and a
  * rounding of the coordinates more), never wider than it was: skin outside it is outside that
  * ball, so its diameter is above the least by far more than rounding, and the search's answer is
@@ -766,8 +747,8 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 		for (int32_t i = contact->group_offsets[g]; i < contact->group_offsets[g + 1]; ++i) {
 			int32_t k = contact->group_vertices[i];
 			for (int axis = 0; axis < 3; ++axis) {
-				skin_lo[axis] = lvp__min_f(skin_lo[axis], pass->positions[3 * k + axis]);
-				skin_hi[axis] = lvp__max_f(skin_hi[axis], pass->positions[3 * k + axis]);
+				skin_lo[axis] = lvp__minf(skin_lo[axis], pass->positions[3 * k + axis]);
+				skin_hi[axis] = lvp__maxf(skin_hi[axis], pass->positions[3 * k + axis]);
 			}
 			if (!dynamic[k] || !lvp__start_search(pass, k, &searches[count]))
 				continue;
@@ -776,8 +757,8 @@ static void lvp__clearance_groups(void *context, int32_t begin, int32_t end)
 				continue;
 			}
 			for (int axis = 0; axis < 3; ++axis) {
-				lo[axis] = lvp__min_f(lo[axis], searches[count].lo[axis]);
-				hi[axis] = lvp__max_f(hi[axis], searches[count].hi[axis]);
+				lo[axis] = lvp__minf(lo[axis], searches[count].lo[axis]);
+				hi[axis] = lvp__maxf(hi[axis], searches[count].hi[axis]);
 			}
 			widest = lvp__max_d(widest, searches[count].least);
 			++count;

@@ -149,6 +149,26 @@ static inline bool lvp__finite(float v)
 	return isfinite(v) != 0;
 }
 
+/* The lesser and greater of two values by comparison, not fmin/fmax, which compilers call out of line
+ * to honour NaN rules: for values known not to be NaN (validated positions and what follows from them),
+ * where a zero's sign changes no test. */
+static inline float lvp__minf(float a, float b)
+{
+	return a < b ? a : b;
+}
+static inline float lvp__maxf(float a, float b)
+{
+	return a > b ? a : b;
+}
+static inline double lvp__min_d(double a, double b)
+{
+	return a < b ? a : b;
+}
+static inline double lvp__max_d(double a, double b)
+{
+	return a > b ? a : b;
+}
+
 /* qsort comparison of two uint64_t. */
 int lvp__compare_u64(const void *a, const void *b);
 

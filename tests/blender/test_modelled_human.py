@@ -14,7 +14,9 @@ Add turns it on there) and with Fold-Over Prevention and Keep Skin Apart, the me
 - with Fold-Over, at the knees at 150 degrees and the elbows at 140, at most half of plain skinning's crossing
   pairs;
 - without Fold-Over, roughness and shards at most a quarter of the largest offset, at most
-  one crease added per 300 edges, but on SURFACE_NOT_MET.
+  one crease added per 300 edges, but on SURFACE_NOT_MET;
+- with Fold-Over, shards at most a quarter of the largest offset and at most one crease added per 300 edges but on
+  FOLD_OVER_NOT_MET, and roughness at most a quarter where nothing is pressed (FOLD_OVER_PRESSES).
 """
 
 import unittest
@@ -42,6 +44,22 @@ SURFACE_NOT_MET = {
     ("subdivided twice", "knees at 150 degrees", "apart off"),
     ("subdivided twice", "elbows at 140 degrees", "apart off"),
     ("subdivided once (coarse)", "knees at 150 degrees", "apart off"),
+}
+# Poses where Fold-Over presses skin that plain skinning passed through skin onto a contact plane, whose roughness
+# with it is not held: the two sides of the crease, one quad (2.4-2.8 mean edges along the limb) apart, are pressed
+# in opposite directions. A vertex whose side of the crease moves by o and whose k of n neighbours across it move by
+# t reads roughness k |o - t| / n, whatever parts the crossing: on the finer body's knees vertex 3393 (the calf's
+# crease, 2 of its 6 neighbours on the thigh) moves 1.79 mean edges one way and the thigh's two 1.72 and 1.84 the
+# other, 1.44 against the largest offset's 1.86 (0.78; the calf's row below moves less). The shard (the height
+# over the neighbours' surface) is held at these poses too, but on FOLD_OVER_NOT_MET.
+FOLD_OVER_PRESSES = ("knees at 150 degrees", "crouching", "elbows at 140 degrees", "arms down, elbows at 120 degrees")
+# (body, pose): the measures with Fold-Over not held there yet (Blender 3.4, 4.3, 5.2). The finer body's knees: a
+# shard of 0.2503 of the largest offset on the front of the knee, where the volume goes back over the kneecap on one
+# row of quads (vertex 2172, 1.81 mean edges, between rows at 1.32-1.37 and 1.10-1.14, a quad length either side).
+# The coarse body's elbows at 140 degrees: 12 creases where 11 are allowed, the inside of the elbow one quad wide.
+FOLD_OVER_NOT_MET = {
+    ("subdivided twice", "knees at 150 degrees"): ("shard",),
+    ("subdivided once (coarse)", "elbows at 140 degrees"): ("creases",),
 }
 # label: (Keep Skin Apart, Fold-Over Prevention)
 SETTINGS = {
@@ -103,6 +121,10 @@ class TestModelledHuman(unittest.TestCase):
             if case[1] in FOLDED_POSES:
                 self.assertGreater(plain["crossings"], 100, "%s: the pose folds skin through skin" % label)
                 self.assertLessEqual(got["crossings"], plain["crossings"] / 2, label)
+            not_met = FOLD_OVER_NOT_MET.get(case[:2], ())
+            self.assertEqual(quality.surface_faults(got, edges, roughness=case[1] not in FOLD_OVER_PRESSES,
+                                                    shard="shard" not in not_met, creases="creases" not in not_met),
+                             [], label)
         elif case not in SURFACE_NOT_MET:
             self.assertEqual(quality.surface_faults(got, edges), [], label)
 

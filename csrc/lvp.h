@@ -268,7 +268,9 @@
  *   move counts with none): each triangle a neighbour shares with the vertex weighs it 1 + the
  *   cotangent of its angle opposite their edge (0 past a right angle), so that the corners of a long
  *   thin triangle (decimated and game meshes) stay near the line between them instead of tilting
- *   it into a crease. Vertices so tied that they move as one point (the ends of the very short edges
+ *   it into a crease; every third pass, counted back from the last, weighs them equally, which
+ *   carries a bulge along quads much longer than wide (a limb of a body modelled as a box and
+ *   subdivided), where the cotangents tie each vertex to its ring. Vertices so tied that they move as one point (the ends of the very short edges
  *   that metaballs and marching cubes leave: a cluster giving more than half of its weight to one
  *   neighbouring cluster is joined with it, at bind) are averaged as one, over the cluster's
  *   neighbours outside it, so they follow their ring at the pace of any vertex. The volume the passes took is then restored along the smoothed offsets

@@ -17,6 +17,18 @@
  * diagonals the cotangents alone would leave out. Vertices so tied that they move as one point are
  * then averaged as one (smoothing_ties.c).
  *
+ * Every third pass, counted back from the last, weighs the neighbours equally instead. On quads
+ * several times longer along a limb than around it (a body modelled as a box and subdivided) the
+ * cotangents tie each vertex to its ring around the limb and leave its neighbours along the limb a
+ * small share, so a bulge the map puts on one ring of a joint stayed a ridge one ring wide whatever
+ * the passes (the roughness QUALITY.md reads, against the plain mean of the neighbours): equal
+ * weights carry it along the limb. The two passes of the mesh's weights after each tie again what
+ * the equal weights pulled apart: a pass whose cotangent across a short edge is in the tens shrinks
+ * the difference between its ends to a few hundredths. Every other pass equal left more creases at
+ * Fold-Over's presses on the coarse modelled human, every pass equal four times as many at its
+ * knees, and the cotangents capped at 2 or 4 dozens more at the needles of metaball bodies
+ * (BENCHMARKS.md).
+ *
  * Fold-over's relaxation of pressed skin (foldover.c, lvp__relax_pressed) averages with the same weights
  * but ties more (binding.relaxation): which neighbour dominates a vertex is decided there on mean value
  * weights (lvp__mean_value_share), which grow as an edge shortens, so the ends of any edge much shorter than
@@ -33,6 +45,10 @@
 
 #include <stdlib.h>
 #include <string.h>
+
+/* A frame's smoothing weighs the neighbours equally on every this many passes, counted back from its last
+ * (which weighs them as the mesh does): see the top of this file. */
+#define LVP__EQUAL_PASS_EVERY 3
 
 /* The weight a triangle gives neighbour j of vertex k (both its corners) at rest in the offsets'
  * smoothing: 1 + the cotangent of its third corner's angle, that part 0 where the angle is right or
@@ -178,6 +194,7 @@ typedef struct lvp__smoothing_pass {
 	const float *positions; /* the frame's input points */
 	const float *from;      /* the offsets a pass reads */
 	float *to;              /* and writes */
+	bool equal_weights;     /* this pass weighs every neighbour alike (LVP__EQUAL_PASS_EVERY) */
 } lvp__smoothing_pass;
 
 /* step.smoothing_offsets of the dynamic vertices in [begin, end): where the steps put them, less
@@ -195,8 +212,9 @@ static void lvp__take_offsets_range(void *context, int32_t begin, int32_t end)
 }
 
 /* One pass over the vertices that can move in [begin, end) of smoothing.movable, from the offsets
- * `from` into `to`: each takes half its own and half the weighted mean of its neighbours'. Each
- * reads `from` only and writes its own entry of `to`, so the result does not depend on threads. */
+ * `from` into `to`: each takes half its own and half the weighted mean of its neighbours' (or their plain
+ * mean, equal_weights). Each reads `from` only and writes its own entry of `to`, so the result does not
+ * depend on threads. */
 static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 {
 	const lvp__smoothing_pass *pass = context;
@@ -216,11 +234,12 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 			continue;
 		}
 		float x = 0.5f * own[0], y = 0.5f * own[1], z = 0.5f * own[2];
+		float equal_half = 0.5f / (float)(smoothing->offsets[k + 1] - smoothing->offsets[k]);
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
 			int32_t j = smoothing->neighbours[e];
 			if (!dynamic[j])
 				continue;
-			float half = smoothing->halves[e];
+			float half = pass->equal_weights ? equal_half : smoothing->halves[e];
 			x += half * from[3 * j];
 			y += half * from[3 * j + 1];
 			z += half * from[3 * j + 2];
@@ -250,7 +269,7 @@ static void lvp__put_offsets(void *context, int32_t begin, int32_t end)
 void lvp__take_offsets(lvp_binding *binding, const float *positions)
 {
 	int32_t count = binding->dynamic.vertex_count;
-	lvp__smoothing_pass pass = {binding, &binding->smoothing, positions, NULL, NULL};
+	lvp__smoothing_pass pass = {binding, &binding->smoothing, positions, NULL, NULL, false};
 	lvp__parallel_for(LVP__POOL_FOR(binding, count), lvp__take_offsets_range, &pass, count, LVP__GRAIN);
 }
 
@@ -366,10 +385,13 @@ void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t p
 	int32_t count = binding->dynamic.vertex_count;
 	lvp__smoothing *smoothing = whatever_the_map ? &binding->relaxation : &binding->smoothing;
 	lvp__smoothing_pass pass = {binding, smoothing, positions, binding->step.smoothing_offsets,
-	                            binding->step.smoothing_scratch};
+	                            binding->step.smoothing_scratch, false};
 	lvp__take_offsets(binding, positions);
 	int32_t movable = lvp__list_movable(binding, smoothing, pass.from, pass.to, whatever_the_map);
 	for (int32_t i = 0; i < passes; ++i) {
+		/* Fold-over's relaxation keeps its own weights throughout: its ties are what it is for. */
+		int32_t from_last = passes - 1 - i;
+		pass.equal_weights = !whatever_the_map && from_last % LVP__EQUAL_PASS_EVERY == LVP__EQUAL_PASS_EVERY - 1;
 		lvp__parallel_for(LVP__POOL_FOR(binding, movable), lvp__smooth_range, &pass, movable, LVP__GRAIN);
 		float *read = pass.to;
 		pass.to = (float *)pass.from;

@@ -36,29 +36,23 @@ BODIES = {
 # Poses where Fold-Over must part at least half of plain skinning's crossing pairs (issue 46).
 FOLDED_POSES = ("knees at 150 degrees", "elbows at 140 degrees")
 # (body, pose, settings) whose roughness, shards or creases are not held to the measures yet, measured on 3.4, 4.3
-# and 5.2 (the same measures on each): without Keep Skin Apart, where the correction is small and bends over quads
-# several times longer than wide, the knees at 150 degrees (the calf behind the knee) and the finer body's elbows at
-# 140 (behind the upper arm), largest offsets of a quarter to three quarters of an edge, roughness 0.28-0.49 of them
-# (BENCHMARKS.md).
+# and 5.2 (the same measures on each): without Keep Skin Apart, the finer body's knees at 150 degrees, where the
+# correction is small and bends over quads several times longer than wide: the calf's crease behind the knee (vertex
+# 2189) moves 0.44 of a mean edge between rows at 0.20 and 0.33, a quad length either side, roughness 0.34 of it.
 SURFACE_NOT_MET = {
     ("subdivided twice", "knees at 150 degrees", "apart off"),
-    ("subdivided twice", "elbows at 140 degrees", "apart off"),
-    ("subdivided once (coarse)", "knees at 150 degrees", "apart off"),
 }
 # Poses where Fold-Over presses skin that plain skinning passed through skin onto a contact plane, whose roughness
 # with it is not held: the two sides of the crease, one quad (2.4-2.8 mean edges along the limb) apart, are pressed
 # in opposite directions. A vertex whose side of the crease moves by o and whose k of n neighbours across it move by
-# t reads roughness k |o - t| / n, whatever parts the crossing: on the finer body's knees vertex 3393 (the calf's
+# t reads roughness k |o - t| / n, whatever parts the crossing: on the finer body's knees vertex 2189 (the calf's
 # crease, 2 of its 6 neighbours on the thigh) moves 1.79 mean edges one way and the thigh's two 1.72 and 1.84 the
-# other, 1.44 against the largest offset's 1.86 (0.78; the calf's row below moves less). The shard (the height
-# over the neighbours' surface) is held at these poses too, but on FOLD_OVER_NOT_MET.
+# other, 1.46 against the largest offset's 1.86 (0.78; the calf's row below moves less). The shard (the height
+# over the neighbours' surface) is held at these poses too.
 FOLD_OVER_PRESSES = ("knees at 150 degrees", "crouching", "elbows at 140 degrees", "arms down, elbows at 120 degrees")
-# (body, pose): the measures with Fold-Over not held there yet (Blender 3.4, 4.3, 5.2). The finer body's knees: a
-# shard of 0.2503 of the largest offset on the front of the knee, where the volume goes back over the kneecap on one
-# row of quads (vertex 2172, 1.81 mean edges, between rows at 1.32-1.37 and 1.10-1.14, a quad length either side).
-# The coarse body's elbows at 140 degrees: 12 creases where 11 are allowed, the inside of the elbow one quad wide.
+# (body, pose): the measures with Fold-Over not held there yet (Blender 3.4, 4.3, 5.2): the coarse body's elbows at 140
+# degrees, 18 creases where 11 are allowed, the inside of the elbow one quad wide.
 FOLD_OVER_NOT_MET = {
-    ("subdivided twice", "knees at 150 degrees"): ("shard",),
     ("subdivided once (coarse)", "elbows at 140 degrees"): ("creases",),
 }
 # label: (Keep Skin Apart, Fold-Over Prevention)

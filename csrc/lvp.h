@@ -270,11 +270,12 @@
  *   thin triangle (decimated and game meshes) stay near the line between them instead of tilting
  *   it into a crease; every third pass, counted back from the last, weighs them equally, which
  *   carries a bulge along quads much longer than wide (a limb of a body modelled as a box and
- *   subdivided), where the cotangents tie each vertex to its ring. Vertices so tied that they move as one point (the ends of the very short edges
- *   that metaballs and marching cubes leave: a cluster giving more than half of its weight to one
- *   neighbouring cluster is joined with it, at bind) are averaged as one, over the cluster's
- *   neighbours outside it, so they follow their ring at the pace of any vertex. The volume the passes took is then restored along the smoothed offsets
- *   themselves, each part's growing by one factor (what they cannot restore goes through the map),
+ *   subdivided), where the cotangents tie each vertex to its ring. Vertices so tied that they move
+ *   as one point (the ends of the very short edges that metaballs and marching cubes leave: a
+ *   cluster giving more than half of its weight to one neighbouring cluster is joined with it, at
+ *   bind) are averaged as one, over the cluster's neighbours outside it, so they follow their ring
+ *   at the pace of any vertex. The volume the passes took is then restored along the smoothed
+ *   offsets themselves, each part's growing by one factor (what they cannot restore goes through the map),
  *   so the shape the passes gave is kept: more passes, smoother offsets. The passes move only what
  *   the map moves, so where the moving skin ends (the weight of a bone that moves runs out) the
  *   offsets would rise from nothing to their neighbours' within one edge; after the passes, the

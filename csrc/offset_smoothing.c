@@ -234,7 +234,8 @@ static void lvp__smooth_range(void *context, int32_t begin, int32_t end)
 			continue;
 		}
 		float x = 0.5f * own[0], y = 0.5f * own[1], z = 0.5f * own[2];
-		float equal_half = 0.5f / (float)(smoothing->offsets[k + 1] - smoothing->offsets[k]);
+		float equal_half =
+		    pass->equal_weights ? 0.5f / (float)(smoothing->offsets[k + 1] - smoothing->offsets[k]) : 0.0f;
 		for (int32_t e = smoothing->offsets[k]; e < smoothing->offsets[k + 1]; ++e) {
 			int32_t j = smoothing->neighbours[e];
 			if (!dynamic[j])

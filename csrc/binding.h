@@ -923,12 +923,23 @@ lvp_result lvp__tie_smoothing(lvp_binding *binding, lvp__smoothing *smoothing, c
  * them one by one (the volume steps through the map) moves them as one point again. A member the map
  * left static is made dynamic when the mean moves it. */
 void lvp__move_ties_as_one(lvp_binding *binding, const float *positions);
+/* What lvp__smooth_offsets averages by, and which vertices move. */
+typedef enum lvp__smoothing_kind {
+	/* A frame's offsets: the mesh's weights, every third pass equal (offset_smoothing.c); the
+	 * vertices that can move, the moving skin's rim feathered after the passes. */
+	LVP__SMOOTH_FRAME,
+	/* As LVP__SMOOTH_FRAME but the mesh's weights on every pass: beside fold-over's contacts, where
+	 * equal passes left creases along the contact line and skin crossing again. */
+	LVP__SMOOTH_BY_THE_MESH,
+	/* Fold-over's relaxation (lvp__relax_pressed): binding.relaxation's weights and lists, every
+	 * dynamic vertex that fold-over does not hold moving, its map zero or not; no feathering. */
+	LVP__SMOOTH_RELAXATION,
+} lvp__smoothing_kind;
 /* `passes` passes of smoothing over the offsets of the vertices that can move (step.positions
  * against `positions`, the input points): each takes half its own offset and half the mean of its
- * neighbours'; with whatever_the_map, every dynamic vertex that fold-over does not hold moves, its map
- * zero or not, over binding.relaxation's lists (fold-over's relaxation, lvp__relax_pressed). The volume
- * is not restored here; step.smoothing_offsets is left holding the smoothed offsets. */
-void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map);
+ * neighbours', weighed as `kind` says. The volume is not restored here; step.smoothing_offsets is left
+ * holding the smoothed offsets. */
+void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, lvp__smoothing_kind kind);
 /* step.smoothing_offsets of the dynamic vertices: their offsets as they are (step.positions less
  * positions), for steps along them (lvp__restore_smoothed) without smoothing. */
 void lvp__take_offsets(lvp_binding *binding, const float *positions);

@@ -1023,7 +1023,7 @@ static int32_t lvp__restore_fade_smoothed(lvp_binding *binding, const lvp_frame_
 	lvp__movable_regions(binding);
 	lvp__measure_positions(binding, rest_positions, totals);
 	if (options->smoothing_passes > 0) {
-		lvp__smooth_offsets(binding, positions, options->smoothing_passes, false);
+		lvp__smooth_offsets(binding, positions, options->smoothing_passes, LVP__SMOOTH_FRAME);
 		lvp__measure_sums(binding, rest_positions, totals);
 	} else {
 		lvp__take_offsets(binding, positions);
@@ -1162,7 +1162,7 @@ static int32_t lvp__restore_relaxed(lvp_binding *binding, const lvp_frame_option
 	float *relaxed = binding->fold.saved;
 	memcpy(relaxed, binding->step.positions, sizeof(float) * 3 * (size_t)binding->vertex_count);
 	int32_t steps = lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
-	lvp__smooth_offsets(binding, relaxed, options->smoothing_passes, false);
+	lvp__smooth_offsets(binding, relaxed, options->smoothing_passes, LVP__SMOOTH_FRAME);
 	lvp__measure_sums(binding, rest_positions, totals);
 	return steps + lvp__restore_smoothed(binding, options, rest_positions, totals);
 }
@@ -1205,15 +1205,17 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 	if (relaxed) {
 		/* The volume the relaxation took comes back through the map, where it peaks beside the
 		 * contacts: those peaks are smoothed over the relaxation's rings (the held skin keeping its
-		 * place), the volume restored along the smoothed offsets, and what that
-		 * carries across a plane pressed back. That press is relaxed as the rounds' are: left as it
+		 * place; by the mesh's weights alone: an equal pass, which weighs a neighbour a long quad
+		 * away as much as one beside, left creases along the contact line and skin crossing again),
+		 * the volume restored along the smoothed offsets, and what that carries across a plane
+		 * pressed back. That press is relaxed as the rounds' are: left as it
 		 * was, the rim it put on the plane met the free skin beside it at an angle, creases along the
 		 * contact line (the flanks of a thigh that its calf presses, the sides of a finger at the
 		 * fist). The volume that relaxation takes comes back through the map once more, where the
 		 * contacts faded it, so little crosses again, that step smoothed (lvp__restore_relaxed), and
 		 * what crosses is pressed back. */
 		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
-		lvp__smooth_offsets(binding, positions, relax_passes, false);
+		lvp__smooth_offsets(binding, positions, relax_passes, LVP__SMOOTH_BY_THE_MESH);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 		stats->folded_vertices += lvp__fold_over(binding, rest_positions);
@@ -1260,7 +1262,7 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		/* Offsets along normals that turn fast (folds) open creases, and a coarse mesh's map changes
 		 * much from one vertex to the next: smoothed, then the volume the smoothing took restored
 		 * along the smoothed offsets (lvp__restore_smoothed). */
-		lvp__smooth_offsets(binding, positions, options->smoothing_passes, false);
+		lvp__smooth_offsets(binding, positions, options->smoothing_passes, LVP__SMOOTH_FRAME);
 		lvp__measure_sums(binding, rest_positions, totals);
 		stats->iterations += lvp__restore_smoothed(binding, options, rest_positions, totals);
 	}

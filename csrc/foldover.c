@@ -535,7 +535,7 @@ bool lvp__relax_pressed(lvp_binding *binding, const float *positions, const floa
 		for (int32_t z = 0; z < count; ++z)
 			held[zone[z]] = 0;
 		lvp__list_pressed_dynamic(binding, rest_positions, totals);
-		lvp__smooth_offsets(binding, positions, 1, true);
+		lvp__smooth_offsets(binding, positions, 1, LVP__SMOOTH_RELAXATION);
 		/* Pressed back at the joints it was pressed at: a plane where no skin crossed yet is the
 		 * next contact test's (the rounds', and the one after the last volume step). Pressed softly
 		 * again each pass, skin that stays within the soft band goes a little deeper each time,

@@ -217,9 +217,10 @@
  *   as the correction before it is undone and ends them (the frame keeps its contacts, a little
  *   volume missing); the volume the relaxation took is restored after them, through the map and
  *   then along the offsets smoothed once more (so that it does not rise where the map peaks beside
- *   a contact), what that carries across pressed back and relaxed in turn, and what that takes
- *   restored through the map once more, that step smoothed and the volume this takes restored
- *   along it (what it carries across pressed back). Last, vertices the
+ *   a contact; by the mesh's weights on every pass, as OFFSET SMOOTHING's equal passes left creases
+ *   along the contact line there and skin crossing again), what that carries across pressed back and
+ *   relaxed in turn, and what that takes restored through the map once more, that step smoothed and
+ *   the volume this takes restored along it (what it carries across pressed back). Last, vertices the
  *   smoothing ties into one point (OFFSET SMOOTHING), which the steps moved one by one, take their
  *   mean offset, the volume that takes is restored through the map, and they take their mean again;
  *   a cluster with a member held on a contact plane keeps the places the press gave it. The ends of a

@@ -381,18 +381,21 @@ void lvp__feather_rim_again(lvp_binding *binding, const float *positions)
 	}
 }
 
-void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, bool whatever_the_map)
+void lvp__smooth_offsets(lvp_binding *binding, const float *positions, int32_t passes, lvp__smoothing_kind kind)
 {
 	int32_t count = binding->dynamic.vertex_count;
+	bool whatever_the_map = kind == LVP__SMOOTH_RELAXATION;
 	lvp__smoothing *smoothing = whatever_the_map ? &binding->relaxation : &binding->smoothing;
 	lvp__smoothing_pass pass = {binding, smoothing, positions, binding->step.smoothing_offsets,
 	                            binding->step.smoothing_scratch, false};
 	lvp__take_offsets(binding, positions);
 	int32_t movable = lvp__list_movable(binding, smoothing, pass.from, pass.to, whatever_the_map);
 	for (int32_t i = 0; i < passes; ++i) {
-		/* Fold-over's relaxation keeps its own weights throughout: its ties are what it is for. */
+		/* Fold-over's relaxation keeps its own weights throughout: its ties are what it is for. So
+		 * do the peaks beside its contacts (LVP__SMOOTH_BY_THE_MESH). */
 		int32_t from_last = passes - 1 - i;
-		pass.equal_weights = !whatever_the_map && from_last % LVP__EQUAL_PASS_EVERY == LVP__EQUAL_PASS_EVERY - 1;
+		pass.equal_weights =
+		    kind == LVP__SMOOTH_FRAME && from_last % LVP__EQUAL_PASS_EVERY == LVP__EQUAL_PASS_EVERY - 1;
 		lvp__parallel_for(LVP__POOL_FOR(binding, movable), lvp__smooth_range, &pass, movable, LVP__GRAIN);
 		float *read = pass.to;
 		pass.to = (float *)pass.from;

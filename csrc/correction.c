@@ -1208,12 +1208,12 @@ static void lvp__prevent_fold_over(lvp_binding *binding, const lvp_frame_options
 		 * place; by the mesh's weights alone: an equal pass, which weighs a neighbour a long quad
 		 * away as much as one beside, left creases along the contact line and skin crossing again),
 		 * the volume restored along the smoothed offsets, and what that carries across a plane
-		 * pressed back. That press is relaxed as the rounds' are: left as it
-		 * was, the rim it put on the plane met the free skin beside it at an angle, creases along the
-		 * contact line (the flanks of a thigh that its calf presses, the sides of a finger at the
-		 * fist). The volume that relaxation takes comes back through the map once more, where the
-		 * contacts faded it, so little crosses again, that step smoothed (lvp__restore_relaxed), and
-		 * what crosses is pressed back. */
+		 * pressed back. That press is relaxed as the rounds' are: left as it was, the rim it put on
+		 * the plane met the free skin beside it at an angle, creases along the contact line (the
+		 * flanks of a thigh that its calf presses, the sides of a finger at the fist). The volume
+		 * that relaxation takes comes back through the map once more, where the contacts faded it,
+		 * so little crosses again, that step smoothed (lvp__restore_relaxed), and what crosses is
+		 * pressed back. */
 		stats->iterations += lvp__volume_step_at_contacts(binding, options, rest_positions, totals);
 		lvp__smooth_offsets(binding, positions, relax_passes, LVP__SMOOTH_BY_THE_MESH);
 		lvp__measure_sums(binding, rest_positions, totals);

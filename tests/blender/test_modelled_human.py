@@ -51,9 +51,9 @@ SURFACE_NOT_MET = {
 # over the neighbours' surface) is held at these poses too.
 FOLD_OVER_PRESSES = ("knees at 150 degrees", "crouching", "elbows at 140 degrees", "arms down, elbows at 120 degrees")
 # (body, pose): the measures with Fold-Over not held there yet (Blender 3.4, 4.3, 5.2): the coarse body's elbows at 140
-# degrees, 12 creases where 11 are allowed, where the hand presses the shoulder and the forearm the chest; crouching,
-# two pairs of triangles meet behind each knee (a thigh's against a calf's) more than a triangle from where plain
-# skinning passes the calf through the thigh.
+# degrees, 12 creases where 11 are allowed, six a side, on the forearm and on the chest beside the armpit; crouching,
+# one pair of triangles behind each knee (one at the crease against one of the calf) meets more than a triangle from
+# where plain skinning passes the calf through the thigh.
 FOLD_OVER_NOT_MET = {
     ("subdivided once (coarse)", "elbows at 140 degrees"): ("creases",),
     ("subdivided once (coarse)", "crouching"): ("new contacts",),

@@ -389,6 +389,9 @@ typedef struct lvp__contact {
 	                              triangles were last tested (the pairs tested have a triangle with such a
 	                              corner; contact.c) */
 	float *tested_scale;       /* per vertex: its scale when its triangles were last tested */
+	float *asked;              /* per vertex, this check: the least share its pairs asked for, never
+	                              smoothed (1: none) */
+	float *asked_smoothed;     /* per vertex, a test after the rounds: `asked` smoothed (lvp__smooth_shares) */
 	uint8_t *moved_nodes;      /* per node of the hierarchy: some triangle under it is tested, or (a later
 	                              round) has a corner that moved since it was (contact.c, lvp__mark_nodes) */
 	int32_t *leaf_of;          /* per triangle: the leaf of the hierarchy that holds it (-1: none, no area) */

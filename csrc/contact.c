@@ -493,6 +493,8 @@ lvp_result lvp__contact_begin(lvp_binding *binding, lvp_diagnostic *r_diag)
 	contact->changed = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->settled = lvp__calloc((size_t)binding->vertex_count * 3, sizeof(float), &ok);
 	contact->tested_scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->asked = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
+	contact->asked_smoothed = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
 	contact->shortened = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->pinned = lvp__calloc((size_t)binding->vertex_count, 1, &ok);
 	contact->scale = lvp__calloc((size_t)binding->vertex_count, sizeof(float), &ok);
@@ -630,6 +632,7 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 				if (pinned[k])
 					continue;
 				next[k] = fminf(next[k], keep * scale[k]);
+				contact->asked[k] = fminf(contact->asked[k], next[k]);
 				contact->moved[k] = 1;
 				any = true;
 			}
@@ -991,7 +994,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 	 * static, and what an earlier frame left of them shortened this one (a frame played to differed
 	 * from the same frame opened at). */
 	for (int32_t k = 0; k < n; ++k)
-		scale[k] = next[k] = 1.0f;
+		scale[k] = next[k] = contact->asked[k] = 1.0f;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
@@ -1002,14 +1005,21 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
 	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices
 	 * held back from their neighbours' surface. Shortening one side of a pair more than the other can
-	 * make it cross, so the smoothed patch is tested again, and what that shortens smoothed in turn. */
+	 * make it cross, so the smoothed patch is tested again, and what that shortens smoothed in turn.
+	 * Each test smooths the shares its pairs asked for (contact.asked), not the smoothed ones again:
+	 * smoothing a dip's rim once more widens it by the rings a smoothing reaches, so that the skin
+	 * shortened grew with every test. */
 	bool shortening = lvp__shorten_rounds(binding, &pass, corrected, true);
 	for (int retest = 0; shortening && retest < LVP__CONTACT_RETESTS; ++retest) {
 		/* The corners the rounds moved and did not test (their last round shortened), and the shares
 		 * the others were tested at. */
 		memcpy(contact->changed, contact->moved, (size_t)n);
 		memcpy(contact->tested_scale, scale, sizeof(float) * (size_t)n);
-		lvp__smooth_shares(binding, scale, next, pinned, true); /* pinned: LVP__SHARE_KEPT (1) or not (0) */
+		float *smoothed = contact->asked_smoothed;
+		memcpy(smoothed, contact->asked, sizeof(float) * (size_t)n);
+		lvp__smooth_shares(binding, smoothed, next, pinned, true); /* pinned: LVP__SHARE_KEPT (1) or not (0) */
+		for (int32_t k = 0; k < n; ++k)
+			scale[k] = fminf(scale[k], smoothed[k]);
 		memcpy(next, scale, sizeof(float) * (size_t)n);
 		lvp__place_shortened(binding, positions, corrected);
 		bool raised = lvp__raise_pinned_crossing(binding, &pass);
@@ -1088,6 +1098,8 @@ void lvp__contact_free(lvp__contact *contact)
 	free(contact->changed);
 	free(contact->settled);
 	free(contact->tested_scale);
+	free(contact->asked);
+	free(contact->asked_smoothed);
 	free(contact->shortened);
 	free(contact->pinned);
 	free(contact->raise_patch);

@@ -321,7 +321,8 @@
  *   offsets of its corners are shortened to the square of the share of them at which the pair stops
  *   crossing (bisection), over a few rounds, the last of which takes the offsets of a pair still
  *   crossing away; those shares are smoothed the same way but
- *   without raising any (a vertex held back would rise back into the crossing) and tested again, and
+ *   without raising any (a vertex held back would rise back into the crossing) and tested again (each
+ *   test smoothing the shares its pairs asked for, not the smoothed ones once more), and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
  *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain skinning
  *   already passes skin through skin (a fist's creases), offsets of a hundredth of an edge move that
@@ -391,7 +392,7 @@
  *   the weights, and the region system's at most 65,536 cells, see PERFORMANCE) and
  *   is used by one thread at a time; two bindings can be used from two threads at once.
  *   lvp_correct() never allocates, except at the first frame with keep_apart (CONTACT: its
- *   hierarchy and the sheets its searches cull by, about 260 bytes a triangle, and 70 bytes a
+ *   hierarchy and the sheets its searches cull by, about 260 bytes a triangle, and 78 bytes a
  *   vertex) and at the first with fold_over (FOLD-OVER: its relaxation's neighbour lists and plate,
  *   about 320 bytes a vertex);
  *   lvp_error_out_of_memory when that fails. With options.thread_count > 1 a binding keeps that many

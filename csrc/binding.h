@@ -433,9 +433,10 @@ typedef struct lvp__contact {
 	                              were smoothed around), at some fade (lvp__kept_apart_counts) */
 	int32_t *reader_offsets;   /* vertex_count + 1 into readers: */
 	int32_t *readers;          /* the vertices whose smoothing neighbours hold each vertex (clearance.c) */
-	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks, or a raise's
-	                              walk over its patches */
-	uint8_t *near_seen;        /* scratch, vertex_count: listed in near this smoothing */
+	int32_t *near;             /* scratch, vertex_count: the vertices a smoothing of shares walks, a raise's
+	                              walk over its patches, or a first round's over its contacts */
+	uint8_t *near_seen;        /* scratch, vertex_count: listed in near this smoothing (or the kind of
+	                              contact a vertex is a corner of, contact.c) */
 	uint8_t *connected;        /* per node of the hierarchy: its triangles are one patch (flat_patches.c) */
 	float *cones;              /* per node: the cone of its triangles' normals at the last fit */
 	uint8_t *flat;             /* per node: connected, and its cone under 90 degrees: none of its

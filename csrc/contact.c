@@ -10,15 +10,15 @@
  *
  * Where the skinning itself passes skin through skin (a fist's creases), offsets of a hundredth of an
  * edge move that intersection by a fraction of a triangle, and which pairs it passes through changes:
- * a pair crossing anew there is no new contact. When every pair a first round finds crossing anew is
- * such a pair (some triangle around one of the two crosses some triangle around the other in the
- * skinning) and the moved skin crosses no more pairs than the skinning does, nothing is shortened:
- * chasing those pairs one by one shortened a fifth of a hand at the fist and still ended with more
- * pairs than the skinning (BENCHMARKS.md).
+ * a pair crossing anew there is no new contact. In each contact of a first round (the triangles that
+ * took part in it, joined by shared corners) whose pairs crossing anew are all such pairs (some
+ * triangle around one of the two crosses some triangle around the other in the skinning), those pairs
+ * are left when over all such contacts the moved skin crosses no more pairs than the skinning does:
+ * chasing them one by one shortened a fifth of a hand at the fist and still ended with more pairs than
+ * the skinning (BENCHMARKS.md). A new contact elsewhere (the other knee) does not change that.
  */
 #include "binding.h"
 
-#include <stdatomic.h>
 #include <stdlib.h>
 
 /* Rounds of shortening at most, the last of which takes the offsets of pairs still crossing away. */
@@ -115,10 +115,6 @@ static int lvp__triangles_cross(const lvp__vec3 *x, const lvp__vec3 *y)
 typedef struct lvp__contact_pass {
 	lvp_binding *binding;
 	const float *positions; /* the frame's input points (the skinning) */
-	/* A first round: some pair found crossing anew is a new contact, not the skinning's own crossing
-	 * moved. Then every pair is kept apart whatever it is, and the rest of the round asks no more
-	 * which (which pairs a thread has seen when it reads this changes nothing that is kept). */
-	atomic_bool *new_contact;
 	/* A later round: per vertex, moved since its triangles were last tested (lvp__visit_later_pair). */
 	const uint8_t *changed;
 } lvp__contact_pass;
@@ -271,13 +267,10 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	 * leaves touching is kept as it is. Unsure both before and after is skinning's own: two triangles
 	 * in one plane (a flat face, a flat strip bent in its plane), where the signs cannot tell and the
 	 * surface measures see no crossing. */
-	/* The pairs crossing skinned are counted for a first round that finds no new contact (lvp__crosses_no_more):
-	 * once one is found, the count is not asked. */
+	/* A first round counts the pairs crossing skinned too (lvp__leave_skinned_crossings). */
 	int after = lvp__triangles_cross(search->moved, moved);
 	if (after == LVP__APART) {
-		search->crossed_skinned = search->first_round &&
-		                          !atomic_load_explicit(search->pass->new_contact, memory_order_relaxed) &&
-		                          lvp__triangles_cross(search->skinned, skinned) == LVP__CROSS;
+		search->crossed_skinned = search->first_round && lvp__triangles_cross(search->skinned, skinned) == LVP__CROSS;
 		return false;
 	}
 	search->crossing = true;
@@ -301,15 +294,10 @@ static bool lvp__visit_candidate(void *context, const lvp__bvh_triangle *other)
 	if (any_pinned && lvp__triangles_cross(x_floor, y_floor) != LVP__APART)
 		return false;
 	float share = lvp__share_apart(search->moved, x_floor, moved, y_floor);
-	atomic_bool *new_contact = search->pass->new_contact;
-	if (search->first_round && !atomic_load_explicit(new_contact, memory_order_relaxed) &&
-	    lvp__along_skinned_crossing(search->pass, search->corners, other->vertices)) {
+	if (search->first_round && lvp__along_skinned_crossing(search->pass, search->corners, other->vertices))
 		search->shifted_limit = fminf(search->shifted_limit, share);
-	} else {
+	else
 		search->limit = fminf(search->limit, share);
-		if (search->first_round)
-			atomic_store_explicit(new_contact, true, memory_order_relaxed);
-	}
 	return false;
 }
 
@@ -538,19 +526,84 @@ static void lvp__place_shortened(lvp_binding *binding, const float *positions, c
 	}
 }
 
-/* Whether a first round's pairs crossing after the correction (contact.pair_count) are no more than those
- * of the same pairs crossing in the skinning (contact.skinned_pair_count): every pair crossing after with
- * a moved triangle is visited there, not every pair crossing in the skinning (its boxes after the
- * correction may part), so the skinning's count is at most its own. */
-static bool lvp__crosses_no_more(const lvp_binding *binding)
+/* Whether triangle t took part in the first round: it crosses after the correction, or crossed in the
+ * skinning a triangle it was tested against. */
+static inline bool lvp__in_first_round_contact(const lvp__contact *contact, int32_t t)
 {
-	const lvp__contact *contact = &binding->contact;
+	return contact->limit[t] < 1.0f || contact->shifted_limit[t] < 1.0f || contact->pair_count[t] > 0 ||
+	       contact->skinned_pair_count[t] > 0;
+}
+
+/* After a first round: the pairs crossing anew that are the skinning's own crossing moved
+ * (shifted_limit) are left in every contact that has no other (a contact: the triangles that took part
+ * in the round, joined by shared corners; a knee's crease, a fingertip on the palm), when over those
+ * contacts the moved skin crosses no more pairs than the skinning does. The skinning's count is over
+ * the pairs visited: every pair crossing after with a moved triangle is visited, not every pair
+ * crossing in the skinning (its boxes after the correction may part), so it is at most its own. The
+ * count is summed over the contacts, not held by each: moving an intersection changes which pairs it
+ * passes through, one or two more at one crease and fewer at the next. A new contact at one knee
+ * leaves the other knee's crease as it is, where fold-over parted it. */
+static void lvp__leave_skinned_crossings(lvp_binding *binding)
+{
+	lvp__contact *contact = &binding->contact;
+	const lvp__mesh *mesh = &binding->mesh;
+	/* Per vertex, the kind of contact it is a corner of, and a contact's corners (scratch of the
+	 * smoothing of shares, which does not run during a round). */
+	enum { LVP__NO_CONTACT, LVP__NEW_CONTACT, LVP__SKINNED_CONTACT };
+	uint8_t *contact_of = contact->near_seen;
+	int32_t *queue = contact->near;
+	bool any_shifted = false;
+	for (int32_t t = 0; t < binding->triangle_count && !any_shifted; ++t)
+		any_shifted = contact->shifted_limit[t] < 1.0f;
+	if (!any_shifted)
+		return;
+	memset(contact_of, LVP__NO_CONTACT, (size_t)binding->vertex_count);
 	int64_t after = 0, skinned = 0;
-	for (int32_t t = 0; t < binding->triangle_count; ++t) {
-		after += contact->pair_count[t];
-		skinned += contact->skinned_pair_count[t];
+	any_shifted = false;
+	for (int32_t first = 0; first < binding->triangle_count; ++first) {
+		int32_t seed = mesh->triangles[3 * (int64_t)first];
+		if (contact_of[seed] != LVP__NO_CONTACT || !lvp__in_first_round_contact(contact, first))
+			continue;
+		/* The contact's corners, and its triangles' pairs, each triangle's counted at its first corner. */
+		bool any_new = false, shifted = false;
+		int64_t contact_after = 0, contact_skinned = 0;
+		int32_t head = 0, tail = 0;
+		contact_of[seed] = LVP__SKINNED_CONTACT;
+		queue[tail++] = seed;
+		while (head < tail) {
+			int32_t k = queue[head++];
+			for (int32_t c = mesh->vertex_corner_offsets[k]; c < mesh->vertex_corner_offsets[k + 1]; ++c) {
+				int32_t t = mesh->vertex_triangles[c];
+				if (!lvp__in_first_round_contact(contact, t))
+					continue;
+				const int32_t *corners = mesh->triangles + 3 * (int64_t)t;
+				if (corners[0] == k) {
+					any_new = any_new || contact->limit[t] < 1.0f;
+					shifted = shifted || contact->shifted_limit[t] < 1.0f;
+					contact_after += contact->pair_count[t];
+					contact_skinned += contact->skinned_pair_count[t];
+				}
+				for (int i = 0; i < 3; ++i)
+					if (contact_of[corners[i]] == LVP__NO_CONTACT) {
+						contact_of[corners[i]] = LVP__SKINNED_CONTACT;
+						queue[tail++] = corners[i];
+					}
+			}
+		}
+		if (any_new) {
+			for (int32_t q = 0; q < tail; ++q)
+				contact_of[queue[q]] = LVP__NEW_CONTACT;
+			continue;
+		}
+		any_shifted = any_shifted || shifted;
+		after += contact_after;
+		skinned += contact_skinned;
 	}
-	return after <= skinned;
+	if (!any_shifted || after > skinned)
+		return;
+	for (int32_t t = 0; t < binding->triangle_count; ++t)
+		if (contact_of[mesh->triangles[3 * (int64_t)t]] == LVP__SKINNED_CONTACT)
+			contact->shifted_limit[t] = 1.0f;
 }
 
 /* Rounds of shortening (contact.scale, step.positions placed by it): the first tests every pair of
@@ -574,7 +627,6 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 		else
 			lvp__refit_moved(binding, binding->step.positions);
 		if (round == 0 && every_pair) {
-			atomic_store_explicit(pass->new_contact, false, memory_order_relaxed);
 			for (int32_t t = 0; t < f; ++t) {
 				contact->limit[t] = contact->shifted_limit[t] = 1.0f;
 				contact->pair_count[t] = contact->skinned_pair_count[t] = 0;
@@ -585,17 +637,9 @@ static bool lvp__shorten_rounds(lvp_binding *binding, const lvp__contact_pass *p
 			                      LVP__POOL_FOR(binding, (int64_t)contact->dynamic_node_count * LVP__REFIT_WORK));
 			lvp__bvh_self_overlaps(&contact->bvh, contact->moved_nodes, contact->flat, LVP__POOL_FOR(binding, f),
 			                       lvp__visit_pair, (void *)pass);
-			/* Pairs along the skinning's own crossing are left when they are all there is and the count
-			 * holds (the top of this file); else they are kept apart as any. */
-			bool any_new = false, any_shifted = false;
-			for (int32_t t = 0; t < f; ++t) {
-				any_new = any_new || contact->limit[t] < 1.0f;
-				any_shifted = any_shifted || contact->shifted_limit[t] < 1.0f;
-			}
-			if (any_shifted && !any_new && lvp__crosses_no_more(binding)) {
-				contact->crossed = 0;
-				break;
-			}
+			/* Pairs along the skinning's own crossing are left where they are all a contact has and its
+			 * count holds (the top of this file); else they are kept apart as any. */
+			lvp__leave_skinned_crossings(binding);
 			for (int32_t t = 0; t < f; ++t)
 				contact->limit[t] = fminf(contact->limit[t], contact->shifted_limit[t]);
 		} else {
@@ -767,15 +811,14 @@ static void lvp__pin_held(lvp_binding *binding, const float *positions)
 	/* The held triangles crossing in the skinning, marked in contact.raise_tested (scratch until a raise
 	 * sets it), then those of them that the correction parted. */
 	uint8_t *crossed_skinned = contact->raise_tested;
-	atomic_bool new_contact = false;
 	lvp__refit_dynamic(binding, positions);
-	lvp__contact_pass at_skinning = {binding, positions, &new_contact, NULL};
+	lvp__contact_pass at_skinning = {binding, positions, NULL};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		crossed_skinned[t] = lvp__any_marked(held, corners) && lvp__crosses_at(&at_skinning, corners);
 	}
 	lvp__refit_dynamic(binding, binding->step.positions);
-	lvp__contact_pass at_correction = {binding, binding->step.positions, &new_contact, NULL};
+	lvp__contact_pass at_correction = {binding, binding->step.positions, NULL};
 	for (int32_t t = 0; t < f; ++t) {
 		const int32_t *corners = binding->mesh.triangles + 3 * (int64_t)t;
 		if (!crossed_skinned[t] || lvp__crosses_at(&at_correction, corners))
@@ -999,8 +1042,7 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		int32_t k = dynamic[v];
 		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
 	}
-	atomic_bool new_contact = false;
-	lvp__contact_pass pass = {binding, positions, &new_contact, NULL};
+	lvp__contact_pass pass = {binding, positions, NULL};
 	/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
 	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
 	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices

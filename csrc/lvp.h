@@ -326,11 +326,13 @@
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
  *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain skinning
  *   already passes skin through skin (a fist's creases), offsets of a hundredth of an edge move that
- *   intersection by a fraction of a triangle and change which pairs it passes through: when every pair a
- *   check finds crossing anew lies along the skinning's own crossing (some triangle around one of the two
- *   crosses, in `positions`, some triangle around the other) and the moved skin crosses no more pairs than
- *   the skinning does (counted over the pairs with a moved triangle that the check visits, which holds every
- *   pair crossing after the correction), nothing is shortened. Vertices fold-over put on a contact surface
+ *   intersection by a fraction of a triangle and change which pairs it passes through: in each contact a
+ *   check finds (its triangles joined by shared corners: a knee's crease, a fingertip on the palm) where
+ *   every pair crossing anew lies along the skinning's own crossing (some triangle around one of the two
+ *   crosses, in `positions`, some triangle around the other), those pairs are not shortened when, over all
+ *   such contacts, the moved skin crosses no more pairs than the skinning does (counted over the pairs with
+ *   a moved triangle that the check visits, which holds every pair crossing after the correction); a new
+ *   contact elsewhere does not change that. Vertices fold-over put on a contact surface
  *   keep their place in each patch of them where a skinned triangle crosses skin and no longer does after
  *   the correction (fold-over undid that crossing; moving them back would bring it back), and so do the
  *   gaps of such a patch (free vertices joined by edges, each beside the patch, none beside other free

@@ -541,8 +541,8 @@ static inline bool lvp__in_first_round_contact(const lvp__contact *contact, int3
  * the pairs visited: every pair crossing after with a moved triangle is visited, not every pair
  * crossing in the skinning (its boxes after the correction may part), so it is at most its own. The
  * count is summed over the contacts, not held by each: moving an intersection changes which pairs it
- * passes through, one or two more at one crease and fewer at the next. A new contact at one knee
- * leaves the other knee's crease as it is, where fold-over parted it. */
+ * passes through, one or two more at one crease and fewer at the next. A new contact at one knee no
+ * longer has this check shorten the other knee's crease, where fold-over parted it. */
 static void lvp__leave_skinned_crossings(lvp_binding *binding)
 {
 	lvp__contact *contact = &binding->contact;

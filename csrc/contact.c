@@ -559,13 +559,12 @@ static void lvp__leave_skinned_crossings(lvp_binding *binding)
 		return;
 	memset(contact_of, LVP__NO_CONTACT, (size_t)binding->vertex_count);
 	int64_t after = 0, skinned = 0;
-	any_shifted = false;
 	for (int32_t first = 0; first < binding->triangle_count; ++first) {
 		int32_t seed = mesh->triangles[3 * (int64_t)first];
 		if (contact_of[seed] != LVP__NO_CONTACT || !lvp__in_first_round_contact(contact, first))
 			continue;
 		/* The contact's corners, and its triangles' pairs, each triangle's counted at its first corner. */
-		bool any_new = false, shifted = false;
+		bool any_new = false;
 		int64_t contact_after = 0, contact_skinned = 0;
 		int32_t head = 0, tail = 0;
 		contact_of[seed] = LVP__SKINNED_CONTACT;
@@ -579,7 +578,6 @@ static void lvp__leave_skinned_crossings(lvp_binding *binding)
 				const int32_t *corners = mesh->triangles + 3 * (int64_t)t;
 				if (corners[0] == k) {
 					any_new = any_new || contact->limit[t] < 1.0f;
-					shifted = shifted || contact->shifted_limit[t] < 1.0f;
 					contact_after += contact->pair_count[t];
 					contact_skinned += contact->skinned_pair_count[t];
 				}
@@ -595,11 +593,11 @@ static void lvp__leave_skinned_crossings(lvp_binding *binding)
 				contact_of[queue[q]] = LVP__NEW_CONTACT;
 			continue;
 		}
-		any_shifted = any_shifted || shifted;
 		after += contact_after;
 		skinned += contact_skinned;
 	}
-	if (!any_shifted || after > skinned)
+	/* Where those contacts have no such pair, their shifted shares are 1 already. */
+	if (after > skinned)
 		return;
 	for (int32_t t = 0; t < binding->triangle_count; ++t)
 		if (contact_of[mesh->triangles[3 * (int64_t)t]] == LVP__SKINNED_CONTACT)

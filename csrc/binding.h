@@ -964,9 +964,12 @@ void lvp__contact_fit_skinning(lvp_binding *binding, const float *positions);
  * every pair of triangles that crosses after the correction but not in the input, to what keeps the
  * pair apart, over a few rounds (the last takes them away), smoothed around them; the patches of
  * vertices fold-over holds where the input crosses itself keep theirs (contact.pinned). first: the
- * frame's first call (forgets contact.shortened, finds contact.pinned). Returns how many dynamic
- * vertices it shortened, and sets contact.crossed. Uses fold.saved as scratch. */
-int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first);
+ * frame's first call (forgets contact.shortened, finds contact.pinned). toward_last_check: a later
+ * call after a restore through the map, whose offsets are shortened toward where the call before
+ * left the skin when its rounds ended apart (contact.settled), and its pairs judged against those
+ * positions rather than the input's. Returns how many dynamic vertices it shortened, and sets
+ * contact.crossed. Uses fold.saved as scratch. */
+int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first, bool toward_last_check);
 /* Fades frame_map.gamma by what the last lvp__keep_skin_apart left of each offset (contact.scale):
  * where skin met skin, the next volume step moves it as much less. */
 void lvp__fade_map_where_shortened(lvp_binding *binding);

@@ -1017,7 +1017,7 @@ static void lvp__lower_beside_pinned(lvp_binding *binding)
 	memcpy(contact->next_scale, contact->scale, sizeof(float) * (size_t)binding->vertex_count);
 }
 
-int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first)
+int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool first, bool toward_last_check)
 {
 	lvp__contact *contact = &binding->contact;
 	int32_t n = binding->vertex_count;
@@ -1031,6 +1031,14 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		lvp__pin_held(binding, positions);
 	}
 	contact->crossed = 0;
+	/* Shortened toward where the check before left the skin (when it left it apart), not toward the
+	 * skinning, after a restore through the map (fold-over's): that restore moves skin off the line from
+	 * the skinning through where the check before left it, and growing it into contact there, it had the
+	 * skin shortened back past where that check found it apart, sideways, the volume going on to the next
+	 * skin out to be shortened in turn at the check after (a decimated body's knees at 150 degrees). A
+	 * restore along the offsets keeps each vertex on that line, where the two differ only in how far
+	 * along it each share reaches. */
+	const float *base = toward_last_check && contact->settled_apart ? contact->settled : positions;
 	/* Every vertex, not only the dynamic ones: a crossing's corners and the rim's neighbours may be
 	 * static, and what an earlier frame left of them shortened this one (a frame played to differed
 	 * from the same frame opened at). */
@@ -1038,9 +1046,9 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		scale[k] = next[k] = contact->asked[k] = 1.0f;
 	for (int32_t v = 0; v < dynamic_count; ++v) {
 		int32_t k = dynamic[v];
-		contact->moved[k] = memcmp(corrected + 3 * k, positions + 3 * k, sizeof(float) * 3) != 0;
+		contact->moved[k] = memcmp(corrected + 3 * k, base + 3 * k, sizeof(float) * 3) != 0;
 	}
-	lvp__contact_pass pass = {binding, positions, NULL};
+	lvp__contact_pass pass = {binding, base, NULL};
 	/* The shares smoothed over the same rings whatever the number of rounds, none rising above what
 	 * its pairs allowed (a floor raised crosses again, and would be shortened again vertex by vertex):
 	 * a patch shortened as a dip whose neighbours keep at most the slope more, not single vertices
@@ -1061,11 +1069,11 @@ int32_t lvp__keep_skin_apart(lvp_binding *binding, const float *positions, bool 
 		for (int32_t k = 0; k < n; ++k)
 			scale[k] = fminf(scale[k], smoothed[k]);
 		memcpy(next, scale, sizeof(float) * (size_t)n);
-		lvp__place_shortened(binding, positions, corrected);
+		lvp__place_shortened(binding, base, corrected);
 		bool raised = lvp__raise_pinned_crossing(binding, &pass);
 		if (raised) {
 			lvp__lower_beside_pinned(binding);
-			lvp__place_shortened(binding, positions, corrected);
+			lvp__place_shortened(binding, base, corrected);
 		}
 		/* What the next round tests: the corners shortened, and those raised back (contact.moved); the
 		 * pairs it tests, those with a corner the smoothing or the raising moved (contact.changed). */

@@ -1295,14 +1295,14 @@ static void lvp__correct_attempt(lvp_binding *binding, const lvp_frame_options *
 		 * little as they were shortened; the map, for the steps that fall back to it, faded as much;
 		 * those that fold-over put on a contact surface still held), and that correction is checked
 		 * in turn, until one shortens nothing (a bent tail: twice). */
-		int32_t shortened = lvp__keep_skin_apart(binding, positions, true);
+		int32_t shortened = lvp__keep_skin_apart(binding, positions, true, false);
 		stats->crossing_triangles = binding->contact.crossed;
 		for (int cycle = 0; cycle < LVP__CONTACT_CYCLES && shortened > 0; ++cycle) {
 			lvp__fade_map_where_shortened(binding);
 			stats->iterations += lvp__restore_after_fade(binding, options, positions, rest_positions, totals);
 			if (lvp__still_where_kept_apart(binding))
 				break; /* the restore moved no vertex: the check before left nothing to shorten there */
-			shortened = lvp__keep_skin_apart(binding, positions, false);
+			shortened = lvp__keep_skin_apart(binding, positions, false, options->fold_over);
 		}
 		lvp__kept_apart_counts(binding, !options->fold_over, &stats->shortened_vertices, &stats->kept_apart_vertices);
 		if (stats->shortened_vertices > 0) /* each check leaves the positions it shortened unmeasured */

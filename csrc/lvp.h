@@ -324,7 +324,11 @@
  *   without raising any (a vertex held back would rise back into the crossing) and tested again (each
  *   test smoothing the shares its pairs asked for, not the smoothed ones once more), and
  *   the volume is restored along the offsets again (with fold-over through the map, which its contacts
- *   faded), checked in turn (unless that restore moved no vertex), at most 8 times. Where plain skinning
+ *   faded), checked in turn (unless that restore moved no vertex), at most 8 times; after a restore
+ *   through the map a check shortens toward where the check before left the skin (when its rounds
+ *   ended apart), not toward `positions`, and judges its pairs against those positions: the map moves
+ *   skin off the line its offset lay along, and shortened toward `positions`, skin the check before
+ *   found apart came down past that, its volume sent on into the next contact. Where plain skinning
  *   already passes skin through skin (a fist's creases), offsets of a hundredth of an edge move that
  *   intersection by a fraction of a triangle and change which pairs it passes through: in each contact a
  *   check finds (its triangles joined by shared corners: a knee's crease, a fingertip on the palm) where
